@@ -1,0 +1,57 @@
+# Every third-party dependency is found here, once (Debian 12 packages only;
+# scripts/setup.sh installs them).
+
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+
+# orocos KDL's config sets only orocos_kdl_LIBRARIES: wrap it in a target.
+find_package(orocos_kdl REQUIRED)
+add_library(foresight_kdl INTERFACE)
+target_link_libraries(foresight_kdl INTERFACE ${orocos_kdl_LIBRARIES} Eigen3::Eigen)
+target_include_directories(foresight_kdl SYSTEM INTERFACE ${orocos_kdl_INCLUDE_DIRS})
+
+find_package(urdfdom REQUIRED)
+find_package(yaml-cpp REQUIRED)
+find_package(spdlog REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(nlohmann_json REQUIRED)
+find_package(Threads REQUIRED)
+find_package(GTest REQUIRED)
+find_package(benchmark REQUIRED)
+
+# idlc (cyclonedds-tools) must be on PATH at configure time.
+find_package(CycloneDDS REQUIRED)
+
+find_package(OpenCV 4.6 REQUIRED COMPONENTS core imgproc imgcodecs calib3d videoio)
+find_package(Ceres REQUIRED)
+
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)
+pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)
+pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
+
+# foresight_add_test(NAME SOURCES... LIBS ...): one gtest executable, its tests
+# discovered into ctest. Tests see FORESIGHT_CONFIG_DIR and FORESIGHT_BIN_DIR.
+function(foresight_add_test name)
+  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE
+    FORESIGHT_CONFIG_DIR="${CMAKE_SOURCE_DIR}/config"
+    FORESIGHT_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
+    FORESIGHT_BIN_DIR="${CMAKE_BINARY_DIR}/bin")
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 300)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+endfunction()
+
+# foresight_add_benchmark(NAME SOURCES... LIBS ...): bench/bench_<area>.
+function(foresight_add_benchmark name)
+  cmake_parse_arguments(B "" "" "SOURCES;LIBS" ${ARGN})
+  add_executable(${name} ${B_SOURCES})
+  target_link_libraries(${name} PRIVATE ${B_LIBS} benchmark::benchmark)
+  target_compile_definitions(${name} PRIVATE
+    FORESIGHT_CONFIG_DIR="${CMAKE_SOURCE_DIR}/config")
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/bench)
+endfunction()

@@ -1,0 +1,72 @@
+#pragma once
+// Kinematics and statics of a RobotModel as free functions of
+// (model, workspace, q). The workspace holds every solver and buffer, sized
+// once at construction; after that, forward_kinematics, jacobian and
+// gravity_torques are real-time safe: no allocation, no locks, noexcept.
+// inverse_kinematics is not for the control loop (iterative, ~0.1 ms).
+// One workspace per thread; the model may be shared.
+
+#include <Eigen/Core>
+#include <memory>
+
+#include "foresight/common/pose.hpp"
+#include "foresight/common/robot_model.hpp"
+
+namespace foresight {
+
+class KinematicsWorkspace {
+ public:
+  explicit KinematicsWorkspace(const RobotModel& model);  // allocates; not RT
+  ~KinematicsWorkspace();
+  KinematicsWorkspace(KinematicsWorkspace&&) noexcept;
+  KinematicsWorkspace& operator=(KinematicsWorkspace&&) noexcept;
+  KinematicsWorkspace(const KinematicsWorkspace&) = delete;
+  KinematicsWorkspace& operator=(const KinematicsWorkspace&) = delete;
+
+  struct Impl;
+  Impl& impl() { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// base_T_link for link index `link` (RobotModel::links(); default the tool
+/// tip). q must have model.dof() entries. RT-safe.
+Pose forward_kinematics(const RobotModel& model, KinematicsWorkspace& ws,
+                        const Eigen::Ref<const Eigen::VectorXd>& q, int link = -1) noexcept;
+
+/// Geometric Jacobian (6 x dof; rows vx vy vz wx wy wz, in the base frame,
+/// reference point at the origin of `link`, default the tool tip). J must be
+/// sized 6 x dof beforehand. RT-safe.
+void jacobian(const RobotModel& model, KinematicsWorkspace& ws,
+              const Eigen::Ref<const Eigen::VectorXd>& q,
+              Eigen::Ref<Eigen::Matrix<double, 6, Eigen::Dynamic>> J, int link = -1) noexcept;
+
+/// Joint torques (N m) that hold the arm still against gravity. tau sized dof.
+void gravity_torques(const RobotModel& model, KinematicsWorkspace& ws,
+                     const Eigen::Ref<const Eigen::VectorXd>& q,
+                     Eigen::Ref<Eigen::VectorXd> tau) noexcept;
+
+struct IkOptions {
+  double position_tolerance_m = 1e-4;
+  double rotation_tolerance_rad = 1e-4;
+  int max_restarts = 50;          ///< random restarts after the seeded attempt
+  unsigned random_seed = 12345;   ///< restarts are deterministic
+};
+
+struct IkResult {
+  bool success = false;
+  Eigen::VectorXd q;                ///< best solution found, within joint limits
+  double position_error_m = 0.0;    ///< residual of q
+  double rotation_error_rad = 0.0;  ///< residual of q
+  int attempts = 0;
+};
+
+/// Full-pose IK for the tip (or `link`): seeded from `seed`, solution within
+/// joint limits. On failure success=false and q/residuals describe the best
+/// attempt. Not RT-safe.
+IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, const Pose& base_T_target,
+                            const Eigen::Ref<const Eigen::VectorXd>& seed, const IkOptions& options = {},
+                            int link = -1);
+
+}  // namespace foresight

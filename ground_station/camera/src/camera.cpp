@@ -1,0 +1,190 @@
+#include "foresight/camera/camera.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <stdexcept>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight {
+
+Viewport parse_viewport(const std::string& text) {
+  const auto x = text.find('x');
+  try {
+    if (x == std::string::npos) throw std::invalid_argument("no 'x'");
+    std::size_t end_w = 0, end_h = 0;
+    const int w = std::stoi(text.substr(0, x), &end_w);
+    const int h = std::stoi(text.substr(x + 1), &end_h);
+    if (end_w != x || end_h != text.size() - x - 1 || w <= 0 || h <= 0) throw std::invalid_argument("bad");
+    return {w, h};
+  } catch (const std::exception&) {
+    throw std::invalid_argument("viewport '" + text + "' is not WIDTHxHEIGHT in positive pixels (e.g. 646x486)");
+  }
+}
+
+Eigen::Vector2d Camera::project_camera(const Eigen::Vector3d& p) const {
+  return principal_point() + f_px * Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+}
+
+bool Camera::in_view(const Eigen::Vector2d& uv) const {
+  return uv.x() >= 0.0 && uv.y() >= 0.0 && uv.x() < viewport.width_px && uv.y() < viewport.height_px;
+}
+
+double Camera::fovy_rad() const { return 2.0 * std::atan(viewport.height_px / (2.0 * f_px)); }
+
+Eigen::Matrix4d Camera::gl_projection(double near_m, double far_m) const {
+  Eigen::Matrix4d P = Eigen::Matrix4d::Zero();
+  P(0, 0) = 2.0 * f_px / viewport.width_px;
+  P(1, 1) = 2.0 * f_px / viewport.height_px;
+  P(2, 2) = -(far_m + near_m) / (far_m - near_m);
+  P(2, 3) = -2.0 * far_m * near_m / (far_m - near_m);
+  P(3, 2) = -1.0;
+  return P;
+}
+
+Eigen::Matrix4d Camera::gl_view() const {
+  Eigen::Matrix4d eye_T_camera = Eigen::Vector4d(1.0, -1.0, -1.0, 1.0).asDiagonal();
+  return eye_T_camera * base_T_camera.inverse().matrix();
+}
+
+Camera Camera::look_at(const std::string& name, const Viewport& vp, double f_px, const Eigen::Vector3d& position,
+                       const Eigen::Vector3d& target, const Eigen::Vector3d& up) {
+  const Eigen::Vector3d z = (target - position).normalized();
+  Eigen::Vector3d x = z.cross(up);  // image right = forward x up... with y down
+  if (x.norm() < 1e-9) throw std::invalid_argument("camera '" + name + "': up is parallel to the viewing direction");
+  x.normalize();
+  const Eigen::Vector3d y = z.cross(x);  // down in the image
+  Camera c;
+  c.name = name;
+  c.viewport = vp;
+  c.f_px = f_px;
+  c.base_T_camera.linear().col(0) = x;
+  c.base_T_camera.linear().col(1) = y;
+  c.base_T_camera.linear().col(2) = z;
+  c.base_T_camera.translation() = position;
+  return c;
+}
+
+namespace {
+
+template <int R, int C>
+Eigen::Matrix<double, R, C> read_matrix(const YAML::Node& n, const std::string& file, const std::string& what) {
+  Eigen::Matrix<double, R, C> M;
+  if (!n || !n.IsSequence() || static_cast<int>(n.size()) != R)
+    throw InputError(file, what + " must be a list of " + std::to_string(R) + " rows");
+  for (int r = 0; r < R; ++r) {
+    if (!n[r].IsSequence() || static_cast<int>(n[r].size()) != C)
+      throw InputError(file, what + " row " + std::to_string(r + 1) + " must have " + std::to_string(C) + " numbers");
+    for (int c = 0; c < C; ++c) {
+      M(r, c) = n[r][c].as<double>();
+      if (!std::isfinite(M(r, c))) throw InputError(file, what + " has a non-finite number");
+    }
+  }
+  return M;
+}
+
+template <int R, int C>
+YAML::Node write_matrix(const Eigen::Matrix<double, R, C>& M) {
+  YAML::Node n;
+  for (int r = 0; r < R; ++r) {
+    YAML::Node row;
+    row.SetStyle(YAML::EmitterStyle::Flow);
+    for (int c = 0; c < C; ++c) row.push_back(M(r, c));
+    n.push_back(row);
+  }
+  return n;
+}
+
+}  // namespace
+
+std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw InputError(path, "cannot open camera file");
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
+  }
+  if (!root.IsMap()) throw InputError(path, "expected a map from camera name to camera");
+  std::map<std::string, CameraRecord> out;
+  for (const auto& kv : root) {
+    const std::string name = kv.first.as<std::string>();
+    const YAML::Node& n = kv.second;
+    const std::string where = "camera '" + name + "'";
+    try {
+      CameraRecord rec;
+      rec.camera.name = name;
+      if (!n["viewport"] || n["viewport"].size() != 2) throw InputError(path, where + ": viewport must be [W, H]");
+      rec.camera.viewport = {n["viewport"][0].as<int>(), n["viewport"][1].as<int>()};
+      if (rec.camera.viewport.width_px <= 0 || rec.camera.viewport.height_px <= 0)
+        throw InputError(path, where + ": viewport must be positive");
+      if (!n["f_px"]) throw InputError(path, where + ": missing f_px");
+      rec.camera.f_px = n["f_px"].as<double>();
+      if (!(rec.camera.f_px > 0.0) || !std::isfinite(rec.camera.f_px))
+        throw InputError(path, where + ": f_px must be a positive number");
+      const Eigen::Matrix4d T = read_matrix<4, 4>(n["base_T_camera"], path, where + ": base_T_camera");
+      const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+      if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0)
+        throw InputError(path, where + ": base_T_camera rotation is not orthonormal");
+      rec.camera.base_T_camera.matrix() = T;
+      if (const YAML::Node c = n["calibration"]) {
+        CameraCalibrationInfo info;
+        if (c["covariance"]) info.covariance = read_matrix<7, 7>(c["covariance"], path, where + ": covariance");
+        info.rms_px = c["rms_px"].as<double>(0.0);
+        info.max_px = c["max_px"].as<double>(0.0);
+        info.n_points = c["n_points"].as<int>(0);
+        if (c["outliers"]) info.outliers = c["outliers"].as<std::vector<int>>();
+        info.date = c["date"].as<std::string>("");
+        rec.calibration = info;
+      }
+      out.emplace(name, std::move(rec));
+    } catch (const YAML::Exception& e) {
+      throw InputError(path, e.mark.line + 1, where + ": " + e.msg);
+    }
+  }
+  return out;
+}
+
+void save_cameras(const std::string& path, const std::map<std::string, CameraRecord>& cameras) {
+  YAML::Node root;
+  for (const auto& [name, rec] : cameras) {
+    YAML::Node n;
+    YAML::Node vp;
+    vp.SetStyle(YAML::EmitterStyle::Flow);
+    vp.push_back(rec.camera.viewport.width_px);
+    vp.push_back(rec.camera.viewport.height_px);
+    n["viewport"] = vp;
+    n["f_px"] = rec.camera.f_px;
+    n["fovy_deg"] = rec.camera.fovy_rad() * 180.0 / M_PI;
+    n["base_T_camera"] = write_matrix<4, 4>(rec.camera.base_T_camera.matrix());
+    if (rec.calibration) {
+      const auto& c = *rec.calibration;
+      YAML::Node cn;
+      cn["rms_px"] = c.rms_px;
+      cn["max_px"] = c.max_px;
+      cn["n_points"] = c.n_points;
+      YAML::Node outl;
+      outl.SetStyle(YAML::EmitterStyle::Flow);
+      for (int o : c.outliers) outl.push_back(o);
+      cn["outliers"] = outl;
+      cn["date"] = c.date;
+      cn["covariance_order"] = "roll_rad, pitch_rad, yaw_rad, x_m, y_m, z_m, f_px";
+      cn["covariance"] = write_matrix<7, 7>(c.covariance);
+      n["calibration"] = cn;
+    }
+    root[name] = n;
+  }
+  std::ofstream f(path);
+  if (!f) throw InputError(path, "cannot write camera file");
+  YAML::Emitter em;
+  em.SetDoublePrecision(12);
+  em << root;
+  f << "# Foresight calibrated cameras (camera frame: x right, y down, z forward)\n" << em.c_str() << "\n";
+  if (!f) throw InputError(path, "write failed");
+}
+
+}  // namespace foresight

@@ -1,0 +1,38 @@
+#pragma once
+// The `foresight` operator CLI: one subcommand per file in commands/, each
+// registering itself here at static-initialisation time. main.cpp parses the
+// command line, runs the chosen command and turns exceptions into a message on
+// stderr and a non-zero exit.
+//
+// Conventions for every command: a readable summary on stdout; with --json
+// exactly one JSON object on stdout; errors on stderr, exit status non-zero.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace foresight::cli {
+
+/// Configures the subcommand's options on `sub` and returns the action to run
+/// once parsing succeeded; the action returns the exit status.
+using CommandSetup = std::function<std::function<int()>(CLI::App& sub)>;
+
+struct CommandSpec {
+  std::string name;
+  std::string description;
+  CommandSetup setup;
+};
+
+std::vector<CommandSpec>& command_registry();
+
+/// Use at namespace scope in a commands/*.cpp file:
+///   static const bool registered = register_command({"calibrate", "...", setup});
+bool register_command(CommandSpec spec);
+
+/// Exit statuses shared by all commands.
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;   ///< the computation failed (e.g. IK did not converge)
+constexpr int kExitBadInput = 2;  ///< bad arguments or input files
+
+}  // namespace foresight::cli
