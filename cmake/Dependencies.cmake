@@ -15,6 +15,7 @@ find_package(spdlog REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(nlohmann_json REQUIRED)
 find_package(Threads REQUIRED)
+find_package(OpenSSL REQUIRED)  # SHA-256 trajectory content hash
 find_package(GTest REQUIRED)
 find_package(benchmark REQUIRED)
 

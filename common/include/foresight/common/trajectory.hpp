@@ -1,0 +1,96 @@
+#pragma once
+// A joint-space trajectory and the rules a trajectory must pass before the
+// remote runs it (DESIGN.md, "The remote-site rules"). Both sides use the same
+// code: the ground checks before sending, the remote checks again on arrival
+// (the remote never trusts the ground). Nothing here is for the control loop:
+// validation and I/O allocate.
+//
+// CSV form: a header `t,q1,...,qN`, then one sample a row: t in seconds
+// (strictly increasing), joint angles in radians.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "foresight/common/robot_model.hpp"
+
+namespace foresight {
+
+struct Trajectory {
+  std::vector<double> time_s;    ///< one per sample, strictly increasing
+  Eigen::MatrixXd positions_rad; ///< samples x joints
+
+  int samples() const { return static_cast<int>(time_s.size()); }
+  int joints() const { return static_cast<int>(positions_rad.cols()); }
+  double duration_s() const { return time_s.empty() ? 0.0 : time_s.back() - time_s.front(); }
+};
+
+/// Parse CSV text; `source` names the file in errors. Throws InputError with
+/// the line number: missing/invalid header, wrong column count, a field that
+/// is not a number (non-finite numbers such as "nan" parse, and are left for
+/// validate() to report with row and joint), no samples.
+Trajectory parse_trajectory_csv(const std::string& text, const std::string& source);
+/// Read a CSV file. Throws InputError (file cannot be opened, or as above).
+Trajectory read_trajectory_csv(const std::string& path);
+/// CSV text with full double precision (round-trips exactly).
+std::string to_csv(const Trajectory& trajectory);
+/// Write CSV. Throws InputError when the file cannot be written.
+void write_trajectory_csv(const std::string& path, const Trajectory& trajectory);
+
+/// What a trajectory must respect.
+struct TrajectoryLimits {
+  int joints = 0;
+  std::vector<JointLimits> joint_limits;  ///< one per joint
+  int min_samples = 2;
+  int max_samples = 200000;               ///< 2000 s at 100 Hz
+  double max_duration_s = 1800.0;
+  double max_sample_interval_s = 1.0;     ///< no long gaps between samples
+  /// Relative slack on velocity/acceleration limits for finite differencing.
+  double rate_tolerance = 1e-9;
+
+  /// Joint count and limits from the URDF model.
+  static TrajectoryLimits from_model(const RobotModel& model);
+};
+
+struct Violation {
+  enum class Rule {
+    JointCount,          ///< trajectory has the wrong number of joints
+    TooFewSamples,
+    TooManySamples,
+    Duration,
+    NonFinite,           ///< NaN or infinity in t or q
+    TimeNotIncreasing,
+    SampleGap,           ///< interval longer than max_sample_interval_s
+    PositionLimit,
+    VelocityLimit,
+    AccelerationLimit,
+  };
+  Rule rule;
+  int row = -1;     ///< 1-based sample (data row) number; -1 for whole-trajectory rules
+  int joint = -1;   ///< 1-based joint number; -1 when not about one joint (0 = the time column)
+  double value = 0.0;
+  double limit = 0.0;
+  std::string message;  ///< readable, names the row, joint, value and limit
+};
+
+const char* to_string(Violation::Rule rule);
+
+/// Every violation, in row order (an empty result means the trajectory passes).
+/// Velocities are finite differences between consecutive samples (reported at
+/// the later row); accelerations are differences of consecutive velocities
+/// over the mean interval (reported at the middle row). Rate rules are
+/// skipped for rows whose times or values are non-finite or not increasing.
+std::vector<Violation> validate(const Trajectory& trajectory, const TrajectoryLimits& limits);
+
+using TrajectoryHash = std::array<std::uint8_t, 32>;
+
+/// SHA-256 over a canonical little-endian encoding: "FSTRAJ1", joints
+/// (uint32), samples (uint32), then per sample t, q1..qN as IEEE-754 doubles.
+/// Both sides compute it; the ground sends it with an upload and the remote
+/// refuses a trajectory whose content does not match.
+TrajectoryHash trajectory_hash(const Trajectory& trajectory);
+std::string to_hex(const TrajectoryHash& hash);
+
+}  // namespace foresight

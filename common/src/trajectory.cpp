@@ -1,0 +1,292 @@
+#include "foresight/common/trajectory.hpp"
+
+#include <openssl/evp.h>
+
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight {
+
+namespace {
+
+std::vector<std::string_view> split_commas(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = line.find(',', start);
+    out.push_back(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+bool parse_double(std::string_view s, double& out) {
+  s = trim(s);
+  if (s.empty()) return false;
+  // strtod accepts nan/inf, which validate() then reports with row and joint.
+  std::string tmp(s);
+  char* end = nullptr;
+  out = std::strtod(tmp.c_str(), &end);
+  return end == tmp.c_str() + tmp.size();
+}
+
+// Built with append: "q" + std::to_string(j) trips GCC 12's -Wrestrict false positive.
+std::string qname(int j) {
+  std::string s = "q";
+  s.append(std::to_string(j));
+  return s;
+}
+
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+Trajectory parse_trajectory_csv(const std::string& text, const std::string& source) {
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  int joints = -1;
+  std::vector<double> values;
+  Trajectory traj;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::string_view l = trim(line);
+    if (l.empty() || l.front() == '#') continue;
+    const auto fields = split_commas(l);
+    if (joints < 0) {  // header
+      if (fields.size() < 2 || trim(fields[0]) != "t")
+        throw InputError(source, line_no, "expected the header t,q1,...,qN");
+      for (std::size_t j = 1; j < fields.size(); ++j)
+        if (trim(fields[j]) != qname(static_cast<int>(j)))
+          throw InputError(source, line_no,
+                           "header column " + std::to_string(j + 1) + " is '" + std::string(trim(fields[j])) +
+                               "', expected '" + qname(static_cast<int>(j)) + "'");
+      joints = static_cast<int>(fields.size()) - 1;
+      continue;
+    }
+    if (static_cast<int>(fields.size()) != joints + 1)
+      throw InputError(source, line_no,
+                       "expected " + std::to_string(joints + 1) + " columns (t,q1..q" + std::to_string(joints) +
+                           "), found " + std::to_string(fields.size()));
+    for (std::size_t j = 0; j < fields.size(); ++j) {
+      double v = 0.0;
+      if (!parse_double(fields[j], v))
+        throw InputError(source, line_no,
+                         "column " + std::to_string(j + 1) + " ('" + std::string(trim(fields[j])) + "') is not a number");
+      if (j == 0)
+        traj.time_s.push_back(v);
+      else
+        values.push_back(v);
+    }
+  }
+  if (joints < 0) throw InputError(source, "empty trajectory file: expected the header t,q1,...,qN");
+  if (traj.time_s.empty()) throw InputError(source, "trajectory has no samples");
+  traj.positions_rad = Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      values.data(), static_cast<Eigen::Index>(traj.time_s.size()), joints);
+  return traj;
+}
+
+Trajectory read_trajectory_csv(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path, "cannot open trajectory file");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_trajectory_csv(ss.str(), path);
+}
+
+std::string to_csv(const Trajectory& traj) {
+  std::string out = "t";
+  for (int j = 1; j <= traj.joints(); ++j) (out += ',') += qname(j);
+  out += '\n';
+  char buf[40];
+  for (int i = 0; i < traj.samples(); ++i) {
+    std::snprintf(buf, sizeof buf, "%.17g", traj.time_s[i]);
+    out += buf;
+    for (int j = 0; j < traj.joints(); ++j) {
+      std::snprintf(buf, sizeof buf, ",%.17g", traj.positions_rad(i, j));
+      out += buf;
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+void write_trajectory_csv(const std::string& path, const Trajectory& traj) {
+  std::ofstream f(path);
+  if (!f) throw InputError(path, "cannot write trajectory file");
+  f << to_csv(traj);
+  if (!f) throw InputError(path, "write failed");
+}
+
+TrajectoryLimits TrajectoryLimits::from_model(const RobotModel& model) {
+  TrajectoryLimits l;
+  l.joints = model.dof();
+  l.joint_limits = model.limits();
+  return l;
+}
+
+const char* to_string(Violation::Rule rule) {
+  switch (rule) {
+    case Violation::Rule::JointCount: return "joint_count";
+    case Violation::Rule::TooFewSamples: return "too_few_samples";
+    case Violation::Rule::TooManySamples: return "too_many_samples";
+    case Violation::Rule::Duration: return "duration";
+    case Violation::Rule::NonFinite: return "non_finite";
+    case Violation::Rule::TimeNotIncreasing: return "time_not_increasing";
+    case Violation::Rule::SampleGap: return "sample_gap";
+    case Violation::Rule::PositionLimit: return "position_limit";
+    case Violation::Rule::VelocityLimit: return "velocity_limit";
+    case Violation::Rule::AccelerationLimit: return "acceleration_limit";
+  }
+  return "unknown";
+}
+
+std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim) {
+  using R = Violation::Rule;
+  std::vector<Violation> out;
+  const int n = traj.samples();
+  const int dof = traj.joints();
+  auto add = [&](R rule, int row, int joint, double value, double limit, std::string msg) {
+    out.push_back({rule, row, joint, value, limit, std::move(msg)});
+  };
+  if (static_cast<int>(traj.positions_rad.rows()) != n)
+    add(R::JointCount, -1, -1, static_cast<double>(traj.positions_rad.rows()), n,
+        "position rows (" + std::to_string(traj.positions_rad.rows()) + ") differ from time samples (" +
+            std::to_string(n) + ")");
+  if (dof != lim.joints) {
+    add(R::JointCount, -1, -1, dof, lim.joints,
+        "trajectory has " + std::to_string(dof) + " joints, the robot has " + std::to_string(lim.joints));
+    return out;  // nothing else can be checked joint by joint
+  }
+  if (!out.empty()) return out;
+  if (static_cast<int>(lim.joint_limits.size()) != dof)
+    throw std::invalid_argument("TrajectoryLimits: joint_limits has " + std::to_string(lim.joint_limits.size()) +
+                                " entries for " + std::to_string(dof) + " joints");
+  if (n < lim.min_samples)
+    add(R::TooFewSamples, -1, -1, n, lim.min_samples,
+        "trajectory has " + std::to_string(n) + " samples, at least " + std::to_string(lim.min_samples) + " needed");
+  if (n > lim.max_samples)
+    add(R::TooManySamples, -1, -1, n, lim.max_samples,
+        "trajectory has " + std::to_string(n) + " samples, at most " + std::to_string(lim.max_samples) + " allowed");
+  if (n > 0 && std::isfinite(traj.duration_s()) && traj.duration_s() > lim.max_duration_s)
+    add(R::Duration, -1, -1, traj.duration_s(), lim.max_duration_s,
+        "duration " + fmt(traj.duration_s()) + " s exceeds " + fmt(lim.max_duration_s) + " s");
+
+  std::vector<bool> row_ok(n, true);  // finite t and q
+  for (int i = 0; i < n; ++i) {
+    const std::string row = "row " + std::to_string(i + 1);
+    if (!std::isfinite(traj.time_s[i])) {
+      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, row + ": t is not finite");
+      row_ok[i] = false;
+    }
+    for (int j = 0; j < dof; ++j) {
+      const double q = traj.positions_rad(i, j);
+      const std::string where = row + ", joint " + qname(j + 1);
+      if (!std::isfinite(q)) {
+        add(R::NonFinite, i + 1, j + 1, q, 0.0, where + ": position is not finite");
+        row_ok[i] = false;
+        continue;
+      }
+      const JointLimits& jl = lim.joint_limits[j];
+      if (q < jl.lower_rad || q > jl.upper_rad)
+        add(R::PositionLimit, i + 1, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad,
+            where + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) + "] rad");
+    }
+    if (i > 0 && row_ok[i] && row_ok[i - 1]) {
+      const double dt = traj.time_s[i] - traj.time_s[i - 1];
+      if (!(dt > 0.0))
+        add(R::TimeNotIncreasing, i + 1, 0, traj.time_s[i], traj.time_s[i - 1],
+            row + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " + fmt(traj.time_s[i - 1]) + " s)");
+      else if (dt > lim.max_sample_interval_s)
+        add(R::SampleGap, i + 1, 0, dt, lim.max_sample_interval_s,
+            row + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) + " s");
+    }
+  }
+
+  // Rates, only across rows that are finite and strictly increasing in time.
+  auto interval_ok = [&](int i) {  // interval (i-1, i)
+    return i > 0 && row_ok[i] && row_ok[i - 1] && traj.time_s[i] > traj.time_s[i - 1];
+  };
+  const double slack = 1.0 + lim.rate_tolerance;
+  for (int i = 1; i < n; ++i) {
+    if (!interval_ok(i)) continue;
+    const double dt = traj.time_s[i] - traj.time_s[i - 1];
+    for (int j = 0; j < dof; ++j) {
+      const JointLimits& jl = lim.joint_limits[j];
+      const double v = (traj.positions_rad(i, j) - traj.positions_rad(i - 1, j)) / dt;
+      const std::string where = "row " + std::to_string(i + 1) + ", joint " + qname(j + 1);
+      if (std::abs(v) > jl.velocity_rad_s * slack)
+        add(R::VelocityLimit, i + 1, j + 1, v, jl.velocity_rad_s,
+            where + ": velocity " + fmt(v) + " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s");
+      if (i >= 2 && interval_ok(i - 1)) {
+        const double dt0 = traj.time_s[i - 1] - traj.time_s[i - 2];
+        const double v0 = (traj.positions_rad(i - 1, j) - traj.positions_rad(i - 2, j)) / dt0;
+        const double a = (v - v0) / (0.5 * (dt + dt0));
+        const std::string mid = "row " + std::to_string(i) + ", joint " + qname(j + 1);
+        if (std::abs(a) > jl.acceleration_rad_s2 * slack)
+          add(R::AccelerationLimit, i, j + 1, a, jl.acceleration_rad_s2,
+              mid + ": acceleration " + fmt(a) + " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2");
+      }
+    }
+  }
+  std::stable_sort(out.begin(), out.end(), [](const Violation& a, const Violation& b) { return a.row < b.row; });
+  return out;
+}
+
+TrajectoryHash trajectory_hash(const Trajectory& traj) {
+  static_assert(std::endian::native == std::endian::little, "canonical encoding assumes a little-endian host");
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  if (ctx == nullptr || EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) != 1) {
+    EVP_MD_CTX_free(ctx);
+    throw std::runtime_error("trajectory_hash: cannot initialise SHA-256");
+  }
+  auto feed = [&](const void* p, std::size_t n) { EVP_DigestUpdate(ctx, p, n); };
+  feed("FSTRAJ1", 7);
+  const std::uint32_t joints = static_cast<std::uint32_t>(traj.joints());
+  const std::uint32_t samples = static_cast<std::uint32_t>(traj.samples());
+  feed(&joints, 4);
+  feed(&samples, 4);
+  for (int i = 0; i < traj.samples(); ++i) {
+    feed(&traj.time_s[i], 8);
+    for (int j = 0; j < traj.joints(); ++j) {
+      const double q = traj.positions_rad(i, j);
+      feed(&q, 8);
+    }
+  }
+  TrajectoryHash h{};
+  unsigned int len = 0;
+  EVP_DigestFinal_ex(ctx, h.data(), &len);
+  EVP_MD_CTX_free(ctx);
+  return h;
+}
+
+std::string to_hex(const TrajectoryHash& hash) {
+  static const char* digits = "0123456789abcdef";
+  std::string s;
+  s.reserve(64);
+  for (std::uint8_t b : hash) {
+    s += digits[b >> 4];
+    s += digits[b & 15];
+  }
+  return s;
+}
+
+}  // namespace foresight
