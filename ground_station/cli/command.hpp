@@ -8,6 +8,7 @@
 // exactly one JSON object on stdout; errors on stderr, exit status non-zero.
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
@@ -29,6 +30,15 @@ std::vector<CommandSpec>& command_registry();
 /// Use at namespace scope in a commands/*.cpp file:
 ///   static const bool registered = register_command({"calibrate", "...", setup});
 bool register_command(CommandSpec spec);
+
+/// Default path of a config file (robot.urdf, oru.yaml, scene.yaml, ...):
+/// $FORESIGHT_CONFIG_DIR/<file> when that variable is set, else the
+/// project's config/ folder this binary was built from. Use it for option
+/// defaults so commands work from any directory.
+inline std::string default_config(const std::string& file) {
+  const char* dir = std::getenv("FORESIGHT_CONFIG_DIR");
+  return std::string(dir != nullptr && *dir != '\0' ? dir : FORESIGHT_DEFAULT_CONFIG_DIR) + "/" + file;
+}
 
 /// Exit statuses shared by all commands.
 constexpr int kExitOk = 0;
