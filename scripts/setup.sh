@@ -12,7 +12,7 @@ PACKAGES=(
   build-essential cmake pkg-config ninja-build
   libeigen3-dev liborocos-kdl-dev liburdfdom-dev libmodbus-dev
   cyclonedds-dev cyclonedds-tools libopencv-dev libosmesa6-dev
-  libegl-dev libgl-dev
+  libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libgtest-dev libgmock-dev libyaml-cpp-dev libspdlog-dev libcli11-dev
   nlohmann-json3-dev libbenchmark-dev libceres-dev libssl-dev iproute2
 )
