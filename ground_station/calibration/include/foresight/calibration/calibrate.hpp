@@ -1,0 +1,117 @@
+#pragma once
+// Camera calibration with the robot arm as the fixture (Kim 1996, sec. 2 and
+// appendices A and B), in two steps:
+//  1. the linear least-squares solution (appendix A): the 3x4 camera matrix
+//     with one coefficient fixed (the depth term at the points' centroid,
+//     the paper's c34/f = -1 after centring), 11 unknowns solved by SVD (no
+//     normal equations); the sign chosen so the centroid is in front of the
+//     camera; when the view is nearly orthographic (far object) the third
+//     rotation row is replaced by the cross product of the first two (the
+//     variant with the lower reprojection error is kept);
+//  2. Levenberg-Marquardt on the 7 parameters (roll, pitch, yaw and position
+//     of base_T_camera, f_px) minimising the pixel reprojection error,
+//     started from the linear solution.
+// The camera model is the paper's: square pixels, principal point at the
+// viewport centre (foresight::Camera, the one projection code path).
+// Outlying clicks are flagged robustly (residual above k robust sigmas and a
+// pixel floor), named with their residual, and left out of the final fit.
+//
+// Not real-time code: allocates, may throw EstimationError.
+
+#include <Eigen/Core>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "foresight/calibration/correspondence.hpp"
+#include "foresight/camera/camera.hpp"
+
+namespace foresight {
+
+/// The data cannot determine the estimate (too few points, degenerate
+/// geometry, points behind the camera, non-finite input). A std::invalid_argument
+/// so the CLI reports it as bad input (exit 2). what() names the camera or
+/// view and the offending points.
+class EstimationError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Robust outlier rejection shared by calibration and localization.
+struct OutlierOptions {
+  bool enabled = true;
+  /// A point is an outlier when its residual (pixels, 2-D norm) exceeds
+  /// max(k_sigma * robust_sigma, floor_px). robust_sigma is the per-axis
+  /// sigma from the median residual norm (Rayleigh: median = 1.1774 sigma).
+  double k_sigma = 4.0;
+  double floor_px = 2.0;
+  /// At most this fraction of the points is flagged (the worst first).
+  double max_fraction = 0.3;
+};
+
+struct CalibrationOptions {
+  int max_iterations = 100;
+  OutlierOptions outliers;
+  /// Relative singular value below which the linear system counts as rank
+  /// deficient (degenerate geometry).
+  double rank_tolerance = 1e-9;
+};
+
+/// One point's fit residual: measured minus predicted pixel.
+struct PointResidual {
+  int n = 0;
+  std::string cam;
+  int line = 0;
+  Eigen::Vector2d r_px = Eigen::Vector2d::Zero();
+  double px = 0.0;        ///< |r_px|
+  bool outlier = false;   ///< flagged and left out of the final fit
+};
+
+struct CalibrationResult {
+  Camera camera;                 ///< name, viewport, f_px, base_T_camera
+  /// Covariance of (roll, pitch, yaw [rad] of base_T_camera, position x, y, z
+  /// [m] of the camera in base, f_px), from the Jacobian at the solution and
+  /// the inlier residual variance: s^2 (J^T J)^-1, s^2 = SSR / (2 N - 7).
+  Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Matrix<double, 7, 1> sigma = Eigen::Matrix<double, 7, 1>::Zero();  ///< sqrt(diag(covariance))
+  double rms_px = 0.0;           ///< over inliers
+  double max_px = 0.0;           ///< over inliers
+  double linear_rms_px = 0.0;    ///< the linear stage alone, over inliers
+  bool linear_cross_product = false;  ///< the linear stage used r3 = r1 x r2
+  int iterations = 0;            ///< LM iterations of the final fit
+  int n_points = 0;              ///< all points given
+  std::vector<PointResidual> residuals;  ///< every point, input order
+  std::vector<int> outliers;     ///< `n` of each flagged point
+
+  /// rpy (rad) and position (m) of base_T_camera.
+  Eigen::Vector3d rpy_rad() const;
+  Eigen::Vector3d position_m() const { return camera.base_T_camera.translation(); }
+  /// What cameras.yaml stores; `date_utc` in ISO 8601.
+  CameraCalibrationInfo info(const std::string& date_utc) const;
+};
+
+/// Calibrate one camera from its correspondences (base-frame points). All
+/// given points are used (select one camera's rows first). `name` becomes
+/// camera.name and appears in error messages.
+/// Throws EstimationError: fewer than 6 points; a non-finite coordinate
+/// (naming the point and line); collinear or coplanar points (the linear
+/// stage needs points off one plane) or an otherwise rank-deficient linear
+/// system; the points' centroid or most points behind the camera; no
+/// convergence to a camera with the points in front.
+CalibrationResult calibrate_camera(const std::vector<Correspondence>& points, const Viewport& viewport,
+                                   const std::string& name, const CalibrationOptions& options = {});
+
+/// The linear stage alone (appendix A): exposed for tests and benchmarks.
+/// `cross_product` reports whether r3 = r1 x r2 was kept.
+Camera calibrate_camera_linear(const std::vector<Correspondence>& points, const Viewport& viewport,
+                               const std::string& name, double rank_tolerance = 1e-9,
+                               bool* cross_product = nullptr);
+
+/// Body-frame angular rate per roll/pitch/yaw rate for R = Rz Ry Rx:
+/// omega_body = W(rpy) * d(rpy)/dt. Used to express covariances in rpy.
+Eigen::Matrix3d rpy_rate_matrix(const Eigen::Vector3d& rpy_rad);
+
+/// Per-axis robust sigma (pixels) from 2-D residual norms.
+double robust_sigma_px(std::vector<double> residual_norms_px);
+
+}  // namespace foresight

@@ -1,0 +1,71 @@
+#pragma once
+// Clicked correspondences: a 3-D point and the pixel the operator clicked for
+// it in one camera's view. Read from the points CSV of DESIGN.md:
+//
+//   n,cam,x,y,z,u,v                       x, y, z in metres in the frame being
+//                                         solved against (robot base for
+//                                         calibrate, object frame for localize)
+//   n,cam,link,lx,ly,lz,q1,...,qN,u,v     a point on an arm link (link frame,
+//                                         metres) clicked with the arm at
+//                                         joint angles q (radians): the robot
+//                                         arm as the calibration fixture
+//
+// One header line (either form); each data row may use either form (a row is
+// of the link form when its third field is not a number). Blank lines and
+// lines starting with '#' are skipped. u, v are screen pixels (origin at the
+// top-left corner, v down; pixel centres at i + 0.5).
+//
+// Set-up code: allocates, throws InputError with the file and line.
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace foresight {
+
+struct Correspondence {
+  int n = 0;                ///< the point number (`n` column)
+  std::string cam;          ///< camera (view) name
+  Eigen::Vector3d p_m = Eigen::Vector3d::Zero();  ///< the 3-D point (base or object frame)
+  Eigen::Vector2d uv_px = Eigen::Vector2d::Zero();
+  int line = 0;             ///< 1-based line in the CSV (0: not from a file)
+  std::string link;         ///< arm link for link-form rows, empty otherwise
+};
+
+/// Turns a point given on an arm link at joint angles q into base
+/// coordinates (the robot arm as fixture). RobotLinkPoints (robot_points.hpp)
+/// implements it with the URDF model and forward kinematics.
+class LinkPointResolver {
+ public:
+  virtual ~LinkPointResolver() = default;
+  virtual int dof() const = 0;
+  /// True when `link` names a link of the arm.
+  virtual bool has_link(const std::string& link) const = 0;
+  /// Comma-separated link names, for error messages.
+  virtual std::string link_list() const = 0;
+  /// base_T_link(q) * p_link.
+  virtual Eigen::Vector3d to_base(const std::string& link, const Eigen::Vector3d& p_link,
+                                  const Eigen::VectorXd& q) const = 0;
+};
+
+/// Parse CSV text; `source` names the file in errors. Link-form rows need
+/// `robot` (nullptr: such a row is an error naming its line). Throws
+/// InputError("source", line, ...) on: a missing or wrong header, a row with
+/// the wrong number of fields, a field that is not a number, a non-finite
+/// number, an unknown link, the wrong number of joint angles, a negative or
+/// empty camera name; and InputError(source, "no points") for a file without
+/// data rows.
+std::vector<Correspondence> parse_correspondences_csv(const std::string& text, const std::string& source,
+                                                      const LinkPointResolver* robot = nullptr);
+/// Read a file (InputError when it cannot be opened), then as above.
+std::vector<Correspondence> read_correspondences_csv(const std::string& path,
+                                                     const LinkPointResolver* robot = nullptr);
+
+/// The rows whose camera is `cam`, in file order.
+std::vector<Correspondence> select_camera(const std::vector<Correspondence>& points, const std::string& cam);
+
+/// CSV text of base-frame (or object-frame) points, full precision; the
+/// inverse of parse_correspondences_csv for x,y,z rows.
+std::string to_csv(const std::vector<Correspondence>& points);
+
+}  // namespace foresight

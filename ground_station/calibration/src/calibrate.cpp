@@ -1,0 +1,333 @@
+#include "foresight/calibration/calibrate.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "foresight/calibration/detail/levenberg_marquardt.hpp"
+#include "foresight/calibration/detail/robust.hpp"
+
+namespace foresight {
+
+namespace {
+
+std::string point_name(const Correspondence& c) {
+  std::string s = "n=" + std::to_string(c.n);
+  if (c.line > 0) s += " (line " + std::to_string(c.line) + ")";
+  return s;
+}
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  if (a < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+/// Checks count, finiteness and the point geometry needed by the linear stage.
+void check_points(const std::vector<Correspondence>& pts, const std::string& name) {
+  const std::string who = "camera '" + name + "': ";
+  if (pts.size() < 6)
+    throw EstimationError(who + std::to_string(pts.size()) +
+                          " points; the linear calibration needs at least 6 (11 unknowns, 2 equations a point)");
+  for (const auto& c : pts)
+    if (!c.p_m.allFinite() || !c.uv_px.allFinite())
+      throw EstimationError(who + "point " + point_name(c) + " has a non-finite coordinate");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& c : pts) mean += c.p_m;
+  mean /= static_cast<double>(pts.size());
+  Eigen::MatrixXd P(pts.size(), 3);
+  for (std::size_t i = 0; i < pts.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = (pts[i].p_m - mean).transpose();
+  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(P).singularValues();
+  if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
+    throw EstimationError(who + "the " + std::to_string(pts.size()) +
+                          " points are collinear (or coincide): calibration needs points spread in 3-D");
+  if (s[2] <= 1e-7 * s[0]) {
+    std::ostringstream m;
+    m << who << "the " << pts.size()
+      << " points are coplanar: the linear calibration (11 unknowns) is degenerate for points on one plane;"
+         " click points off that plane (another arm pose)";
+    throw EstimationError(m.str());
+  }
+}
+
+double rms_px(const Camera& cam, const std::vector<Correspondence>& pts) {
+  double ss = 0.0;
+  for (const auto& c : pts) {
+    const Eigen::Vector3d pc = cam.to_camera(c.p_m);
+    ss += (cam.project_camera(pc) - c.uv_px).squaredNorm();
+  }
+  return std::sqrt(ss / static_cast<double>(pts.size()));
+}
+
+struct CamState {
+  Eigen::Matrix3d R;  // base_R_camera
+  Eigen::Vector3d c;  // camera position in base
+  double f;
+};
+
+}  // namespace
+
+Eigen::Matrix3d rpy_rate_matrix(const Eigen::Vector3d& rpy) {
+  const Eigen::Matrix3d Rx = Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Matrix3d Ry = Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()).toRotationMatrix();
+  Eigen::Matrix3d W;
+  W.col(0) = Eigen::Vector3d::UnitX();
+  W.col(1) = Rx.transpose() * Eigen::Vector3d::UnitY();
+  W.col(2) = Rx.transpose() * Ry.transpose() * Eigen::Vector3d::UnitZ();
+  return W;
+}
+
+double robust_sigma_px(std::vector<double> r) {
+  if (r.empty()) return 0.0;
+  const auto mid = r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2);
+  std::nth_element(r.begin(), mid, r.end());
+  double med = *mid;
+  if (r.size() % 2 == 0) med = 0.5 * (med + *std::max_element(r.begin(), mid));
+  return med / 1.1774100225154747;  // median of a Rayleigh(sigma) = sigma sqrt(2 ln 2)
+}
+
+Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+                               double rank_tolerance, bool* cross_product) {
+  check_points(pts, name);
+  const std::string who = "camera '" + name + "': ";
+  const int n = static_cast<int>(pts.size());
+  // Normalise: points centred at their centroid and scaled to unit RMS,
+  // pixels centred at the principal point and scaled by H/2 (the paper's s_y).
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& c : pts) mean += c.p_m;
+  mean /= n;
+  double ms = 0.0;
+  for (const auto& c : pts) ms += (c.p_m - mean).squaredNorm();
+  const double sp = std::sqrt(ms / n);
+  const Eigen::Vector2d pp(vp.width_px / 2.0, vp.height_px / 2.0);
+  const double s_px = vp.height_px / 2.0;
+
+  // Appendix A with the depth term at the centroid fixed (m34 = 1): 11 unknowns
+  // x = (m1, m14, m2, m24, m3); u_n (m3.p + 1) = m1.p + m14, same for v.
+  Eigen::Matrix<double, Eigen::Dynamic, 11> B = Eigen::Matrix<double, Eigen::Dynamic, 11>::Zero(2 * n, 11);
+  Eigen::VectorXd rhs(2 * n);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = (pts[i].p_m - mean) / sp;
+    const Eigen::Vector2d uvn = (pts[i].uv_px - pp) / s_px;
+    B.block<1, 3>(2 * i, 0) = p.transpose();
+    B(2 * i, 3) = 1.0;
+    B.block<1, 3>(2 * i, 8) = -uvn.x() * p.transpose();
+    rhs[2 * i] = uvn.x();
+    B.block<1, 3>(2 * i + 1, 4) = p.transpose();
+    B(2 * i + 1, 7) = 1.0;
+    B.block<1, 3>(2 * i + 1, 8) = -uvn.y() * p.transpose();
+    rhs[2 * i + 1] = uvn.y();
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(B, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const auto& sv = svd.singularValues();
+  if (!(sv[10] > rank_tolerance * sv[0])) {
+    std::ostringstream m;
+    m << who << "the linear calibration system is rank deficient (smallest/largest singular value " << sv[10] / sv[0]
+      << "): degenerate point geometry";
+    throw EstimationError(m.str());
+  }
+  const Eigen::Matrix<double, 11, 1> x = svd.solve(rhs);
+  const Eigen::Vector3d m1 = x.segment<3>(0), m2 = x.segment<3>(4), m3 = x.segment<3>(8);
+  const double m14 = x[3], m24 = x[7], m34 = 1.0;
+
+  // Candidate rotations: the direct third row, and the cross product of the
+  // first two (the far / near-orthographic case, appendix A).
+  Camera best;
+  double best_rms = std::numeric_limits<double>::infinity();
+  bool best_cross = false;
+  for (int variant = 0; variant < 2; ++variant) {
+    const Eigen::Vector3d r1 = m1.normalized();
+    Eigen::Vector3d r2 = m2.normalized();
+    double lambda = 0.0;
+    Eigen::Vector3d r3;
+    if (variant == 0) {
+      lambda = m3.norm();
+      // Sign: the centroid (depth m34 / lambda in these coordinates) in front.
+      if (m34 / lambda < 0.0) lambda = -lambda;
+      r3 = m3 / lambda;
+    } else {
+      r3 = r1.cross(r2).normalized();
+      lambda = m3.dot(r3);
+      if (!(lambda > 0.0)) continue;  // orthographic to the noise level: no depth
+    }
+    Eigen::Matrix3d M;
+    M.row(0) = r1.transpose();
+    M.row(1) = r2.transpose();
+    M.row(2) = r3.transpose();
+    if (M.determinant() <= 0.0) continue;
+    const double f_n = 0.5 * (m1.norm() + m2.norm()) / lambda;
+    if (!(f_n > 0.0) || !std::isfinite(f_n)) continue;
+    const Eigen::Matrix3d R = nearest_rotation(M);  // camera_R_base
+    const Eigen::Vector3d t_scaled(m14 / (lambda * f_n), m24 / (lambda * f_n), m34 / lambda);
+    Camera cam;
+    cam.name = name;
+    cam.viewport = vp;
+    cam.f_px = f_n * s_px;
+    Pose camera_T_base = Pose::Identity();
+    camera_T_base.linear() = R;
+    camera_T_base.translation() = sp * t_scaled - R * mean;
+    cam.base_T_camera = camera_T_base.inverse();
+    const double r = rms_px(cam, pts);
+    if (std::isfinite(r) && r < best_rms) {
+      best_rms = r;
+      best = cam;
+      best_cross = variant == 1;
+    }
+  }
+  if (!std::isfinite(best_rms))
+    throw EstimationError(who + "the linear calibration found no camera with the points in front of it");
+  if (cross_product) *cross_product = best_cross;
+  return best;
+}
+
+Eigen::Vector3d CalibrationResult::rpy_rad() const { return rpy_from_rotation(camera.base_T_camera.linear()); }
+
+CameraCalibrationInfo CalibrationResult::info(const std::string& date_utc) const {
+  CameraCalibrationInfo i;
+  i.covariance = covariance;
+  i.rms_px = rms_px;
+  i.max_px = max_px;
+  i.n_points = n_points;
+  i.outliers = outliers;
+  i.date = date_utc;
+  return i;
+}
+
+CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+                                   const CalibrationOptions& opt) {
+  check_points(pts, name);
+  const std::string who = "camera '" + name + "': ";
+  const int n = static_cast<int>(pts.size());
+  const Eigen::Vector2d pp(vp.width_px / 2.0, vp.height_px / 2.0);
+
+  CalibrationResult res;
+  res.n_points = n;
+  CamState state{};
+  std::vector<int> idx;  // the points of the current fit
+  int iterations = 0;
+
+  auto evaluate = [&](const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) {
+    const Eigen::Matrix3d Rt = s.R.transpose();
+    for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
+      const Correspondence& c = pts[idx[k]];
+      const Eigen::Vector3d pc = Rt * (c.p_m - s.c);
+      const double iz = 1.0 / pc.z();
+      const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
+      e.segment<2>(2 * k) = pp + s.f * xy - c.uv_px;
+      if (J) {
+        Eigen::Matrix<double, 2, 3> dproj;
+        dproj << s.f * iz, 0.0, -s.f * xy.x() * iz, 0.0, s.f * iz, -s.f * xy.y() * iz;
+        J->block<2, 3>(2 * k, 0) = dproj * skew(pc);   // body-frame rotation increment
+        J->block<2, 3>(2 * k, 3) = -dproj * Rt;        // camera position
+        J->block<2, 1>(2 * k, 6) = xy;                 // f_px
+      }
+    }
+  };
+  auto retract = [](const CamState& s, const Eigen::Matrix<double, 7, 1>& d) {
+    return CamState{s.R * exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
+  };
+  auto residual_norms = [&](const CamState& s) {
+    std::vector<double> r(static_cast<std::size_t>(n));
+    const Eigen::Matrix3d Rt = s.R.transpose();
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d pc = Rt * (pts[i].p_m - s.c);
+      r[i] = (pp + s.f * pc.head<2>() / pc.z() - pts[i].uv_px).norm();
+    }
+    return r;
+  };
+
+  bool have_state = false;
+  Camera linear_all;
+  auto fit = [&](const std::vector<bool>& inlier) {
+    std::vector<Correspondence> sub;
+    idx.clear();
+    for (int i = 0; i < n; ++i)
+      if (inlier[i]) {
+        idx.push_back(i);
+        sub.push_back(pts[i]);
+      }
+    if (!have_state) {  // first fit: start from the linear solution
+      Camera lin = calibrate_camera_linear(sub, vp, name, opt.rank_tolerance, &res.linear_cross_product);
+      linear_all = lin;
+      state = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
+      have_state = true;
+    }
+    const auto rep = detail::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract,
+                                                    opt.max_iterations);
+    iterations = rep.iterations;
+    return residual_norms(state);
+  };
+  std::vector<double> r;
+  const std::vector<bool> inlier = detail::flag_outliers(n, 8, opt.outliers, fit, r);
+
+  // The final camera and its statistics over the inliers.
+  res.camera.name = name;
+  res.camera.viewport = vp;
+  res.camera.f_px = state.f;
+  res.camera.base_T_camera = Pose::Identity();
+  res.camera.base_T_camera.linear() = state.R;
+  res.camera.base_T_camera.translation() = state.c;
+  res.iterations = iterations;
+  if (!(state.f > 0.0) || !std::isfinite(state.f) || !state.R.allFinite() || !state.c.allFinite())
+    throw EstimationError(who + "the nonlinear fit did not converge to a valid camera");
+
+  std::vector<Correspondence> in_pts;
+  std::string behind;
+  double ss = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d pc = res.camera.to_camera(pts[i].p_m);
+    PointResidual pr;
+    pr.n = pts[i].n;
+    pr.cam = pts[i].cam;
+    pr.line = pts[i].line;
+    pr.r_px = pts[i].uv_px - res.camera.project_camera(pc);
+    pr.px = pr.r_px.norm();
+    pr.outlier = !inlier[i];
+    if (pr.outlier) {
+      res.outliers.push_back(pts[i].n);
+    } else {
+      if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(pts[i]);
+      ss += pr.px * pr.px;
+      res.max_px = std::max(res.max_px, pr.px);
+      in_pts.push_back(pts[i]);
+    }
+    res.residuals.push_back(pr);
+  }
+  if (!behind.empty()) throw EstimationError(who + "points behind the camera: " + behind);
+  const int m = static_cast<int>(in_pts.size());
+  res.rms_px = std::sqrt(ss / m);
+  if (res.outliers.empty()) {
+    res.linear_rms_px = rms_px(linear_all, in_pts);
+  } else {  // the linear stage on the inliers alone
+    bool cross = false;
+    res.linear_rms_px = rms_px(calibrate_camera_linear(in_pts, vp, name, opt.rank_tolerance, &cross), in_pts);
+  }
+
+  // Covariance in (roll, pitch, yaw, x, y, z, f): J with the rotation columns
+  // mapped from body increments to rpy rates, s^2 (J^T J)^-1.
+  idx.clear();
+  for (int i = 0; i < n; ++i)
+    if (inlier[i]) idx.push_back(i);
+  Eigen::VectorXd e(2 * m);
+  Eigen::Matrix<double, Eigen::Dynamic, 7> J(2 * m, 7);
+  evaluate(state, e, &J);
+  const Eigen::Vector3d rpy = rpy_from_rotation(state.R);
+  J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy)).eval();
+  const double dof = std::max(2 * m - 7, 1);
+  const double s2 = e.squaredNorm() / dof;
+  const Eigen::Matrix<double, 7, 7> H = J.transpose() * J;
+  res.covariance = s2 * H.inverse();
+  res.sigma = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  return res;
+}
+
+}  // namespace foresight

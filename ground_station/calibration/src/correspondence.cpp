@@ -1,0 +1,147 @@
+#include "foresight/calibration/correspondence.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight {
+
+namespace {
+
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) return "";
+  const auto e = s.find_last_not_of(" \t\r");
+  return s.substr(b, e - b + 1);
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = line.find(',', start);
+    out.push_back(trim(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+/// Parses a number; false when the text is not one. Non-finite values parse
+/// (std::strtod accepts nan/inf) and are reported by the caller.
+bool to_double(const std::string& text, double& value) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  value = std::strtod(text.c_str(), &end);
+  return end == text.c_str() + text.size();
+}
+
+const char* kHeaderHelp = "header must be 'n,cam,x,y,z,u,v' or 'n,cam,link,lx,ly,lz,q1,...,qN,u,v'";
+
+}  // namespace
+
+std::vector<Correspondence> parse_correspondences_csv(const std::string& text, const std::string& source,
+                                                      const LinkPointResolver* robot) {
+  std::vector<Correspondence> out;
+  std::istringstream in(text);
+  std::string raw;
+  int line_no = 0;
+  bool header_seen = false;
+  while (std::getline(in, raw)) {
+    ++line_no;
+    const std::string line = trim(raw);
+    if (line.empty() || line[0] == '#') continue;
+    const std::vector<std::string> f = split(line);
+    if (!header_seen) {
+      header_seen = true;
+      const bool base_form = f.size() == 7 && f[0] == "n" && f[1] == "cam" && f[2] == "x" && f[3] == "y" &&
+                             f[4] == "z" && f[5] == "u" && f[6] == "v";
+      bool link_form = f.size() >= 9 && f[0] == "n" && f[1] == "cam" && f[2] == "link" && f[3] == "lx" &&
+                       f[4] == "ly" && f[5] == "lz" && f[f.size() - 2] == "u" && f.back() == "v";
+      for (std::size_t i = 6; link_form && i + 2 < f.size(); ++i)
+        link_form = f[i] == "q" + std::to_string(i - 5);
+      if (!base_form && !link_form) throw InputError(source, line_no, kHeaderHelp + std::string(", got '") + line + "'");
+      continue;
+    }
+    Correspondence c;
+    c.line = line_no;
+    double number = 0.0;
+    if (f.size() < 7)
+      throw InputError(source, line_no,
+                       "expected 7 fields n,cam,x,y,z,u,v (or n,cam,link,lx,ly,lz,q1..qN,u,v), got " +
+                           std::to_string(f.size()));
+    if (!to_double(f[0], number) || number != std::floor(number) || !std::isfinite(number))
+      throw InputError(source, line_no, "field 'n' must be an integer point number, got '" + f[0] + "'");
+    c.n = static_cast<int>(number);
+    if (f[1].empty()) throw InputError(source, line_no, "field 'cam' is empty");
+    c.cam = f[1];
+    const bool link_row = !to_double(f[2], number);
+    auto num = [&](std::size_t i, const std::string& name) {
+      double v = 0.0;
+      if (!to_double(f[i], v)) throw InputError(source, line_no, "field '" + name + "' is not a number: '" + f[i] + "'");
+      if (!std::isfinite(v)) throw InputError(source, line_no, "field '" + name + "' is not finite: '" + f[i] + "'");
+      return v;
+    };
+    if (!link_row) {
+      if (f.size() != 7)
+        throw InputError(source, line_no, "expected 7 fields n,cam,x,y,z,u,v, got " + std::to_string(f.size()));
+      c.p_m = {num(2, "x"), num(3, "y"), num(4, "z")};
+      c.uv_px = {num(5, "u"), num(6, "v")};
+    } else {
+      c.link = f[2];
+      if (robot == nullptr)
+        throw InputError(source, line_no,
+                         "point on link '" + c.link + "' but no robot model: give x,y,z (this command solves in " +
+                             "the object frame) or a robot URDF");
+      if (!robot->has_link(c.link))
+        throw InputError(source, line_no, "unknown link '" + c.link + "' (the robot's links: " + robot->link_list() + ")");
+      const int dof = robot->dof();
+      const int n_q = static_cast<int>(f.size()) - 8;
+      if (n_q != dof)
+        throw InputError(source, line_no,
+                         "point on link '" + c.link + "' needs " + std::to_string(dof) + " joint angles q1..q" +
+                             std::to_string(dof) + ", got " + std::to_string(std::max(n_q, 0)));
+      const Eigen::Vector3d p_link(num(3, "lx"), num(4, "ly"), num(5, "lz"));
+      Eigen::VectorXd q(dof);
+      for (int i = 0; i < dof; ++i) q[i] = num(6 + i, "q" + std::to_string(i + 1));
+      c.uv_px = {num(6 + dof, "u"), num(7 + dof, "v")};
+      c.p_m = robot->to_base(c.link, p_link, q);
+    }
+    out.push_back(std::move(c));
+  }
+  if (!header_seen) throw InputError(source, "empty file: " + std::string(kHeaderHelp));
+  if (out.empty()) throw InputError(source, "no points (only a header)");
+  return out;
+}
+
+std::vector<Correspondence> read_correspondences_csv(const std::string& path, const LinkPointResolver* robot) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path, "cannot open points file");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_correspondences_csv(ss.str(), path, robot);
+}
+
+std::vector<Correspondence> select_camera(const std::vector<Correspondence>& points, const std::string& cam) {
+  std::vector<Correspondence> out;
+  for (const auto& p : points)
+    if (p.cam == cam) out.push_back(p);
+  return out;
+}
+
+std::string to_csv(const std::vector<Correspondence>& points) {
+  std::ostringstream s;
+  s << std::setprecision(17) << "n,cam,x,y,z,u,v\n";
+  for (const auto& p : points)
+    s << p.n << ',' << p.cam << ',' << p.p_m.x() << ',' << p.p_m.y() << ',' << p.p_m.z() << ',' << p.uv_px.x() << ','
+      << p.uv_px.y() << '\n';
+  return s.str();
+}
+
+}  // namespace foresight

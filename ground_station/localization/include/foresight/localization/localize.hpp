@@ -1,0 +1,73 @@
+#pragma once
+// Object localization from any number of calibrated camera views (Kim 1996,
+// sec. 3), in two steps:
+//  1. the multi-view linear algorithm (eq. 7-8): 12 unknowns (the rows of
+//     [R | t] of base_T_object), two equations per click and view; the system
+//     is rank 11 for a single view (scaling about the camera centre), so the
+//     solution is a particular solution plus k times the null-space vector
+//     (the right singular vector of the smallest singular value), k from the
+//     unit norm of the rotation rows, sign from the points being in front.
+//     Object points that are (nearly) coplanar use the 9-unknown form with
+//     the third rotation column from the cross product;
+//  2. Gauss-Newton (Levenberg-Marquardt damped) on the 6 pose parameters over
+//     all views together, on pixel reprojection error.
+// Standard deviations from the Jacobian at the solution and the residual
+// variance; robust outlier flagging as in calibration.
+//
+// Not real-time code: allocates, may throw EstimationError.
+
+#include <Eigen/Core>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "foresight/calibration/calibrate.hpp"
+#include "foresight/camera/camera.hpp"
+#include "foresight/common/pose.hpp"
+
+namespace foresight {
+
+struct LocalizationOptions {
+  int max_iterations = 100;
+  OutlierOptions outliers;
+  /// Views to use (camera names); empty: every camera that has points. A
+  /// listed view without points is an error.
+  std::vector<std::string> views;
+  double rank_tolerance = 1e-9;
+};
+
+struct LocalizationResult {
+  Pose base_T_object = Pose::Identity();
+  /// Covariance of (roll, pitch, yaw [rad], x, y, z [m]) of base_T_object.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Vector3d sigma_rpy_rad = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sigma_position_m = Eigen::Vector3d::Zero();
+  double rms_px = 0.0;         ///< over inliers, all views
+  double max_px = 0.0;
+  double linear_rms_px = 0.0;  ///< the linear stage alone
+  int iterations = 0;
+  int n_points = 0;
+  std::vector<std::string> views;       ///< the views used, sorted
+  std::vector<PointResidual> residuals; ///< every point used, input order
+  std::vector<int> outliers;            ///< `n` of each flagged point
+
+  Eigen::Vector3d rpy_rad() const;
+  Eigen::Vector3d position_m() const { return base_T_object.translation(); }
+};
+
+/// Localize the object from its model points (object frame) clicked in
+/// calibrated views. Throws EstimationError: a point's camera unknown (names
+/// it, the line and the known cameras); a listed view with no points; fewer
+/// than 6 points in total or fewer than 4 distinct model points; collinear
+/// model points; non-finite numbers; no solution with the points in front of
+/// the cameras.
+LocalizationResult localize_object(const std::vector<Correspondence>& points,
+                                   const std::map<std::string, Camera>& cameras,
+                                   const LocalizationOptions& options = {});
+
+/// The linear stage alone (eq. 7-8), on every given point; for tests and
+/// benchmarks. Cameras must contain every point's camera.
+Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+                            double rank_tolerance = 1e-9);
+
+}  // namespace foresight

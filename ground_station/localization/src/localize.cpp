@@ -1,0 +1,327 @@
+#include "foresight/localization/localize.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "foresight/calibration/detail/levenberg_marquardt.hpp"
+#include "foresight/calibration/detail/robust.hpp"
+
+namespace foresight {
+
+namespace {
+
+std::string point_name(const Correspondence& c) {
+  std::string s = "n=" + std::to_string(c.n) + " in view '" + c.cam + "'";
+  if (c.line > 0) s += " (line " + std::to_string(c.line) + ")";
+  return s;
+}
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  if (a < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+std::string names_of(const std::map<std::string, Camera>& cameras) {
+  std::string s;
+  for (const auto& [name, cam] : cameras) s += (s.empty() ? "" : ", ") + name;
+  return s.empty() ? "none" : s;
+}
+
+/// One click with its camera resolved.
+struct Obs {
+  const Correspondence* c;
+  const Camera* cam;
+};
+
+/// Reprojection rms and number of points behind their camera for a pose.
+std::pair<int, double> score(const Pose& base_T_object, const std::vector<Obs>& obs) {
+  int behind = 0;
+  double ss = 0.0;
+  for (const auto& o : obs) {
+    const Eigen::Vector3d pc = o.cam->to_camera(base_T_object * o.c->p_m);
+    if (!(pc.z() > 0.0)) ++behind;
+    ss += (o.cam->project_camera(pc) - o.c->uv_px).squaredNorm();
+  }
+  return {behind, std::sqrt(ss / static_cast<double>(obs.size()))};
+}
+
+void check_geometry(const std::vector<Obs>& obs) {
+  if (obs.size() < 6)
+    throw EstimationError("localization needs at least 6 clicked points over all views, got " +
+                          std::to_string(obs.size()));
+  std::vector<Eigen::Vector3d> distinct;
+  for (const auto& o : obs) {
+    if (!o.c->p_m.allFinite() || !o.c->uv_px.allFinite())
+      throw EstimationError("point " + point_name(*o.c) + " has a non-finite coordinate");
+    bool seen = false;
+    for (const auto& d : distinct) seen = seen || (d - o.c->p_m).norm() < 1e-12;
+    if (!seen) distinct.push_back(o.c->p_m);
+  }
+  if (distinct.size() < 4)
+    throw EstimationError("localization needs at least 4 distinct model points, got " + std::to_string(distinct.size()));
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& d : distinct) mean += d;
+  mean /= static_cast<double>(distinct.size());
+  Eigen::MatrixXd P(distinct.size(), 3);
+  for (std::size_t i = 0; i < distinct.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = (distinct[i] - mean).transpose();
+  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(P).singularValues();
+  if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
+    throw EstimationError("the " + std::to_string(distinct.size()) +
+                          " distinct model points are collinear: the object's rotation about that line is undetermined");
+}
+
+Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
+  const int n = static_cast<int>(obs.size());
+  // Object points centred, in their principal axes, scaled to unit RMS.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& o : obs) mean += o.c->p_m;
+  mean /= n;
+  Eigen::MatrixXd P(n, 3);
+  for (int i = 0; i < n; ++i) P.row(i) = (obs[i].c->p_m - mean).transpose();
+  Eigen::JacobiSVD<Eigen::MatrixXd> pca(P, Eigen::ComputeFullV);
+  Eigen::Matrix3d Q = pca.matrixV();
+  if (Q.determinant() < 0.0) Q.col(2) = -Q.col(2);
+  const Eigen::Vector3d ps = pca.singularValues();
+  const double sigma = ps[0] / std::sqrt(static_cast<double>(n));
+  // Nearly coplanar model points: the 9-unknown form (two rotation columns)
+  // gives a better start; both forms are tried when the points are 3-D.
+  const bool planar_only = ps[2] < 1e-7 * ps[0];
+  Pose best = Pose::Identity();
+  std::pair<int, double> best_score{n + 1, 0.0};
+  for (int form = planar_only ? 1 : 0; form < 2; ++form) {
+    const int cols = form == 0 ? 3 : 2;   // rotation columns solved for
+    const int u = 3 * (cols + 1);         // unknowns: 12 or 9
+    Eigen::MatrixXd A(2 * n, u);
+    Eigen::VectorXd b(2 * n);
+    for (int i = 0; i < n; ++i) {
+      const Camera& cam = *obs[i].cam;
+      const Eigen::Vector3d p = Q.transpose() * (obs[i].c->p_m - mean) / sigma;
+      const Eigen::Matrix3d& Rc = cam.base_T_camera.linear();
+      const Eigen::Vector3d c = cam.base_T_camera.translation();
+      const Eigen::Vector2d xn = (obs[i].c->uv_px - cam.principal_point()) / cam.f_px;
+      for (int r = 0; r < 2; ++r) {
+        // eq. 7: a = (camera x or y axis) - x_n (camera z axis), in base:
+        // a . (R' p' + t') = a . c_camera.
+        const Eigen::Vector3d a = (Rc.col(r) - xn[r] * Rc.col(2)) * cam.f_px;
+        for (int j = 0; j < 3; ++j) {
+          for (int k = 0; k < cols; ++k) A(2 * i + r, j * (cols + 1) + k) = a[j] * p[k];
+          A(2 * i + r, j * (cols + 1) + cols) = a[j];
+        }
+        b[2 * i + r] = a.dot(c);
+      }
+    }
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    if (!(sv[u - 2] > rank_tolerance * sv[0])) {
+      std::ostringstream m;
+      m << "the linear localization system is rank deficient (rank below " << u - 1
+        << "): degenerate geometry of the model points and views";
+      throw EstimationError(m.str());
+    }
+    // eq. 8: x = x_p + k x_h; x_p from the 11 (8) well-determined directions,
+    // x_h the (near) null-space vector.
+    Eigen::VectorXd xp = Eigen::VectorXd::Zero(u);
+    const Eigen::VectorXd Utb = svd.matrixU().transpose() * b;
+    for (int s = 0; s < u - 1; ++s) xp += svd.matrixV().col(s) * (Utb[s] / sv[s]);
+    const Eigen::VectorXd xh = svd.matrixV().col(u - 1);
+    auto rot_part = [&](const Eigen::VectorXd& x) {
+      Eigen::VectorXd r(3 * cols);
+      for (int j = 0; j < 3; ++j) r.segment(j * cols, cols) = x.segment(j * (cols + 1), cols);
+      return r;
+    };
+    const Eigen::VectorXd rp = rot_part(xp), rh = rot_part(xh);
+    // k from the unit norm of the rotation (rows of R' have norm sigma):
+    // |rp + k rh|^2 = cols * sigma^2.
+    const double qa = rh.squaredNorm(), qb = 2.0 * rp.dot(rh), qc = rp.squaredNorm() - cols * sigma * sigma;
+    const double disc = qb * qb - 4.0 * qa * qc;
+    std::vector<double> ks;
+    if (disc >= 0.0) {
+      ks = {(-qb + std::sqrt(disc)) / (2.0 * qa), (-qb - std::sqrt(disc)) / (2.0 * qa)};
+    } else {
+      ks = {-qb / (2.0 * qa)};
+    }
+    for (const double k : ks) {
+      const Eigen::VectorXd x = xp + k * xh;
+      Eigen::Matrix3d RQ = Eigen::Matrix3d::Zero();  // R Q (object rotation in principal axes)
+      Eigen::Vector3d t;
+      for (int j = 0; j < 3; ++j) {
+        for (int kk = 0; kk < cols; ++kk) RQ(j, kk) = x[j * (cols + 1) + kk] / sigma;
+        t[j] = x[j * (cols + 1) + cols];
+      }
+      if (cols == 2) RQ.col(2) = RQ.col(0).cross(RQ.col(1));
+      if (RQ.determinant() <= 0.0) RQ.col(2) = RQ.col(0).cross(RQ.col(1));  // the cross product fix
+      if (!RQ.allFinite() || RQ.determinant() <= 0.0) continue;
+      Pose T = Pose::Identity();
+      T.linear() = nearest_rotation(RQ) * Q.transpose();
+      T.translation() = t - T.linear() * mean;  // x' = R(mean + Q p') + t_obj
+      const auto sc = score(T, obs);
+      if (sc.first < best_score.first || (sc.first == best_score.first && sc.second < best_score.second)) {
+        best_score = sc;
+        best = T;
+      }
+    }
+  }
+  if (best_score.first > n) throw EstimationError("the linear localization found no pose");
+  return best;
+}
+
+std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+                         const std::vector<std::string>& views, std::vector<std::string>& used_views) {
+  std::set<std::string> wanted(views.begin(), views.end());
+  for (const auto& v : views)
+    if (!cameras.count(v)) throw EstimationError("unknown view '" + v + "' (known cameras: " + names_of(cameras) + ")");
+  std::vector<Obs> obs;
+  std::set<std::string> used;
+  for (const auto& c : points) {
+    if (!wanted.empty() && !wanted.count(c.cam)) continue;
+    const auto it = cameras.find(c.cam);
+    if (it == cameras.end())
+      throw EstimationError("point n=" + std::to_string(c.n) + (c.line > 0 ? " (line " + std::to_string(c.line) + ")" : "") +
+                            ": unknown camera '" + c.cam + "' (known cameras: " + names_of(cameras) + ")");
+    obs.push_back({&c, &it->second});
+    used.insert(c.cam);
+  }
+  for (const auto& v : views)
+    if (!used.count(v)) throw EstimationError("view '" + v + "' has no points");
+  used_views.assign(used.begin(), used.end());
+  return obs;
+}
+
+}  // namespace
+
+Eigen::Vector3d LocalizationResult::rpy_rad() const { return rpy_from_rotation(base_T_object.linear()); }
+
+Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+                            double rank_tolerance) {
+  std::vector<std::string> used;
+  const std::vector<Obs> obs = resolve(points, cameras, {}, used);
+  check_geometry(obs);
+  return linear_pose(obs, rank_tolerance);
+}
+
+LocalizationResult localize_object(const std::vector<Correspondence>& points,
+                                   const std::map<std::string, Camera>& cameras, const LocalizationOptions& opt) {
+  LocalizationResult res;
+  const std::vector<Obs> obs = resolve(points, cameras, opt.views, res.views);
+  check_geometry(obs);
+  const int n = static_cast<int>(obs.size());
+  res.n_points = n;
+
+  struct State {
+    Eigen::Matrix3d R;
+    Eigen::Vector3d t;
+  };
+  State state{};
+  std::vector<int> idx;
+  int iterations = 0;
+  auto evaluate = [&](const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) {
+    for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
+      const Obs& o = obs[idx[k]];
+      const Eigen::Matrix3d& Rc = o.cam->base_T_camera.linear();
+      const Eigen::Vector3d pb = s.R * o.c->p_m + s.t;
+      const Eigen::Vector3d pc = Rc.transpose() * (pb - o.cam->base_T_camera.translation());
+      const double iz = 1.0 / pc.z(), f = o.cam->f_px;
+      const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
+      e.segment<2>(2 * k) = o.cam->principal_point() + f * xy - o.c->uv_px;
+      if (J) {
+        Eigen::Matrix<double, 2, 3> dproj;
+        dproj << f * iz, 0.0, -f * xy.x() * iz, 0.0, f * iz, -f * xy.y() * iz;
+        const Eigen::Matrix<double, 2, 3> d = dproj * Rc.transpose();
+        J->block<2, 3>(2 * k, 0) = -d * s.R * skew(o.c->p_m);  // body-frame rotation increment
+        J->block<2, 3>(2 * k, 3) = d;                           // translation
+      }
+    }
+  };
+  auto retract = [](const State& s, const Eigen::Matrix<double, 6, 1>& d) {
+    return State{s.R * exp_so3(d.head<3>()), s.t + d.tail<3>()};
+  };
+  auto residual_norms = [&](const State& s) {
+    std::vector<double> r(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector3d pc = obs[i].cam->to_camera(s.R * obs[i].c->p_m + s.t);
+      r[i] = (obs[i].cam->project_camera(pc) - obs[i].c->uv_px).norm();
+    }
+    return r;
+  };
+  bool have_state = false;
+  Pose linear_all = Pose::Identity();
+  auto fit = [&](const std::vector<bool>& inlier) {
+    idx.clear();
+    for (int i = 0; i < n; ++i)
+      if (inlier[i]) idx.push_back(i);
+    if (!have_state) {
+      linear_all = linear_pose(obs, opt.rank_tolerance);
+      state = {linear_all.linear(), linear_all.translation()};
+      have_state = true;
+    }
+    iterations = detail::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract,
+                                                opt.max_iterations)
+                     .iterations;
+    return residual_norms(state);
+  };
+  std::vector<double> r;
+  const std::vector<bool> inlier = detail::flag_outliers(n, 6, opt.outliers, fit, r);
+  if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+  res.base_T_object = Pose::Identity();
+  res.base_T_object.linear() = state.R;
+  res.base_T_object.translation() = state.t;
+  res.iterations = iterations;
+
+  std::string behind;
+  double ss = 0.0;
+  int m = 0;
+  std::vector<Obs> in_obs;
+  for (int i = 0; i < n; ++i) {
+    const Obs& o = obs[i];
+    const Eigen::Vector3d pc = o.cam->to_camera(res.base_T_object * o.c->p_m);
+    PointResidual pr;
+    pr.n = o.c->n;
+    pr.cam = o.c->cam;
+    pr.line = o.c->line;
+    pr.r_px = o.c->uv_px - o.cam->project_camera(pc);
+    pr.px = pr.r_px.norm();
+    pr.outlier = !inlier[i];
+    if (pr.outlier) {
+      res.outliers.push_back(o.c->n);
+    } else {
+      if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(*o.c);
+      ss += pr.px * pr.px;
+      res.max_px = std::max(res.max_px, pr.px);
+      ++m;
+      in_obs.push_back(o);
+    }
+    res.residuals.push_back(pr);
+  }
+  if (!behind.empty()) throw EstimationError("points behind their camera at the fitted pose: " + behind);
+  res.rms_px = std::sqrt(ss / m);
+  res.linear_rms_px = score(res.outliers.empty() ? linear_all : linear_pose(in_obs, opt.rank_tolerance), in_obs).second;
+
+  idx.clear();
+  for (int i = 0; i < n; ++i)
+    if (inlier[i]) idx.push_back(i);
+  Eigen::VectorXd e(2 * m);
+  Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m, 6);
+  evaluate(state, e, &J);
+  J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy_from_rotation(state.R))).eval();
+  const double s2 = e.squaredNorm() / std::max(2 * m - 6, 1);
+  const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
+  res.covariance = s2 * H.inverse();
+  const Eigen::Matrix<double, 6, 1> sd = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  res.sigma_rpy_rad = sd.head<3>();
+  res.sigma_position_m = sd.tail<3>();
+  return res;
+}
+
+}  // namespace foresight

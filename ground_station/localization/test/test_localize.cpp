@@ -1,0 +1,185 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "../../calibration/test/synthetic.hpp"
+#include "foresight/localization/localize.hpp"
+
+using namespace foresight;
+using foresight::testing::random_camera;
+
+namespace {
+
+struct Scenario {
+  std::map<std::string, Camera> cameras;
+  Pose base_T_object;
+  std::vector<Correspondence> exact;  // object-frame points, exact pixels
+};
+
+/// `views` cameras around a random object pose; `per_view` random model
+/// points (object frame, in a 0.5 m box; planar: all on z = 0) seen by each.
+Scenario make_setup(std::mt19937& rng, int views, int per_view, bool planar = false) {
+  Scenario s;
+  std::uniform_real_distribution<double> a(-M_PI, M_PI), u(-0.25, 0.25);
+  s.base_T_object = make_pose(Eigen::Vector3d(1.0, 0.2, 0.5) + Eigen::Vector3d(u(rng), u(rng), u(rng)),
+                              Eigen::Vector3d(a(rng), a(rng) / 2, a(rng)));
+  const Eigen::Vector3d centre = s.base_T_object.translation();
+  for (int v = 0; v < views; ++v) {
+    Camera cam = random_camera(rng, centre, 1.5 + 0.5 * v, 500.0 + 150.0 * v);
+    cam.name = "cam" + std::to_string(v + 1);
+    int n = 0;
+    for (int tries = 0; tries < 10000 && n < per_view; ++tries) {
+      const Eigen::Vector3d p(u(rng), u(rng), planar ? 0.0 : u(rng));
+      const Eigen::Vector3d pb = s.base_T_object * p;
+      if (!cam.in_front(pb) || !cam.in_view(cam.project(pb))) continue;
+      Correspondence c;
+      c.n = ++n;
+      c.cam = cam.name;
+      c.p_m = p;
+      c.uv_px = cam.project(pb);
+      c.line = static_cast<int>(s.exact.size()) + 2;
+      s.exact.push_back(c);
+    }
+    s.cameras[cam.name] = cam;
+  }
+  return s;
+}
+
+std::vector<Correspondence> noisy(std::mt19937& rng, std::vector<Correspondence> pts, double sd) {
+  std::normal_distribution<double> g(0.0, sd);
+  for (auto& c : pts) c.uv_px += Eigen::Vector2d(g(rng), g(rng));
+  return pts;
+}
+
+/// (roll, pitch, yaw, x, y, z) error of an estimate, rotation error mapped
+/// into rpy rates at the truth.
+Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
+  Eigen::Matrix<double, 6, 1> d;
+  const Eigen::AngleAxisd aa(truth.linear().transpose() * est.linear());
+  d.head<3>() = rpy_rate_matrix(rpy_from_rotation(truth.linear())).inverse() * (aa.angle() * aa.axis());
+  d.tail<3>() = est.translation() - truth.translation();
+  return d;
+}
+
+std::string error_of(const std::vector<Correspondence>& pts, const std::map<std::string, Camera>& cams,
+                     const std::vector<std::string>& views = {}) {
+  LocalizationOptions opt;
+  opt.views = views;
+  try {
+    localize_object(pts, cams, opt);
+  } catch (const EstimationError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST(Localize, NoiseFreeRecoversPoseFromOneToFourViews) {
+  std::mt19937 rng(21);
+  for (int trial = 0; trial < 24; ++trial) {
+    const int views = 1 + trial % 4;
+    const bool planar = trial % 3 == 2;
+    const Scenario s = make_setup(rng, views, 8, planar);
+    const LocalizationResult r = localize_object(s.exact, s.cameras);
+    const auto d = pose_error(r.base_T_object, s.base_T_object);
+    EXPECT_LT(d.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial << " views " << views << " planar " << planar;
+    EXPECT_LT(r.rms_px, 1e-6);
+    EXPECT_EQ(static_cast<int>(r.views.size()), views);
+    // The linear stage (eq. 7-8) alone is exact on exact data.
+    const auto dl = pose_error(localize_object_linear(s.exact, s.cameras), s.base_T_object);
+    EXPECT_LT(dl.cwiseAbs().maxCoeff(), 1e-6) << "linear, trial " << trial;
+  }
+}
+
+TEST(Localize, NoisyWithinThreeSigmaAndSigmaMatchesSpread) {
+  std::mt19937 rng(5);
+  for (const int views : {1, 3}) {
+    const Scenario s = make_setup(rng, views, 10);
+    const int trials = 300;
+    Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero(), sum_sigma = sum_sq;
+    int within = 0;
+    for (int t = 0; t < trials; ++t) {
+      LocalizationOptions opt;
+      opt.outliers.enabled = false;
+      const LocalizationResult r = localize_object(noisy(rng, s.exact, 1.0), s.cameras, opt);
+      const auto d = pose_error(r.base_T_object, s.base_T_object);
+      Eigen::Matrix<double, 6, 1> sd;
+      sd << r.sigma_rpy_rad, r.sigma_position_m;
+      sum_sq += d.cwiseAbs2();
+      sum_sigma += sd;
+      if ((d.cwiseAbs().array() < 3.0 * sd.array()).all()) ++within;
+    }
+    const Eigen::Matrix<double, 6, 1> spread = (sum_sq / trials).cwiseSqrt();
+    for (int i = 0; i < 6; ++i)
+      EXPECT_NEAR(sum_sigma[i] / trials / spread[i], 1.0, 0.2) << views << " views, parameter " << i;
+    EXPECT_GE(within, static_cast<int>(0.95 * trials)) << views << " views";
+  }
+}
+
+TEST(Localize, PlantedOutliersFlaggedAndFitUnharmed) {
+  std::mt19937 rng(8);
+  const Scenario s = make_setup(rng, 3, 10);
+  auto pts = noisy(rng, s.exact, 0.5);
+  std::vector<Correspondence> clean;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (i != 3 && i != 14) clean.push_back(pts[i]);
+  pts[3].uv_px += Eigen::Vector2d(30.0, 0.0);
+  pts[14].uv_px += Eigen::Vector2d(-12.0, 15.0);
+  const LocalizationResult r = localize_object(pts, s.cameras);
+  EXPECT_EQ(r.outliers, (std::vector<int>{pts[3].n, pts[14].n}));
+  EXPECT_TRUE(r.residuals[3].outlier && r.residuals[14].outlier);
+  EXPECT_GT(r.residuals[3].px, 25.0);
+  LocalizationOptions off;
+  off.outliers.enabled = false;
+  const LocalizationResult ref = localize_object(clean, s.cameras, off);
+  const auto d = pose_error(r.base_T_object, ref.base_T_object);
+  EXPECT_LT(d.head<3>().cwiseAbs().maxCoeff(), 1e-3 * ref.sigma_rpy_rad.minCoeff());
+  EXPECT_LT(d.tail<3>().cwiseAbs().maxCoeff(), 1e-3 * ref.sigma_position_m.minCoeff());
+}
+
+TEST(Localize, ViewSelection) {
+  std::mt19937 rng(9);
+  const Scenario s = make_setup(rng, 3, 8);
+  LocalizationOptions opt;
+  opt.views = {"cam3", "cam1"};
+  const LocalizationResult r = localize_object(s.exact, s.cameras, opt);
+  EXPECT_EQ(r.views, (std::vector<std::string>{"cam1", "cam3"}));
+  EXPECT_EQ(r.n_points, 16);
+  EXPECT_LT(pose_error(r.base_T_object, s.base_T_object).cwiseAbs().maxCoeff(), 1e-6);
+}
+
+TEST(LocalizeBadInput, EveryBadInputHasItsMessage) {
+  std::mt19937 rng(10);
+  const Scenario s = make_setup(rng, 2, 8);
+  auto pts = s.exact;
+  pts[2].cam = "top";
+  pts[2].line = 4;
+  EXPECT_EQ(error_of(pts, s.cameras), "point n=3 (line 4): unknown camera 'top' (known cameras: cam1, cam2)");
+  EXPECT_EQ(error_of(s.exact, s.cameras, {"cam1", "cam9"}), "unknown view 'cam9' (known cameras: cam1, cam2)");
+  auto only1 = s.exact;
+  only1.resize(8);  // the first view's points
+  EXPECT_EQ(error_of(only1, s.cameras, {"cam1", "cam2"}), "view 'cam2' has no points");
+  auto five = s.exact;
+  five.resize(5);
+  EXPECT_EQ(error_of(five, s.cameras), "localization needs at least 6 clicked points over all views, got 5");
+  auto nan = s.exact;
+  nan[1].p_m.y() = std::nan("");
+  nan[1].line = 3;
+  EXPECT_EQ(error_of(nan, s.cameras), "point n=2 in view 'cam1' (line 3) has a non-finite coordinate");
+  auto three = s.exact;  // 16 clicks of only 3 distinct model points
+  for (std::size_t i = 0; i < three.size(); ++i) {
+    const Eigen::Vector3d corners[3] = {{0, 0, 0}, {0.1, 0, 0}, {0, 0.1, 0}};
+    three[i].p_m = corners[i % 3];
+    three[i].uv_px = s.cameras.at(three[i].cam).project(s.base_T_object * three[i].p_m);
+  }
+  EXPECT_EQ(error_of(three, s.cameras), "localization needs at least 4 distinct model points, got 3");
+  auto line = s.exact;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    line[i].p_m = Eigen::Vector3d(0.03 * static_cast<double>(i % 8), 0.0, 0.0);
+    line[i].uv_px = s.cameras.at(line[i].cam).project(s.base_T_object * line[i].p_m);
+  }
+  EXPECT_EQ(error_of(line, s.cameras),
+            "the 8 distinct model points are collinear: the object's rotation about that line is undetermined");
+}
