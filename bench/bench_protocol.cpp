@@ -1,0 +1,200 @@
+// Protocol benchmarks between TWO PROCESSES on loopback: this benchmark and
+// foresight_protocol_peer (the test peer: echoes, answers pings with pongs,
+// assembles and verifies uploads). The peer is found beside this binary
+// (../bin/foresight_protocol_peer) or at $FORESIGHT_PROTOCOL_PEER.
+//
+//   BM_PingPongRoundTrip       one ping -> pong round trip (best-effort QoS);
+//                              counters: rtt median / p99 in microseconds
+//   BM_TrajectoryUpload2000x7  2000 samples x 7 joints (112 KiB, 2 chunks):
+//     /acked                   write all chunks -> every reader acknowledged
+//     /committed               write all chunks -> the peer assembled them,
+//                              checked the SHA-256 and limits, and published
+//                              UPLOAD_COMMITTED
+//   BM_Discovery               new participant + writer -> matched with the
+//                              peer's reader (participant + endpoint discovery)
+
+#include <benchmark/benchmark.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+
+extern char** environ;
+
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::string peer_path() {
+  if (const char* p = std::getenv("FORESIGHT_PROTOCOL_PEER"); p != nullptr && *p != '\0') return p;
+  return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / ".." / "bin" / "foresight_protocol_peer")
+      .lexically_normal()
+      .string();
+}
+
+/// One peer process and one participant for the whole run.
+struct Setup {
+  Setup() {
+    fp::use_loopback_if_unconfigured();
+    domain = fp::unique_test_domain();
+    const std::string path = peer_path();
+    const std::string d = std::to_string(domain);
+    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--lifetime-s", "600", nullptr};
+    if (posix_spawn(&pid, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ) != 0) {
+      throw std::runtime_error("cannot start " + path);
+    }
+    participant = std::make_unique<fp::Participant>(domain);
+  }
+  ~Setup() {
+    participant.reset();
+    kill(pid, SIGTERM);
+    int status = 0;
+    for (int i = 0; i < 300 && waitpid(pid, &status, WNOHANG) != pid; ++i) std::this_thread::sleep_for(10ms);
+    if (waitpid(pid, &status, WNOHANG) == 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+    }
+  }
+  dds_domainid_t domain = 0;
+  pid_t pid = -1;
+  std::unique_ptr<fp::Participant> participant;
+};
+
+Setup& setup() {
+  static Setup s;
+  return s;
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1) + 0.5)];
+}
+
+void BM_PingPongRoundTrip(benchmark::State& state) {
+  fp::Writer<msg::Ping> ping(*setup().participant);
+  fp::Reader<msg::Pong> pong(*setup().participant);
+  if (!ping.wait_for_readers(2, 10s) || !pong.wait_for_writers(1, 10s)) {
+    state.SkipWithError("peer not discovered");
+    return;
+  }
+  std::this_thread::sleep_for(100ms);  // let the peer's side of the match settle
+  fp::Sample<msg::Pong> got;
+  std::vector<double> rtt_us;
+  rtt_us.reserve(100000);
+  std::uint64_t id = 0, lost = 0;
+  for (auto _ : state) {
+    msg::Ping p{};
+    p.ping_id = ++id;
+    p.ground_send_ns = fp::now_ns();
+    const auto t0 = Clock::now();
+    ping.write(p);
+    bool ok = false;
+    while (pong.wait_take(got, 200ms)) {
+      if (got->ping_id == id) {
+        ok = true;
+        break;
+      }
+    }
+    if (!ok) {
+      ++lost;
+      continue;
+    }
+    rtt_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+  }
+  state.counters["rtt_median_us"] = percentile(rtt_us, 0.5);
+  state.counters["rtt_p99_us"] = percentile(rtt_us, 0.99);
+  state.counters["lost"] = static_cast<double>(lost);
+}
+BENCHMARK(BM_PingPongRoundTrip)->Unit(benchmark::kMicrosecond)->MinTime(2.0)->UseRealTime();
+
+foresight::Trajectory make_trajectory(int samples, int joints) {
+  foresight::Trajectory t;
+  t.time_s.resize(static_cast<std::size_t>(samples));
+  t.positions_rad.resize(samples, joints);
+  for (int s = 0; s < samples; ++s) {
+    t.time_s[static_cast<std::size_t>(s)] = 0.01 * s;
+    for (int j = 0; j < joints; ++j) t.positions_rad(s, j) = 0.4 * std::sin(0.005 * s + 0.7 * j);
+  }
+  return t;
+}
+
+void BM_TrajectoryUpload2000x7(benchmark::State& state) {
+  const bool wait_commit = state.range(0) == 1;
+  fp::Writer<msg::TrajectoryChunk> writer(*setup().participant);
+  fp::Reader<msg::TrajectoryStatus> status(*setup().participant);
+  if (!writer.wait_for_readers(2, 10s) || !status.wait_for_writers(1, 10s)) {
+    state.SkipWithError("peer not discovered");
+    return;
+  }
+  const foresight::Trajectory t = make_trajectory(2000, 7);
+  const foresight::TrajectoryHash hash = foresight::trajectory_hash(t);
+  std::uint64_t id = static_cast<std::uint64_t>(state.range(0)) << 40;
+  // Warm-up upload: proves the path both ways before timing.
+  {
+    for (const auto& c : fp::make_chunks(t, ++id, 1, hash)) writer.write(c);
+    fp::Sample<msg::TrajectoryStatus> s;
+    const auto end = Clock::now() + 10s;
+    while (Clock::now() < end && status.wait_take(s, 1s)) {
+      if (s->trajectory_id == id && s->state != foresight_msg_UPLOAD_ASSEMBLING) break;
+    }
+  }
+  fp::Sample<msg::TrajectoryStatus> s;
+  for (auto _ : state) {
+    state.PauseTiming();
+    const auto chunks = fp::make_chunks(t, ++id, 1, hash);
+    state.ResumeTiming();
+    for (const auto& c : chunks) writer.write(c);
+    if (wait_commit) {
+      bool done = false;
+      while (!done && status.wait_take(s, 5s)) {
+        done = s->trajectory_id == id && s->state == foresight_msg_UPLOAD_COMMITTED;
+      }
+      if (!done) {
+        state.SkipWithError("upload not committed within 5 s");
+        return;
+      }
+    } else if (!writer.wait_for_acks(5s)) {
+      state.SkipWithError("chunks not acknowledged within 5 s");
+      return;
+    }
+  }
+  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) * 2000 * 8 * 8);
+}
+BENCHMARK(BM_TrajectoryUpload2000x7)->ArgName("committed")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Discovery(benchmark::State& state) {
+  setup();
+  for (auto _ : state) {
+    fp::Participant p(setup().domain);
+    fp::Writer<msg::Command> w(p);
+    if (!w.wait_for_readers(2, 10s)) {
+      state.SkipWithError("peer not discovered within 10 s");
+      return;
+    }
+  }
+}
+BENCHMARK(BM_Discovery)->Unit(benchmark::kMillisecond)->Iterations(20)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,143 @@
+#pragma once
+// Helpers to fill and read the generated C structs from C++: bounded strings,
+// sequences, time stamps, and the delay arithmetic of Ping/Pong.
+//
+// Real-time safety: text(), view(), now_ns(), delay_from_pong() and
+// borrow() are noexcept and do not allocate. set_text() and assign() may
+// throw (bound exceeded) and assign() allocates when the sequence grows.
+
+#include <dds/dds.h>
+
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include "foresight/protocol/messages.hpp"
+
+namespace foresight::protocol {
+
+/// The text of a bounded IDL string (a char[N + 1] member).
+template <std::size_t N>
+std::string_view text(const char (&field)[N]) noexcept {
+  return std::string_view(field, strnlen(field, N));
+}
+
+/// Copies `value` into a bounded IDL string. Throws std::length_error naming
+/// `what` when `value` is longer than the bound (N - 1 characters).
+template <std::size_t N>
+void set_text(char (&field)[N], std::string_view value, std::string_view what) {
+  if (value.size() > N - 1) {
+    throw std::length_error(std::string(what) + ": " + std::to_string(value.size()) +
+                            " characters exceed the protocol bound of " + std::to_string(N - 1));
+  }
+  std::memcpy(field, value.data(), value.size());
+  std::memset(field + value.size(), 0, N - value.size());
+}
+
+/// For human-readable text (reasons, faults): cuts `value` at the bound
+/// instead of failing, ending it with "..." when it was cut.
+template <std::size_t N>
+void set_text_truncated(char (&field)[N], std::string_view value) noexcept {
+  if (value.size() <= N - 1) {
+    std::memcpy(field, value.data(), value.size());
+    std::memset(field + value.size(), 0, N - value.size());
+    return;
+  }
+  std::memcpy(field, value.data(), N - 4);
+  std::memcpy(field + N - 4, "...", 4);
+}
+
+/// Any generated sequence type (dds_sequence_double, ...).
+template <class Seq>
+concept DdsSequence = requires(Seq s) {
+  s._maximum;
+  s._length;
+  s._buffer;
+  s._release;
+};
+
+template <DdsSequence Seq>
+using SeqElement = std::remove_pointer_t<decltype(Seq::_buffer)>;
+
+/// The elements of a sequence.
+template <DdsSequence Seq>
+std::span<const SeqElement<Seq>> view(const Seq& seq) noexcept {
+  return {seq._buffer, seq._length};
+}
+template <DdsSequence Seq>
+std::span<SeqElement<Seq>> view(Seq& seq) noexcept {
+  return {seq._buffer, seq._length};
+}
+
+/// Copies `values` into `seq`, (re)allocating with dds_alloc when the
+/// capacity is too small; the sequence then owns its buffer (_release), and
+/// Sample<T> frees it. `bound` is the IDL bound: exceeding it throws
+/// std::length_error naming `what` (Cyclone would refuse the write anyway).
+/// For trivially copyable elements only (numbers, plain structs).
+template <DdsSequence Seq>
+void assign(Seq& seq, std::span<const SeqElement<Seq>> values, std::size_t bound, std::string_view what) {
+  using E = SeqElement<Seq>;
+  static_assert(std::is_trivially_copyable_v<E>);
+  if (values.size() > bound) {
+    throw std::length_error(std::string(what) + ": " + std::to_string(values.size()) +
+                            " elements exceed the protocol bound of " + std::to_string(bound));
+  }
+  const auto n = static_cast<std::uint32_t>(values.size());
+  if (seq._buffer == nullptr || !seq._release || seq._maximum < n) {
+    if (seq._release && seq._buffer != nullptr) dds_free(seq._buffer);
+    seq._buffer = n > 0 ? static_cast<E*>(dds_alloc(n * sizeof(E))) : nullptr;
+    seq._maximum = n;
+    seq._release = n > 0;
+  }
+  if (n > 0) std::memcpy(seq._buffer, values.data(), n * sizeof(E));
+  seq._length = n;
+}
+
+/// Points `seq` at caller-owned memory without copying (zero-copy writes of
+/// large chunks). The caller keeps `values` alive until the write returned;
+/// the sequence does not own it (_release = false), so Sample<T> leaves it.
+/// Any buffer the sequence owned before must have been freed by the caller.
+template <DdsSequence Seq>
+void borrow(Seq& seq, std::span<SeqElement<Seq>> values) noexcept {
+  seq._buffer = values.data();
+  seq._length = static_cast<std::uint32_t>(values.size());
+  seq._maximum = seq._length;
+  seq._release = false;
+}
+
+/// Wall-clock time (CLOCK_REALTIME) in ns since the epoch: the protocol's
+/// *_ns stamps. Comparable across machines only after correcting by the
+/// clock offset that Ping/Pong measure.
+inline std::int64_t now_ns() noexcept { return dds_time(); }
+
+/// One delay measurement from a pong and the ground's receive time t4.
+struct DelaySample {
+  std::int64_t rtt_ns = 0;     ///< (t4 - t1) - (t3 - t2): network time, remote processing excluded
+  std::int64_t offset_ns = 0;  ///< remote clock - ground clock: ((t2 - t1) + (t3 - t4)) / 2
+  /// One-way delays assuming a symmetric path (rtt / 2 each way).
+  double one_way_s() const noexcept { return static_cast<double>(rtt_ns) * 0.5e-9; }
+};
+
+/// NTP-style estimate (RFC 5905, on-wire protocol). Exact when the path is
+/// symmetric; an asymmetry a shifts the offset by a/2.
+inline DelaySample delay_from_pong(const msg::Pong& pong, std::int64_t ground_receive_ns) noexcept {
+  const std::int64_t t1 = pong.ground_send_ns, t2 = pong.remote_receive_ns, t3 = pong.remote_send_ns,
+                     t4 = ground_receive_ns;
+  DelaySample s;
+  s.rtt_ns = (t4 - t1) - (t3 - t2);
+  s.offset_ns = ((t2 - t1) + (t3 - t4)) / 2;
+  return s;
+}
+
+/// Names of enum values, for logs and error messages ("ACK_COMPLETED", ...).
+const char* to_string(msg::CommandKind kind) noexcept;
+const char* to_string(msg::AckState state) noexcept;
+const char* to_string(msg::ReasonCode code) noexcept;
+const char* to_string(msg::UploadState state) noexcept;
+const char* to_string(msg::ControllerMode mode) noexcept;
+const char* to_string(msg::StopCategory category) noexcept;
+
+}  // namespace foresight::protocol

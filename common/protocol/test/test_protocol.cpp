@@ -1,0 +1,495 @@
+// In-process tests of the protocol library: QoS profiles, the C-struct
+// helpers, delay arithmetic, chunking and assembly of trajectory uploads, and
+// the RAII layer's error handling. The two-process exchange is in
+// test_protocol_loopback.cpp.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
+using foresight::Trajectory;
+using std::chrono::milliseconds;
+
+namespace {
+
+Trajectory make_trajectory(int samples, int joints, double dt = 0.01) {
+  Trajectory t;
+  t.time_s.resize(static_cast<std::size_t>(samples));
+  t.positions_rad.resize(samples, joints);
+  for (int s = 0; s < samples; ++s) {
+    t.time_s[static_cast<std::size_t>(s)] = s * dt;
+    for (int j = 0; j < joints; ++j) t.positions_rad(s, j) = 0.5 * std::sin(0.3 * s * dt + j) + 0.01 * j;
+  }
+  return t;
+}
+
+struct Policies {
+  dds_reliability_kind_t reliability;
+  dds_duration_t max_blocking;
+  dds_history_kind_t history;
+  int32_t depth;
+  dds_durability_kind_t durability;
+};
+
+Policies policies(const fp::Qos& q) {
+  Policies p{};
+  EXPECT_TRUE(dds_qget_reliability(q.get(), &p.reliability, &p.max_blocking));
+  EXPECT_TRUE(dds_qget_history(q.get(), &p.history, &p.depth));
+  EXPECT_TRUE(dds_qget_durability(q.get(), &p.durability));
+  return p;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- QoS
+
+TEST(ProtocolQos, CommandsAcksAndUploadsAreReliableKeepAllVolatile) {
+  for (const fp::Qos& q : {fp::qos::command(), fp::qos::command_ack(), fp::qos::trajectory_chunk()}) {
+    const Policies p = policies(q);
+    EXPECT_EQ(p.reliability, DDS_RELIABILITY_RELIABLE);
+    EXPECT_EQ(p.history, DDS_HISTORY_KEEP_ALL);
+    EXPECT_EQ(p.durability, DDS_DURABILITY_VOLATILE);  // a restarted remote must not replay commands
+  }
+  EXPECT_EQ(policies(fp::qos::trajectory_chunk()).max_blocking, DDS_SECS(5));
+}
+
+TEST(ProtocolQos, StatusIsReliableTransientLocalKeepLastOne) {
+  for (const fp::Qos& q : {fp::qos::controller_status(), fp::qos::trajectory_status()}) {
+    const Policies p = policies(q);
+    EXPECT_EQ(p.reliability, DDS_RELIABILITY_RELIABLE);
+    EXPECT_EQ(p.history, DDS_HISTORY_KEEP_LAST);
+    EXPECT_EQ(p.depth, 1);
+    EXPECT_EQ(p.durability, DDS_DURABILITY_TRANSIENT_LOCAL);
+  }
+}
+
+TEST(ProtocolQos, TelemetryHeartbeatAndPingAreBestEffortKeepLast) {
+  const Policies t = policies(fp::qos::telemetry(4));
+  EXPECT_EQ(t.reliability, DDS_RELIABILITY_BEST_EFFORT);
+  EXPECT_EQ(t.history, DDS_HISTORY_KEEP_LAST);
+  EXPECT_EQ(t.depth, 4);
+  const Policies h = policies(fp::qos::heartbeat());
+  EXPECT_EQ(h.reliability, DDS_RELIABILITY_BEST_EFFORT);
+  EXPECT_EQ(h.depth, 1);
+  EXPECT_EQ(h.durability, DDS_DURABILITY_VOLATILE);
+  const Policies p = policies(fp::qos::ping());
+  EXPECT_EQ(p.reliability, DDS_RELIABILITY_BEST_EFFORT);
+  EXPECT_EQ(p.depth, 16);
+}
+
+TEST(ProtocolQos, BadDepthIsRejected) {
+  EXPECT_THROW(
+      {
+        try {
+          fp::Qos().keep_last(0);
+        } catch (const fp::ProtocolError& e) {
+          EXPECT_STREQ(e.what(), "keep_last: depth must be >= 1, got 0");
+          throw;
+        }
+      },
+      fp::ProtocolError);
+}
+
+TEST(ProtocolQos, DefaultsPerMessageType) {
+  EXPECT_STREQ(fp::MessageTraits<msg::Command>::topic, "foresight/command");
+  EXPECT_STREQ(fp::MessageTraits<msg::JointState>::topic, "foresight/telemetry/joint_state");
+  EXPECT_EQ(policies(fp::MessageTraits<msg::Wrench>::qos()).reliability, DDS_RELIABILITY_BEST_EFFORT);
+  EXPECT_EQ(policies(fp::MessageTraits<msg::CommandAck>::qos()).history, DDS_HISTORY_KEEP_ALL);
+}
+
+// ---------------------------------------------------------------- codec
+
+TEST(ProtocolCodec, BoundedTextRoundTripsAndRefusesOverlongNames) {
+  msg::CameraCommand camera{};
+  fp::set_text(camera.camera, "left_cam", "camera name");
+  EXPECT_EQ(fp::text(camera.camera), "left_cam");
+  const std::string max(63, 'x');
+  fp::set_text(camera.camera, max, "camera name");
+  EXPECT_EQ(fp::text(camera.camera), max);
+  try {
+    fp::set_text(camera.camera, std::string(64, 'x'), "CAMERA camera");
+    FAIL() << "expected std::length_error";
+  } catch (const std::length_error& e) {
+    EXPECT_STREQ(e.what(), "CAMERA camera: 64 characters exceed the protocol bound of 63");
+  }
+}
+
+TEST(ProtocolCodec, ReasonTextIsTruncatedVisibly) {
+  msg::CommandAck ack{};
+  fp::set_text_truncated(ack.reason, std::string(300, 'r'));
+  const std::string_view t = fp::text(ack.reason);
+  ASSERT_EQ(t.size(), 255u);
+  EXPECT_EQ(t.substr(252), "...");
+  fp::set_text_truncated(ack.reason, "short");
+  EXPECT_EQ(fp::text(ack.reason), "short");
+}
+
+TEST(ProtocolCodec, AssignOwnsAndReusesBuffersBorrowDoesNot) {
+  fp::Sample<msg::JointState> js;
+  const std::vector<double> q{0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7};
+  fp::assign(js->q_rad, std::span<const double>(q), msg::kMaxJoints, "q_rad");
+  ASSERT_EQ(js->q_rad._length, 7u);
+  EXPECT_TRUE(js->q_rad._release);
+  EXPECT_TRUE(std::equal(q.begin(), q.end(), fp::view(js->q_rad).begin()));
+  double* const buffer = js->q_rad._buffer;
+  fp::assign(js->q_rad, std::span<const double>(q).first(3), msg::kMaxJoints, "q_rad");
+  EXPECT_EQ(js->q_rad._buffer, buffer);  // shrinking reuses the buffer
+  EXPECT_EQ(js->q_rad._length, 3u);
+  const std::vector<double> too_many(17, 0.0);
+  try {
+    fp::assign(js->q_rad, std::span<const double>(too_many), msg::kMaxJoints, "GOTO_JOINT q_rad");
+    FAIL() << "expected std::length_error";
+  } catch (const std::length_error& e) {
+    EXPECT_STREQ(e.what(), "GOTO_JOINT q_rad: 17 elements exceed the protocol bound of 16");
+  }
+  std::vector<double> mine{1.0, 2.0};
+  fp::Sample<msg::JointState> borrowed;
+  fp::borrow(borrowed->dq_rad_s, std::span<double>(mine));
+  EXPECT_FALSE(borrowed->dq_rad_s._release);
+  EXPECT_EQ(borrowed->dq_rad_s._buffer, mine.data());
+  // ~Sample frees q_rad of `js` and leaves `mine` alone (ASan/valgrind would object otherwise).
+}
+
+TEST(ProtocolCodec, SampleMoveTransfersOwnership) {
+  fp::Sample<msg::CommandAck> a;
+  const std::vector<double> q{1.0, 2.0, 3.0};
+  fp::assign(a->final_q_rad, std::span<const double>(q), msg::kMaxJoints, "final_q_rad");
+  double* const buffer = a->final_q_rad._buffer;
+  fp::Sample<msg::CommandAck> b(std::move(a));
+  EXPECT_EQ(b->final_q_rad._buffer, buffer);
+  EXPECT_EQ(a->final_q_rad._buffer, nullptr);  // NOLINT(bugprone-use-after-move): moved-from is zeroed
+  a = std::move(b);
+  EXPECT_EQ(a->final_q_rad._buffer, buffer);
+  a.clear();
+  EXPECT_EQ(a->final_q_rad._length, 0u);
+}
+
+TEST(ProtocolCodec, DelayFromPongKnownAnswer) {
+  // Remote clock 5 ms ahead of the ground; 40 ms each way; 1 ms processing.
+  const std::int64_t ms = 1'000'000;
+  msg::Pong pong{};
+  pong.ground_send_ns = 1000 * ms;                    // t1 (ground clock)
+  pong.remote_receive_ns = 1000 * ms + 40 * ms + 5 * ms;  // t2 (remote clock)
+  pong.remote_send_ns = pong.remote_receive_ns + 1 * ms;  // t3
+  const std::int64_t t4 = 1000 * ms + 81 * ms;            // ground clock
+  const fp::DelaySample d = fp::delay_from_pong(pong, t4);
+  EXPECT_EQ(d.rtt_ns, 80 * ms);
+  EXPECT_EQ(d.offset_ns, 5 * ms);
+  EXPECT_DOUBLE_EQ(d.one_way_s(), 0.040);
+}
+
+TEST(ProtocolCodec, EnumNames) {
+  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_GOTO_CART), "CMD_GOTO_CART");
+  EXPECT_STREQ(fp::to_string(foresight_msg_ACK_CANCELED), "ACK_CANCELED");
+  EXPECT_STREQ(fp::to_string(foresight_msg_REASON_HASH_MISMATCH), "REASON_HASH_MISMATCH");
+  EXPECT_STREQ(fp::to_string(foresight_msg_UPLOAD_COMMITTED), "UPLOAD_COMMITTED");
+  EXPECT_STREQ(fp::to_string(foresight_msg_MODE_STOPPED), "MODE_STOPPED");
+  EXPECT_STREQ(fp::to_string(foresight_msg_STOP_CAT1), "STOP_CAT1");
+}
+
+// ---------------------------------------------------------------- upload
+
+TEST(ProtocolUpload, ChunksCarrySizesHashAndRowMajorSamples) {
+  const Trajectory t = make_trajectory(2000, 7);
+  const auto hash = foresight::trajectory_hash(t);
+  const auto chunks = fp::make_chunks(t, 42, 7, 300);
+  ASSERT_EQ(chunks.size(), 7u);  // 6 x 300 + 200
+  for (std::size_t c = 0; c < chunks.size(); ++c) {
+    const msg::TrajectoryChunk& k = *chunks[c];
+    EXPECT_EQ(k.trajectory_id, 42u);
+    EXPECT_EQ(k.session_id, 7u);
+    EXPECT_EQ(k.chunk_index, c);
+    EXPECT_EQ(k.chunk_count, 7u);
+    EXPECT_EQ(k.joint_count, 7u);
+    EXPECT_EQ(k.sample_count, 2000u);
+    EXPECT_EQ(k.first_sample, 300 * c);
+    EXPECT_EQ(fp::get_hash(k.content_hash), hash);
+    EXPECT_EQ(k.samples._length, (c < 6 ? 300u : 200u) * 8u);
+  }
+  const msg::TrajectoryChunk& last = *chunks.back();
+  EXPECT_EQ(last.samples._buffer[0], t.time_s[1800]);
+  EXPECT_EQ(last.samples._buffer[1 + 3], t.positions_rad(1800, 3));
+  // Default chunking: as many samples as fit in MAX_CHUNK_VALUES doubles.
+  const auto big = fp::make_chunks(t, 43, 7);
+  ASSERT_EQ(big.size(), 2u);
+  EXPECT_EQ(big[0]->samples._length, 1024u * 8u);
+}
+
+TEST(ProtocolUpload, ChunkingRefusesWhatTheProtocolCannotCarry) {
+  try {
+    fp::make_chunks(make_trajectory(10, 17), 1, 1);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "make_chunks: 17 joints; the protocol carries 1 to 16");
+  }
+  try {
+    fp::make_chunks(Trajectory{}, 1, 1);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "make_chunks: the trajectory has no samples");
+  }
+  try {
+    fp::make_chunks(make_trajectory(5000, 2), 1, 1, 1);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "make_chunks: 5000 samples need 5000 chunks; the protocol allows 4096");
+  }
+}
+
+TEST(ProtocolUpload, AssemblesOutOfOrderWithDuplicatesBitExact) {
+  const Trajectory t = make_trajectory(2000, 7);
+  auto chunks = fp::make_chunks(t, 9, 3, 250);
+  std::mt19937 rng(1);
+  std::shuffle(chunks.begin(), chunks.end(), rng);
+  fp::TrajectoryAssembler assembler;
+  for (std::size_t i = 0; i < chunks.size(); ++i) {
+    const auto p = assembler.add(*chunks[i]);
+    EXPECT_EQ(p.chunks_received, i + 1);
+    EXPECT_EQ(p.chunk_count, 8u);
+    if (i + 1 < chunks.size()) {
+      EXPECT_EQ(p.state, foresight_msg_UPLOAD_ASSEMBLING);
+      EXPECT_FALSE(assembler.take(9).has_value()) << "an incomplete upload must not be handed out";
+      const auto again = assembler.add(*chunks[i]);  // exact duplicate: ignored
+      EXPECT_EQ(again.chunks_received, i + 1);
+      EXPECT_EQ(again.state, foresight_msg_UPLOAD_ASSEMBLING);
+    } else {
+      EXPECT_TRUE(p.whole());
+    }
+  }
+  const auto whole = assembler.take(9);
+  ASSERT_TRUE(whole.has_value());
+  EXPECT_EQ(whole->session_id, 3u);
+  EXPECT_EQ(whole->trajectory.time_s, t.time_s);
+  EXPECT_TRUE(whole->trajectory.positions_rad == t.positions_rad);
+  EXPECT_EQ(whole->declared_hash, foresight::trajectory_hash(t));
+  EXPECT_EQ(assembler.pending(), 0u);
+  foresight::TrajectoryLimits limits;
+  limits.joints = 7;
+  limits.joint_limits.assign(7, foresight::JointLimits{-3.0, 3.0, 10.0, 100.0, 100.0});
+  const fp::UploadVerdict v = fp::verify(*whole, limits);
+  EXPECT_TRUE(v.ok()) << v.reason;
+  EXPECT_EQ(v.computed_hash, whole->declared_hash);
+}
+
+TEST(ProtocolUpload, ContradictingChunkRejectsTheWholeUpload) {
+  const Trajectory t = make_trajectory(100, 3);
+  auto chunks = fp::make_chunks(t, 5, 1, 40);
+  chunks[1]->sample_count = 101;
+  fp::TrajectoryAssembler assembler;
+  EXPECT_EQ(assembler.add(*chunks[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+  const auto p = assembler.add(*chunks[1]);
+  EXPECT_EQ(p.state, foresight_msg_UPLOAD_REJECTED);
+  EXPECT_EQ(p.code, foresight_msg_REASON_BAD_ARGUMENT);
+  EXPECT_EQ(p.reason, "trajectory 5: chunk 1: sample_count 101 differs from 100 in the upload's first chunk");
+  // Later chunks of a rejected upload stay rejected; nothing is handed out.
+  EXPECT_EQ(assembler.add(*chunks[2]).state, foresight_msg_UPLOAD_REJECTED);
+  EXPECT_FALSE(assembler.take(5).has_value());
+  assembler.discard(5);
+  EXPECT_EQ(assembler.pending(), 0u);
+}
+
+TEST(ProtocolUpload, StructuralErrorsNameChunkAndField) {
+  const Trajectory t = make_trajectory(100, 3);
+  struct Case {
+    const char* name;
+    void (*mutate)(msg::TrajectoryChunk&);
+    msg::ReasonCode code;
+    const char* reason;
+  };
+  const Case cases[] = {
+      {"hash", [](msg::TrajectoryChunk& k) { k.content_hash[0] ^= 1; }, foresight_msg_REASON_HASH_MISMATCH, nullptr},
+      {"index", [](msg::TrajectoryChunk& k) { k.chunk_index = 3; }, foresight_msg_REASON_BAD_ARGUMENT,
+       "trajectory 5: chunk 3: chunk_index is not below chunk_count 3"},
+      {"ragged", [](msg::TrajectoryChunk& k) { k.samples._length -= 1; }, foresight_msg_REASON_BAD_ARGUMENT,
+       "trajectory 5: chunk 1: 159 values are not a positive multiple of joint_count + 1 = 4"},
+      {"range", [](msg::TrajectoryChunk& k) { k.first_sample = 80; }, foresight_msg_REASON_BAD_ARGUMENT,
+       "trajectory 5: chunk 1: samples 81..120 exceed sample_count 100"},
+      {"overlap", [](msg::TrajectoryChunk& k) { k.first_sample = 20; }, foresight_msg_REASON_BAD_ARGUMENT,
+       "trajectory 5: chunk 1: sample 21 was already sent in another chunk"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    auto chunks = fp::make_chunks(t, 5, 1, 40);
+    fp::TrajectoryAssembler assembler;
+    ASSERT_EQ(assembler.add(*chunks[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+    c.mutate(*chunks[1]);
+    const auto p = assembler.add(*chunks[1]);
+    EXPECT_EQ(p.state, foresight_msg_UPLOAD_REJECTED);
+    EXPECT_EQ(p.code, c.code);
+    if (c.reason != nullptr) {
+      EXPECT_EQ(p.reason, c.reason);
+    }
+  }
+}
+
+TEST(ProtocolUpload, GapIsIncompleteUpload) {
+  const Trajectory t = make_trajectory(100, 3);
+  auto chunks = fp::make_chunks(t, 5, 1, 40);  // samples 1..40, 41..80, 81..100
+  chunks[2]->samples._length = 10 * 4;         // the last chunk carries only 81..90
+  fp::TrajectoryAssembler assembler;
+  for (auto& c : chunks) assembler.add(*c);
+  const auto p = assembler.add(*chunks[2]);
+  EXPECT_EQ(p.state, foresight_msg_UPLOAD_REJECTED);
+  EXPECT_EQ(p.code, foresight_msg_REASON_INCOMPLETE_UPLOAD);
+  EXPECT_EQ(p.reason, "trajectory 5: all 3 chunks arrived but sample 91 is in none of them");
+  EXPECT_FALSE(assembler.take(5).has_value());
+}
+
+TEST(ProtocolUpload, FirstChunkSizesAreCheckedAndPendingUploadsBounded) {
+  const Trajectory t = make_trajectory(10, 3);
+  {
+    auto chunks = fp::make_chunks(t, 1, 1);
+    chunks[0]->joint_count = 0;
+    fp::TrajectoryAssembler assembler;
+    const auto p = assembler.add(*chunks[0]);
+    EXPECT_EQ(p.code, foresight_msg_REASON_JOINT_COUNT);
+    EXPECT_EQ(p.reason, "trajectory 1: chunk 0: joint_count 0 is not in 1..16");
+  }
+  {
+    auto chunks = fp::make_chunks(t, 1, 1);
+    fp::TrajectoryAssembler::Limits limits;
+    limits.max_samples = 5;
+    fp::TrajectoryAssembler assembler(limits);
+    const auto p = assembler.add(*chunks[0]);
+    EXPECT_EQ(p.code, foresight_msg_REASON_BAD_ARGUMENT);
+    EXPECT_EQ(p.reason, "trajectory 1: chunk 0: sample_count 10 is not in 1..5");
+  }
+  {
+    fp::TrajectoryAssembler::Limits limits;
+    limits.max_pending = 2;
+    fp::TrajectoryAssembler assembler(limits);
+    for (std::uint64_t id = 1; id <= 2; ++id) {
+      auto chunks = fp::make_chunks(t, id, 1, 4);
+      EXPECT_EQ(assembler.add(*chunks[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+    }
+    auto third = fp::make_chunks(t, 3, 1, 4);
+    const auto p = assembler.add(*third[0]);
+    EXPECT_EQ(p.code, foresight_msg_REASON_BUSY);
+    EXPECT_EQ(p.reason, "trajectory 3: 2 uploads are already pending (limit 2)");
+    EXPECT_EQ(assembler.pending(), 2u);
+  }
+}
+
+TEST(ProtocolUpload, VerifyReportsHashMismatchAndViolations) {
+  const Trajectory t = make_trajectory(50, 2);
+  fp::TrajectoryAssembler assembler;
+  foresight::TrajectoryHash wrong{};
+  wrong[31] = 0xab;
+  for (auto& c : fp::make_chunks(t, 11, 1, wrong, 20)) assembler.add(*c);
+  const auto a = assembler.take(11);
+  ASSERT_TRUE(a.has_value());
+  foresight::TrajectoryLimits limits;
+  limits.joints = 2;
+  limits.joint_limits.assign(2, foresight::JointLimits{0.1, 3.0, 10.0, 100.0, 100.0});
+  const fp::UploadVerdict v = fp::verify(*a, limits);
+  EXPECT_EQ(v.code, foresight_msg_REASON_HASH_MISMATCH);
+  EXPECT_EQ(v.reason, "trajectory 11: content hash " + foresight::to_hex(foresight::trajectory_hash(t)) +
+                          " differs from the declared " + foresight::to_hex(wrong));
+  // Right hash, but joint 1 starts at 0 rad, below its lower limit of 0.1 rad.
+  fp::AssembledTrajectory b = *a;
+  b.declared_hash = foresight::trajectory_hash(t);
+  const fp::UploadVerdict w = fp::verify(b, limits);
+  EXPECT_EQ(w.code, foresight_msg_REASON_VALIDATION_FAILED);
+  ASSERT_FALSE(w.violations.empty());
+  EXPECT_EQ(w.violations[0].rule, foresight::Violation::Rule::PositionLimit);
+  EXPECT_EQ(w.violations[0].joint, 1);
+  EXPECT_NE(w.reason.find("trajectory 11: "), std::string::npos);
+  EXPECT_NE(w.reason.find(w.violations[0].message), std::string::npos);
+}
+
+// ---------------------------------------------------------------- RAII layer
+
+class ProtocolDds : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { fp::use_loopback_if_unconfigured(); }
+};
+
+TEST_F(ProtocolDds, BadDomainThrowsWithCycloneText) {
+  try {
+    fp::Participant p(1000);
+    FAIL() << "domain 1000 should not be creatable";
+  } catch (const fp::ProtocolError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("create participant in domain 1000: ", 0), 0u) << e.what();
+    EXPECT_LT(e.code(), 0);
+  }
+}
+
+TEST_F(ProtocolDds, InProcessWriteTakeAndTimeouts) {
+  fp::Participant p(fp::unique_test_domain());
+  fp::Writer<msg::CommandAck> writer(p);
+  fp::Reader<msg::CommandAck> reader(p);
+  fp::Sample<msg::CommandAck> got;
+  EXPECT_FALSE(reader.take(got));
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_FALSE(reader.wait_take(got, milliseconds(50)));
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, milliseconds(45));
+
+  fp::Sample<msg::CommandAck> ack;
+  ack->command_id = 17;
+  ack->state = foresight_msg_ACK_COMPLETED;
+  const std::vector<double> q{0.5, -0.5};
+  fp::assign(ack->final_q_rad, std::span<const double>(q), msg::kMaxJoints, "final_q_rad");
+  writer.write(ack);
+  ASSERT_TRUE(reader.wait_take(got, std::chrono::seconds(5)));
+  EXPECT_EQ(got->command_id, 17u);
+  EXPECT_EQ(got->state, foresight_msg_ACK_COMPLETED);
+  ASSERT_EQ(got->final_q_rad._length, 2u);
+  EXPECT_EQ(got->final_q_rad._buffer[1], -0.5);
+  EXPECT_FALSE(reader.take(got));
+}
+
+TEST_F(ProtocolDds, OversizedSequenceIsRefusedByTheWriter) {
+  fp::Participant p(fp::unique_test_domain());
+  fp::Writer<msg::JointState> writer(p);
+  fp::Sample<msg::JointState> js;
+  std::vector<double> q(17, 0.0);  // bound is 16
+  fp::borrow(js->q_rad, std::span<double>(q));
+  try {
+    writer.write(js);
+    FAIL() << "a 17-element q_rad must not be written";
+  } catch (const fp::ProtocolError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("write on foresight/telemetry/joint_state: ", 0), 0u) << e.what();
+  }
+  js->q_rad = {};  // do not let ~Sample look at the borrowed buffer
+}
+
+TEST_F(ProtocolDds, WaitSetWakesOnGuardConditionAndTimesOut) {
+  fp::Participant p(fp::unique_test_domain());
+  fp::WaitSet ws(p);
+  fp::GuardCondition guard(p);
+  ws.attach(guard, 7);
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(ws.wait(milliseconds(30)), 0);
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, milliseconds(25));
+  guard.trigger();
+  EXPECT_TRUE(guard.triggered());
+  dds_attach_t tokens[2] = {0, 0};
+  EXPECT_EQ(ws.wait(milliseconds(1000), tokens), 1);
+  EXPECT_EQ(tokens[0], 7);
+  guard.reset();
+  EXPECT_FALSE(guard.triggered());
+}
+
+TEST_F(ProtocolDds, HandlesAreMoveOnlyAndOutliveNothing) {
+  static_assert(!std::is_copy_constructible_v<fp::Participant>);
+  static_assert(!std::is_copy_constructible_v<fp::Writer<msg::Ping>>);
+  static_assert(!std::is_copy_constructible_v<fp::Sample<msg::Ping>>);
+  static_assert(std::is_nothrow_move_constructible_v<fp::Entity>);
+  auto p = std::make_unique<fp::Participant>(fp::unique_test_domain());
+  auto w = std::make_unique<fp::Writer<msg::Ping>>(*p);
+  const dds_entity_t handle = w->get();
+  p.reset();  // deleting the participant deletes the writer too
+  EXPECT_LT(dds_get_parent(handle), 0);
+  w.reset();  // the writer's own delete then fails quietly
+}
