@@ -1,0 +1,107 @@
+#pragma once
+// The Monte Carlo accuracy study after the paper's Tables 1-3: a synthetic
+// multi-camera scene (config/scene.yaml), calibration clicks on the robot arm
+// and localization clicks on the object model, Gaussian pixel noise. Each
+// trial re-runs every camera calibration from its noisy arm clicks, then
+// localizes the object with every combination of views, and the two peers
+// (OpenCV solvePnP for single views, triangulate-then-align for two or more)
+// on identical clicks. Beside it the Cramer-Rao lower bound of the same
+// geometry and noise: the joint bound (calibration and localization clicks,
+// every camera's 7 parameters and the pose unknown) and the bound with the
+// cameras known exactly.
+//
+// Errors are expressed in the object frame (for the ORU: z along the hole
+// axis): position error R_true^T (t_est - t_true), rotation error the
+// rotation vector of R_true^T R_est. Not real-time code.
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "foresight/camera/camera.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/pose.hpp"
+#include "foresight/common/scene.hpp"
+
+namespace foresight {
+
+struct StudyView {
+  Camera truth;
+  std::vector<Eigen::Vector3d> calibration_points_base;  ///< arm points seen by this camera (exact)
+  std::vector<Eigen::Vector3d> object_points;            ///< model points (object frame) seen by this camera
+};
+
+struct StudySetup {
+  std::vector<StudyView> views;  ///< the paper's order: view 1..V
+  Pose base_T_object = Pose::Identity();
+};
+
+/// Cameras from the scene (in file order) and, per camera, the arm points in
+/// front of it and inside its view, and the object's model points that are
+/// visible: in front, inside the view, and on a face turned toward the
+/// camera (points with object z <= 0, the exposed front of the ORU, seen
+/// from the front side; points deeper in the panel are hidden).
+StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
+                            const std::vector<Eigen::Vector3d>& arm_points_base);
+
+/// Per-axis statistics of pose errors: order x, y, z (m), theta x, y, z
+/// (rad), in the object frame.
+struct ErrorStats {
+  int n = 0;  ///< trials that produced an estimate
+  Eigen::Matrix<double, 6, 1> mean = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 1> sd = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 1> rms = Eigen::Matrix<double, 6, 1>::Zero();
+  /// The paper's 95% errors: alignment |mu_xy| + 2 sigma_xy with
+  /// sigma_xy = sqrt(sigma_x^2 + sigma_y^2); depth |mu_z| + 2 sigma_z (m).
+  double alignment95_m = 0.0;
+  double depth95_m = 0.0;
+  double position_rmse_m = 0.0;  ///< sqrt(mean |dp|^2)
+  double rotation_rmse_rad = 0.0;
+};
+
+struct ComboStats {
+  std::vector<int> views;  ///< 0-based view indices
+  std::string label;       ///< "1+2+4" (1-based, as the paper)
+  ErrorStats ours;         ///< calibrate, then localize (linear + Gauss-Newton)
+  ErrorStats pnp_iterative;   ///< single views only
+  ErrorStats pnp_sqpnp;       ///< single views only
+  ErrorStats triangulation;   ///< two or more views
+  int failures = 0;           ///< trials where our localization threw
+  /// Cramer-Rao standard deviations (same order as ErrorStats).
+  Eigen::Matrix<double, 6, 1> crlb_sd = Eigen::Matrix<double, 6, 1>::Zero();              ///< joint
+  Eigen::Matrix<double, 6, 1> crlb_known_cameras_sd = Eigen::Matrix<double, 6, 1>::Zero(); ///< cameras exact
+  double crlb_position_m = 0.0;    ///< sqrt(trace) of the joint bound's position block
+  double crlb_rotation_rad = 0.0;
+  double crlb_alignment95_m = 0.0; ///< 2 sqrt(var_x + var_y) of the joint bound
+  double crlb_depth95_m = 0.0;     ///< 2 sigma_z of the joint bound
+};
+
+struct StudyOptions {
+  int trials = 1000;
+  double noise_px = 1.0;
+  unsigned seed = 1;
+  /// Called after each trial with (done, total); for a progress bar.
+  std::function<void(int, int)> progress;
+};
+
+struct StudyResult {
+  std::vector<std::string> view_names;
+  std::vector<int> calibration_points;  ///< per view
+  std::vector<int> object_points;       ///< per view
+  std::vector<double> calibration_rms_px;  ///< mean over trials, per view
+  std::vector<ComboStats> combos;          ///< all non-empty view subsets, by size then index
+  int trials = 0;
+  double noise_px = 0.0;
+  int calibration_failures = 0;  ///< trials skipped because a calibration threw
+};
+
+/// Throws EstimationError when a view sees fewer than 6 arm points.
+StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& options);
+
+/// The joint Cramer-Rao covariance (object frame, order x, y, z, theta) for
+/// the given views, and the one with the cameras known exactly.
+void cramer_rao_bound(const StudySetup& setup, const std::vector<int>& views, double noise_px,
+                      Eigen::Matrix<double, 6, 6>& joint, Eigen::Matrix<double, 6, 6>& known_cameras);
+
+}  // namespace foresight

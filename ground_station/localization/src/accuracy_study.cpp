@@ -1,0 +1,249 @@
+#include "foresight/localization/accuracy_study.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <cmath>
+#include <map>
+#include <random>
+
+#include "foresight/calibration/calibrate.hpp"
+#include "foresight/localization/localize.hpp"
+#include "foresight/localization/peers.hpp"
+
+namespace foresight {
+
+namespace {
+
+Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  if (a < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+/// Error (x, y, z, theta) in the object frame of an estimate.
+Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
+  Eigen::Matrix<double, 6, 1> e;
+  e.head<3>() = truth.linear().transpose() * (est.translation() - truth.translation());
+  const Eigen::AngleAxisd aa(truth.linear().transpose() * est.linear());
+  e.tail<3>() = aa.angle() * aa.axis();
+  return e;
+}
+
+struct Accumulator {
+  int n = 0;
+  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero();
+  void add(const Eigen::Matrix<double, 6, 1>& e) {
+    ++n;
+    sum += e;
+    sum_sq += e.cwiseAbs2();
+  }
+  ErrorStats stats() const {
+    ErrorStats s;
+    s.n = n;
+    if (n == 0) return s;
+    s.mean = sum / n;
+    s.rms = (sum_sq / n).cwiseSqrt();
+    const double bessel = n > 1 ? static_cast<double>(n) / (n - 1) : 1.0;
+    s.sd = ((sum_sq / n - s.mean.cwiseAbs2()) * bessel).cwiseMax(0.0).cwiseSqrt();
+    s.alignment95_m = s.mean.head<2>().norm() + 2.0 * s.sd.head<2>().norm();
+    s.depth95_m = std::abs(s.mean[2]) + 2.0 * s.sd[2];
+    s.position_rmse_m = s.rms.head<3>().norm();
+    s.rotation_rmse_rad = s.rms.tail<3>().norm();
+    return s;
+  }
+};
+
+std::string label_of(const std::vector<int>& views) {
+  std::string s;
+  for (const int v : views) s += (s.empty() ? "" : "+") + std::to_string(v + 1);
+  return s;
+}
+
+}  // namespace
+
+StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
+                            const std::vector<Eigen::Vector3d>& arm_points_base) {
+  StudySetup s;
+  s.base_T_object = scene.base_T_object;
+  for (const auto& name : scene.camera_order) {
+    const SceneCamera& sc = scene.cameras.at(name);
+    StudyView v;
+    v.truth = Camera::look_at(name, Viewport{sc.width_px, sc.height_px}, sc.f_px, sc.position_m, sc.look_at_m, sc.up);
+    for (const auto& p : arm_points_base)
+      if (v.truth.in_front(p) && v.truth.in_view(v.truth.project(p))) v.calibration_points_base.push_back(p);
+    const Eigen::Vector3d cam_in_object = s.base_T_object.inverse() * sc.position_m;
+    for (const auto& mp : object.points) {
+      const Eigen::Vector3d pb = s.base_T_object * mp.p_m;
+      if (mp.p_m.z() <= 1e-9 && cam_in_object.z() < mp.p_m.z() && v.truth.in_front(pb) &&
+          v.truth.in_view(v.truth.project(pb)))
+        v.object_points.push_back(mp.p_m);
+    }
+    s.views.push_back(std::move(v));
+  }
+  return s;
+}
+
+void cramer_rao_bound(const StudySetup& setup, const std::vector<int>& views, double noise_px,
+                      Eigen::Matrix<double, 6, 6>& joint, Eigen::Matrix<double, 6, 6>& known_cameras) {
+  const int k_views = static_cast<int>(views.size());
+  const int np = 6 + 7 * k_views;
+  int rows = 0;
+  for (const int v : views)
+    rows += 2 * static_cast<int>(setup.views[v].calibration_points_base.size() + setup.views[v].object_points.size());
+  // Predicted pixels as a function of a parameter perturbation: pose (body
+  // rotation, base translation), then per camera (body rotation, position, f).
+  auto predict = [&](const Eigen::VectorXd& d) {
+    Eigen::VectorXd out(rows);
+    Pose T = setup.base_T_object;
+    T.linear() = T.linear() * exp_so3(d.head<3>());
+    T.translation() += d.segment<3>(3);
+    int r = 0;
+    for (int k = 0; k < k_views; ++k) {
+      Camera c = setup.views[views[k]].truth;
+      const Eigen::Matrix<double, 7, 1> dc = d.segment<7>(6 + 7 * k);
+      c.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(dc.head<3>());
+      c.base_T_camera.translation() += dc.segment<3>(3);
+      c.f_px += dc[6];
+      for (const auto& p : setup.views[views[k]].calibration_points_base) {
+        out.segment<2>(r) = c.project(p);
+        r += 2;
+      }
+      for (const auto& p : setup.views[views[k]].object_points) {
+        out.segment<2>(r) = c.project(T * p);
+        r += 2;
+      }
+    }
+    return out;
+  };
+  Eigen::MatrixXd J(rows, np);
+  for (int j = 0; j < np; ++j) {
+    const double h = (j >= 6 && (j - 6) % 7 == 6) ? 1e-3 : 1e-6;
+    Eigen::VectorXd d = Eigen::VectorXd::Zero(np);
+    d[j] = h;
+    const Eigen::VectorXd plus = predict(d);
+    d[j] = -h;
+    J.col(j) = (plus - predict(d)) / (2.0 * h);
+  }
+  const Eigen::MatrixXd F = J.transpose() * J / (noise_px * noise_px);
+  const Eigen::MatrixXd C = F.inverse();
+  // (omega, dt_base) -> (dp_object, theta).
+  Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Zero();
+  G.block<3, 3>(0, 3) = setup.base_T_object.linear().transpose();
+  G.block<3, 3>(3, 0) = Eigen::Matrix3d::Identity();
+  joint = G * C.topLeftCorner<6, 6>() * G.transpose();
+  const Eigen::Matrix<double, 6, 6> Cp = F.topLeftCorner<6, 6>().inverse();
+  known_cameras = G * Cp * G.transpose();
+}
+
+StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt) {
+  const int nv = static_cast<int>(setup.views.size());
+  StudyResult res;
+  res.trials = opt.trials;
+  res.noise_px = opt.noise_px;
+  for (const auto& v : setup.views) {
+    if (v.calibration_points_base.size() < 6)
+      throw EstimationError("view '" + v.truth.name + "' sees " + std::to_string(v.calibration_points_base.size()) +
+                            " arm points; calibration needs at least 6");
+    res.view_names.push_back(v.truth.name);
+    res.calibration_points.push_back(static_cast<int>(v.calibration_points_base.size()));
+    res.object_points.push_back(static_cast<int>(v.object_points.size()));
+  }
+  // Every non-empty subset, by size then by index.
+  for (int size = 1; size <= nv; ++size)
+    for (int mask = 1; mask < (1 << nv); ++mask) {
+      if (__builtin_popcount(static_cast<unsigned>(mask)) != size) continue;
+      ComboStats c;
+      for (int v = 0; v < nv; ++v)
+        if (mask & (1 << v)) c.views.push_back(v);
+      c.label = label_of(c.views);
+      Eigen::Matrix<double, 6, 6> joint, known;
+      cramer_rao_bound(setup, c.views, opt.noise_px, joint, known);
+      c.crlb_sd = joint.diagonal().cwiseMax(0.0).cwiseSqrt();
+      c.crlb_known_cameras_sd = known.diagonal().cwiseMax(0.0).cwiseSqrt();
+      c.crlb_position_m = std::sqrt(joint.topLeftCorner<3, 3>().trace());
+      c.crlb_rotation_rad = std::sqrt(joint.bottomRightCorner<3, 3>().trace());
+      c.crlb_alignment95_m = 2.0 * std::sqrt(joint(0, 0) + joint(1, 1));
+      c.crlb_depth95_m = 2.0 * std::sqrt(joint(2, 2));
+      res.combos.push_back(c);
+    }
+  std::vector<Accumulator> ours(res.combos.size()), pnp_it(res.combos.size()), pnp_sq(res.combos.size()),
+      tri(res.combos.size());
+  std::vector<double> calib_rms_sum(nv, 0.0);
+  int good_trials = 0;
+  std::mt19937_64 rng(opt.seed);
+  std::normal_distribution<double> noise(0.0, opt.noise_px);
+  for (int t = 0; t < opt.trials; ++t) {
+    std::map<std::string, Camera> cams;
+    std::vector<Correspondence> clicks;
+    bool ok = true;
+    for (int v = 0; v < nv && ok; ++v) {
+      const StudyView& view = setup.views[v];
+      std::vector<Correspondence> cal;
+      for (std::size_t i = 0; i < view.calibration_points_base.size(); ++i) {
+        Correspondence c;
+        c.n = static_cast<int>(i) + 1;
+        c.cam = view.truth.name;
+        c.p_m = view.calibration_points_base[i];
+        c.uv_px = view.truth.project(c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
+        cal.push_back(c);
+      }
+      try {
+        const CalibrationResult r = calibrate_camera(cal, view.truth.viewport, view.truth.name);
+        cams[view.truth.name] = r.camera;
+        calib_rms_sum[v] += r.rms_px;
+      } catch (const EstimationError&) {
+        ok = false;
+      }
+      for (std::size_t i = 0; i < view.object_points.size(); ++i) {
+        Correspondence c;
+        c.n = static_cast<int>(i) + 1;
+        c.cam = view.truth.name;
+        c.p_m = view.object_points[i];
+        c.uv_px = view.truth.project(setup.base_T_object * c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
+        clicks.push_back(c);
+      }
+    }
+    if (!ok) {
+      ++res.calibration_failures;
+      if (opt.progress) opt.progress(t + 1, opt.trials);
+      continue;
+    }
+    ++good_trials;
+    for (std::size_t ci = 0; ci < res.combos.size(); ++ci) {
+      ComboStats& combo = res.combos[ci];
+      LocalizationOptions lo;
+      std::vector<Correspondence> pts;
+      for (const int v : combo.views) {
+        lo.views.push_back(setup.views[v].truth.name);
+        for (const auto& c : clicks)
+          if (c.cam == setup.views[v].truth.name) pts.push_back(c);
+      }
+      try {
+        ours[ci].add(pose_error(localize_object(pts, cams, lo).base_T_object, setup.base_T_object));
+      } catch (const EstimationError&) {
+        ++combo.failures;
+      }
+      if (combo.views.size() == 1) {
+        const Camera& cam = cams.at(lo.views[0]);
+        if (const auto T = solve_pnp_opencv(pts, cam, PnpMethod::Iterative))
+          pnp_it[ci].add(pose_error(*T, setup.base_T_object));
+        if (const auto T = solve_pnp_opencv(pts, cam, PnpMethod::Sqpnp))
+          pnp_sq[ci].add(pose_error(*T, setup.base_T_object));
+      } else if (const auto T = triangulate_and_align(pts, cams)) {
+        tri[ci].add(pose_error(*T, setup.base_T_object));
+      }
+    }
+    if (opt.progress) opt.progress(t + 1, opt.trials);
+  }
+  for (std::size_t ci = 0; ci < res.combos.size(); ++ci) {
+    res.combos[ci].ours = ours[ci].stats();
+    res.combos[ci].pnp_iterative = pnp_it[ci].stats();
+    res.combos[ci].pnp_sqpnp = pnp_sq[ci].stats();
+    res.combos[ci].triangulation = tri[ci].stats();
+  }
+  for (int v = 0; v < nv; ++v) res.calibration_rms_px.push_back(good_trials ? calib_rms_sum[v] / good_trials : 0.0);
+  return res;
+}
+
+}  // namespace foresight

@@ -1,0 +1,119 @@
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <random>
+
+#include "foresight/localization/accuracy_study.hpp"
+#include "foresight/localization/localize.hpp"
+#include "foresight/localization/peers.hpp"
+
+using namespace foresight;
+
+namespace {
+
+/// Arm-like calibration points: 4 "poses" of 8 points in the workspace in
+/// front of the ORU (the CLI study uses the URDF arm's FK instead).
+std::vector<Eigen::Vector3d> workspace_points() {
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> x(0.35, 0.95), y(-0.35, 0.55), z(0.2, 1.0);
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 32; ++i) pts.emplace_back(x(rng), y(rng), z(rng));
+  return pts;
+}
+
+StudySetup project_setup() {
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  return make_study_setup(scene, oru, workspace_points());
+}
+
+}  // namespace
+
+TEST(AccuracyStudy, SceneViewsSeeEnoughPoints) {
+  const StudySetup s = project_setup();
+  ASSERT_EQ(s.views.size(), 4u);
+  for (const auto& v : s.views) {
+    EXPECT_GE(v.calibration_points_base.size(), 15u) << v.truth.name;
+    EXPECT_GE(v.object_points.size(), 6u) << v.truth.name;  // a single view can localize
+  }
+}
+
+TEST(AccuracyStudy, CramerRaoBoundIsConsistent) {
+  const StudySetup s = project_setup();
+  Eigen::Matrix<double, 6, 6> joint, known, joint2, known2;
+  cramer_rao_bound(s, {0, 1, 2, 3}, 1.0, joint, known);
+  // Knowing the cameras can only help; the bound scales with the noise.
+  for (int i = 0; i < 6; ++i) EXPECT_LE(known(i, i), joint(i, i) * (1 + 1e-9));
+  cramer_rao_bound(s, {0, 1, 2, 3}, 2.0, joint2, known2);
+  EXPECT_NEAR((joint2 - 4.0 * joint).norm() / joint.norm(), 0.0, 1e-6);
+  // More views never hurt.
+  Eigen::Matrix<double, 6, 6> j1, k1;
+  cramer_rao_bound(s, {0}, 1.0, j1, k1);
+  EXPECT_LT(joint.trace(), j1.trace());
+}
+
+TEST(AccuracyStudy, PeersExactOnExactData) {
+  const StudySetup s = project_setup();
+  std::map<std::string, Camera> cams;
+  std::vector<Correspondence> all;
+  for (const auto& v : s.views) {
+    cams[v.truth.name] = v.truth;
+    std::vector<Correspondence> pts;
+    for (const auto& p : v.object_points) {
+      Correspondence c;
+      c.n = static_cast<int>(pts.size()) + 1;
+      c.cam = v.truth.name;
+      c.p_m = p;
+      c.uv_px = v.truth.project(s.base_T_object * p);
+      pts.push_back(c);
+      all.push_back(c);
+    }
+    for (const PnpMethod m : {PnpMethod::Iterative, PnpMethod::Sqpnp}) {
+      const auto T = solve_pnp_opencv(pts, v.truth, m);
+      ASSERT_TRUE(T.has_value());
+      EXPECT_LT((T->matrix() - s.base_T_object.matrix()).norm(), 1e-6) << v.truth.name << " " << static_cast<int>(m);
+    }
+  }
+  const auto T = triangulate_and_align(all, cams);
+  ASSERT_TRUE(T.has_value());
+  EXPECT_LT((T->matrix() - s.base_T_object.matrix()).norm(), 1e-6);
+}
+
+TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
+  const StudySetup s = project_setup();
+  StudyOptions opt;
+  opt.trials = 150;
+  opt.noise_px = 1.0;
+  int calls = 0;
+  opt.progress = [&](int done, int total) {
+    ++calls;
+    EXPECT_LE(done, total);
+  };
+  const StudyResult r = run_accuracy_study(s, opt);
+  EXPECT_EQ(calls, 150);
+  ASSERT_EQ(r.combos.size(), 15u);
+  EXPECT_EQ(r.combos[0].label, "1");
+  EXPECT_EQ(r.combos[14].label, "1+2+3+4");
+  EXPECT_EQ(r.calibration_failures, 0);
+  for (const auto& c : r.combos) {
+    EXPECT_EQ(c.failures, 0) << c.label;
+    // The estimate is unbiased to within its spread and not better than the bound.
+    for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(c.ours.mean[i]), 4.0 * c.ours.sd[i] / std::sqrt(150.0) + 1e-12);
+    EXPECT_GT(c.ours.position_rmse_m, 0.8 * c.crlb_position_m) << c.label;
+    std::printf("%-8s pos rmse %.3f mm crlb %.3f (known cams %.3f) rot rmse %.4f deg crlb %.4f | pnp %.3f sqpnp %.3f tri %.3f\n",
+                c.label.c_str(), 1e3 * c.ours.position_rmse_m, 1e3 * c.crlb_position_m,
+                1e3 * c.crlb_known_cameras_sd.head<3>().norm(), c.ours.rotation_rmse_rad * 180 / M_PI,
+                c.crlb_rotation_rad * 180 / M_PI, 1e3 * c.pnp_iterative.position_rmse_m, 1e3 * c.pnp_sqpnp.position_rmse_m,
+                1e3 * c.triangulation.position_rmse_m);
+    if (c.views.size() == 1) {  // a maximum-likelihood PnP: agrees with OpenCV's SQPnP
+      EXPECT_EQ(c.pnp_sqpnp.n, 150);
+      EXPECT_NEAR(c.pnp_sqpnp.position_rmse_m / c.ours.position_rmse_m, 1.0, 0.1) << c.label;
+      EXPECT_NEAR(c.pnp_sqpnp.rotation_rmse_rad / c.ours.rotation_rmse_rad, 1.0, 0.1) << c.label;
+    } else {
+      EXPECT_GT(c.triangulation.n, 0) << c.label;
+    }
+  }
+  const ComboStats& all = r.combos.back();
+  EXPECT_LT(all.ours.position_rmse_m, 1.25 * all.crlb_position_m);
+  EXPECT_LT(all.ours.rotation_rmse_rad, 1.25 * all.crlb_rotation_rad);
+}
