@@ -1,0 +1,148 @@
+#pragma once
+// One fd-based CAN bus interface. Two implementations carry the same 16-byte
+// Linux `struct can_frame`, one frame per read/write:
+//   SocketCanBus  a real SocketCAN interface (can0 ...), raw socket;
+//   MockCanBus    one end of an AF_UNIX SOCK_SEQPACKET socketpair; the other
+//                 end (also a MockCanBus) may live in another thread or, after
+//                 fork(), in another process. Tests and the simulator use it.
+// Error frames (CAN_ERR_FLAG) are decoded into BusHealth on both, so a
+// simulator can inject controller errors (error passive, bus-off) exactly as
+// a SocketCAN controller reports them.
+//
+// Real-time safety: read(), write(), health(), fd() are noexcept, never
+// allocate and never block (the fd is O_NONBLOCK). Construction and
+// set_filters() are set-up calls: they may allocate and throw CanError.
+
+#include <linux/can.h>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace foresight::hw {
+
+/// A bus could not be opened or configured (set-up only).
+class CanError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Result of one non-blocking read or write.
+enum class CanIo : std::uint8_t {
+  Ok,          ///< one data frame read / written
+  WouldBlock,  ///< nothing to read / transmit queue full (frame not sent)
+  ErrorFrame,  ///< read: a controller error frame; health() updated, frame returned
+  Malformed,   ///< read: a datagram that is not one struct can_frame (size wrong, dlc > 8)
+  BusOff,      ///< write refused: the controller is bus-off (ENETDOWN)
+  Closed,      ///< the peer closed the bus (mock) or the interface went away
+  SysError,    ///< any other errno (see last_errno())
+};
+const char* to_string(CanIo io) noexcept;
+
+/// Controller state as learned from error frames and write errors.
+struct BusHealth {
+  bool bus_off = false;
+  bool error_passive = false;
+  bool error_warning = false;
+  std::uint32_t error_frames = 0;   ///< error frames seen since open
+  std::uint32_t rx_overflows = 0;   ///< controller/socket receive overflows reported
+  std::uint32_t malformed = 0;      ///< datagrams dropped because they were not a can_frame
+  std::uint32_t filtered = 0;       ///< data frames dropped by the receive filters
+};
+
+class CanBus {
+ public:
+  virtual ~CanBus();
+  CanBus(const CanBus&) = delete;
+  CanBus& operator=(const CanBus&) = delete;
+
+  /// Name for messages ("can0", "mock:arm_a").
+  const std::string& name() const noexcept { return name_; }
+  /// The non-blocking fd, for poll()/epoll in the caller's loop.
+  int fd() const noexcept { return fd_; }
+
+  /// Read one frame. Data frames that do not pass the receive filters are
+  /// skipped (counted in health().filtered). Real-time safe.
+  CanIo read(can_frame& frame) noexcept;
+  /// Write one frame. Real-time safe; never blocks (WouldBlock when full).
+  CanIo write(const can_frame& frame) noexcept;
+  /// errno of the last SysError.
+  int last_errno() const noexcept { return last_errno_; }
+  const BusHealth& health() const noexcept { return health_; }
+  /// Forget bus-off/passive state (after a controller restart).
+  void clear_health() noexcept;
+
+  /// Receive filters, SocketCAN semantics: a data frame passes when
+  /// (id & mask) == (filter.can_id & mask) for any filter (CAN_INV_FILTER in
+  /// can_id inverts that filter). An empty list passes everything. Error
+  /// frames always pass. Set-up only: may throw CanError.
+  virtual void set_filters(std::span<const can_filter> filters);
+
+ protected:
+  CanBus(std::string name, int fd);
+  bool passes_filters(canid_t id) const noexcept;
+  void note_error_frame(const can_frame& frame) noexcept;
+
+ private:
+  std::string name_;
+  int fd_ = -1;
+  int last_errno_ = 0;
+  BusHealth health_;
+  std::vector<can_filter> filters_;
+};
+
+/// A real SocketCAN interface. The bit rate is set outside the program
+/// (`ip link set can0 type can bitrate 1000000`); the constructor checks that
+/// the interface exists. Throws CanError with the reason; on a kernel without
+/// CAN the message says "EAFNOSUPPORT" and that the kernel has no CAN support.
+class SocketCanBus final : public CanBus {
+ public:
+  explicit SocketCanBus(const std::string& interface);
+  void set_filters(std::span<const can_filter> filters) override;
+};
+
+/// One end of an in-memory bus (AF_UNIX SOCK_SEQPACKET socketpair).
+class MockCanBus final : public CanBus {
+ public:
+  /// Both ends of a new bus: {master end, far end}. Frames written on one end
+  /// are read on the other. Throws CanError if the socketpair fails.
+  static std::pair<std::unique_ptr<MockCanBus>, std::unique_ptr<MockCanBus>> create_pair(
+      const std::string& name);
+
+ private:
+  MockCanBus(std::string name, int fd) : CanBus(std::move(name), fd) {}
+};
+
+// ---- frame helpers (real-time safe) ---------------------------------------
+
+inline can_frame make_frame(canid_t id, std::initializer_list<std::uint8_t> data) noexcept {
+  can_frame f{};
+  f.can_id = id;
+  std::uint8_t n = 0;
+  for (std::uint8_t b : data) {
+    if (n == CAN_MAX_DLEN) break;
+    f.data[n++] = b;
+  }
+  f.can_dlc = n;
+  return f;
+}
+inline std::uint16_t get_u16(const std::uint8_t* p) noexcept {
+  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
+}
+inline std::uint32_t get_u32(const std::uint8_t* p) noexcept {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
+inline void put_u16(std::uint8_t* p, std::uint16_t v) noexcept {
+  p[0] = static_cast<std::uint8_t>(v);
+  p[1] = static_cast<std::uint8_t>(v >> 8);
+}
+inline void put_u32(std::uint8_t* p, std::uint32_t v) noexcept {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
+}  // namespace foresight::hw

@@ -1,0 +1,236 @@
+#pragma once
+// The CANopen master for the arm: every CiA 402 drive and the F/T sensor, on
+// one or more CAN buses, driven in cyclic synchronous position mode.
+//
+// Two phases (../../../../../shared/STYLE.md):
+//  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
+//      constructor (validates the config and bus load; sends nothing),
+//      configure() (NMT reset, boot-up, SDO: device type, PDO mapping, mode,
+//      periods, limits, heartbeat; NMT start), enable() (power state machine
+//      to Operation enabled), disable(), sdo_read()/sdo_write().
+//  * real-time cycle (noexcept, no allocation, no locks, no blocking):
+//      cycle_read() then cycle_write() once per period, from one thread:
+//        cycle_read:  drain every bus; TPDOs -> feedback; heartbeats, EMCY,
+//                     error frames -> events; heartbeat/TPDO timeouts.
+//        cycle_write: one RPDO (controlword + target position) per drive,
+//                     then SYNC, on every bus.
+//      request_quick_stop() and request_tare() may be called from any thread.
+// Errors in the cycle are values (CycleStatus events), never exceptions.
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "foresight/common/robot_model.hpp"
+#include "foresight/hw/can_bus.hpp"
+#include "foresight/hw/canopen.hpp"
+#include "foresight/hw/ft_sensor.hpp"
+#include "foresight/hw/remote_config.hpp"
+
+namespace foresight::hw {
+
+inline constexpr std::size_t kMaxJoints = 16;
+inline constexpr std::size_t kMaxBuses = 8;
+
+/// Set-up failure (configure/enable): says which bus, node and joint.
+class HwError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// An SDO transfer failed. kind says how; abort_code is the CiA 301 code
+/// (received from the server for Abort, sent by us for Timeout/Protocol).
+class SdoError : public HwError {
+ public:
+  enum class Kind { Abort, Timeout, Protocol };
+  SdoError(Kind kind, std::uint32_t abort_code, const std::string& message)
+      : HwError(message), kind_(kind), abort_code_(abort_code) {}
+  Kind kind() const noexcept { return kind_; }
+  std::uint32_t abort_code() const noexcept { return abort_code_; }
+
+ private:
+  Kind kind_;
+  std::uint32_t abort_code_;
+};
+
+/// Joint position targets, radians, in config drive order (= joint index).
+struct JointTargets {
+  std::array<double, kMaxJoints> position_rad{};
+};
+
+struct JointState {
+  double position_rad = 0.0;
+  double torque_nm = 0.0;  ///< joint side: torque actual x rated torque x gear ratio
+  std::int32_t position_counts = 0;
+  std::uint16_t statusword = 0;
+  canopen::PowerState state = canopen::PowerState::NotReadyToSwitchOn;
+  canopen::NmtState nmt = canopen::NmtState::PreOperational;
+  std::uint16_t last_emcy = 0;  ///< last EMCY error code (0: none / reset)
+  bool fresh = false;           ///< a TPDO for the last SYNC arrived
+  bool heartbeat_lost = false;
+};
+
+struct JointFeedback {
+  std::size_t count = 0;
+  std::array<JointState, kMaxJoints> joints{};
+};
+
+/// Named faults and notices reported by the cycle.
+enum class HwFault : std::uint8_t {
+  None,
+  HeartbeatLost,      ///< node silent longer than heartbeat.consumer_ms (stop)
+  NodeRebooted,       ///< boot-up message from an operational node (stop)
+  NodeNotOperational, ///< heartbeat says stopped / pre-operational (stop)
+  Emergency,          ///< EMCY with a non-zero code; code = error code (stop)
+  EmergencyCleared,   ///< EMCY 0x0000 (notice)
+  DriveFault,         ///< statusword went to Fault / fault reaction (stop)
+  QuickStopActive,    ///< statusword left Operation enabled to Quick stop (stop)
+  TpdoMissing,        ///< no TPDO for tpdo_miss_limit consecutive cycles (stop)
+  FtMissing,          ///< no F/T sample for tpdo_miss_limit cycles (stop)
+  FtSaturated,        ///< a channel clipped; code = mask (stop)
+  FtSensorFault,      ///< status bit 6 (stop)
+  FtFrameMismatch,    ///< frames A and B of different samples (notice)
+  BusOff,             ///< controller bus-off (stop)
+  BusErrorPassive,    ///< controller error passive (notice)
+  TxFailed,           ///< a frame could not be queued; code = CanIo (stop)
+  RxFailed,           ///< read error / bus closed; code = CanIo (stop)
+  MalformedFrame,     ///< wrong DLC / RTR / not a can_frame; code = COB-ID, detail = DLC (notice)
+  UnknownCobId,       ///< a frame nobody on this bus should send; code = COB-ID (notice)
+  UnexpectedSdo,      ///< SDO traffic during the cycle (notice)
+  InvalidTarget,      ///< NaN or out-of-range target; previous target kept (stop)
+};
+const char* to_string(HwFault f) noexcept;
+/// True for faults that require the controller to stop the arm.
+bool requires_stop(HwFault f) noexcept;
+
+struct HwEvent {
+  HwFault fault = HwFault::None;
+  std::uint8_t bus = 0;
+  std::uint8_t node = 0;
+  std::int8_t joint = -1;  ///< joint index, -1 when not a drive (F/T, bus)
+  std::uint32_t code = 0;
+  std::uint32_t detail = 0;
+};
+
+/// Result of one cycle_read. Events are edges (reported once, when they
+/// happen); active_faults counts faults that persist (drive in Fault,
+/// heartbeat lost, bus-off...).
+struct CycleStatus {
+  static constexpr std::size_t kMaxEvents = 16;
+  std::uint64_t cycle = 0;
+  bool stop_required = false;
+  std::uint8_t active_faults = 0;
+  std::uint8_t event_count = 0;
+  std::uint16_t events_dropped = 0;
+  std::uint16_t frames_received = 0;
+  std::array<HwEvent, kMaxEvents> events{};
+  bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
+};
+
+class DriveSystem {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  /// Set-up. `buses[i]` is the opened bus for config.buses[i]. `joint_limits`
+  /// (from the URDF) by joint name: when non-empty, every drive's joint must
+  /// be in it and its position limits are written to the drive (0x607D).
+  /// Validates the configuration again (bus load included). Sends nothing.
+  /// Throws InputError (config) or HwError.
+  DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus>> buses,
+              std::map<std::string, JointLimits> joint_limits = {});
+  ~DriveSystem();
+  DriveSystem(const DriveSystem&) = delete;
+  DriveSystem& operator=(const DriveSystem&) = delete;
+
+  /// Set-up: bring every node from power-on to NMT operational with PDOs mapped
+  /// (see docs/hardware.md for the sequence). Throws HwError/SdoError naming
+  /// the bus, node and joint. Drives stay disabled.
+  void configure();
+  /// Set-up: run cycles at the configured rate, stepping every drive's power
+  /// state machine (fault reset, shutdown, switch on, enable operation) while
+  /// holding target = actual position, until all are Operation enabled.
+  /// Throws HwError naming each drive that did not get there, and its state.
+  void enable();
+  /// Set-up: shutdown (Ready to switch on) every drive, holding position.
+  void disable();
+
+  // ---- real-time cycle -------------------------------------------------------
+  /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.
+  void cycle_write(const JointTargets& targets) noexcept;
+  /// Drain the buses and decode; fills `joints` and `ft`.
+  CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;
+  CycleStatus cycle_read(JointFeedback& joints, FtReading& ft, Clock::time_point now) noexcept;
+  /// The next cycle_write commands Quick stop to every drive. Any thread.
+  void request_quick_stop() noexcept { quick_stop_.store(true, std::memory_order_release); }
+  /// Tare the F/T sensor with the next `samples` samples. Any thread.
+  void request_tare(int samples) noexcept { tare_request_.store(samples, std::memory_order_release); }
+
+  // ---- information (set-up side) -------------------------------------------------
+  const RemoteConfig& config() const noexcept { return config_; }
+  std::size_t joint_count() const noexcept;
+  std::vector<BusLoad> bus_loads() const { return compute_bus_loads(config_); }
+  /// "joint3 (bus arm_a node 3): Emergency 0x8611 following error"
+  std::string describe(const HwEvent& e) const;
+  /// Device name (0x1008) read at configure().
+  const std::string& device_name(std::size_t joint) const;
+  double rated_torque_nm(std::size_t joint) const;
+  const CanBus& bus(std::size_t i) const { return *buses_.at(i); }
+
+  // ---- SDO (set-up only; blocking with the configured timeout) ---------------------
+  std::uint32_t sdo_read(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub);
+  void sdo_write(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                 std::uint32_t value, int size_bytes);
+  /// Segmented (or expedited) upload of a visible string.
+  std::string sdo_read_string(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub);
+
+ private:
+  struct Drive;
+  struct Ft;
+  struct Route {
+    std::uint8_t kind = 0;
+    std::uint8_t slot = 0;
+  };
+  struct BusState {
+    std::vector<std::size_t> drives;
+    std::array<Route, 2048> routes{};
+    bool sync_sent = false;
+    bool bus_off_reported = false;
+    bool passive_reported = false;
+    bool closed_reported = false;
+  };
+
+  void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;
+  void push_event(const HwEvent& e) noexcept;
+  void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
+  can_frame sdo_exchange(std::size_t bus, std::uint8_t node, const can_frame& request, const char* what,
+                         std::uint16_t index, std::uint8_t sub);
+  void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
+  void write_setup(std::size_t bus, const can_frame& f);
+  std::string node_label(std::size_t bus, std::uint8_t node) const;
+
+  RemoteConfig config_;
+  std::vector<std::unique_ptr<CanBus>> buses_;
+  std::map<std::string, JointLimits> limits_;
+  std::vector<Drive> drives_;
+  std::unique_ptr<Ft> ft_;
+  std::vector<BusState> bus_state_;
+  std::chrono::nanoseconds heartbeat_timeout_;
+
+  std::array<HwEvent, CycleStatus::kMaxEvents> pending_{};
+  std::size_t pending_count_ = 0;
+  std::uint16_t pending_dropped_ = 0;
+  std::uint16_t frames_this_cycle_ = 0;
+  std::uint64_t cycle_ = 0;
+  bool configured_ = false;
+  bool enabled_ = false;
+  std::atomic<bool> quick_stop_{false};
+  std::atomic<int> tare_request_{0};
+};
+
+}  // namespace foresight::hw

@@ -1,0 +1,106 @@
+#pragma once
+// config/remote.yaml: CAN buses, CiA 402 drives (joint -> bus, node id,
+// scaling), the wrist F/T sensor, cycle rate, heartbeat times, following-error
+// limits. Loading validates everything (duplicate node ids, missing scaling,
+// unknown bus, bus load); a bad file throws InputError naming the file, line
+// and element, and nothing is ever enabled from it. Set-up code only.
+//
+// The `tool:` section belongs to the LST tool (Modbus) and is parsed by its
+// own loader; this loader skips it.
+//
+// Joint position/velocity limits are not here: they come from the URDF
+// (RobotModel) and are handed to DriveSystem.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace foresight::hw {
+
+struct BusConfig {
+  std::string name;       ///< referred to by drives and the F/T sensor
+  std::string interface;  ///< "can0"... (SocketCAN), or "mock" (socketpair + simulator)
+  std::uint32_t bitrate_bps = 1000000;
+  int line = 0;           ///< line in the file, for messages
+  bool is_mock() const { return interface == "mock"; }
+};
+
+struct DriveConfig {
+  std::string joint;  ///< URDF joint name
+  std::string bus;
+  int bus_index = -1;  ///< index into RemoteConfig::buses
+  std::uint8_t node_id = 0;
+  double counts_per_rev = 0.0;  ///< encoder counts per motor revolution
+  double gear_ratio = 0.0;      ///< motor revolutions per joint revolution
+  int direction = 1;            ///< +1 or -1: sign of joint angle vs counts
+  double offset_rad = 0.0;      ///< joint angle at 0 counts
+  double following_error_limit_rad = 0.0;  ///< drive faults above this |target - actual|
+  int line = 0;
+
+  /// Counts per radian of joint angle (signed by direction).
+  double counts_per_rad() const;
+  /// Joint angle -> drive counts; false when not finite or outside int32.
+  bool to_counts(double q_rad, std::int32_t& counts) const noexcept;
+  double to_rad(std::int32_t counts) const noexcept;
+};
+
+struct FtConfig {
+  bool present = false;
+  std::string bus;
+  int bus_index = -1;
+  std::uint8_t node_id = 0;
+  double force_counts_per_n = 0.0;    ///< int16 counts per newton
+  double torque_counts_per_nm = 0.0;  ///< int16 counts per newton-metre
+  int line = 0;
+};
+
+struct RemoteConfig {
+  std::string source;  ///< file name (for messages)
+  double cycle_rate_hz = 500.0;
+  double heartbeat_producer_s = 0.1;  ///< period each node sends its heartbeat
+  double heartbeat_consumer_s = 0.25; ///< a node silent longer than this is a fault
+  double sdo_timeout_s = 0.1;
+  double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
+  int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
+  double max_bus_load = 0.70;
+  std::vector<BusConfig> buses;
+  std::vector<DriveConfig> drives;
+  FtConfig ft;
+
+  double cycle_period_s() const { return 1.0 / cycle_rate_hz; }
+  int bus_index(const std::string& name) const;
+};
+
+/// Load and validate. Throws InputError("<file>:<line>: ...").
+RemoteConfig load_remote_config(const std::string& path);
+/// As load_remote_config, from YAML text; `source_name` is used in messages.
+RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string& source_name);
+
+/// Validate a configuration built in code (the loader calls it too): names,
+/// duplicates, scaling, rates, bus load; fills the bus_index fields. Throws
+/// InputError naming the element.
+void validate(RemoteConfig& config);
+
+// ---- bus load -----------------------------------------------------------------
+
+/// Worst-case length in bits of a standard (11-bit id) data frame with
+/// `data_bytes` bytes, including stuff bits and the 3-bit interframe space:
+/// 8n + 47 + floor((34 + 8n - 1) / 4)  (Davis et al. 2007). 0 bytes: 55, 8: 135.
+int worst_case_frame_bits(int data_bytes) noexcept;
+
+struct BusLoad {
+  std::string bus;
+  int drives = 0;
+  bool ft = false;
+  int frames_per_cycle = 0;     ///< SYNC + RPDO + TPDO per drive + 2 F/T frames
+  int bits_per_cycle = 0;       ///< worst case, stuffing included
+  double heartbeat_bits_per_s = 0.0;
+  double bits_per_s = 0.0;      ///< cycle traffic x rate + heartbeats
+  std::uint32_t bitrate_bps = 0;
+  double load = 0.0;            ///< bits_per_s / bitrate
+  /// "bus arm_a: 4 drives, SYNC + 8 PDOs = 9 frames/cycle, 1055 bits/cycle x 500 Hz + heartbeats 2520 bit/s = 530 kbit/s = 53.0% of 1000 kbit/s"
+  std::string describe() const;
+};
+std::vector<BusLoad> compute_bus_loads(const RemoteConfig& config);
+
+}  // namespace foresight::hw

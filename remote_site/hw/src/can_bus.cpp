@@ -1,0 +1,224 @@
+#include "foresight/hw/can_bus.hpp"
+
+#include <fcntl.h>
+#include <linux/can/error.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace foresight::hw {
+
+namespace {
+std::string errno_text(int err) {
+  const char* symbol = err == EAFNOSUPPORT ? "EAFNOSUPPORT"
+                       : err == ENODEV     ? "ENODEV"
+                       : err == EPERM      ? "EPERM"
+                       : err == EACCES     ? "EACCES"
+                                           : nullptr;
+  std::string s = std::strerror(err);
+  if (symbol) s += std::string(" (") + symbol + ")";
+  return s;
+}
+
+void set_nonblocking(int fd, const std::string& what) {
+  const int flags = ::fcntl(fd, F_GETFL, 0);
+  if (flags < 0 || ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) < 0) {
+    const int err = errno;
+    ::close(fd);
+    throw CanError(what + ": cannot make the socket non-blocking: " + errno_text(err));
+  }
+}
+}  // namespace
+
+const char* to_string(CanIo io) noexcept {
+  switch (io) {
+    case CanIo::Ok: return "ok";
+    case CanIo::WouldBlock: return "would block";
+    case CanIo::ErrorFrame: return "error frame";
+    case CanIo::Malformed: return "malformed datagram (not a struct can_frame)";
+    case CanIo::BusOff: return "bus-off";
+    case CanIo::Closed: return "bus closed";
+    case CanIo::SysError: return "system error";
+  }
+  return "?";
+}
+
+CanBus::CanBus(std::string name, int fd) : name_(std::move(name)), fd_(fd) {}
+
+CanBus::~CanBus() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void CanBus::clear_health() noexcept {
+  health_.bus_off = false;
+  health_.error_passive = false;
+  health_.error_warning = false;
+}
+
+void CanBus::set_filters(std::span<const can_filter> filters) {
+  filters_.assign(filters.begin(), filters.end());
+}
+
+bool CanBus::passes_filters(canid_t id) const noexcept {
+  if (filters_.empty()) return true;
+  for (const can_filter& f : filters_) {
+    const bool inverted = (f.can_id & CAN_INV_FILTER) != 0;
+    const bool match = ((id & f.can_mask) == (f.can_id & ~CAN_INV_FILTER & f.can_mask));
+    if (match != inverted) return true;
+  }
+  return false;
+}
+
+void CanBus::note_error_frame(const can_frame& frame) noexcept {
+  ++health_.error_frames;
+  const canid_t cls = frame.can_id & CAN_ERR_MASK;
+  if (cls & CAN_ERR_BUSOFF) health_.bus_off = true;
+  if (cls & CAN_ERR_RESTARTED) {
+    health_.bus_off = false;
+    health_.error_passive = false;
+    health_.error_warning = false;
+  }
+  if ((cls & CAN_ERR_CRTL) && frame.can_dlc >= 2) {
+    const std::uint8_t c = frame.data[1];
+    if (c & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) health_.error_passive = true;
+    if (c & (CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING)) health_.error_warning = true;
+    if (c & (CAN_ERR_CRTL_RX_OVERFLOW | CAN_ERR_CRTL_TX_OVERFLOW)) ++health_.rx_overflows;
+#ifdef CAN_ERR_CRTL_ACTIVE
+    if (c & CAN_ERR_CRTL_ACTIVE) {
+      health_.error_passive = false;
+      health_.error_warning = false;
+    }
+#endif
+  }
+}
+
+CanIo CanBus::read(can_frame& frame) noexcept {
+  // Bounded: a burst of filtered frames cannot keep us here forever.
+  for (int attempt = 0; attempt < 64; ++attempt) {
+    const ssize_t n = ::recv(fd_, &frame, sizeof frame, MSG_DONTWAIT | MSG_TRUNC);
+    if (n < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) return CanIo::WouldBlock;
+      if (errno == EINTR) continue;
+      if (errno == ENETDOWN) {
+        health_.bus_off = true;
+        return CanIo::BusOff;
+      }
+      last_errno_ = errno;
+      return CanIo::SysError;
+    }
+    if (n == 0) return CanIo::Closed;
+    if (static_cast<std::size_t>(n) != sizeof frame || frame.can_dlc > CAN_MAX_DLEN) {
+      ++health_.malformed;
+      return CanIo::Malformed;
+    }
+    if (frame.can_id & CAN_ERR_FLAG) {
+      note_error_frame(frame);
+      return CanIo::ErrorFrame;
+    }
+    const canid_t id = frame.can_id & ((frame.can_id & CAN_EFF_FLAG) ? CAN_EFF_MASK : CAN_SFF_MASK);
+    if (!passes_filters(id)) {
+      ++health_.filtered;
+      continue;
+    }
+    return CanIo::Ok;
+  }
+  return CanIo::WouldBlock;
+}
+
+CanIo CanBus::write(const can_frame& frame) noexcept {
+  if (frame.can_dlc > CAN_MAX_DLEN) return CanIo::Malformed;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    const ssize_t n = ::send(fd_, &frame, sizeof frame, MSG_DONTWAIT | MSG_NOSIGNAL);
+    if (n == static_cast<ssize_t>(sizeof frame)) return CanIo::Ok;
+    if (n >= 0) return CanIo::SysError;
+    if (errno == EINTR) continue;
+    if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) return CanIo::WouldBlock;
+    if (errno == ENETDOWN) {
+      health_.bus_off = true;
+      return CanIo::BusOff;
+    }
+    if (errno == EPIPE || errno == ECONNRESET || errno == ENXIO) return CanIo::Closed;
+    last_errno_ = errno;
+    return CanIo::SysError;
+  }
+  return CanIo::WouldBlock;
+}
+
+// ---- SocketCAN --------------------------------------------------------------
+
+namespace {
+int open_can_socket(const std::string& interface) {
+  const std::string what = "SocketCAN interface '" + interface + "'";
+  if (interface.empty() || interface.size() >= IFNAMSIZ)
+    throw CanError(what + ": interface name must be 1.." + std::to_string(IFNAMSIZ - 1) + " characters");
+  const int fd = ::socket(PF_CAN, SOCK_RAW, CAN_RAW);
+  if (fd < 0) {
+    const int err = errno;
+    std::string msg = what + ": socket(PF_CAN, SOCK_RAW, CAN_RAW) failed: " + errno_text(err);
+    if (err == EAFNOSUPPORT)
+      msg += ": this kernel has no CAN support (modules can, can-raw); use a mock bus "
+             "(interface: mock) and the simulator instead";
+    throw CanError(msg);
+  }
+  ifreq ifr{};
+  std::memcpy(ifr.ifr_name, interface.c_str(), interface.size() + 1);
+  if (::ioctl(fd, SIOCGIFINDEX, &ifr) < 0) {
+    const int err = errno;
+    ::close(fd);
+    throw CanError(what + ": no such interface (" + errno_text(err) +
+                   "); bring it up with `ip link set " + interface + " up type can bitrate <bps>`");
+  }
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  addr.can_ifindex = ifr.ifr_ifindex;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) < 0) {
+    const int err = errno;
+    ::close(fd);
+    throw CanError(what + ": bind failed: " + errno_text(err));
+  }
+  can_err_mask_t err_mask = CAN_ERR_MASK;  // every error class, decoded in CanBus::read
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) < 0) {
+    const int err = errno;
+    ::close(fd);
+    throw CanError(what + ": cannot enable error frames: " + errno_text(err));
+  }
+  set_nonblocking(fd, what);
+  return fd;
+}
+}  // namespace
+
+SocketCanBus::SocketCanBus(const std::string& interface) : CanBus(interface, open_can_socket(interface)) {}
+
+void SocketCanBus::set_filters(std::span<const can_filter> filters) {
+  if (::setsockopt(fd(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.empty() ? nullptr : filters.data(),
+                   static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0)
+    throw CanError("SocketCAN interface '" + name() + "': CAN_RAW_FILTER failed: " + errno_text(errno));
+  CanBus::set_filters(filters);  // also checked in user space (harmless, same result)
+}
+
+// ---- mock -------------------------------------------------------------------
+
+std::pair<std::unique_ptr<MockCanBus>, std::unique_ptr<MockCanBus>> MockCanBus::create_pair(
+    const std::string& name) {
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) < 0)
+    throw CanError("mock bus '" + name + "': socketpair(AF_UNIX, SOCK_SEQPACKET) failed: " + errno_text(errno));
+  // Room for a few hundred frames each way, like a controller's queue.
+  const int buf = 256 * 1024;
+  for (int fd : sv) {
+    ::setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &buf, sizeof buf);
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &buf, sizeof buf);
+  }
+  set_nonblocking(sv[0], "mock bus '" + name + "'");
+  set_nonblocking(sv[1], "mock bus '" + name + "'");
+  std::unique_ptr<MockCanBus> a(new MockCanBus("mock:" + name, sv[0]));
+  std::unique_ptr<MockCanBus> b(new MockCanBus("mock:" + name + "(far end)", sv[1]));
+  return {std::move(a), std::move(b)};
+}
+
+}  // namespace foresight::hw

@@ -1,0 +1,876 @@
+#include "foresight/hw/drive_system.hpp"
+
+#include <poll.h>
+
+#include <algorithm>
+#include <cinttypes>
+#include <cstdio>
+#include <thread>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight::hw {
+
+using namespace canopen;
+
+namespace {
+enum RouteKind : std::uint8_t {
+  kNone = 0, kDriveTpdo, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
+};
+constexpr std::size_t kMaxFramesPerRead = 512;
+
+std::string hex(std::uint32_t v, int digits) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%0*" PRIX32, digits, v);
+  return buf;
+}
+std::string od_name(std::uint16_t index, std::uint8_t sub) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "0x%04X:%02X", index, sub);
+  return buf;
+}
+}  // namespace
+
+struct DriveSystem::Drive {
+  DriveConfig cfg;
+  std::size_t bus = 0;
+  std::uint8_t node = 0;
+  std::string name;
+  std::string device_name;
+  double rated_torque_nm = 0.0;  // motor side, from 0x6076
+  std::uint16_t controlword = controlword::kDisableVoltage;
+  std::int32_t target_counts = 0;
+  JointState st;
+  bool have_actual = false;
+  int missed = 0;
+  bool miss_reported = false;
+  bool booted = false;
+  Clock::time_point last_hb{};
+};
+
+struct DriveSystem::Ft {
+  FtConfig cfg;
+  FtDecoder decoder;
+  FtReading reading;
+  canopen::NmtState nmt = canopen::NmtState::PreOperational;
+  int missed = 0;
+  bool miss_reported = false;
+  bool booted = false;
+  bool heartbeat_lost = false;
+  std::uint8_t saturated_reported = 0;
+  bool fault_reported = false;
+  std::uint16_t last_emcy = 0;
+  Clock::time_point last_hb{};
+  Ft(const FtConfig& c) : cfg(c), decoder(c.force_counts_per_n, c.torque_counts_per_nm) {}
+};
+
+const char* to_string(HwFault f) noexcept {
+  switch (f) {
+    case HwFault::None: return "none";
+    case HwFault::HeartbeatLost: return "heartbeat lost";
+    case HwFault::NodeRebooted: return "node rebooted (boot-up while operational)";
+    case HwFault::NodeNotOperational: return "node left NMT operational";
+    case HwFault::Emergency: return "emergency (EMCY)";
+    case HwFault::EmergencyCleared: return "emergency cleared (EMCY 0x0000)";
+    case HwFault::DriveFault: return "drive fault (CiA 402 Fault state)";
+    case HwFault::QuickStopActive: return "drive in quick stop";
+    case HwFault::TpdoMissing: return "TPDO missing";
+    case HwFault::FtMissing: return "F/T sample missing";
+    case HwFault::FtSaturated: return "F/T channel saturated";
+    case HwFault::FtSensorFault: return "F/T sensor fault";
+    case HwFault::FtFrameMismatch: return "F/T frames of different samples";
+    case HwFault::BusOff: return "CAN bus-off";
+    case HwFault::BusErrorPassive: return "CAN error passive";
+    case HwFault::TxFailed: return "CAN transmit failed";
+    case HwFault::RxFailed: return "CAN receive failed";
+    case HwFault::MalformedFrame: return "malformed frame";
+    case HwFault::UnknownCobId: return "unknown COB-ID";
+    case HwFault::UnexpectedSdo: return "unexpected SDO frame";
+    case HwFault::InvalidTarget: return "invalid joint target (not finite or out of range)";
+  }
+  return "?";
+}
+
+bool requires_stop(HwFault f) noexcept {
+  switch (f) {
+    case HwFault::None:
+    case HwFault::EmergencyCleared:
+    case HwFault::FtFrameMismatch:
+    case HwFault::BusErrorPassive:
+    case HwFault::MalformedFrame:
+    case HwFault::UnknownCobId:
+    case HwFault::UnexpectedSdo:
+      return false;
+    default:
+      return true;
+  }
+}
+
+// ---- set-up -------------------------------------------------------------------
+
+DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus>> buses,
+                         std::map<std::string, JointLimits> joint_limits)
+    : config_(std::move(config)), buses_(std::move(buses)), limits_(std::move(joint_limits)) {
+  validate(config_);  // throws InputError, bus load included: nothing is sent on a bad config
+  if (buses_.size() != config_.buses.size())
+    throw HwError("DriveSystem: " + std::to_string(buses_.size()) + " buses given for " +
+                  std::to_string(config_.buses.size()) + " in " + config_.source);
+  for (std::size_t i = 0; i < buses_.size(); ++i)
+    if (!buses_[i]) throw HwError("DriveSystem: bus " + config_.buses[i].name + " is not open");
+  if (config_.buses.size() > kMaxBuses) throw HwError("DriveSystem: more than 8 buses");
+  if (config_.drives.size() > kMaxJoints) throw HwError("DriveSystem: more than 16 drives");
+
+  bus_state_.resize(buses_.size());
+  drives_.resize(config_.drives.size());
+  for (std::size_t j = 0; j < drives_.size(); ++j) {
+    Drive& d = drives_[j];
+    d.cfg = config_.drives[j];
+    d.bus = static_cast<std::size_t>(d.cfg.bus_index);
+    d.node = d.cfg.node_id;
+    d.name = d.cfg.joint;
+    if (!limits_.empty() && !limits_.count(d.cfg.joint))
+      throw InputError(config_.source, d.cfg.line,
+                       "drives[" + std::to_string(j) + "]: joint '" + d.cfg.joint + "' is not in the robot model");
+    BusState& b = bus_state_[d.bus];
+    b.drives.push_back(j);
+    const auto slot = static_cast<std::uint8_t>(j);
+    b.routes[kTpdo1Base + d.node] = {kDriveTpdo, slot};
+    b.routes[kEmcyBase + d.node] = {kDriveEmcy, slot};
+    b.routes[kHeartbeatBase + d.node] = {kDriveHb, slot};
+    b.routes[kSdoTxBase + d.node] = {kDriveSdo, slot};
+  }
+  if (config_.ft.present) {
+    ft_ = std::make_unique<Ft>(config_.ft);
+    BusState& b = bus_state_[static_cast<std::size_t>(config_.ft.bus_index)];
+    const std::uint8_t n = config_.ft.node_id;
+    b.routes[ft_frame::kForceBase + n] = {kFtForce, 0};
+    b.routes[ft_frame::kTorqueBase + n] = {kFtTorque, 0};
+    b.routes[kEmcyBase + n] = {kFtEmcy, 0};
+    b.routes[kHeartbeatBase + n] = {kFtHb, 0};
+    b.routes[kSdoTxBase + n] = {kFtSdo, 0};
+  }
+  heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
+}
+
+DriveSystem::~DriveSystem() = default;
+
+std::string DriveSystem::node_label(std::size_t bus, std::uint8_t node) const {
+  const std::string where = "(bus " + config_.buses[bus].name + " node " + std::to_string(node) + ")";
+  for (const Drive& d : drives_)
+    if (d.bus == bus && d.node == node) return d.name + " " + where;
+  if (ft_ && static_cast<std::size_t>(ft_->cfg.bus_index) == bus && ft_->cfg.node_id == node)
+    return "F/T sensor " + where;
+  return "node " + where;
+}
+
+std::size_t DriveSystem::joint_count() const noexcept { return drives_.size(); }
+
+const std::string& DriveSystem::device_name(std::size_t joint) const { return drives_.at(joint).device_name; }
+double DriveSystem::rated_torque_nm(std::size_t joint) const { return drives_.at(joint).rated_torque_nm; }
+
+void DriveSystem::write_setup(std::size_t bus, const can_frame& f) {
+  CanBus& b = *buses_[bus];
+  const auto deadline = Clock::now() + std::chrono::milliseconds(100);
+  for (;;) {
+    const CanIo io = b.write(f);
+    if (io == CanIo::Ok) return;
+    if (io != CanIo::WouldBlock || Clock::now() > deadline)
+      throw HwError("bus " + config_.buses[bus].name + ": cannot send COB-ID " + hex(f.can_id, 3) + ": " +
+                    to_string(io));
+    pollfd p{b.fd(), POLLOUT, 0};
+    ::poll(&p, 1, 5);
+  }
+}
+
+void DriveSystem::nmt(std::size_t bus, NmtCommand cmd, std::uint8_t node) {
+  write_setup(bus, make_frame(kNmt, {static_cast<std::uint8_t>(cmd), node}));
+}
+
+can_frame DriveSystem::sdo_exchange(std::size_t bus, std::uint8_t node, const can_frame& request, const char* what,
+                                    std::uint16_t index, std::uint8_t sub) {
+  CanBus& b = *buses_[bus];
+  const std::string label = std::string("SDO ") + what + " " + od_name(index, sub) + " of " + node_label(bus, node);
+  write_setup(bus, request);
+  const auto timeout = std::chrono::duration<double>(config_.sdo_timeout_s);
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(timeout);
+  for (;;) {
+    can_frame f{};
+    const CanIo io = b.read(f);
+    const auto now = Clock::now();
+    if (io == CanIo::Ok) {
+      if ((f.can_id & CAN_SFF_MASK) == kSdoTxBase + node && !(f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG))) {
+        if (f.can_dlc != 8)
+          throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::BadCommand),
+                         label + ": malformed response (DLC " + std::to_string(f.can_dlc) + ", expected 8)");
+        return f;
+      }
+      handle_frame(bus, f, now);
+      continue;
+    }
+    if (io == CanIo::Closed || io == CanIo::SysError || io == CanIo::BusOff)
+      throw HwError(label + ": bus " + config_.buses[bus].name + ": " + to_string(io));
+    if (now >= deadline) {
+      can_frame abort = make_frame(kSdoRxBase + node, {0x80, 0, 0, 0, 0, 0, 0, 0});
+      put_u16(abort.data + 1, index);
+      abort.data[3] = sub;
+      put_u32(abort.data + 4, static_cast<std::uint32_t>(SdoAbort::Timeout));
+      (void)b.write(abort);
+      throw SdoError(SdoError::Kind::Timeout, static_cast<std::uint32_t>(SdoAbort::Timeout),
+                     label + ": timed out after " + std::to_string(static_cast<int>(config_.sdo_timeout_s * 1000)) +
+                         " ms (no response)");
+    }
+    pollfd p{b.fd(), POLLIN, 0};
+    const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count() + 1;
+    ::poll(&p, 1, static_cast<int>(left_ms));
+  }
+}
+
+namespace {
+[[noreturn]] void throw_sdo_response_error(const can_frame& r, const std::string& label, std::uint16_t index,
+                                           std::uint8_t sub) {
+  const std::uint8_t cs = r.data[0] >> 5;
+  if (cs == sdo::kCsAbort) {
+    const std::uint32_t code = get_u32(r.data + 4);
+    throw SdoError(SdoError::Kind::Abort, code,
+                   label + ": aborted by the node: " + hex(code, 8) + " " + sdo_abort_text(code));
+  }
+  const std::uint16_t ri = get_u16(r.data + 1);
+  if (ri != index || r.data[3] != sub)
+    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::General),
+                   label + ": response is for " + od_name(ri, r.data[3]));
+  throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::BadCommand),
+                 label + ": unexpected response command byte " + hex(r.data[0], 2));
+}
+}  // namespace
+
+std::uint32_t DriveSystem::sdo_read(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
+  can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
+  put_u16(req.data + 1, index);
+  req.data[3] = sub;
+  const can_frame r = sdo_exchange(bus, node, req, "read", index, sub);
+  const std::string label = "SDO read " + od_name(index, sub) + " of " + node_label(bus, node);
+  const std::uint8_t cmd = r.data[0];
+  const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
+  if ((cmd >> 5) == sdo::kScsUploadInitiate && ok_echo) {
+    if (!(cmd & 0x02))
+      throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::LengthTooHigh),
+                     label + ": node answered with a segmented transfer for a numeric object");
+    const int size = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : 4;
+    std::uint32_t v = 0;
+    for (int i = 0; i < size; ++i) v |= static_cast<std::uint32_t>(r.data[4 + i]) << (8 * i);
+    return v;
+  }
+  throw_sdo_response_error(r, label, index, sub);
+}
+
+void DriveSystem::sdo_write(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                            std::uint32_t value, int size) {
+  if (size < 1 || size > 4) throw HwError("sdo_write: size must be 1..4 bytes");
+  can_frame req = make_frame(kSdoRxBase + node, {sdo::expedited_download(size), 0, 0, 0, 0, 0, 0, 0});
+  put_u16(req.data + 1, index);
+  req.data[3] = sub;
+  for (int i = 0; i < size; ++i) req.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
+  const can_frame r = sdo_exchange(bus, node, req, "write", index, sub);
+  const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
+  if (r.data[0] == 0x60 && ok_echo) return;
+  throw_sdo_response_error(r, "SDO write " + od_name(index, sub) + " of " + node_label(bus, node), index, sub);
+}
+
+std::string DriveSystem::sdo_read_string(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
+  const std::string label = "SDO read " + od_name(index, sub) + " of " + node_label(bus, node);
+  can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
+  put_u16(req.data + 1, index);
+  req.data[3] = sub;
+  const can_frame r = sdo_exchange(bus, node, req, "read", index, sub);
+  const std::uint8_t cmd = r.data[0];
+  if ((cmd >> 5) != sdo::kScsUploadInitiate || get_u16(r.data + 1) != index || r.data[3] != sub)
+    throw_sdo_response_error(r, label, index, sub);
+  if (cmd & 0x02) {  // expedited
+    const int size = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : 4;
+    std::string s(reinterpret_cast<const char*>(r.data + 4), static_cast<std::size_t>(size));
+    return s.substr(0, s.find('\0'));
+  }
+  constexpr std::uint32_t kMaxString = 1024;
+  const bool size_known = cmd & 0x01;
+  const std::uint32_t size = size_known ? get_u32(r.data + 4) : 0;
+  auto abort_with = [&](SdoAbort code, const std::string& why) {
+    can_frame a = make_frame(kSdoRxBase + node, {0x80, 0, 0, 0, 0, 0, 0, 0});
+    put_u16(a.data + 1, index);
+    a.data[3] = sub;
+    put_u32(a.data + 4, static_cast<std::uint32_t>(code));
+    (void)buses_[bus]->write(a);
+    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(code),
+                   label + ": " + why + " (sent abort " + hex(static_cast<std::uint32_t>(code), 8) + " " +
+                       sdo_abort_text(static_cast<std::uint32_t>(code)) + ")");
+  };
+  if (size > kMaxString) abort_with(SdoAbort::OutOfMemory, "announced size " + std::to_string(size) + " is too long");
+  std::string out;
+  std::uint8_t toggle = 0;
+  for (;;) {
+    const can_frame seg_req = make_frame(kSdoRxBase + node, {static_cast<std::uint8_t>(0x60 | (toggle << 4)), 0, 0, 0, 0, 0, 0, 0});
+    const can_frame s = sdo_exchange(bus, node, seg_req, "read (segment)", index, sub);
+    const std::uint8_t c = s.data[0];
+    if ((c >> 5) == sdo::kCsAbort) throw_sdo_response_error(s, label, index, sub);
+    if ((c >> 5) != sdo::kScsUploadSegment)
+      abort_with(SdoAbort::BadCommand, "unexpected segment command byte " + hex(c, 2));
+    if (((c >> 4) & 1) != toggle)
+      abort_with(SdoAbort::ToggleBit, "segment " + std::to_string(out.size() / 7) + " has toggle bit " +
+                                          std::to_string((c >> 4) & 1) + ", expected " + std::to_string(toggle));
+    const int n = 7 - ((c >> 1) & 0x07);
+    out.append(reinterpret_cast<const char*>(s.data + 1), static_cast<std::size_t>(n));
+    if (out.size() > kMaxString) abort_with(SdoAbort::OutOfMemory, "string longer than 1024 bytes");
+    if (c & 0x01) break;
+    toggle ^= 1;
+  }
+  if (size_known && out.size() != size)
+    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::LengthMismatch),
+                   label + ": received " + std::to_string(out.size()) + " bytes, announced " + std::to_string(size));
+  return out.substr(0, out.find('\0'));
+}
+
+void DriveSystem::configure() {
+  // 1. NMT reset node, then wait for every node's boot-up message.
+  for (Drive& d : drives_) d.booted = false;
+  if (ft_) ft_->booted = false;
+  configured_ = false;
+  enabled_ = false;
+  for (Drive& d : drives_) nmt(d.bus, NmtCommand::ResetNode, d.node);
+  if (ft_) nmt(static_cast<std::size_t>(ft_->cfg.bus_index), NmtCommand::ResetNode, ft_->cfg.node_id);
+  const auto boot_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                std::chrono::duration<double>(config_.enable_timeout_s));
+  auto all_booted = [&] {
+    for (const Drive& d : drives_)
+      if (!d.booted) return false;
+    return !ft_ || ft_->booted;
+  };
+  std::vector<pollfd> fds;
+  for (auto& b : buses_) fds.push_back({b->fd(), POLLIN, 0});
+  while (!all_booted()) {
+    const auto now = Clock::now();
+    if (now > boot_deadline) {
+      std::string missing;
+      for (const Drive& d : drives_)
+        if (!d.booted) missing += (missing.empty() ? "" : ", ") + node_label(d.bus, d.node);
+      if (ft_ && !ft_->booted)
+        missing += (missing.empty() ? "" : ", ") +
+                   node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id);
+      throw HwError("no boot-up message after NMT reset node within " +
+                    std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms from: " + missing +
+                    " (powered? node id right? bus wired?)");
+    }
+    ::poll(fds.data(), fds.size(), 10);
+    for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+      can_frame f{};
+      while (buses_[bi]->read(f) == CanIo::Ok) handle_frame(bi, f, Clock::now());
+    }
+  }
+
+  // 2. SDO configuration of every drive (pre-operational).
+  const auto period_us = static_cast<std::uint32_t>(std::lround(1e6 / config_.cycle_rate_hz));
+  const auto hb_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3));
+  for (Drive& d : drives_) {
+    const std::size_t b = d.bus;
+    const std::uint8_t n = d.node;
+    const std::uint32_t type = sdo_read(b, n, od::kDeviceType, 0);
+    if ((type & 0xFFFF) != kProfileDrive)
+      throw HwError(node_label(b, n) + ": device type " + hex(type, 8) + " is not a CiA 402 drive (profile " +
+                    std::to_string(type & 0xFFFF) + ", expected 402)");
+    d.device_name = sdo_read_string(b, n, od::kDeviceName, 0);
+    sdo_write(b, n, od::kProducerHeartbeat, 0, hb_ms, 2);
+    // RPDO1: controlword + target position, applied at the next SYNC.
+    sdo_write(b, n, od::kRpdo1Comm, 1, od::kCobIdInvalid | (kRpdo1Base + n), 4);
+    sdo_write(b, n, od::kRpdo1Comm, 2, 1, 1);
+    sdo_write(b, n, od::kRpdo1Map, 0, 0, 1);
+    sdo_write(b, n, od::kRpdo1Map, 1, od::map_entry(od::kControlword, 0, 16), 4);
+    sdo_write(b, n, od::kRpdo1Map, 2, od::map_entry(od::kTargetPosition, 0, 32), 4);
+    sdo_write(b, n, od::kRpdo1Map, 0, 2, 1);
+    sdo_write(b, n, od::kRpdo1Comm, 1, kRpdo1Base + n, 4);
+    // TPDO1: statusword + position actual + torque actual, on every SYNC.
+    sdo_write(b, n, od::kTpdo1Comm, 1, od::kCobIdInvalid | (kTpdo1Base + n), 4);
+    sdo_write(b, n, od::kTpdo1Comm, 2, 1, 1);
+    sdo_write(b, n, od::kTpdo1Map, 0, 0, 1);
+    sdo_write(b, n, od::kTpdo1Map, 1, od::map_entry(od::kStatusword, 0, 16), 4);
+    sdo_write(b, n, od::kTpdo1Map, 2, od::map_entry(od::kPositionActual, 0, 32), 4);
+    sdo_write(b, n, od::kTpdo1Map, 3, od::map_entry(od::kTorqueActual, 0, 16), 4);
+    sdo_write(b, n, od::kTpdo1Map, 0, 3, 1);
+    sdo_write(b, n, od::kTpdo1Comm, 1, kTpdo1Base + n, 4);
+    // Cyclic synchronous position, its interpolation period (100 us units).
+    sdo_write(b, n, od::kModesOfOperation, 0, static_cast<std::uint8_t>(kModeCyclicSyncPosition), 1);
+    sdo_write(b, n, od::kCommCyclePeriod, 0, period_us, 4);
+    sdo_write(b, n, od::kInterpolationPeriod, 1, period_us / 100, 1);
+    sdo_write(b, n, od::kInterpolationPeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-4)), 1);
+    // Following error window and software limits, in counts.
+    const double fe_counts = std::abs(d.cfg.following_error_limit_rad * d.cfg.counts_per_rad());
+    sdo_write(b, n, od::kFollowingErrorWindow, 0, static_cast<std::uint32_t>(std::lround(fe_counts)), 4);
+    if (auto it = limits_.find(d.name); it != limits_.end()) {
+      std::int32_t c1 = 0, c2 = 0;
+      if (!d.cfg.to_counts(it->second.lower_rad, c1) || !d.cfg.to_counts(it->second.upper_rad, c2))
+        throw HwError(node_label(b, n) + ": URDF limits do not fit the drive's int32 counts");
+      sdo_write(b, n, od::kSoftwareLimits, 1, static_cast<std::uint32_t>(std::min(c1, c2)), 4);
+      sdo_write(b, n, od::kSoftwareLimits, 2, static_cast<std::uint32_t>(std::max(c1, c2)), 4);
+    }
+    const std::uint32_t rated_mnm = sdo_read(b, n, od::kRatedTorque, 0);
+    if (rated_mnm == 0) throw HwError(node_label(b, n) + ": rated torque 0x6076 is 0");
+    d.rated_torque_nm = rated_mnm * 1e-3;
+  }
+  if (ft_) {
+    const auto b = static_cast<std::size_t>(ft_->cfg.bus_index);
+    const std::uint8_t n = ft_->cfg.node_id;
+    const std::uint32_t type = sdo_read(b, n, od::kDeviceType, 0);
+    if ((type & 0xFFFF) != kProfileMeasuring)
+      throw HwError(node_label(b, n) + ": device type " + hex(type, 8) + " is not the F/T sensor (profile " +
+                    std::to_string(type & 0xFFFF) + ", expected 404)");
+    sdo_write(b, n, od::kProducerHeartbeat, 0, hb_ms, 2);
+  }
+
+  // 3. NMT start: PDOs flow from the next SYNC. Heartbeat monitoring starts now.
+  const auto now = Clock::now();
+  for (Drive& d : drives_) {
+    nmt(d.bus, NmtCommand::Start, d.node);
+    d.last_hb = now;
+    d.st.heartbeat_lost = false;
+    d.st.nmt = NmtState::Operational;
+    d.missed = 0;
+    d.miss_reported = false;
+    d.controlword = controlword::kDisableVoltage;
+    d.have_actual = false;
+  }
+  if (ft_) {
+    nmt(static_cast<std::size_t>(ft_->cfg.bus_index), NmtCommand::Start, ft_->cfg.node_id);
+    ft_->last_hb = now;
+    ft_->heartbeat_lost = false;
+    ft_->nmt = NmtState::Operational;
+  }
+  // 4. Confirm: every node's next heartbeat must say operational.
+  for (Drive& d : drives_) d.st.nmt = NmtState::PreOperational;
+  if (ft_) ft_->nmt = NmtState::PreOperational;
+  auto all_operational = [&] {
+    for (const Drive& d : drives_)
+      if (d.st.nmt != NmtState::Operational) return false;
+    return !ft_ || ft_->nmt == NmtState::Operational;
+  };
+  const auto hb_deadline = now + heartbeat_timeout_;
+  while (!all_operational()) {
+    if (Clock::now() > hb_deadline) {
+      std::string missing;
+      for (const Drive& d : drives_)
+        if (d.st.nmt != NmtState::Operational)
+          missing += (missing.empty() ? "" : ", ") + node_label(d.bus, d.node) + " (" + to_string(d.st.nmt) + ")";
+      if (ft_ && ft_->nmt != NmtState::Operational)
+        missing += (missing.empty() ? "" : ", ") +
+                   node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id) + " (" +
+                   to_string(ft_->nmt) + ")";
+      throw HwError("no heartbeat reporting NMT operational within " +
+                    std::to_string(static_cast<int>(config_.heartbeat_consumer_s * 1000)) +
+                    " ms after NMT start from: " + missing);
+    }
+    ::poll(fds.data(), fds.size(), 5);
+    for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+      can_frame f{};
+      while (buses_[bi]->read(f) == CanIo::Ok) handle_frame(bi, f, Clock::now());
+    }
+  }
+  for (BusState& b : bus_state_) {
+    b.sync_sent = false;
+    b.bus_off_reported = b.passive_reported = b.closed_reported = false;
+  }
+  pending_count_ = 0;
+  configured_ = true;
+}
+
+void DriveSystem::run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb,
+                                     CycleStatus& status) {
+  std::this_thread::sleep_until(deadline);
+  deadline += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.cycle_period_s()));
+  FtReading ft;
+  status = cycle_read(fb, ft);
+}
+
+void DriveSystem::enable() {
+  if (!configured_) throw HwError("enable(): configure() has not succeeded");
+  quick_stop_.store(false);
+  const auto start = Clock::now();
+  for (Drive& d : drives_)
+    if (d.st.heartbeat_lost) {
+      if (start - d.last_hb <= heartbeat_timeout_)
+        d.st.heartbeat_lost = false;
+      else
+        throw HwError(node_label(d.bus, d.node) + ": heartbeat lost; cannot enable");
+    }
+  const auto end = start + std::chrono::duration_cast<Clock::duration>(
+                               std::chrono::duration<double>(config_.enable_timeout_s));
+  Clock::time_point deadline = start;
+  JointFeedback fb;
+  CycleStatus status;
+  // Send a first SYNC so the drives report their state.
+  for (Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
+  for (;;) {
+    for (Drive& d : drives_) {
+      if (!d.have_actual) {
+        d.controlword = controlword::kDisableVoltage;
+        continue;
+      }
+      if (d.st.state != PowerState::OperationEnabled) d.target_counts = d.st.position_counts;  // hold
+      switch (d.st.state) {
+        case PowerState::Fault:
+          d.controlword = (d.controlword & controlword::kFaultReset) ? controlword::kDisableVoltage
+                                                                       : controlword::kFaultReset;
+          break;
+        case PowerState::FaultReactionActive:
+        case PowerState::NotReadyToSwitchOn:
+        case PowerState::QuickStopActive: d.controlword = controlword::kDisableVoltage; break;
+        case PowerState::SwitchOnDisabled: d.controlword = controlword::kShutdown; break;
+        case PowerState::ReadyToSwitchOn: d.controlword = controlword::kSwitchOn; break;
+        case PowerState::SwitchedOn:
+        case PowerState::OperationEnabled: d.controlword = controlword::kEnableOperation; break;
+      }
+    }
+    // Write RPDOs with the held targets (counts set above) and SYNC.
+    JointTargets t;
+    for (std::size_t j = 0; j < drives_.size(); ++j) t.position_rad[j] = drives_[j].cfg.to_rad(drives_[j].target_counts);
+    cycle_write(t);
+    run_cycle_blocking(deadline, fb, status);
+    for (std::size_t e = 0; e < status.event_count; ++e) {
+      const HwEvent& ev = status.events[e];
+      if (ev.fault == HwFault::HeartbeatLost || ev.fault == HwFault::NodeRebooted || ev.fault == HwFault::BusOff ||
+          ev.fault == HwFault::TxFailed || ev.fault == HwFault::RxFailed ||
+          ev.fault == HwFault::NodeNotOperational) {
+        for (Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
+        throw HwError("enable(): " + describe(ev));
+      }
+    }
+    bool all = true;
+    for (const Drive& d : drives_) all = all && d.st.state == PowerState::OperationEnabled && d.have_actual;
+    if (all) break;
+    if (Clock::now() > end) {
+      std::string msg = "enable(): not Operation enabled after " +
+                        std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
+      for (Drive& d : drives_) {
+        if (d.st.state == PowerState::OperationEnabled) continue;
+        msg += " " + node_label(d.bus, d.node) + " stayed in '" + to_string(d.st.state) + "' (statusword " +
+               hex(d.st.statusword, 4) + (d.have_actual ? "" : ", no TPDO received") + ")";
+        if (d.st.last_emcy)
+          msg += std::string(", last EMCY ") + hex(d.st.last_emcy, 4) + " " + to_string(classify_emcy(d.st.last_emcy));
+        msg += ";";
+        d.controlword = controlword::kDisableVoltage;
+      }
+      throw HwError(msg);
+    }
+  }
+  enabled_ = true;
+}
+
+void DriveSystem::disable() {
+  if (!configured_) return;
+  const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(config_.enable_timeout_s));
+  Clock::time_point deadline = Clock::now();
+  JointFeedback fb;
+  CycleStatus status;
+  JointTargets t;
+  for (;;) {
+    for (std::size_t j = 0; j < drives_.size(); ++j) {
+      Drive& d = drives_[j];
+      d.controlword = controlword::kShutdown;
+      if (d.have_actual) d.target_counts = d.st.position_counts;
+      t.position_rad[j] = d.cfg.to_rad(d.target_counts);
+    }
+    cycle_write(t);
+    run_cycle_blocking(deadline, fb, status);
+    bool all = true;
+    for (const Drive& d : drives_) all = all && d.st.state != PowerState::OperationEnabled;
+    if (all || Clock::now() > end) break;
+  }
+  enabled_ = false;
+}
+
+// ---- real-time cycle ---------------------------------------------------------------
+
+void DriveSystem::push_event(const HwEvent& e) noexcept {
+  if (pending_count_ < pending_.size())
+    pending_[pending_count_++] = e;
+  else
+    ++pending_dropped_;
+}
+
+void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
+  const bool quick_stop = quick_stop_.load(std::memory_order_acquire);
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+    CanBus& bus = *buses_[bi];
+    BusState& bs = bus_state_[bi];
+    for (std::size_t j : bs.drives) {
+      Drive& d = drives_[j];
+      std::int32_t counts = 0;
+      if (d.cfg.to_counts(targets.position_rad[j], counts))
+        d.target_counts = counts;
+      else
+        push_event({HwFault::InvalidTarget, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j), 0, 0});
+      if (quick_stop && enabled_) d.controlword = controlword::kQuickStop;
+      can_frame f{};
+      f.can_id = kRpdo1Base + d.node;
+      f.can_dlc = 6;
+      put_u16(f.data, d.controlword);
+      put_u32(f.data + 2, static_cast<std::uint32_t>(d.target_counts));
+      const CanIo io = bus.write(f);
+      if (io != CanIo::Ok)
+        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
+                    static_cast<std::uint32_t>(io), f.can_id});
+    }
+    can_frame sync{};
+    sync.can_id = kSync;
+    sync.can_dlc = 0;
+    const CanIo io = bus.write(sync);
+    if (io != CanIo::Ok)
+      push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(io), kSync});
+    else
+      bs.sync_sent = true;
+  }
+  ++cycle_;
+}
+
+void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_point now) noexcept {
+  const auto bus8 = static_cast<std::uint8_t>(bi);
+  ++frames_this_cycle_;
+  if (f.can_id & CAN_EFF_FLAG) {
+    push_event({HwFault::UnknownCobId, bus8, 0, -1, f.can_id & CAN_EFF_MASK, f.can_dlc});
+    return;
+  }
+  const std::uint32_t id = f.can_id & CAN_SFF_MASK;
+  if (f.can_id & CAN_RTR_FLAG) {
+    push_event({HwFault::MalformedFrame, bus8, node_of(id), -1, id, f.can_dlc});
+    return;
+  }
+  const Route r = bus_state_[bi].routes[id];
+  auto malformed = [&](std::int8_t joint) {
+    push_event({HwFault::MalformedFrame, bus8, node_of(id), joint, id, f.can_dlc});
+  };
+  switch (r.kind) {
+    case kDriveTpdo: {
+      Drive& d = drives_[r.slot];
+      const auto j = static_cast<std::int8_t>(r.slot);
+      if (f.can_dlc != 8) return malformed(j);
+      const PowerState before = d.st.state;
+      d.st.statusword = get_u16(f.data);
+      d.st.position_counts = static_cast<std::int32_t>(get_u32(f.data + 2));
+      const auto torque_pm = static_cast<std::int16_t>(get_u16(f.data + 6));
+      d.st.position_rad = d.cfg.to_rad(d.st.position_counts);
+      d.st.torque_nm = torque_pm * 1e-3 * d.rated_torque_nm * d.cfg.gear_ratio * d.cfg.direction;
+      d.st.state = decode_statusword(d.st.statusword);
+      d.st.fresh = true;
+      d.have_actual = true;
+      if ((d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive) &&
+          before != PowerState::Fault && before != PowerState::FaultReactionActive)
+        push_event({HwFault::DriveFault, bus8, d.node, j, d.st.statusword, d.st.last_emcy});
+      if (d.st.state == PowerState::QuickStopActive && before == PowerState::OperationEnabled &&
+          !quick_stop_.load(std::memory_order_relaxed))
+        push_event({HwFault::QuickStopActive, bus8, d.node, j, d.st.statusword, 0});
+      return;
+    }
+    case kDriveEmcy:
+    case kFtEmcy: {
+      const std::int8_t j = r.kind == kDriveEmcy ? static_cast<std::int8_t>(r.slot) : -1;
+      if (f.can_dlc != 8) return malformed(j);
+      const std::uint16_t code = get_u16(f.data);
+      if (r.kind == kDriveEmcy)
+        drives_[r.slot].st.last_emcy = code;
+      else
+        ft_->last_emcy = code;
+      push_event({code ? HwFault::Emergency : HwFault::EmergencyCleared, bus8, node_of(id), j, code, f.data[2]});
+      return;
+    }
+    case kDriveHb:
+    case kFtHb: {
+      const std::int8_t j = r.kind == kDriveHb ? static_cast<std::int8_t>(r.slot) : -1;
+      if (f.can_dlc != 1) return malformed(j);
+      const auto state = static_cast<NmtState>(f.data[0] & 0x7F);
+      NmtState& nmt_state = r.kind == kDriveHb ? drives_[r.slot].st.nmt : ft_->nmt;
+      bool& booted = r.kind == kDriveHb ? drives_[r.slot].booted : ft_->booted;
+      (r.kind == kDriveHb ? drives_[r.slot].last_hb : ft_->last_hb) = now;
+      if (state == NmtState::BootUp) {
+        booted = true;
+        if (configured_) push_event({HwFault::NodeRebooted, bus8, node_of(id), j, 0, 0});
+        nmt_state = NmtState::PreOperational;
+        return;
+      }
+      if (configured_ && state != NmtState::Operational && nmt_state == NmtState::Operational)
+        push_event({HwFault::NodeNotOperational, bus8, node_of(id), j, static_cast<std::uint32_t>(state), 0});
+      nmt_state = state;
+      return;
+    }
+    case kFtForce:
+    case kFtTorque: {
+      const FtDecoder::Result res =
+          r.kind == kFtForce ? ft_->decoder.on_force_frame(f) : ft_->decoder.on_torque_frame(f);
+      if (res == FtDecoder::Result::Malformed) return malformed(-1);
+      if (res == FtDecoder::Result::Mismatch)
+        push_event({HwFault::FtFrameMismatch, bus8, node_of(id), -1, id, f.data[7]});
+      if (res == FtDecoder::Result::Sample) {
+        ft_->reading = ft_->decoder.latest();
+        const std::uint8_t sat = ft_->reading.saturated_mask;
+        if (sat & ~ft_->saturated_reported)
+          push_event({HwFault::FtSaturated, bus8, node_of(id), -1, sat, 0});
+        ft_->saturated_reported = sat;
+        if (ft_->reading.sensor_fault && !ft_->fault_reported)
+          push_event({HwFault::FtSensorFault, bus8, node_of(id), -1, 0, 0});
+        ft_->fault_reported = ft_->reading.sensor_fault;
+      }
+      return;
+    }
+    case kDriveSdo:
+    case kFtSdo:
+      push_event({HwFault::UnexpectedSdo, bus8, node_of(id), -1, id, f.data[0]});
+      return;
+    default:
+      push_event({HwFault::UnknownCobId, bus8, node_of(id), -1, id, f.can_dlc});
+      return;
+  }
+}
+
+CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft) noexcept {
+  return cycle_read(joints, ft, Clock::now());
+}
+
+CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Clock::time_point now) noexcept {
+  frames_this_cycle_ = 0;
+  for (Drive& d : drives_) d.st.fresh = false;
+  if (ft_) ft_->reading.fresh = false;
+  if (const int tare = tare_request_.exchange(0, std::memory_order_acq_rel); tare > 0 && ft_)
+    ft_->decoder.request_tare(tare);
+
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+    CanBus& bus = *buses_[bi];
+    BusState& bs = bus_state_[bi];
+    const auto bus8 = static_cast<std::uint8_t>(bi);
+    for (std::size_t k = 0; k < kMaxFramesPerRead; ++k) {
+      can_frame f{};
+      const CanIo io = bus.read(f);
+      if (io == CanIo::Ok) {
+        handle_frame(bi, f, now);
+        continue;
+      }
+      if (io == CanIo::ErrorFrame) continue;
+      if (io == CanIo::WouldBlock) break;
+      if (io == CanIo::Malformed) {
+        push_event({HwFault::MalformedFrame, bus8, 0, -1, 0, 0});
+        continue;
+      }
+      if (!bs.closed_reported) push_event({HwFault::RxFailed, bus8, 0, -1, static_cast<std::uint32_t>(io), 0});
+      bs.closed_reported = true;
+      break;
+    }
+    const BusHealth& h = bus.health();
+    if (h.bus_off && !bs.bus_off_reported) push_event({HwFault::BusOff, bus8, 0, -1, h.error_frames, 0});
+    bs.bus_off_reported = h.bus_off;
+    if (h.error_passive && !bs.passive_reported) push_event({HwFault::BusErrorPassive, bus8, 0, -1, h.error_frames, 0});
+    bs.passive_reported = h.error_passive;
+  }
+
+  std::uint8_t active = 0;
+  for (std::size_t j = 0; j < drives_.size(); ++j) {
+    Drive& d = drives_[j];
+    const auto bus8 = static_cast<std::uint8_t>(d.bus);
+    if (bus_state_[d.bus].sync_sent) {
+      if (d.st.fresh) {
+        d.missed = 0;
+        d.miss_reported = false;
+      } else if (++d.missed >= config_.tpdo_miss_limit && !d.miss_reported) {
+        d.miss_reported = true;
+        push_event({HwFault::TpdoMissing, bus8, d.node, static_cast<std::int8_t>(j),
+                    static_cast<std::uint32_t>(d.missed), 0});
+      }
+    }
+    if (configured_ && !d.st.heartbeat_lost && now - d.last_hb > heartbeat_timeout_) {
+      d.st.heartbeat_lost = true;
+      push_event({HwFault::HeartbeatLost, bus8, d.node, static_cast<std::int8_t>(j),
+                  static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - d.last_hb).count()),
+                  0});
+    }
+    if (d.st.heartbeat_lost || d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive ||
+        d.miss_reported)
+      ++active;
+  }
+  if (ft_) {
+    const auto bus8 = static_cast<std::uint8_t>(ft_->cfg.bus_index);
+    if (bus_state_[static_cast<std::size_t>(ft_->cfg.bus_index)].sync_sent) {
+      if (ft_->reading.fresh) {
+        ft_->missed = 0;
+        ft_->miss_reported = false;
+      } else if (++ft_->missed >= config_.tpdo_miss_limit && !ft_->miss_reported) {
+        ft_->miss_reported = true;
+        push_event({HwFault::FtMissing, bus8, ft_->cfg.node_id, -1, static_cast<std::uint32_t>(ft_->missed), 0});
+      }
+    }
+    if (configured_ && !ft_->heartbeat_lost && now - ft_->last_hb > heartbeat_timeout_) {
+      ft_->heartbeat_lost = true;
+      push_event({HwFault::HeartbeatLost, bus8, ft_->cfg.node_id, -1,
+                  static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - ft_->last_hb).count()),
+                  0});
+    }
+    if (ft_->heartbeat_lost || ft_->miss_reported || ft_->reading.sensor_fault || ft_->reading.saturated_mask) ++active;
+    ft_out = ft_->reading;
+    ft_out.tare_in_progress = ft_->decoder.tare_in_progress();
+  } else {
+    ft_out = FtReading{};
+  }
+  for (BusState& bs : bus_state_) {
+    bs.sync_sent = false;
+    if (bs.bus_off_reported || bs.closed_reported) ++active;
+  }
+
+  joints.count = drives_.size();
+  for (std::size_t j = 0; j < drives_.size(); ++j) joints.joints[j] = drives_[j].st;
+
+  CycleStatus s;
+  s.cycle = cycle_;
+  s.active_faults = active;
+  s.frames_received = frames_this_cycle_;
+  s.event_count = static_cast<std::uint8_t>(pending_count_);
+  s.events_dropped = pending_dropped_;
+  for (std::size_t e = 0; e < pending_count_; ++e) {
+    s.events[e] = pending_[e];
+    s.stop_required = s.stop_required || requires_stop(pending_[e].fault);
+  }
+  s.stop_required = s.stop_required || active > 0;
+  pending_count_ = 0;
+  pending_dropped_ = 0;
+  return s;
+}
+
+std::string DriveSystem::describe(const HwEvent& e) const {
+  std::string who;
+  if (e.joint >= 0)
+    who = node_label(drives_[static_cast<std::size_t>(e.joint)].bus, e.node);
+  else if (e.node != 0 && e.bus < buses_.size())
+    who = node_label(e.bus, e.node);
+  else if (e.bus < config_.buses.size())
+    who = "bus " + config_.buses[e.bus].name;
+  std::string msg = who + ": " + to_string(e.fault);
+  switch (e.fault) {
+    case HwFault::Emergency:
+      msg += " " + hex(e.code, 4) + " " + to_string(classify_emcy(static_cast<std::uint16_t>(e.code))) +
+             " (error register " + hex(e.detail, 2) + ")";
+      break;
+    case HwFault::HeartbeatLost: msg += " (silent for " + std::to_string(e.code) + " ms)"; break;
+    case HwFault::DriveFault:
+      msg += " (statusword " + hex(e.code, 4) + ")";
+      if (e.detail)
+        msg += ", last EMCY " + hex(e.detail, 4) + " " + to_string(classify_emcy(static_cast<std::uint16_t>(e.detail)));
+      break;
+    case HwFault::MalformedFrame:
+      msg += " COB-ID " + hex(e.code, 3) + " with DLC " + std::to_string(e.detail);
+      break;
+    case HwFault::UnknownCobId: msg += " " + hex(e.code, 3); break;
+    case HwFault::TxFailed:
+    case HwFault::RxFailed: msg += std::string(": ") + to_string(static_cast<CanIo>(e.code)); break;
+    case HwFault::TpdoMissing:
+    case HwFault::FtMissing: msg += " for " + std::to_string(e.code) + " cycles"; break;
+    case HwFault::FtSaturated: msg += " (mask " + hex(e.code, 2) + ", bits Fx Fy Fz Tx Ty Tz)"; break;
+    case HwFault::NodeNotOperational:
+      msg += std::string(" (now ") + to_string(static_cast<NmtState>(e.code)) + ")";
+      break;
+    default: break;
+  }
+  return msg;
+}
+
+}  // namespace foresight::hw

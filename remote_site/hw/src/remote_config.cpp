@@ -1,0 +1,332 @@
+#include "foresight/hw/remote_config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+#include "foresight/common/error.hpp"
+#include "foresight/hw/canopen.hpp"
+
+namespace foresight::hw {
+
+double DriveConfig::counts_per_rad() const {
+  return direction * counts_per_rev * gear_ratio / (2.0 * std::numbers::pi);
+}
+
+bool DriveConfig::to_counts(double q_rad, std::int32_t& counts) const noexcept {
+  const double c = std::round((q_rad - offset_rad) * direction * counts_per_rev * gear_ratio /
+                              (2.0 * std::numbers::pi));
+  if (!std::isfinite(c) || c > std::numeric_limits<std::int32_t>::max() ||
+      c < std::numeric_limits<std::int32_t>::min())
+    return false;
+  counts = static_cast<std::int32_t>(c);
+  return true;
+}
+
+double DriveConfig::to_rad(std::int32_t counts) const noexcept {
+  return offset_rad + static_cast<double>(counts) * 2.0 * std::numbers::pi /
+                          (direction * counts_per_rev * gear_ratio);
+}
+
+int RemoteConfig::bus_index(const std::string& name) const {
+  for (std::size_t i = 0; i < buses.size(); ++i)
+    if (buses[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+namespace {
+
+int line_of(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+
+class Parser {
+ public:
+  explicit Parser(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const YAML::Node& at, const std::string& msg) const {
+    throw InputError(source_, line_of(at), msg);
+  }
+
+  void check_keys(const YAML::Node& map, const std::string& where, std::initializer_list<const char*> allowed) {
+    for (const auto& kv : map) {
+      const std::string key = kv.first.as<std::string>();
+      bool ok = false;
+      for (const char* a : allowed) ok = ok || key == a;
+      if (!ok) {
+        std::string list;
+        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+        fail(kv.first, where + ": unknown key '" + key + "' (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  template <typename T>
+  T get(const YAML::Node& map, const char* key, const std::string& where, const char* what = nullptr) {
+    const YAML::Node n = map[key];
+    if (!n) fail(map, where + ": missing '" + key + "'" + (what ? std::string(" (") + what + ")" : ""));
+    try {
+      return n.as<T>();
+    } catch (const YAML::Exception&) {
+      fail(n, where + ": '" + key + "' has a value of the wrong type: '" + scalar(n) + "'");
+    }
+  }
+
+  template <typename T>
+  T get_or(const YAML::Node& map, const char* key, const std::string& where, T fallback) {
+    if (!map[key]) return fallback;
+    return get<T>(map, key, where);
+  }
+
+  static std::string scalar(const YAML::Node& n) { return n.IsScalar() ? n.Scalar() : "<not a scalar>"; }
+
+  const std::string& source() const { return source_; }
+
+ private:
+  std::string source_;
+};
+
+std::string drive_name(std::size_t i, const std::string& joint) {
+  return "drives[" + std::to_string(i) + "]" + (joint.empty() ? "" : " (" + joint + ")");
+}
+
+}  // namespace
+
+RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string& source_name) {
+  Parser p(source_name);
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw InputError(source_name, e.mark.line + 1, "YAML syntax: " + e.msg);
+  }
+  if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
+  p.check_keys(root, "top level",
+               {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
+                "max_bus_load", "buses", "drives", "ft_sensor", "tool"});
+
+  RemoteConfig c;
+  c.source = source_name;
+  c.cycle_rate_hz = p.get<double>(root, "cycle_rate_hz", "top level");
+  if (const YAML::Node hb = root["heartbeat"]) {
+    p.check_keys(hb, "heartbeat", {"producer_ms", "consumer_ms"});
+    c.heartbeat_producer_s = p.get<double>(hb, "producer_ms", "heartbeat") * 1e-3;
+    c.heartbeat_consumer_s = p.get<double>(hb, "consumer_ms", "heartbeat") * 1e-3;
+  } else {
+    p.fail(root, "top level: missing 'heartbeat' (producer_ms, consumer_ms)");
+  }
+  c.sdo_timeout_s = p.get_or<double>(root, "sdo_timeout_ms", "top level", 100.0) * 1e-3;
+  c.enable_timeout_s = p.get_or<double>(root, "enable_timeout_ms", "top level", 2000.0) * 1e-3;
+  c.tpdo_miss_limit = p.get_or<int>(root, "tpdo_miss_limit", "top level", 3);
+  c.max_bus_load = p.get_or<double>(root, "max_bus_load", "top level", 0.70);
+
+  const YAML::Node buses = root["buses"];
+  if (!buses || !buses.IsSequence() || buses.size() == 0)
+    p.fail(buses ? buses : root, "top level: 'buses' must be a non-empty list");
+  for (std::size_t i = 0; i < buses.size(); ++i) {
+    const YAML::Node b = buses[i];
+    const std::string where = "buses[" + std::to_string(i) + "]";
+    if (!b.IsMap()) p.fail(b, where + ": must be a map");
+    p.check_keys(b, where, {"name", "interface", "bitrate"});
+    BusConfig bc;
+    bc.name = p.get<std::string>(b, "name", where);
+    bc.interface = p.get<std::string>(b, "interface", where, "SocketCAN name like can0, or mock");
+    bc.bitrate_bps = p.get<std::uint32_t>(b, "bitrate", where, "bit/s");
+    bc.line = line_of(b);
+    c.buses.push_back(bc);
+  }
+
+  const YAML::Node drives = root["drives"];
+  if (!drives || !drives.IsSequence() || drives.size() == 0)
+    p.fail(drives ? drives : root, "top level: 'drives' must be a non-empty list");
+  for (std::size_t i = 0; i < drives.size(); ++i) {
+    const YAML::Node d = drives[i];
+    if (!d.IsMap()) p.fail(d, drive_name(i, "") + ": must be a map");
+    DriveConfig dc;
+    dc.joint = p.get_or<std::string>(d, "joint", drive_name(i, ""), "");
+    const std::string where = drive_name(i, dc.joint);
+    p.check_keys(d, where,
+                 {"joint", "bus", "node_id", "counts_per_rev", "gear_ratio", "direction", "offset_rad",
+                  "following_error_limit_rad"});
+    if (dc.joint.empty()) p.fail(d, where + ": missing 'joint' (URDF joint name)");
+    dc.bus = p.get<std::string>(d, "bus", where);
+    const int node = p.get<int>(d, "node_id", where);
+    if (node < 1 || node > canopen::kMaxNodeId)
+      p.fail(d["node_id"], where + ": node_id " + std::to_string(node) + " is outside 1..127");
+    dc.node_id = static_cast<std::uint8_t>(node);
+    dc.counts_per_rev = p.get<double>(d, "counts_per_rev", where, "scaling: encoder counts per motor revolution");
+    dc.gear_ratio = p.get<double>(d, "gear_ratio", where, "scaling: motor revolutions per joint revolution");
+    dc.direction = p.get_or<int>(d, "direction", where, 1);
+    dc.offset_rad = p.get_or<double>(d, "offset_rad", where, 0.0);
+    dc.following_error_limit_rad = p.get<double>(d, "following_error_limit_rad", where);
+    dc.line = line_of(d);
+    c.drives.push_back(dc);
+  }
+
+  if (const YAML::Node f = root["ft_sensor"]) {
+    const std::string where = "ft_sensor";
+    if (!f.IsMap()) p.fail(f, where + ": must be a map");
+    p.check_keys(f, where, {"bus", "node_id", "force_counts_per_n", "torque_counts_per_nm"});
+    c.ft.present = true;
+    c.ft.bus = p.get<std::string>(f, "bus", where);
+    const int node = p.get<int>(f, "node_id", where);
+    if (node < 1 || node > canopen::kMaxNodeId)
+      p.fail(f["node_id"], where + ": node_id " + std::to_string(node) + " is outside 1..127");
+    c.ft.node_id = static_cast<std::uint8_t>(node);
+    c.ft.force_counts_per_n = p.get<double>(f, "force_counts_per_n", where, "scaling: int16 counts per N");
+    c.ft.torque_counts_per_nm = p.get<double>(f, "torque_counts_per_nm", where, "scaling: int16 counts per N*m");
+    c.ft.line = line_of(f);
+  }
+
+  validate(c);
+  return c;
+}
+
+RemoteConfig load_remote_config(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot open the remote configuration file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_remote_config(ss.str(), path);
+}
+
+void validate(RemoteConfig& c) {
+  const std::string& src = c.source.empty() ? std::string("<remote config>") : c.source;
+  auto fail = [&](int line, const std::string& msg) { throw InputError(src, line, msg); };
+  char buf[256];
+
+  if (!(c.cycle_rate_hz >= 40.0 && c.cycle_rate_hz <= 4000.0))
+    fail(0, "cycle_rate_hz " + std::to_string(c.cycle_rate_hz) + " is outside 40..4000 Hz");
+  const double period_100us = 1e4 / c.cycle_rate_hz;
+  if (std::abs(period_100us - std::round(period_100us)) > 1e-6) {
+    std::snprintf(buf, sizeof buf, "cycle_rate_hz %g: the period %.6g ms is not a multiple of 0.1 ms "
+                  "(interpolation period 0x60C2 is set in 100 us units)", c.cycle_rate_hz, 1e3 / c.cycle_rate_hz);
+    fail(0, buf);
+  }
+  if (!(c.heartbeat_producer_s >= 0.001 && c.heartbeat_producer_s <= 65.0))
+    fail(0, "heartbeat.producer_ms must be 1..65000");
+  if (!(c.heartbeat_consumer_s > c.heartbeat_producer_s))
+    fail(0, "heartbeat.consumer_ms must be larger than heartbeat.producer_ms (a margin for jitter)");
+  if (!(c.sdo_timeout_s > 0.0 && c.sdo_timeout_s <= 10.0)) fail(0, "sdo_timeout_ms must be in (0, 10000]");
+  if (!(c.enable_timeout_s > 0.0 && c.enable_timeout_s <= 60.0)) fail(0, "enable_timeout_ms must be in (0, 60000]");
+  if (c.tpdo_miss_limit < 1 || c.tpdo_miss_limit > 1000) fail(0, "tpdo_miss_limit must be 1..1000");
+  if (!(c.max_bus_load > 0.0 && c.max_bus_load <= 1.0)) fail(0, "max_bus_load must be in (0, 1]");
+
+  static const std::set<std::uint32_t> kBitrates = {10000, 20000, 50000, 125000, 250000, 500000, 800000, 1000000};
+  std::set<std::string> bus_names;
+  for (std::size_t i = 0; i < c.buses.size(); ++i) {
+    const BusConfig& b = c.buses[i];
+    const std::string where = "buses[" + std::to_string(i) + "] (" + b.name + ")";
+    if (b.name.empty()) fail(b.line, "buses[" + std::to_string(i) + "]: empty name");
+    if (!bus_names.insert(b.name).second) fail(b.line, where + ": duplicate bus name '" + b.name + "'");
+    if (b.interface.empty()) fail(b.line, where + ": empty interface (use can0... or mock)");
+    if (!kBitrates.count(b.bitrate_bps))
+      fail(b.line, where + ": bitrate " + std::to_string(b.bitrate_bps) +
+                       " is not a CiA 301 bit rate (10k, 20k, 50k, 125k, 250k, 500k, 800k, 1M)");
+  }
+
+  if (c.drives.empty()) fail(0, "no drives configured");
+  std::set<std::string> joints;
+  for (std::size_t i = 0; i < c.drives.size(); ++i) {
+    DriveConfig& d = c.drives[i];
+    const std::string where = drive_name(i, d.joint);
+    if (d.joint.empty()) fail(d.line, where + ": empty joint name");
+    if (!joints.insert(d.joint).second) fail(d.line, where + ": joint '" + d.joint + "' has two drives");
+    d.bus_index = c.bus_index(d.bus);
+    if (d.bus_index < 0) fail(d.line, where + ": bus '" + d.bus + "' is not defined in buses");
+    if (d.node_id < 1 || d.node_id > canopen::kMaxNodeId)
+      fail(d.line, where + ": node_id " + std::to_string(d.node_id) + " is outside 1..127");
+    if (!(d.counts_per_rev > 0.0 && std::isfinite(d.counts_per_rev)))
+      fail(d.line, where + ": counts_per_rev must be > 0 (missing or bad scaling)");
+    if (!(d.gear_ratio > 0.0 && std::isfinite(d.gear_ratio)))
+      fail(d.line, where + ": gear_ratio must be > 0 (missing or bad scaling; use direction for the sign)");
+    if (d.counts_per_rev * d.gear_ratio > 2147483648.0)
+      fail(d.line, where + ": counts_per_rev x gear_ratio exceeds 2^31 counts per joint revolution "
+                          "(position would overflow the drive's int32)");
+    if (d.direction != 1 && d.direction != -1)
+      fail(d.line, where + ": direction must be 1 or -1, not " + std::to_string(d.direction));
+    if (!std::isfinite(d.offset_rad) || std::abs(d.offset_rad) > 2.0 * std::numbers::pi)
+      fail(d.line, where + ": offset_rad must be finite and within +-2 pi");
+    if (!(d.following_error_limit_rad > 0.0 && d.following_error_limit_rad < 1.0))
+      fail(d.line, where + ": following_error_limit_rad must be in (0, 1) rad");
+    for (std::size_t j = 0; j < i; ++j) {
+      const DriveConfig& o = c.drives[j];
+      if (o.bus_index == d.bus_index && o.node_id == d.node_id)
+        fail(d.line, where + ": node_id " + std::to_string(d.node_id) + " on bus '" + d.bus +
+                         "' is already used by " + drive_name(j, o.joint));
+    }
+  }
+  if (c.ft.present) {
+    FtConfig& f = c.ft;
+    f.bus_index = c.bus_index(f.bus);
+    if (f.bus_index < 0) fail(f.line, "ft_sensor: bus '" + f.bus + "' is not defined in buses");
+    if (f.node_id < 1 || f.node_id > canopen::kMaxNodeId)
+      fail(f.line, "ft_sensor: node_id " + std::to_string(f.node_id) + " is outside 1..127");
+    if (!(f.force_counts_per_n > 0.0 && std::isfinite(f.force_counts_per_n)))
+      fail(f.line, "ft_sensor: force_counts_per_n must be > 0 (missing or bad scaling)");
+    if (!(f.torque_counts_per_nm > 0.0 && std::isfinite(f.torque_counts_per_nm)))
+      fail(f.line, "ft_sensor: torque_counts_per_nm must be > 0 (missing or bad scaling)");
+    for (std::size_t j = 0; j < c.drives.size(); ++j)
+      if (c.drives[j].bus_index == f.bus_index && c.drives[j].node_id == f.node_id)
+        fail(f.line, "ft_sensor: node_id " + std::to_string(f.node_id) + " on bus '" + f.bus +
+                         "' is already used by " + drive_name(j, c.drives[j].joint));
+  }
+
+  for (const BusLoad& l : compute_bus_loads(c)) {
+    if (l.load > c.max_bus_load) {
+      std::snprintf(buf, sizeof buf, " exceeds the %.0f%% limit: lower cycle_rate_hz or split the drives over more buses",
+                    c.max_bus_load * 100.0);
+      fail(c.buses[static_cast<std::size_t>(c.bus_index(l.bus))].line, l.describe() + buf);
+    }
+  }
+}
+
+int worst_case_frame_bits(int n) noexcept {
+  const int data_bits = 8 * n;
+  return data_bits + 47 + (34 + data_bits - 1) / 4;
+}
+
+std::vector<BusLoad> compute_bus_loads(const RemoteConfig& c) {
+  std::vector<BusLoad> out;
+  constexpr int kRpdoBytes = 6;  // controlword + target position
+  constexpr int kTpdoBytes = 8;  // statusword + position actual + torque actual
+  constexpr int kFtBytes = 8;
+  for (std::size_t bi = 0; bi < c.buses.size(); ++bi) {
+    BusLoad l;
+    l.bus = c.buses[bi].name;
+    l.bitrate_bps = c.buses[bi].bitrate_bps;
+    for (const DriveConfig& d : c.drives)
+      if (d.bus == l.bus) ++l.drives;
+    l.ft = c.ft.present && c.ft.bus == l.bus;
+    const int nodes = l.drives + (l.ft ? 1 : 0);
+    if (nodes > 0) {
+      l.frames_per_cycle = 1 + 2 * l.drives + (l.ft ? 2 : 0);
+      l.bits_per_cycle = worst_case_frame_bits(0) +
+                         l.drives * (worst_case_frame_bits(kRpdoBytes) + worst_case_frame_bits(kTpdoBytes)) +
+                         (l.ft ? 2 * worst_case_frame_bits(kFtBytes) : 0);
+      l.heartbeat_bits_per_s = nodes * worst_case_frame_bits(1) / c.heartbeat_producer_s;
+    }
+    l.bits_per_s = l.bits_per_cycle * c.cycle_rate_hz + l.heartbeat_bits_per_s;
+    l.load = l.bits_per_s / l.bitrate_bps;
+    out.push_back(l);
+  }
+  return out;
+}
+
+std::string BusLoad::describe() const {
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "bus %s: %d drive%s%s, %d frames/cycle (SYNC + %d PDOs), %d bits/cycle worst case "
+                "x %.0f Hz + heartbeats %.0f bit/s = %.1f kbit/s = %.1f%% of %.0f kbit/s",
+                bus.c_str(), drives, drives == 1 ? "" : "s", ft ? " + F/T" : "", frames_per_cycle,
+                frames_per_cycle > 0 ? frames_per_cycle - 1 : 0, bits_per_cycle,
+                bits_per_cycle > 0 ? (bits_per_s - heartbeat_bits_per_s) / bits_per_cycle : 0.0,
+                heartbeat_bits_per_s, bits_per_s / 1000.0, load * 100.0, bitrate_bps / 1000.0);
+  return buf;
+}
+
+}  // namespace foresight::hw

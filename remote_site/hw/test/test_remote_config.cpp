@@ -1,0 +1,128 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <regex>
+
+#include "foresight/common/error.hpp"
+#include "foresight/hw/remote_config.hpp"
+
+using namespace foresight;
+using namespace foresight::hw;
+
+namespace {
+// A valid base configuration; tests replace one piece to make it bad.
+std::string base_yaml(const std::string& drives, const std::string& buses =
+                          "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n",
+                      const std::string& head = "cycle_rate_hz: 500\n", const std::string& ft =
+                          "ft_sensor: {bus: b, node_id: 32, force_counts_per_n: 100, torque_counts_per_nm: 1000}\n") {
+  return head + "heartbeat: {producer_ms: 50, consumer_ms: 150}\nbuses:\n" + buses + "drives:\n" + drives + ft;
+}
+std::string drive(const std::string& joint, const std::string& bus, int node, const std::string& extra = "") {
+  return "  - {joint: " + joint + ", bus: " + bus + ", node_id: " + std::to_string(node) +
+         (extra.empty() ? ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02" : extra) + "}\n";
+}
+std::string error_of(const std::string& yaml) {
+  try {
+    parse_remote_config(yaml, "remote.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+}  // namespace
+
+TEST(RemoteConfig, LoadsTheProjectFile) {
+  const RemoteConfig c = load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  EXPECT_EQ(c.cycle_rate_hz, 500.0);
+  ASSERT_EQ(c.drives.size(), 7u);
+  ASSERT_EQ(c.buses.size(), 2u);
+  for (int i = 0; i < 7; ++i) EXPECT_EQ(c.drives[static_cast<std::size_t>(i)].joint, "joint" + std::to_string(i + 1));
+  EXPECT_TRUE(c.ft.present);
+  EXPECT_EQ(c.ft.bus_index, 1);
+  EXPECT_DOUBLE_EQ(c.heartbeat_consumer_s, 0.15);
+  // Known loads: arm_a 4 drives: (55 + 4*(115+135)) * 500 + 4*65/0.05 = 532700 bit/s
+  const auto loads = compute_bus_loads(c);
+  ASSERT_EQ(loads.size(), 2u);
+  EXPECT_EQ(loads[0].frames_per_cycle, 9);
+  EXPECT_EQ(loads[0].bits_per_cycle, 1055);
+  EXPECT_NEAR(loads[0].load, 0.5327, 1e-6);
+  // arm_b 3 drives + F/T: (55 + 3*250 + 2*135) * 500 + 4*65/0.05 = 542700 bit/s
+  EXPECT_EQ(loads[1].frames_per_cycle, 9);
+  EXPECT_EQ(loads[1].bits_per_cycle, 1075);
+  EXPECT_NEAR(loads[1].load, 0.5427, 1e-6);
+}
+
+TEST(RemoteConfig, CountsRadiansRoundTripWithDirectionAndOffset) {
+  DriveConfig d;
+  d.counts_per_rev = 131072;
+  d.gear_ratio = 100;
+  d.direction = -1;
+  d.offset_rad = 0.25;
+  std::int32_t c = 0;
+  ASSERT_TRUE(d.to_counts(0.25 + std::numbers::pi / 2, c));
+  EXPECT_EQ(c, -131072 * 100 / 4);
+  EXPECT_NEAR(d.to_rad(c), 0.25 + std::numbers::pi / 2, 1e-9);
+  EXPECT_FALSE(d.to_counts(std::nan(""), c));
+  EXPECT_FALSE(d.to_counts(1e6, c));  // beyond int32
+}
+
+TEST(RemoteConfig, SevenDrivesOnOneBusAt500HzAreRefusedWithTheNumbers) {
+  std::string drives;
+  for (int i = 1; i <= 7; ++i) drives += drive("joint" + std::to_string(i), "b", i);
+  const std::string msg = error_of(base_yaml(drives));
+  // (55 + 7*250 + 270) * 500 + 8*65/0.05 = 1047900 bit/s
+  EXPECT_NE(msg.find("remote.yaml:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("bus b: 7 drives + F/T, 17 frames/cycle"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("2075 bits/cycle"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("104.8% of 1000 kbit/s"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("exceeds the 70% limit"), std::string::npos) << msg;
+  // The same bus at 250 Hz fits (52.9%).
+  const RemoteConfig ok = parse_remote_config(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 250\n"), "x");
+  EXPECT_NEAR(compute_bus_loads(ok)[1].load, 0.52915, 1e-6);
+}
+
+TEST(RemoteConfig, DuplicateNodeIdOnABusIsNamed) {
+  const std::string msg = error_of(base_yaml(drive("joint1", "a", 1) + drive("joint2", "a", 2) + drive("joint3", "a", 2)));
+  EXPECT_EQ(msg, "remote.yaml:9: drives[2] (joint3): node_id 2 on bus 'a' is already used by drives[1] (joint2)");
+  // The same node id on another bus is fine.
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1) + drive("joint2", "b", 1))), "no error");
+}
+
+TEST(RemoteConfig, FtNodeIdCollidingWithADriveIsNamed) {
+  const std::string msg = error_of(base_yaml(drive("joint1", "b", 32)));
+  EXPECT_NE(msg.find("ft_sensor: node_id 32 on bus 'b' is already used by drives[0] (joint1)"), std::string::npos) << msg;
+}
+
+TEST(RemoteConfig, MissingScalingIsNamed) {
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", gear_ratio: 100, following_error_limit_rad: 0.02"))),
+            "remote.yaml:7: drives[0] (joint1): missing 'counts_per_rev' (scaling: encoder counts per motor revolution)");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 0, gear_ratio: 100, following_error_limit_rad: 0.02"))),
+            "remote.yaml:7: drives[0] (joint1): counts_per_rev must be > 0 (missing or bad scaling)");
+  const std::string ft = error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n",
+                                            "cycle_rate_hz: 500\n", "ft_sensor: {bus: b, node_id: 32, force_counts_per_n: 100}\n"));
+  EXPECT_NE(ft.find("ft_sensor: missing 'torque_counts_per_nm' (scaling: int16 counts per N*m)"), std::string::npos) << ft;
+}
+
+TEST(RemoteConfig, OtherBadInputsAreNamed) {
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "c", 1))).find("drives[0] (joint1): bus 'c' is not defined in buses"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 128))).find("node_id 128 is outside 1..127"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1) + drive("joint1", "a", 2))).find("joint 'joint1' has two drives"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, direction: 2, following_error_limit_rad: 0.02")))
+                .find("direction must be 1 or -1, not 2"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02, gain: 3")))
+                .find("drives[0] (joint1): unknown key 'gain'"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 900000}\n"))
+                .find("buses[0] (a): bitrate 900000 is not a CiA 301 bit rate"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 300\n"))
+                .find("is not a multiple of 0.1 ms"), std::string::npos);
+  EXPECT_NE(error_of("cycle_rate_hz: [500\n").find("remote.yaml:"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: fast}\n"))
+                .find("'bitrate' has a value of the wrong type: 'fast'"), std::string::npos);
+  try {
+    load_remote_config("/nonexistent/remote.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "/nonexistent/remote.yaml: cannot open the remote configuration file");
+  }
+}

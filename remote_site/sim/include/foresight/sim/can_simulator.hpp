@@ -1,0 +1,92 @@
+#pragma once
+// The simulated far end of the CAN buses: simulated nodes (drives, F/T
+// sensor) attached to the far ends of mock buses. Run it on its own thread
+// (start/stop), or step it from the caller's thread (process) for
+// deterministic single-threaded use (benchmarks). Not real-time code.
+//
+//   auto [master, far] = make_mock_buses(config);
+//   auto sim = CanSimulator::from_config(config, std::move(far));
+//   sim->start();                                  // power-on: boot-up messages
+//   hw::DriveSystem drives(config, std::move(master));
+//   drives.configure(); drives.enable(); ... cycle_read / cycle_write ...
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "foresight/hw/can_bus.hpp"
+#include "foresight/hw/remote_config.hpp"
+#include "foresight/sim/sim_drive.hpp"
+#include "foresight/sim/sim_ft_sensor.hpp"
+
+namespace foresight::sim {
+
+/// Both ends of one mock bus per configured bus: {master ends, far ends}.
+/// Every bus must have interface "mock" (throws hw::CanError naming it otherwise).
+struct MockBuses {
+  std::vector<std::unique_ptr<hw::CanBus>> master;
+  std::vector<std::unique_ptr<hw::CanBus>> far;
+};
+MockBuses make_mock_buses(const hw::RemoteConfig& config);
+
+class CanSimulator {
+ public:
+  CanSimulator();
+  ~CanSimulator();
+  CanSimulator(const CanSimulator&) = delete;
+  CanSimulator& operator=(const CanSimulator&) = delete;
+
+  /// One simulated node per configured drive (same node ids, counts per rev)
+  /// and the F/T sensor with the configured scales.
+  static std::unique_ptr<CanSimulator> from_config(const hw::RemoteConfig& config,
+                                                   std::vector<std::unique_ptr<hw::CanBus>> far_ends);
+
+  // ---- building (before start) ----------------------------------------------
+  std::size_t add_bus(std::unique_ptr<hw::CanBus> far_end);
+  SimDrive& add_drive(std::size_t bus, const SimDriveParams& params);
+  SimFtSensor& add_ft_sensor(std::size_t bus, const SimFtParams& params);
+
+  // ---- running ------------------------------------------------------------------
+  /// Power on every node (boot-up messages) and run on a thread until stop().
+  void start();
+  void stop();
+  /// Single-threaded use: power on (first call), handle every frame waiting
+  /// on the buses (waiting up to timeout_ms for the first), tick heartbeats.
+  void process(int timeout_ms = 0);
+
+  /// Send a raw frame on a bus from the far end (malformed-frame injection,
+  /// error frames: can_id | CAN_ERR_FLAG). Any thread.
+  void inject(std::size_t bus, const can_frame& f);
+
+  SimDrive& drive(std::size_t i) { return *drives_.at(i).node; }
+  std::size_t drive_count() const { return drives_.size(); }
+  SimFtSensor* ft_sensor() { return ft_.get(); }
+  std::uint64_t frames_received() const { return frames_in_.load(); }
+  std::uint64_t frames_sent() const { return frames_out_.load(); }
+  std::uint64_t frames_dropped() const { return frames_dropped_.load(); }
+
+ private:
+  struct Bus;
+  struct DriveEntry {
+    std::size_t bus;
+    std::unique_ptr<SimDrive> node;
+  };
+  void power_on();
+  void run();
+  void dispatch(std::size_t bus, const can_frame& f, Clock::time_point now);
+
+  std::vector<std::unique_ptr<Bus>> buses_;
+  std::vector<DriveEntry> drives_;
+  std::unique_ptr<SimFtSensor> ft_;
+  std::size_t ft_bus_ = 0;
+  std::mutex step_mu_;  // one process() at a time
+  bool powered_ = false;
+  std::thread thread_;
+  std::atomic<bool> running_{false};
+  std::atomic<std::uint64_t> frames_in_{0}, frames_out_{0}, frames_dropped_{0};
+};
+
+}  // namespace foresight::sim

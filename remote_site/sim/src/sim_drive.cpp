@@ -1,0 +1,323 @@
+#include "foresight/sim/sim_drive.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "foresight/hw/can_bus.hpp"
+
+namespace foresight::sim {
+
+using namespace hw::canopen;
+
+SimDrive::SimDrive(const SimDriveParams& p)
+    : SimNode(p.node_id, 0x00020000u | kProfileDrive, "Foresight SimDrive CSP (" + p.name + ")"), p_(p) {
+  x_ = p.initial_counts;
+  demand_ = demand_prev_ = x_;
+  std::lock_guard lock(mu_);
+  reset_application();
+}
+
+PowerState SimDrive::power_state() const {
+  std::lock_guard lock(mu_);
+  return state_;
+}
+double SimDrive::position_counts() const {
+  std::lock_guard lock(mu_);
+  return x_;
+}
+double SimDrive::velocity_counts_s() const {
+  std::lock_guard lock(mu_);
+  return v_;
+}
+std::int32_t SimDrive::target_counts() const {
+  std::lock_guard lock(mu_);
+  return static_cast<std::int32_t>(get(od::kTargetPosition, 0));
+}
+std::uint16_t SimDrive::controlword() const {
+  std::lock_guard lock(mu_);
+  return static_cast<std::uint16_t>(get(od::kControlword, 0));
+}
+std::uint64_t SimDrive::sync_count() const {
+  std::lock_guard lock(mu_);
+  return syncs_;
+}
+std::uint32_t SimDrive::following_error_window() const {
+  std::lock_guard lock(mu_);
+  return get(od::kFollowingErrorWindow, 0);
+}
+void SimDrive::inject_fault(std::uint16_t emcy_code) {
+  std::lock_guard lock(mu_);
+  injected_fault_ = true;
+  injected_code_ = emcy_code;
+}
+void SimDrive::set_load_torque_nm(double t) {
+  std::lock_guard lock(mu_);
+  load_torque_nm_ = t;
+}
+void SimDrive::set_position_counts(double counts) {
+  std::lock_guard lock(mu_);
+  x_ = counts;
+  v_ = 0.0;
+}
+
+void SimDrive::reset_application() {
+  // Defaults differ from what the master needs (as on many real drives): the
+  // master must map the PDOs and select the mode, or the frames are wrong.
+  define(od::kCommCyclePeriod, 0, 4, true, 0);
+  define(od::kRpdo1Comm, 1, 4, true, kRpdo1Base + node_id_);
+  define(od::kRpdo1Comm, 2, 1, true, 255);
+  define(od::kRpdo1Map, 0, 1, true, 1);
+  define(od::kTpdo1Comm, 1, 4, true, kTpdo1Base + node_id_);
+  define(od::kTpdo1Comm, 2, 1, true, 255);
+  define(od::kTpdo1Map, 0, 1, true, 1);
+  for (std::uint8_t s = 1; s <= 8; ++s) {
+    define(od::kRpdo1Map, s, 4, true, s == 1 ? od::map_entry(od::kControlword, 0, 16) : 0);
+    define(od::kTpdo1Map, s, 4, true, s == 1 ? od::map_entry(od::kStatusword, 0, 16) : 0);
+  }
+  define(od::kControlword, 0, 2, true, 0);
+  define(od::kStatusword, 0, 2, false, 0);
+  define(od::kModesOfOperation, 0, 1, true, 0);
+  define(od::kModesDisplay, 0, 1, false, 0);
+  define(od::kPositionActual, 0, 4, false, static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround(x_))));
+  define(od::kFollowingErrorWindow, 0, 4, true, 0xFFFFFFFFu);  // disabled until set
+  define(od::kRatedTorque, 0, 4, false, p_.rated_torque_mnm);
+  define(od::kTorqueActual, 0, 2, false, 0);
+  define(od::kTargetPosition, 0, 4, true, 0);
+  define(od::kSoftwareLimits, 0, 1, false, 2);
+  define(od::kSoftwareLimits, 1, 4, true, static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::min()));
+  define(od::kSoftwareLimits, 2, 4, true, static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max()));
+  define(od::kInterpolationPeriod, 1, 1, true, 1);
+  define(od::kInterpolationPeriod, 2, 1, true, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)));
+  state_ = PowerState::NotReadyToSwitchOn;
+  v_ = a_ = 0.0;
+  demand_ = demand_prev_ = x_;
+  prev_cw_ = 0;
+  have_rpdo_ = false;
+  following_error_ = internal_limit_ = false;
+  update_statusword();
+}
+
+std::uint32_t SimDrive::check_mapping(std::uint16_t map_index, std::uint8_t count) const {
+  if (count > 8) return static_cast<std::uint32_t>(SdoAbort::PdoTooLong);
+  int bits = 0;
+  for (std::uint8_t s = 1; s <= count; ++s) {
+    const std::uint32_t m = get(map_index, s);
+    const auto idx = static_cast<std::uint16_t>(m >> 16);
+    const auto sub = static_cast<std::uint8_t>((m >> 8) & 0xFF);
+    const int len = static_cast<int>(m & 0xFF);
+    auto it = od_.find(key(idx, sub));
+    if (it == od_.end() || it->second.size == 0 || it->second.size * 8 != len)
+      return static_cast<std::uint32_t>(SdoAbort::CannotMap);
+    bits += len;
+  }
+  return bits > 64 ? static_cast<std::uint32_t>(SdoAbort::PdoTooLong) : 0;
+}
+
+std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
+  if (index == od::kRpdo1Map || index == od::kTpdo1Map) {
+    const std::uint16_t comm = index == od::kRpdo1Map ? od::kRpdo1Comm : od::kTpdo1Comm;
+    if (!(get(comm, 1) & od::kCobIdInvalid)) return static_cast<std::uint32_t>(SdoAbort::DeviceState);
+    if (sub == 0) return check_mapping(index, static_cast<std::uint8_t>(value));
+    if (get(index, 0) != 0) return static_cast<std::uint32_t>(SdoAbort::DeviceState);
+    return 0;
+  }
+  if ((index == od::kRpdo1Comm || index == od::kTpdo1Comm) && sub == 1) {
+    if ((value & 0x7FF) == 0 || (value & 0x3FFFF800u)) return static_cast<std::uint32_t>(SdoAbort::ValueRange);
+    return 0;
+  }
+  if ((index == od::kRpdo1Comm || index == od::kTpdo1Comm) && sub == 2)
+    return (value >= 1 && value <= 240) || value >= 254 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  if (index == od::kModesOfOperation)
+    return static_cast<std::int8_t>(value) == kModeCyclicSyncPosition ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  if (index == od::kCommCyclePeriod && (value < 100 || value > 100000))
+    return static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  if (index == od::kFollowingErrorWindow && value == 0) return static_cast<std::uint32_t>(SdoAbort::ValueTooLow);
+  return 0;
+}
+
+void SimDrive::on_frame(const can_frame& f, FrameSink& out) {
+  const std::uint32_t id = f.can_id & CAN_SFF_MASK;
+  const std::uint32_t rpdo_cob = get(od::kRpdo1Comm, 1);
+  if (nmt_ != NmtState::Operational || (rpdo_cob & od::kCobIdInvalid) || id != (rpdo_cob & 0x7FF)) return;
+  int bits = 0;
+  for (std::uint8_t s = 1; s <= get(od::kRpdo1Map, 0); ++s) bits += static_cast<int>(get(od::kRpdo1Map, s) & 0xFF);
+  if (f.can_dlc * 8 < bits) {  // CiA 301: PDO length error
+    emit_emcy(0x8210, 0x11, out);
+    return;
+  }
+  std::copy(f.data, f.data + 8, rpdo_.begin());
+  rpdo_len_ = f.can_dlc;
+  have_rpdo_ = true;
+}
+
+void SimDrive::fault(std::uint16_t emcy_code, FrameSink& out) {
+  if (state_ == PowerState::Fault) return;
+  state_ = PowerState::Fault;
+  v_ = a_ = 0.0;  // brake
+  demand_ = demand_prev_ = x_;
+  emit_emcy(emcy_code, 0x01 | ((emcy_code >> 12) == 0x8 ? 0x10 : 0x00) | ((emcy_code >> 12) == 0x2 ? 0x02 : 0x00),
+            out);
+}
+
+void SimDrive::apply_command(std::uint16_t cw, FrameSink& out) {
+  const DriveCommand c = decode_controlword(cw, prev_cw_);
+  prev_cw_ = cw;
+  switch (state_) {
+    case PowerState::NotReadyToSwitchOn: state_ = PowerState::SwitchOnDisabled; break;  // self test done
+    case PowerState::SwitchOnDisabled:
+      if (c == DriveCommand::Shutdown) state_ = PowerState::ReadyToSwitchOn;
+      break;
+    case PowerState::ReadyToSwitchOn:
+      if (c == DriveCommand::SwitchOn) state_ = PowerState::SwitchedOn;
+      else if (c == DriveCommand::DisableVoltage || c == DriveCommand::QuickStop) state_ = PowerState::SwitchOnDisabled;
+      break;
+    case PowerState::SwitchedOn:
+      if (c == DriveCommand::EnableOperation) {
+        if (static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) != kModeCyclicSyncPosition) {
+          fault(0x6320, out);  // parameter error: no mode selected
+          break;
+        }
+        state_ = PowerState::OperationEnabled;
+        demand_ = demand_prev_ = x_;
+      } else if (c == DriveCommand::Shutdown) state_ = PowerState::ReadyToSwitchOn;
+      else if (c == DriveCommand::DisableVoltage || c == DriveCommand::QuickStop) state_ = PowerState::SwitchOnDisabled;
+      break;
+    case PowerState::OperationEnabled:
+      if (c == DriveCommand::SwitchOn) state_ = PowerState::SwitchedOn;
+      else if (c == DriveCommand::Shutdown) state_ = PowerState::ReadyToSwitchOn;
+      else if (c == DriveCommand::DisableVoltage) state_ = PowerState::SwitchOnDisabled;
+      else if (c == DriveCommand::QuickStop) {
+        state_ = PowerState::QuickStopActive;
+        demand_ = demand_prev_ = x_;
+      }
+      break;
+    case PowerState::QuickStopActive:
+      if (c == DriveCommand::DisableVoltage) state_ = PowerState::SwitchOnDisabled;
+      else if (c == DriveCommand::EnableOperation) {
+        state_ = PowerState::OperationEnabled;
+        demand_ = demand_prev_ = x_;
+      }
+      break;
+    case PowerState::FaultReactionActive: state_ = PowerState::Fault; break;
+    case PowerState::Fault:
+      if (c == DriveCommand::FaultReset) {
+        state_ = PowerState::SwitchOnDisabled;
+        following_error_ = internal_limit_ = false;
+        emit_emcy(0x0000, 0x00, out);
+      }
+      break;
+  }
+  if (state_ != PowerState::OperationEnabled && state_ != PowerState::QuickStopActive) {
+    demand_ = demand_prev_ = x_;
+  }
+}
+
+void SimDrive::step_physics(double dt) {
+  const double wn = 2.0 * std::numbers::pi * p_.natural_frequency_hz;
+  const double demand_v = (demand_ - demand_prev_) / dt;
+  const bool moving = state_ == PowerState::OperationEnabled || state_ == PowerState::QuickStopActive;
+  if (!moving) {
+    v_ = a_ = 0.0;
+    return;
+  }
+  const int substeps = 20;
+  const double h = dt / substeps;
+  double a_sum = 0.0;
+  for (int i = 0; i < substeps; ++i) {
+    // the demand is interpolated linearly over the cycle (CSP interpolation)
+    const double r = demand_prev_ + (demand_ - demand_prev_) * (i + 1) / substeps;
+    const double a = wn * wn * (r - x_) + 2.0 * p_.damping * wn * (demand_v - v_);
+    v_ += a * h;
+    x_ += v_ * h;
+    a_sum += a;
+  }
+  a_ = a_sum / substeps;
+}
+
+void SimDrive::update_statusword() {
+  std::uint16_t sw = statusword_bits(state_);
+  if (state_ == PowerState::OperationEnabled || state_ == PowerState::SwitchedOn ||
+      state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::QuickStopActive)
+    sw |= statusword::kVoltageEnabled;
+  sw |= statusword::kRemote;
+  if (state_ == PowerState::OperationEnabled) sw |= statusword::kCspFollowsCommand;
+  if (std::abs(demand_ - x_) < 10.0) sw |= statusword::kTargetReached;
+  if (internal_limit_) sw |= statusword::kInternalLimit;
+  if (following_error_) sw |= statusword::kCspFollowingError;
+  set(od::kStatusword, 0, sw);
+  set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
+  const double xr = std::clamp(std::round(x_), -2147483648.0, 2147483647.0);
+  set(od::kPositionActual, 0, static_cast<std::uint32_t>(static_cast<std::int32_t>(xr)));
+  const double motor_acc = a_ * 2.0 * std::numbers::pi / p_.counts_per_rev;
+  const double torque = p_.rotor_inertia_kgm2 * motor_acc + load_torque_nm_;
+  const double pm = std::clamp(std::round(torque / (p_.rated_torque_mnm * 1e-3) * 1000.0), -32768.0, 32767.0);
+  set(od::kTorqueActual, 0, static_cast<std::uint16_t>(static_cast<std::int16_t>(pm)));
+}
+
+void SimDrive::on_sync(Clock::time_point, FrameSink& out) {
+  ++syncs_;
+  // 1. synchronous RPDO received since the last SYNC takes effect now
+  if (have_rpdo_) {
+    have_rpdo_ = false;
+    int bit = 0;
+    for (std::uint8_t s = 1; s <= get(od::kRpdo1Map, 0); ++s) {
+      const std::uint32_t m = get(od::kRpdo1Map, s);
+      const int len = static_cast<int>(m & 0xFF);
+      std::uint32_t v = 0;
+      for (int b = 0; b < len / 8; ++b) v |= static_cast<std::uint32_t>(rpdo_[static_cast<std::size_t>(bit / 8 + b)]) << (8 * b);
+      set(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF), v);
+      bit += len;
+    }
+  }
+  if (injected_fault_) {
+    injected_fault_ = false;
+    fault(injected_code_, out);
+  }
+  // 2. power state machine
+  apply_command(static_cast<std::uint16_t>(get(od::kControlword, 0)), out);
+  // 3. motion: csp target with limit and following-error supervision
+  std::uint32_t period_us = get(od::kCommCyclePeriod, 0);
+  if (period_us == 0) period_us = 1000;
+  const double dt = period_us * 1e-6;
+  if (state_ == PowerState::OperationEnabled) {
+    const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
+    const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));
+    const auto hi = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 2)));
+    demand_prev_ = demand_;
+    if (target < lo || target > hi) {
+      internal_limit_ = true;
+      fault(0x8612, out);
+    } else {
+      demand_ = target;
+    }
+  } else if (state_ == PowerState::QuickStopActive) {
+    demand_prev_ = demand_;  // hold where the quick stop began
+  }
+  step_physics(dt);
+  const std::uint32_t window = get(od::kFollowingErrorWindow, 0);
+  if (state_ == PowerState::OperationEnabled && window != 0xFFFFFFFFu && std::abs(demand_ - x_) > window) {
+    following_error_ = true;
+    fault(0x8611, out);
+  }
+  update_statusword();
+  // 4. synchronous TPDO
+  const std::uint32_t tpdo_cob = get(od::kTpdo1Comm, 1);
+  const std::uint32_t type = get(od::kTpdo1Comm, 2);
+  if ((tpdo_cob & od::kCobIdInvalid) || type < 1 || type > 240 || syncs_ % type != 0) return;
+  can_frame f{};
+  f.can_id = tpdo_cob & 0x7FF;
+  int bit = 0;
+  for (std::uint8_t s = 1; s <= get(od::kTpdo1Map, 0); ++s) {
+    const std::uint32_t m = get(od::kTpdo1Map, s);
+    const int len = static_cast<int>(m & 0xFF);
+    const std::uint32_t v = get(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF));
+    for (int b = 0; b < len / 8; ++b) f.data[bit / 8 + b] = static_cast<std::uint8_t>(v >> (8 * b));
+    bit += len;
+  }
+  f.can_dlc = static_cast<std::uint8_t>(bit / 8);
+  out.send(f);
+}
+
+}  // namespace foresight::sim

@@ -1,0 +1,94 @@
+#pragma once
+// The master (foresight_hw, the code that runs on the robot) against the
+// simulated drives and F/T sensor on mock buses, from config/remote.yaml.
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <functional>
+#include <thread>
+
+#include "foresight/hw/drive_system.hpp"
+#include "foresight/sim/can_simulator.hpp"
+
+namespace foresight::test {
+
+using hw::CycleStatus;
+using hw::DriveSystem;
+using hw::HwEvent;
+using hw::HwFault;
+using hw::JointFeedback;
+using hw::JointTargets;
+using hw::FtReading;
+using Clock = std::chrono::steady_clock;
+
+/// config/remote.yaml, with a TPDO miss limit of 25 cycles (50 ms) instead of
+/// 3: ctest runs tests in parallel on 2 shared cores, and a descheduled
+/// simulator thread must not look like a silent drive.
+inline hw::RemoteConfig project_config() {
+  hw::RemoteConfig c = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  c.tpdo_miss_limit = 25;
+  return c;
+}
+
+struct SimRig {
+  hw::RemoteConfig config;
+  std::unique_ptr<sim::CanSimulator> sim;
+  std::unique_ptr<DriveSystem> drives;
+  JointFeedback fb;
+  FtReading ft;
+  JointTargets targets;
+  Clock::time_point deadline;
+
+  explicit SimRig(hw::RemoteConfig c, std::map<std::string, JointLimits> limits = {},
+                  std::function<void(sim::CanSimulator&)> before_start = {})
+      : config(std::move(c)) {
+    auto buses = sim::make_mock_buses(config);
+    sim = sim::CanSimulator::from_config(config, std::move(buses.far));
+    if (before_start) before_start(*sim);
+    sim->start();
+    drives = std::make_unique<DriveSystem>(config, std::move(buses.master), std::move(limits));
+  }
+  ~SimRig() { sim->stop(); }
+
+  void bring_up() {
+    drives->configure();
+    drives->enable();
+    // targets = actual positions: the controller starts from where the arm is
+    deadline = Clock::now();
+    cycle();
+    for (std::size_t j = 0; j < fb.count; ++j) targets.position_rad[j] = fb.joints[j].position_rad;
+  }
+
+  /// One real-time period: read, then write the current targets.
+  CycleStatus cycle() {
+    std::this_thread::sleep_until(deadline);
+    deadline += std::chrono::microseconds(static_cast<long>(1e6 / config.cycle_rate_hz));
+    const CycleStatus s = drives->cycle_read(fb, ft);
+    drives->cycle_write(targets);
+    return s;
+  }
+
+  /// Run cycles until pred(status) or max_cycles; returns the status that matched
+  /// (or the last one), and the cycle count in *n.
+  CycleStatus run_until(const std::function<bool(const CycleStatus&)>& pred, int max_cycles, int* n = nullptr) {
+    CycleStatus s;
+    for (int i = 0; i < max_cycles; ++i) {
+      s = cycle();
+      if (pred(s)) {
+        if (n) *n = i + 1;
+        return s;
+      }
+    }
+    if (n) *n = max_cycles;
+    return s;
+  }
+};
+
+inline const HwEvent* find_event(const CycleStatus& s, HwFault f) {
+  for (std::size_t i = 0; i < s.event_count; ++i)
+    if (s.events[i].fault == f) return &s.events[i];
+  return nullptr;
+}
+
+}  // namespace foresight::test

@@ -1,0 +1,156 @@
+// Bring-up of the real master code over the mock bus against simulated
+// CiA 402 drives: power-on -> NMT/SDO/PDO configuration -> Operation enabled,
+// motion in cyclic synchronous position, and the configuration-phase errors.
+
+#include <cmath>
+#include <numbers>
+
+#include "foresight/common/error.hpp"
+#include "sim_fixture.hpp"
+
+using namespace foresight;
+using namespace foresight::test;
+using hw::canopen::PowerState;
+
+TEST(DriveBringUp, PowerOnToOperationEnabledHoldsPosition) {
+  // joint2 powers on away from zero: enabling must not move it.
+  SimRig rig(project_config(), {}, [](sim::CanSimulator& s) { s.drive(1).set_position_counts(1234567); });
+  rig.drives->configure();
+  for (std::size_t j = 0; j < 7; ++j) {
+    EXPECT_EQ(rig.sim->drive(j).nmt_state(), hw::canopen::NmtState::Operational) << j;
+    EXPECT_EQ(rig.sim->drive(j).following_error_window(),
+              static_cast<std::uint32_t>(std::lround(std::abs(rig.config.drives[j].following_error_limit_rad *
+                                                              rig.config.drives[j].counts_per_rad()))));
+    EXPECT_NE(rig.sim->drive(j).power_state(), PowerState::OperationEnabled);
+  }
+  EXPECT_EQ(rig.drives->device_name(2), "Foresight SimDrive CSP (joint3)");  // segmented upload
+  EXPECT_DOUBLE_EQ(rig.drives->rated_torque_nm(0), 2.0);
+  rig.drives->enable();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::OperationEnabled) << j;
+  // Read only (no new targets yet): the answer to enable()'s last SYNC.
+  CycleStatus s;
+  for (int i = 0; i < 100 && !rig.fb.joints[1].fresh; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    s = rig.drives->cycle_read(rig.fb, rig.ft);
+  }
+  EXPECT_TRUE(s.ok()) << (s.event_count ? rig.drives->describe(s.events[0]) : "");
+  EXPECT_NEAR(rig.sim->drive(1).position_counts(), 1234567, 1.0);
+  EXPECT_EQ(rig.fb.joints[1].position_counts, 1234567);
+  EXPECT_NEAR(rig.fb.joints[1].position_rad, 1234567 * 2 * std::numbers::pi / (131072.0 * 160), 1e-12);
+  EXPECT_EQ(rig.fb.joints[1].state, PowerState::OperationEnabled);
+  EXPECT_EQ(rig.fb.count, 7u);
+}
+
+TEST(DriveBringUp, TracksACommandedMotionAndReportsTorque) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  const double q0 = rig.targets.position_rad[2];
+  const double dq = 0.2;  // joint3, direction -1: counts go the other way
+  const int n = 250;      // 0.5 s at 500 Hz, cosine profile, peak 0.63 rad/s
+  rig.sim->drive(6).set_load_torque_nm(0.5);  // joint7 motor shaft
+  CycleStatus worst;
+  for (int i = 1; i <= n + 25; ++i) {
+    const double s = std::min(1.0, static_cast<double>(i) / n);
+    rig.targets.position_rad[2] = q0 + dq * 0.5 * (1 - std::cos(std::numbers::pi * s));
+    const CycleStatus st = rig.cycle();
+    if (!st.ok()) worst = st;
+  }
+  EXPECT_EQ(worst.event_count, 0) << (worst.event_count ? rig.drives->describe(worst.events[0]) : "");
+  const double counts_per_rad = -131072.0 * 120 / (2 * std::numbers::pi);
+  EXPECT_NEAR(rig.sim->drive(2).position_counts(), (q0 + dq) * counts_per_rad, 50.0);
+  EXPECT_NEAR(rig.fb.joints[2].position_rad, q0 + dq, 1e-4);
+  // 0.5 N*m at the motor, gear 100, direction +1 -> 50 N*m (0.1% of 2 N*m resolution = 0.2 N*m)
+  EXPECT_NEAR(rig.fb.joints[6].torque_nm, 50.0, 0.25);
+}
+
+TEST(DriveBringUp, SdoAbortIsNamedAndNothingIsEnabled) {
+  SimRig rig(project_config(), {}, [](sim::CanSimulator& s) {
+    s.drive(2).inject_sdo_abort(0x6060, 0, 0x06090030);
+  });
+  try {
+    rig.drives->configure();
+    FAIL() << "configure() accepted an aborted SDO";
+  } catch (const hw::SdoError& e) {
+    EXPECT_EQ(e.kind(), hw::SdoError::Kind::Abort);
+    EXPECT_EQ(e.abort_code(), 0x06090030u);
+    EXPECT_STREQ(e.what(), "SDO write 0x6060:00 of joint3 (bus arm_a node 3): aborted by the node: "
+                           "0x06090030 value range of parameter exceeded");
+  }
+  EXPECT_THROW(rig.drives->enable(), hw::HwError);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NE(rig.sim->drive(j).power_state(), PowerState::OperationEnabled);
+}
+
+TEST(DriveBringUp, SdoTimeoutIsNamedAndTimed) {
+  SimRig rig(project_config());
+  rig.drives->configure();
+  rig.sim->drive(4).stop_answering(true);
+  const auto t0 = Clock::now();
+  try {
+    rig.drives->sdo_read(1, 5, 0x6064, 0);
+    FAIL();
+  } catch (const hw::SdoError& e) {
+    const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
+    EXPECT_EQ(e.kind(), hw::SdoError::Kind::Timeout);
+    EXPECT_EQ(e.abort_code(), 0x05040000u);
+    EXPECT_STREQ(e.what(), "SDO read 0x6064:00 of joint5 (bus arm_b node 5): timed out after 100 ms (no response)");
+    EXPECT_GE(dt, 0.099);
+    EXPECT_LT(dt, 0.5);
+  }
+}
+
+TEST(DriveBringUp, SdoToggleErrorIsAbortedAndNamed) {
+  SimRig rig(project_config(), {}, [](sim::CanSimulator& s) { s.drive(0).inject_bad_toggle(true); });
+  try {
+    rig.drives->configure();
+    FAIL();
+  } catch (const hw::SdoError& e) {
+    EXPECT_EQ(e.kind(), hw::SdoError::Kind::Protocol);
+    EXPECT_EQ(e.abort_code(), 0x05030000u);
+    EXPECT_STREQ(e.what(), "SDO read 0x1008:00 of joint1 (bus arm_a node 1): segment 1 has toggle bit 0, expected 1 "
+                           "(sent abort 0x05030000 toggle bit not alternated)");
+  }
+}
+
+TEST(DriveBringUp, SilentNodeAtBootIsNamed) {
+  SimRig rig(project_config(), {}, [](sim::CanSimulator& s) { s.drive(6).stop_answering(true); });
+  try {
+    rig.drives->configure();
+    FAIL();
+  } catch (const hw::HwError& e) {
+    EXPECT_NE(std::string(e.what()).find("no boot-up message after NMT reset node within 2000 ms from: "
+                                         "joint7 (bus arm_b node 7)"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DriveBringUp, OverloadedBusIsRefusedBeforeAnyFrameIsSent) {
+  hw::RemoteConfig c = project_config();
+  for (auto& d : c.drives) d.bus = "arm_a";
+  c.ft.bus = "arm_a";
+  c.buses.pop_back();
+  auto buses = sim::make_mock_buses(c);
+  auto sim = sim::CanSimulator::from_config(c, std::move(buses.far));
+  sim->start();
+  try {
+    hw::DriveSystem drives(c, std::move(buses.master));
+    FAIL() << "an overloaded bus was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bus arm_a: 7 drives + F/T, 17 frames/cycle (SYNC + 16 PDOs), 2075 bits/cycle "
+                                         "worst case x 500 Hz + heartbeats 10400 bit/s = 1047.9 kbit/s = 104.8% of "
+                                         "1000 kbit/s exceeds the 70% limit"), std::string::npos) << e.what();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  sim->stop();
+  EXPECT_EQ(sim->frames_received(), 0u);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NE(sim->drive(j).power_state(), PowerState::OperationEnabled);
+}
+
+TEST(DriveBringUp, JointsMissingFromTheRobotModelAreRefused) {
+  std::map<std::string, JointLimits> limits;
+  for (int i = 1; i <= 6; ++i) limits["joint" + std::to_string(i)] = {-1, 1, 1, 1, 100};
+  try {
+    SimRig rig(project_config(), limits);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("drives[6]: joint 'joint7' is not in the robot model"), std::string::npos) << e.what();
+  }
+}

@@ -1,0 +1,179 @@
+// Faults during the real-time cycle, each injected on the far end of the bus
+// and reported by the master as a named event.
+
+#include <linux/can/error.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "sim_fixture.hpp"
+
+using namespace foresight;
+using namespace foresight::test;
+using hw::canopen::PowerState;
+
+namespace {
+auto has = [](HwFault f) { return [f](const CycleStatus& s) { return find_event(s, f) != nullptr; }; };
+}
+
+TEST(DriveFaults, HeartbeatLossIsDetectedWithinTheConsumerTime) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.run_until([](const CycleStatus&) { return false; }, 30);
+  const auto t0 = Clock::now();
+  rig.sim->drive(4).silence_heartbeat(true);
+  int n = 0;
+  const CycleStatus s = rig.run_until(has(HwFault::HeartbeatLost), 200, &n);
+  const double detect_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const HwEvent* e = find_event(s, HwFault::HeartbeatLost);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->joint, 4);
+  EXPECT_TRUE(s.stop_required);
+  // The last heartbeat came <= 50 ms (producer) before t0; consumer time 150 ms.
+  EXPECT_GE(detect_s, 0.150 - 0.050 - 0.005);
+  EXPECT_LE(detect_s, 0.150 + 2 * 0.002 + 0.010);
+  EXPECT_NE(rig.drives->describe(*e).find("joint5 (bus arm_b node 5): heartbeat lost (silent for 15"), std::string::npos)
+      << rig.drives->describe(*e);
+  EXPECT_TRUE(rig.fb.joints[4].heartbeat_lost);
+  EXPECT_FALSE(rig.fb.joints[3].heartbeat_lost);
+}
+
+TEST(DriveFaults, EmcyIsMappedToItsFaultAndFaultResetRecovers) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->drive(2).inject_fault(0x2310);
+  CycleStatus all;
+  bool emcy = false, fault = false;
+  for (int i = 0; i < 50 && !(emcy && fault); ++i) {
+    const CycleStatus s = rig.cycle();
+    if (const HwEvent* e = find_event(s, HwFault::Emergency)) {
+      emcy = true;
+      EXPECT_EQ(e->code, 0x2310u);
+      EXPECT_EQ(e->joint, 2);
+      EXPECT_EQ(hw::canopen::classify_emcy(static_cast<std::uint16_t>(e->code)), hw::canopen::EmcyFault::OverCurrent);
+      EXPECT_EQ(rig.drives->describe(*e), "joint3 (bus arm_a node 3): emergency (EMCY) 0x2310 over-current (error register 0x03)");
+      EXPECT_TRUE(s.stop_required);
+    }
+    if (const HwEvent* e = find_event(s, HwFault::DriveFault)) {
+      fault = true;
+      EXPECT_EQ(e->joint, 2);
+    }
+  }
+  EXPECT_TRUE(emcy);
+  EXPECT_TRUE(fault);
+  EXPECT_EQ(rig.fb.joints[2].state, PowerState::Fault);
+  EXPECT_EQ(rig.fb.joints[2].last_emcy, 0x2310);
+  // enable() resets the fault (rising edge of controlword bit 7) and re-enables.
+  rig.drives->enable();
+  EXPECT_EQ(rig.sim->drive(2).power_state(), PowerState::OperationEnabled);
+}
+
+TEST(DriveFaults, FollowingErrorFaultsTheDrive) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.targets.position_rad[0] += 0.3;  // a step far beyond the 0.02 rad window
+  const CycleStatus s = rig.run_until(has(HwFault::Emergency), 20);
+  const HwEvent* e = find_event(s, HwFault::Emergency);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->code, 0x8611u);
+  EXPECT_EQ(hw::canopen::classify_emcy(0x8611), hw::canopen::EmcyFault::FollowingError);
+  rig.run_until([&](const CycleStatus&) { return rig.fb.joints[0].state == PowerState::Fault; }, 10);
+  EXPECT_EQ(rig.fb.joints[0].state, PowerState::Fault);
+  EXPECT_TRUE(rig.fb.joints[0].statusword & hw::canopen::statusword::kCspFollowingError);
+}
+
+TEST(DriveFaults, UrdfLimitIsEnforcedByTheDrive) {
+  std::map<std::string, JointLimits> limits;
+  for (int i = 1; i <= 7; ++i) limits["joint" + std::to_string(i)] = {-0.01, 0.01, 1, 1, 100};
+  SimRig rig(project_config(), limits);
+  rig.bring_up();
+  rig.targets.position_rad[1] = 0.015;  // beyond +0.01, within the following-error window
+  const CycleStatus s = rig.run_until(has(HwFault::Emergency), 20);
+  const HwEvent* e = find_event(s, HwFault::Emergency);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->code, 0x8612u);
+  EXPECT_EQ(e->joint, 1);
+  EXPECT_NE(rig.drives->describe(*e).find("position (reference) limit"), std::string::npos);
+}
+
+TEST(DriveFaults, MalformedAndUnknownFramesAreNamedNotFatal) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.run_until([](const CycleStatus&) { return false; }, 5);
+  rig.sim->inject(0, hw::make_frame(0x181, {1, 2, 3, 4}));           // TPDO of node 1, DLC 4
+  rig.sim->inject(0, hw::make_frame(0x123, {1}));                    // nobody's COB-ID
+  rig.sim->inject(0, hw::make_frame(0x702, {0x05, 0x00}));           // heartbeat, DLC 2
+  rig.sim->inject(1, hw::make_frame(0x085, {0x10, 0x23}));           // EMCY, DLC 2
+  can_frame ext = hw::make_frame(0x1ABCDE | CAN_EFF_FLAG, {1});      // extended id
+  rig.sim->inject(1, ext);
+  std::vector<HwEvent> seen;
+  for (int i = 0; i < 10; ++i) {
+    const CycleStatus s = rig.cycle();
+    for (std::size_t k = 0; k < s.event_count; ++k) seen.push_back(s.events[k]);
+  }
+  auto count = [&](HwFault f, std::uint32_t code) {
+    return std::count_if(seen.begin(), seen.end(), [&](const HwEvent& e) { return e.fault == f && e.code == code; });
+  };
+  EXPECT_EQ(count(HwFault::MalformedFrame, 0x181), 1);
+  EXPECT_EQ(count(HwFault::UnknownCobId, 0x123), 1);
+  EXPECT_EQ(count(HwFault::MalformedFrame, 0x702), 1);
+  EXPECT_EQ(count(HwFault::MalformedFrame, 0x085), 1);
+  EXPECT_EQ(count(HwFault::UnknownCobId, 0x1ABCDE), 1);
+  for (const HwEvent& e : seen) EXPECT_FALSE(hw::requires_stop(e.fault)) << rig.drives->describe(e);
+  const auto it = std::find_if(seen.begin(), seen.end(), [](const HwEvent& e) { return e.code == 0x181; });
+  EXPECT_EQ(rig.drives->describe(*it), "joint1 (bus arm_a node 1): malformed frame COB-ID 0x181 with DLC 4");
+  // The drives kept running.
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.fb.joints[j].state, PowerState::OperationEnabled);
+}
+
+TEST(DriveFaults, BusOffAndSilentDriveAreStops) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->drive(6).stop_answering(true);
+  int n = 0;
+  CycleStatus s = rig.run_until(has(HwFault::TpdoMissing), 40, &n);
+  const HwEvent* e = find_event(s, HwFault::TpdoMissing);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->joint, 6);
+  EXPECT_EQ(e->code, 25u);  // tpdo_miss_limit
+  EXPECT_GE(n, 25);
+  EXPECT_LE(n, 27);
+  EXPECT_TRUE(s.stop_required);
+  rig.sim->inject(0, hw::make_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  s = rig.run_until(has(HwFault::BusOff), 10);
+  ASSERT_NE(find_event(s, HwFault::BusOff), nullptr);
+  EXPECT_EQ(rig.drives->describe(*find_event(s, HwFault::BusOff)), "bus arm_a: CAN bus-off");
+  EXPECT_TRUE(rig.drives->bus(0).health().bus_off);
+}
+
+TEST(DriveFaults, QuickStopHoldsPosition) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.drives->request_quick_stop();
+  rig.run_until([&](const CycleStatus&) { return rig.fb.joints[0].state == PowerState::QuickStopActive; }, 10);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.fb.joints[j].state, PowerState::QuickStopActive) << j;
+  const double x = rig.sim->drive(0).position_counts();
+  rig.targets.position_rad[0] += 0.01;  // ignored in quick stop
+  rig.run_until([](const CycleStatus&) { return false; }, 10);
+  EXPECT_NEAR(rig.sim->drive(0).position_counts(), x, 1.0);
+}
+
+TEST(FtSensorOnBus, ReadsTheTrueWrenchTaresAndReportsSaturation) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  sim::SimFtSensor& ft = *rig.sim->ft_sensor();
+  ft.set_offset({2.0, -1.0, 0.5, 0.01, 0.02, -0.03});
+  rig.drives->request_tare(10);
+  rig.run_until([&](const CycleStatus&) { return rig.ft.fresh && !rig.ft.tare_in_progress; }, 50);
+  ft.set_true_wrench({10.0, -20.0, 30.5, 1.5, -0.25, 0.125});
+  rig.run_until([&](const CycleStatus&) { return rig.ft.fresh && std::abs(rig.ft.wrench_ft[0] - 10.0) < 0.1; }, 20);
+  const double expect[6] = {10.0, -20.0, 30.5, 1.5, -0.25, 0.125};
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_NEAR(rig.ft.wrench_ft[i], expect[i], i < 3 ? 0.01 : 0.001) << i;
+  EXPECT_NEAR(rig.ft.raw_ft[0], 12.0, 0.01);
+  ft.set_true_wrench({0.0, 0.0, 400.0, 0.0, 0.0, 0.0});
+  const CycleStatus s = rig.run_until(has(HwFault::FtSaturated), 20);
+  const HwEvent* e = find_event(s, HwFault::FtSaturated);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->code, 0b000100u);  // Fz
+  EXPECT_TRUE(s.stop_required);
+}

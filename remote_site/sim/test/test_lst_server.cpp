@@ -1,0 +1,302 @@
+// The LST client (foresight_hw) against the simulated tool (a libmodbus
+// server on 127.0.0.1 with an ephemeral port, or RTU over a pty): register
+// map, screw physics through Modbus, named exceptions, timeout, reconnect.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <thread>
+
+#include "foresight/hw/lst_tool.hpp"
+#include "foresight/sim/lst_server.hpp"
+
+using namespace foresight;
+using namespace foresight::hw;
+using namespace foresight::sim;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+LstServerOptions server_options(LstServerOptions::Transport t = LstServerOptions::Transport::Tcp) {
+  LstServerOptions o;
+  o.transport = t;
+  o.poll_s = 0.002;
+  o.mechanism.max_speed_rad_s = 20.0;
+  o.mechanism.max_torque_nm = 60.0;
+  o.mechanism.latch_travel_s = 0.1;
+  o.mechanism.stall_time_s = 0.1;
+  o.mechanism.screw.engaged_turns = 2.0;
+  o.mechanism.screw.initial_engaged_turns = 2.0;
+  o.mechanism.screw.breakaway_torque_nm = 15.0;
+  return o;
+}
+
+LstToolConfig client_config(const LstServer& server) {
+  LstToolConfig c;
+  c.transport = LstToolConfig::Transport::Tcp;
+  c.host = "127.0.0.1";
+  c.port = server.port();
+  c.response_timeout_s = 0.1;
+  c.retries = 1;
+  c.reconnect_delay_s = 0.01;
+  c.max_speed_rad_s = 100.0;  // above the tool's 20 rad/s: the tool itself must refuse
+  c.max_torque_nm = 100.0;
+  c.speed_rad_s = 10.0;
+  c.tighten_torque_nm = 20.0;
+  c.loosen_torque_limit_nm = 40.0;
+  return c;
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+TEST(LstServer, StatusOverTcp) {
+  LstServer server(server_options());
+  ASSERT_GT(server.port(), 0);
+  LstTool tool(client_config(server));
+  LstStatus s;
+  ASSERT_FALSE(tool.read_status(s)) << tool.last_error_message();
+  EXPECT_TRUE(s.ready());
+  EXPECT_TRUE(s.unlatched());
+  EXPECT_FALSE(s.latched());
+  EXPECT_FALSE(s.running());
+  EXPECT_FALSE(s.fault());
+  EXPECT_EQ(s.turns, 0.0);
+  // The tool's clock ticks every 10 ms.
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  LstStatus later;
+  ASSERT_FALSE(tool.read_status(later));
+  EXPECT_GE(static_cast<std::uint16_t>(later.alive - s.alive), 4);
+  // Discrete inputs mirror the status word; setpoints read back.
+  std::uint8_t bits[lst::kNumDiscreteInputs] = {};
+  ASSERT_FALSE(tool.read_discrete_inputs(0, lst::kNumDiscreteInputs, bits));
+  EXPECT_EQ(bits[0], 1);  // READY
+  EXPECT_EQ(bits[3], 1);  // UNLATCHED
+  ASSERT_FALSE(tool.set_speed(12.34));
+  ASSERT_FALSE(tool.set_torque_limit(7.5));
+  double speed = 0, torque = 0;
+  ASSERT_FALSE(tool.read_setpoints(speed, torque));
+  EXPECT_DOUBLE_EQ(speed, 12.34);
+  EXPECT_DOUBLE_EQ(torque, 7.5);
+  EXPECT_EQ(tool.stats().retries, 0u);
+}
+
+TEST(LstServer, LooseningTakesNTurnsAboveTThroughModbus) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  ASSERT_FALSE(tool.run(LstDirection::Loosen, 20.0, 20.0)) << tool.last_error_message();
+  LstStatus s;
+  ASSERT_FALSE(tool.read_status(s));
+  EXPECT_TRUE(s.running());
+  // While engaged the tool reads the breakaway torque, counter-clockwise.
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_FALSE(tool.read_status(s));
+  EXPECT_NEAR(s.torque_nm, -15.0, 1e-9);
+  EXPECT_NEAR(s.speed_rad_s, -20.0, 1e-9);
+  EXPECT_FALSE(server.state().screw_free());
+  // Two turns at 20 rad/s take 0.63 s; the screw is free after -2 turns.
+  const auto t0 = Clock::now();
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.turns <= -2.01; }, 3.0, s, 0.005))
+      << tool.last_error_message();
+  EXPECT_LT(seconds_since(t0), 1.0);
+  ASSERT_FALSE(tool.stop());
+  const LstToolState truth = server.state();
+  EXPECT_TRUE(truth.screw_free());
+  ASSERT_FALSE(tool.read_status(s));
+  EXPECT_FALSE(s.running());
+  EXPECT_NEAR(s.turns, truth.turns, 1e-3);  // register quantisation
+  EXPECT_LE(s.turns, -2.0);
+}
+
+TEST(LstServer, BelowBreakawayItStopsAtTheTorqueLimit) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  ASSERT_FALSE(tool.run(LstDirection::Loosen, 20.0, 10.0));
+  LstStatus s;
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.torque_reached(); }, 1.0, s))
+      << tool.last_error_message();
+  EXPECT_FALSE(s.running());
+  EXPECT_EQ(s.turns, 0.0);
+  EXPECT_NEAR(s.peak_torque_nm, -10.0, 1e-9);  // it pushed at the limit
+  EXPECT_EQ(s.torque_nm, 0.0);                 // and then stopped
+  EXPECT_DOUBLE_EQ(server.state().engaged_turns, 2.0);
+  std::uint8_t coils[lst::kNumCoils] = {};
+  ASSERT_FALSE(tool.read_coils(0, lst::kNumCoils, coils));
+  EXPECT_EQ(coils[lst::kCoilRun], 0);  // the tool cleared RUN itself
+  EXPECT_EQ(coils[lst::kCoilDirection], lst::kDirectionLoosen);
+}
+
+TEST(LstServer, JamRaisesTheFaultBit) {
+  LstServer server(server_options());
+  server.set_jam(true);
+  LstTool tool(client_config(server));
+  ASSERT_FALSE(tool.run(LstDirection::Loosen, 10.0, 40.0));
+  LstStatus s;
+  const std::error_code ec = tool.wait_for([](const LstStatus& st) { return !st.running(); }, 2.0, s);
+  // wait_for returns as soon as the run ended; the fault shows in the status.
+  EXPECT_TRUE(!ec || ec == LstError::ToolFault) << ec.message();
+  EXPECT_TRUE(s.fault());
+  EXPECT_TRUE(s.jammed());
+  EXPECT_FALSE(s.ready());
+  EXPECT_EQ(s.turns, 0.0);
+  EXPECT_EQ(s.describe(), "unlatched fault[jam]");
+  // Waiting for something else while faulted: ToolFault, named.
+  EXPECT_EQ(tool.wait_for([](const LstStatus& st) { return st.latched(); }, 1.0, s), LstError::ToolFault);
+  EXPECT_NE(tool.last_error_message().find("fault[jam]"), std::string::npos) << tool.last_error_message();
+  server.set_jam(false);
+  ASSERT_FALSE(tool.reset_fault());
+  ASSERT_FALSE(tool.read_status(s));
+  EXPECT_FALSE(s.fault());
+  EXPECT_TRUE(s.ready());
+}
+
+TEST(LstServer, LatchAndUnlatch) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  LstStatus s;
+  ASSERT_FALSE(tool.latch());
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.latched(); }, 1.0, s));
+  EXPECT_FALSE(s.unlatched());
+  ASSERT_FALSE(tool.unlatch());
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.unlatched(); }, 1.0, s));
+  server.set_latch_stuck(true);
+  ASSERT_FALSE(tool.latch());
+  EXPECT_EQ(tool.wait_for([](const LstStatus& st) { return st.latched(); }, 1.0, s), LstError::ToolFault);
+  EXPECT_TRUE(s.latch_fault());
+}
+
+TEST(LstServer, ModbusExceptionsMapToNamedErrors) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  std::uint16_t reg[4] = {};
+  EXPECT_EQ(tool.read_input_registers(50, 1, reg), LstError::IllegalDataAddress);
+  EXPECT_EQ(tool.last_error_message(),
+            "read input registers 50 (tcp 127.0.0.1:" + std::to_string(server.port()) +
+                " unit 1): illegal data address (Modbus exception 02)");
+  EXPECT_EQ(tool.read_input_registers(6, 3, reg), LstError::IllegalDataAddress);  // runs past register 7
+  EXPECT_EQ(tool.write_register(2, 1), LstError::IllegalDataAddress);
+  EXPECT_EQ(tool.write_coil(7, true), LstError::IllegalDataAddress);
+  // Above the tool's 20 rad/s (the client allows 100 here): the tool refuses.
+  EXPECT_EQ(tool.set_speed(25.0), LstError::IllegalDataValue);
+  EXPECT_EQ(tool.run(LstDirection::Tighten, 5.0, 70.0), LstError::IllegalDataValue);
+  double speed = -1, torque = -1;
+  ASSERT_FALSE(tool.read_setpoints(speed, torque));
+  EXPECT_EQ(speed, 0.0);  // nothing was written
+  EXPECT_EQ(torque, 0.0);
+  // Injected: device failure once, then normal again.
+  server.inject_exception(4, 1);
+  LstStatus s;
+  EXPECT_EQ(tool.read_status(s), LstError::DeviceFailure);
+  EXPECT_EQ(tool.last_error_message(),
+            "read input registers 0..7 (tcp 127.0.0.1:" + std::to_string(server.port()) +
+                " unit 1): device failure (Modbus exception 04)");
+  EXPECT_FALSE(tool.read_status(s));
+  // Busy is retried: one busy answer, then the retry succeeds.
+  server.inject_exception(6, 1);
+  const auto retries = tool.stats().retries;
+  EXPECT_FALSE(tool.read_status(s));
+  EXPECT_EQ(tool.stats().retries, retries + 1);
+  // Illegal function, persistently.
+  server.inject_exception(1, -1);
+  EXPECT_EQ(tool.latch(), LstError::IllegalFunction);
+  server.inject_exception(0);
+  EXPECT_FALSE(tool.latch());
+  EXPECT_GE(tool.stats().exceptions, 8u);
+}
+
+TEST(LstServer, TimeoutWhenTheToolStopsAnsweringThenRecovers) {
+  LstServer server(server_options());
+  LstToolConfig cfg = client_config(server);
+  cfg.response_timeout_s = 0.05;
+  cfg.retries = 2;
+  LstTool tool(cfg);
+  LstStatus s;
+  ASSERT_FALSE(tool.read_status(s));
+  server.set_silent(true);
+  const auto t0 = Clock::now();
+  EXPECT_EQ(tool.read_status(s), LstError::Timeout);
+  const double took = seconds_since(t0);
+  EXPECT_GE(took, 3 * 0.05 - 0.005);  // three attempts of 50 ms
+  EXPECT_LT(took, 1.0);
+  EXPECT_EQ(tool.stats().timeouts, 3u);
+  EXPECT_EQ(tool.last_error_message(), "read input registers 0..7 (tcp 127.0.0.1:" + std::to_string(server.port()) +
+                                           " unit 1): timeout: no response from the tool after 3 attempts");
+  EXPECT_GE(server.requests_received(), 4u);
+  server.set_silent(false);
+  const auto reconnects = tool.stats().reconnects;
+  ASSERT_FALSE(tool.read_status(s)) << tool.last_error_message();
+  EXPECT_TRUE(s.ready());
+  EXPECT_GT(tool.stats().reconnects, reconnects);  // a fresh connection after the timeout
+}
+
+TEST(LstServer, ReconnectsAfterTheServerIsKilledAndRestarted) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  ASSERT_FALSE(tool.run(LstDirection::Loosen, 20.0, 20.0));
+  LstStatus s;
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.turns <= -0.5; }, 2.0, s));
+  ASSERT_FALSE(tool.stop());
+  server.stop();  // killed: the connection drops, new ones are refused
+  const auto t0 = Clock::now();
+  EXPECT_EQ(tool.read_status(s), LstError::ConnectionFailed);
+  EXPECT_LT(seconds_since(t0), 1.0);
+  EXPECT_NE(tool.last_error_message().find("connection failed"), std::string::npos) << tool.last_error_message();
+  EXPECT_FALSE(tool.connected());
+  server.start();  // same port
+  ASSERT_FALSE(tool.read_status(s)) << tool.last_error_message();
+  EXPECT_TRUE(tool.connected());
+  EXPECT_GE(tool.stats().reconnects, 1u);
+  EXPECT_LE(s.turns, -0.5);  // the tool kept its state
+  EXPECT_FALSE(s.running());
+}
+
+TEST(LstServer, ConnectionRefusedIsNamed) {
+  int port = 0;
+  {
+    LstServer server(server_options());
+    port = server.port();
+  }  // gone: nothing listens on the port any more
+  LstToolConfig cfg;
+  cfg.port = port;
+  cfg.response_timeout_s = 0.05;
+  cfg.retries = 1;
+  cfg.reconnect_delay_s = 0.0;
+  LstTool tool(cfg);
+  LstStatus s;
+  EXPECT_EQ(tool.read_status(s), LstError::ConnectionFailed);
+  EXPECT_EQ(tool.last_error_message(), "read input registers 0..7 (tcp 127.0.0.1:" + std::to_string(port) +
+                                           " unit 1): connection failed (connect: Connection refused) after 2 attempts");
+}
+
+TEST(LstServer, RtuOverAPty) {
+  LstServer server(server_options(LstServerOptions::Transport::Rtu));
+  ASSERT_EQ(server.device_path().rfind("/dev/pts/", 0), 0u) << server.device_path();
+  LstToolConfig cfg;
+  cfg.transport = LstToolConfig::Transport::Rtu;
+  cfg.device = server.device_path();
+  cfg.baud = 115200;
+  cfg.unit_id = 1;
+  cfg.response_timeout_s = 0.2;
+  cfg.retries = 1;
+  cfg.reconnect_delay_s = 0.01;
+  LstTool tool(cfg);
+  LstStatus s;
+  ASSERT_FALSE(tool.read_status(s)) << tool.last_error_message();
+  EXPECT_TRUE(s.ready());
+  EXPECT_TRUE(s.unlatched());
+  ASSERT_FALSE(tool.run(LstDirection::Loosen, 20.0, 10.0)) << tool.last_error_message();
+  ASSERT_FALSE(tool.wait_for([](const LstStatus& st) { return st.torque_reached(); }, 1.0, s))
+      << tool.last_error_message();
+  EXPECT_NEAR(s.peak_torque_nm, -10.0, 1e-9);
+  std::uint16_t reg = 0;
+  EXPECT_EQ(tool.read_input_registers(9, 1, &reg), LstError::IllegalDataAddress);
+  // The tool answers only its own unit address: another one times out.
+  cfg.unit_id = 2;
+  cfg.retries = 0;
+  cfg.response_timeout_s = 0.05;
+  tool.disconnect();
+  LstTool other(cfg);
+  EXPECT_EQ(other.read_status(s), LstError::Timeout);
+}
