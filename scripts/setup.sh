@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(
   build-essential cmake pkg-config ninja-build
-  libeigen3-dev liborocos-kdl-dev liburdfdom-dev libmodbus-dev
+  libeigen3-dev liborocos-kdl-dev liburdfdom-dev libtinyxml-dev libconsole-bridge-dev libmodbus-dev
   cyclonedds-dev cyclonedds-tools libopencv-dev libosmesa6-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libgtest-dev libgmock-dev libyaml-cpp-dev libspdlog-dev libcli11-dev

@@ -52,6 +52,11 @@ struct IkOptions {
   double rotation_tolerance_rad = 1e-4;
   int max_restarts = 50;          ///< random restarts after the seeded attempt
   unsigned random_seed = 12345;   ///< restarts are deterministic
+  /// After convergence, use the redundancy (7 joints, 6 constraints) to move
+  /// the joints away from their limits while holding the pose (null-space
+  /// descent). Gives comfortable configurations for task frames; costs extra
+  /// time, and the solution then depends less on the seed.
+  bool centre_joints = false;
 };
 
 struct IkResult {

@@ -1,0 +1,298 @@
+// URDF -> RobotModel: tinyxml (what Debian's urdfdom itself uses) checks the
+// XML and reads what urdfdom drops (the `acceleration` limit and line numbers
+// for error messages), urdfdom builds the link tree, and our own conversion
+// turns the base -> tip path into a KDL chain (Debian's kdl_parser is the ROS1
+// package).
+
+#include "foresight/common/robot_model.hpp"
+
+#include <console_bridge/console.h>
+#include <tinyxml.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight {
+
+namespace {
+
+/// What the XML says about one <joint>: where it is and its raw attributes.
+struct XmlJoint {
+  int line = 0;
+  std::string type;
+  const TiXmlElement* limit = nullptr;
+};
+
+struct XmlIndex {
+  std::map<std::string, XmlJoint> joints;
+  std::map<std::string, int> link_lines;
+};
+
+std::string quoted(const std::string& s) { return "'" + s + "'"; }
+
+std::string format_number(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+/// Parse the XML, check the things urdfdom does not (or reports without a
+/// line), and index joints and links by name.
+XmlIndex check_xml(const TiXmlDocument& doc, const std::string& source) {
+  const TiXmlElement* robot = doc.RootElement();
+  if (robot == nullptr) throw InputError(source, "malformed XML: no root element");
+  if (std::string(robot->Value()) != "robot")
+    throw InputError(source, robot->Row(), "root element is <" + std::string(robot->Value()) + ">, expected <robot>");
+  XmlIndex index;
+  for (const TiXmlElement* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link")) {
+    const char* name = e->Attribute("name");
+    if (name != nullptr) index.link_lines[name] = e->Row();
+  }
+  for (const TiXmlElement* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint")) {
+    const char* name = e->Attribute("name");
+    if (name == nullptr) throw InputError(source, e->Row(), "<joint> without a name attribute");
+    XmlJoint j;
+    j.line = e->Row();
+    j.type = e->Attribute("type") ? e->Attribute("type") : "";
+    j.limit = e->FirstChildElement("limit");
+    // urdfdom refuses these too, but without saying where.
+    if (j.type == "revolute" && j.limit == nullptr)
+      throw InputError(source, j.line, "joint " + quoted(name) + ": revolute joint has no <limit> element");
+    index.joints[name] = j;
+  }
+  return index;
+}
+
+/// Collects urdfdom's error messages (it reports through console_bridge).
+class CaptureErrors : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_error.empty()) first_error = text;
+  }
+  std::string first_error;
+};
+
+urdf::ModelInterfaceSharedPtr parse_with_urdfdom(const std::string& xml, const std::string& source) {
+  static std::mutex mutex;  // console_bridge's handler is process-global
+  const std::lock_guard<std::mutex> lock(mutex);
+  CaptureErrors capture;
+  console_bridge::OutputHandler* previous = console_bridge::getOutputHandler();
+  console_bridge::useOutputHandler(&capture);
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(xml);
+  } catch (const std::exception& e) {
+    capture.first_error = e.what();
+  }
+  console_bridge::useOutputHandler(previous);
+  if (!model) {
+    std::string why = capture.first_error;
+    while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
+    throw InputError(source, "URDF rejected by urdfdom: " + (why.empty() ? std::string("(no reason given)") : why));
+  }
+  return model;
+}
+
+KDL::Frame to_kdl(const urdf::Pose& p) {
+  return KDL::Frame(KDL::Rotation::Quaternion(p.rotation.x, p.rotation.y, p.rotation.z, p.rotation.w),
+                    KDL::Vector(p.position.x, p.position.y, p.position.z));
+}
+
+Pose to_pose(const urdf::Pose& p) {
+  Pose T = Pose::Identity();
+  T.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
+  T.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  return T;
+}
+
+/// URDF inertia is about the COM in the inertial frame; KDL wants it about the
+/// COM in the link frame (same as ROS kdl_parser).
+KDL::RigidBodyInertia to_kdl(const urdf::Inertial& i) {
+  const KDL::Frame origin = to_kdl(i.origin);
+  const KDL::RotationalInertia I_inertial(i.ixx, i.iyy, i.izz, i.ixy, i.ixz, i.iyz);
+  // Rotating a RotationalInertia is only defined on RigidBodyInertia: use one with zero mass at the origin.
+  const KDL::RigidBodyInertia rotated = origin.M * KDL::RigidBodyInertia(0.0, KDL::Vector::Zero(), I_inertial);
+  return KDL::RigidBodyInertia(i.mass, origin.p, rotated.getRotationalInertia());
+}
+
+std::vector<VisualShape> visuals_of(const urdf::Link& link) {
+  std::vector<VisualShape> out;
+  for (const auto& v : link.visual_array) {
+    if (!v || !v->geometry) continue;
+    VisualShape s;
+    switch (v->geometry->type) {
+      case urdf::Geometry::BOX: {
+        const auto& b = static_cast<const urdf::Box&>(*v->geometry);
+        s.type = VisualShape::Type::Box;
+        s.size_m = Eigen::Vector3d(b.dim.x, b.dim.y, b.dim.z);
+        break;
+      }
+      case urdf::Geometry::CYLINDER: {
+        const auto& c = static_cast<const urdf::Cylinder&>(*v->geometry);
+        s.type = VisualShape::Type::Cylinder;
+        s.size_m = Eigen::Vector3d(c.radius, c.length, 0.0);
+        break;
+      }
+      case urdf::Geometry::SPHERE: {
+        const auto& c = static_cast<const urdf::Sphere&>(*v->geometry);
+        s.type = VisualShape::Type::Sphere;
+        s.size_m = Eigen::Vector3d(c.radius, 0.0, 0.0);
+        break;
+      }
+      default:
+        continue;  // meshes are not drawn (our URDF uses primitives only)
+    }
+    s.link_T_shape = to_pose(v->origin);
+    if (v->material) {
+      const auto& c = v->material->color;
+      s.rgba = Eigen::Vector4d(c.r, c.g, c.b, c.a);
+    }
+    out.push_back(s);
+  }
+  return out;
+}
+
+/// Reads limit attribute `name` of a chain joint as a positive finite number.
+double positive_attribute(const XmlJoint& xj, const std::string& joint, const char* name, const std::string& source,
+                          const char* meaning) {
+  const int line = xj.limit->Row();
+  const char* text = xj.limit->Attribute(name);
+  if (text == nullptr)
+    throw InputError(source, line, "joint " + quoted(joint) + ": <limit> has no " + name + " attribute (" + meaning + ")");
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  while (end != nullptr && (*end == ' ' || *end == '\t')) ++end;
+  if (end == text || end == nullptr || *end != '\0' || !std::isfinite(v) || !(v > 0.0))
+    throw InputError(source, line,
+                     "joint " + quoted(joint) + ": <limit " + name + "=\"" + text + "\"> is not a positive number");
+  return v;
+}
+
+}  // namespace
+
+RobotModel RobotModel::from_file(const std::string& urdf_path, const RobotModelOptions& options) {
+  std::ifstream in(urdf_path, std::ios::binary);
+  if (!in) throw InputError(urdf_path, "cannot open URDF file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw InputError(urdf_path, "cannot read URDF file");
+  return from_xml(text.str(), urdf_path, options);
+}
+
+RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& source_name,
+                                const RobotModelOptions& options) {
+  TiXmlDocument doc;
+  doc.Parse(urdf_xml.c_str());
+  if (doc.Error())
+    throw InputError(source_name, doc.ErrorRow(), std::string("malformed XML: ") + doc.ErrorDesc());
+  const XmlIndex xml = check_xml(doc, source_name);
+  const urdf::ModelInterfaceSharedPtr urdf_model = parse_with_urdfdom(urdf_xml, source_name);
+
+  const urdf::LinkConstSharedPtr base = urdf_model->getLink(options.base_link);
+  if (!base) throw InputError(source_name, "base link " + quoted(options.base_link) + " not found (no <link name=\"" +
+                                               options.base_link + "\">)");
+  const urdf::LinkConstSharedPtr tip = urdf_model->getLink(options.tip_link);
+  if (!tip) throw InputError(source_name, "tip link " + quoted(options.tip_link) + " not found (no <link name=\"" +
+                                              options.tip_link + "\">)");
+
+  // Walk up from the tip to the base.
+  std::vector<urdf::LinkConstSharedPtr> path;  // tip ... base
+  for (urdf::LinkConstSharedPtr l = tip; l; l = l->getParent()) {
+    path.push_back(l);
+    if (l == base) break;
+  }
+  if (path.back() != base)
+    throw InputError(source_name, xml.link_lines.count(options.tip_link) ? xml.link_lines.at(options.tip_link) : 0,
+                     "tip link " + quoted(options.tip_link) + " is not below base link " + quoted(options.base_link));
+  std::reverse(path.begin(), path.end());  // base ... tip
+
+  RobotModel m;
+  m.source_ = source_name;
+  for (std::size_t k = 0; k < path.size(); ++k) {
+    const urdf::Link& link = *path[k];
+    const int link_line = xml.link_lines.count(link.name) ? xml.link_lines.at(link.name) : 0;
+    if (k + 1 < path.size() && link.child_joints.size() > 1) {
+      std::string names;
+      for (const auto& j : link.child_joints) names += (names.empty() ? "" : ", ") + quoted(j->name);
+      throw InputError(source_name, link_line,
+                       "non-serial chain: link " + quoted(link.name) + " on the chain " + options.base_link + " -> " +
+                           options.tip_link + " has " + std::to_string(link.child_joints.size()) +
+                           " child joints (" + names + ")");
+    }
+    LinkInfo info;
+    info.name = link.name;
+    info.visuals = visuals_of(link);
+    info.mass_kg = (k > 0 && link.inertial) ? link.inertial->mass : 0.0;
+    m.links_.push_back(std::move(info));
+    if (k == 0) continue;  // the base is fixed: no segment
+
+    const urdf::Joint& joint = *link.parent_joint;
+    const XmlJoint& xj = xml.joints.at(joint.name);
+    const KDL::Frame parent_T_joint = to_kdl(joint.parent_to_joint_origin_transform);
+    KDL::Joint kdl_joint(joint.name, KDL::Joint::None);
+    if (joint.type == urdf::Joint::REVOLUTE) {
+      const KDL::Vector axis(joint.axis.x, joint.axis.y, joint.axis.z);
+      if (!(axis.Norm() > 1e-9)) throw InputError(source_name, xj.line, "joint " + quoted(joint.name) + ": zero <axis>");
+      const urdf::JointLimits& ul = *joint.limits;
+      const int limit_line = xj.limit->Row();
+      if (!std::isfinite(ul.lower) || !std::isfinite(ul.upper) || ul.lower > ul.upper)
+        throw InputError(source_name, limit_line,
+                         "joint " + quoted(joint.name) + ": <limit> lower (" + format_number(ul.lower) +
+                             ") > upper (" + format_number(ul.upper) + ")");
+      JointLimits lim;
+      lim.lower_rad = ul.lower;
+      lim.upper_rad = ul.upper;
+      lim.velocity_rad_s = positive_attribute(xj, joint.name, "velocity", source_name, "rad/s");
+      lim.effort_nm = positive_attribute(xj, joint.name, "effort", source_name, "N m");
+      lim.acceleration_rad_s2 =
+          positive_attribute(xj, joint.name, "acceleration", source_name, "rad/s^2, required by Foresight");
+      // Axis in the parent frame through the joint origin: segment pose = parent_T_joint * Rot(axis, q).
+      kdl_joint = KDL::Joint(joint.name, parent_T_joint.p, parent_T_joint.M * (axis / axis.Norm()),
+                             KDL::Joint::RotAxis);
+      m.joint_names_.push_back(joint.name);
+      m.limits_.push_back(lim);
+    } else if (joint.type != urdf::Joint::FIXED) {
+      throw InputError(source_name, xj.line,
+                       "joint " + quoted(joint.name) + ": unsupported joint type " + quoted(xj.type) +
+                           " (only revolute and fixed)");
+    }
+    const KDL::RigidBodyInertia inertia =
+        link.inertial ? to_kdl(*link.inertial) : KDL::RigidBodyInertia::Zero();
+    m.chain_.addSegment(KDL::Segment(link.name, kdl_joint, parent_T_joint, inertia));
+  }
+  if (m.joint_names_.empty())
+    throw InputError(source_name, "no revolute joint between base link " + quoted(options.base_link) +
+                                      " and tip link " + quoted(options.tip_link));
+  return m;
+}
+
+int RobotModel::link_index(const std::string& name) const {
+  for (std::size_t i = 0; i < links_.size(); ++i)
+    if (links_[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+bool RobotModel::within_limits(const Eigen::Ref<const Eigen::VectorXd>& q, double tol_rad) const {
+  if (q.size() != dof()) return false;
+  for (int i = 0; i < dof(); ++i) {
+    if (!std::isfinite(q[i])) return false;
+    if (q[i] < limits_[i].lower_rad - tol_rad || q[i] > limits_[i].upper_rad + tol_rad) return false;
+  }
+  return true;
+}
+
+Eigen::VectorXd RobotModel::mid_configuration() const {
+  Eigen::VectorXd q(dof());
+  for (int i = 0; i < dof(); ++i) q[i] = 0.5 * (limits_[i].lower_rad + limits_[i].upper_rad);
+  return q;
+}
+
+}  // namespace foresight

@@ -1,0 +1,238 @@
+// FK, Jacobian, gravity torques and IK of the Foresight arm (config/robot.urdf)
+// against independent answers: hand-computed poses, central finite
+// differences, the potential energy, and FK round trips.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/common/scene.hpp"
+
+using namespace foresight;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+const RobotModel& arm() {
+  static const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  return model;
+}
+
+Eigen::VectorXd random_in_limits(const RobotModel& m, std::mt19937& rng) {
+  Eigen::VectorXd q(m.dof());
+  for (int i = 0; i < m.dof(); ++i) {
+    std::uniform_real_distribution<double> u(m.limits()[i].lower_rad, m.limits()[i].upper_rad);
+    q[i] = u(rng);
+  }
+  return q;
+}
+
+/// Rotation vector w with R_b = exp([w]x) R_a (base frame).
+Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R_a, const Eigen::Matrix3d& R_b) {
+  const Eigen::AngleAxisd aa(R_b * R_a.transpose());
+  return aa.angle() * aa.axis();
+}
+
+}  // namespace
+
+TEST(Kinematics, ModelHasSevenJointsAndTheToolChain) {
+  const RobotModel& m = arm();
+  ASSERT_EQ(m.dof(), 7);
+  EXPECT_EQ(m.links().front().name, "base");
+  EXPECT_EQ(m.links().back().name, "lst_tip");
+  EXPECT_EQ(m.tip_index(), m.link_index("lst_tip"));
+  EXPECT_GT(m.link_index("ft_sensor"), m.link_index("link7"));
+  EXPECT_EQ(m.link_index("nope"), -1);
+}
+
+TEST(Kinematics, ForwardKinematicsHandComputed) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
+  // Zero configuration: straight up. Heights along the chain (URDF joint origins):
+  // 0.22 + 0.16 + 0.18 + 0.42 + 0.16 + 0.38 + 0.10 + 0.07 + 0.035 + 0.26; the
+  // elbow offsets (+0.07, -0.07) cancel.
+  Pose T = forward_kinematics(m, ws, q);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(0, 0, 1.985)).norm(), 1e-12);
+  EXPECT_LT((T.linear() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  // The elbow pitch axis origin (link4) sits at the 7 cm offset.
+  T = forward_kinematics(m, ws, q, m.link_index("link4"));
+  EXPECT_LT((T.translation() - Eigen::Vector3d(0.07, 0, 0.98)).norm(), 1e-12);
+  EXPECT_LT((forward_kinematics(m, ws, q, 0).matrix() - Eigen::Matrix4d::Identity()).norm(), 1e-15);
+
+  // Shoulder pitch +90 deg: the arm (1.605 m from the shoulder at z = 0.38) lies along +x.
+  q[1] = kPi / 2;
+  T = forward_kinematics(m, ws, q);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(1.605, 0, 0.38)).norm(), 1e-12);
+  EXPECT_LT((T.linear() - Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()).toRotationMatrix()).norm(), 1e-12);
+
+  // Elbow +90 deg: from the elbow axis (0.07, 0, 0.98) the rest of the arm,
+  // (-0.07, 0, 1.005) at zero, turns about y: Ry(90) (-0.07, 0, 1.005) = (1.005, 0, 0.07).
+  q.setZero();
+  q[3] = kPi / 2;
+  T = forward_kinematics(m, ws, q);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(1.075, 0, 1.05)).norm(), 1e-12);
+
+  // Shoulder roll +90 deg carries that to +y; the tool roll only spins the tip about its own axis.
+  q[0] = kPi / 2;
+  q[6] = kPi / 3;
+  T = forward_kinematics(m, ws, q);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(0, 1.075, 1.05)).norm(), 1e-12);
+  const Eigen::Matrix3d R_expected = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                                     Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+                                     Eigen::AngleAxisd(kPi / 3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  EXPECT_LT((T.linear() - R_expected).norm(), 1e-12);
+}
+
+TEST(Kinematics, JacobianMatchesFiniteDifferencesOfFk) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(7);
+  const double h = 1e-6;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, m.dof());
+  for (int link : {-1, m.link_index("ft_sensor"), m.link_index("link5"), m.link_index("link2")}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Eigen::VectorXd q = random_in_limits(m, rng);
+      jacobian(m, ws, q, J, link);
+      for (int i = 0; i < m.dof(); ++i) {
+        Eigen::VectorXd qp = q, qm = q;
+        qp[i] += h;
+        qm[i] -= h;
+        const Pose Tp = forward_kinematics(m, ws, qp, link);
+        const Pose Tm = forward_kinematics(m, ws, qm, link);
+        const Eigen::Vector3d v = (Tp.translation() - Tm.translation()) / (2 * h);
+        const Eigen::Vector3d w = rotation_vector(Tm.linear(), Tp.linear()) / (2 * h);
+        EXPECT_LT((J.col(i).head<3>() - v).norm(), 1e-7) << "link " << link << " joint " << i;
+        EXPECT_LT((J.col(i).tail<3>() - w).norm(), 1e-7) << "link " << link << " joint " << i;
+      }
+    }
+  }
+  // Joints beyond the link do not move it: zero columns.
+  jacobian(m, ws, random_in_limits(m, rng), J, m.link_index("link2"));
+  EXPECT_EQ(J.rightCols(5).norm(), 0.0);
+  EXPECT_GT(J.col(0).norm() + J.col(1).norm(), 0.5);
+}
+
+TEST(Kinematics, ForwardKinematicsOfEveryLinkIsConsistentAlongTheChain) {
+  // FK of link k equals FK of link k-1 times the segment's own transform.
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(3);
+  const Eigen::VectorXd q = random_in_limits(m, rng);
+  int j = 0;
+  for (int k = 1; k <= m.tip_index(); ++k) {
+    const KDL::Segment& seg = m.chain().getSegment(k - 1);
+    const bool moving = seg.getJoint().getType() != KDL::Joint::None;
+    const KDL::Frame f = seg.pose(moving ? q[j] : 0.0);
+    if (moving) ++j;
+    Pose step = Pose::Identity();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) step.linear()(r, c) = f.M(r, c);
+      step.translation()[r] = f.p[r];
+    }
+    const Pose expected = forward_kinematics(m, ws, q, k - 1) * step;
+    EXPECT_LT((forward_kinematics(m, ws, q, k).matrix() - expected.matrix()).norm(), 1e-12) << m.links()[k].name;
+  }
+  EXPECT_EQ(j, 7);
+}
+
+TEST(Kinematics, GravityTorquesAreTheGradientOfPotentialEnergy) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  // V(q) = -sum_k m_k g . c_k(q), c_k the centre of mass of link k in the base frame.
+  const auto potential = [&](const Eigen::VectorXd& q) {
+    double V = 0.0;
+    for (int k = 1; k <= m.tip_index(); ++k) {
+      const KDL::RigidBodyInertia& I = m.chain().getSegment(k - 1).getInertia();
+      const Eigen::Vector3d cog_link(I.getCOG().x(), I.getCOG().y(), I.getCOG().z());
+      V -= I.getMass() * m.gravity().dot(forward_kinematics(m, ws, q, k) * cog_link);
+    }
+    return V;
+  };
+  double total_mass = 0.0;
+  for (const auto& l : m.links()) total_mass += l.mass_kg;
+  EXPECT_NEAR(total_mass, 9.0 + 6.0 + 9.0 + 5.0 + 6.0 + 2.0 + 1.2 + 0.35 + 2.6, 1e-12);  // arm + sensor + tool
+
+  std::mt19937 rng(11);
+  Eigen::VectorXd tau(m.dof());
+  const double h = 1e-6;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::VectorXd q = random_in_limits(m, rng);
+    gravity_torques(m, ws, q, tau);
+    for (int i = 0; i < m.dof(); ++i) {
+      Eigen::VectorXd qp = q, qm = q;
+      qp[i] += h;
+      qm[i] -= h;
+      EXPECT_NEAR(tau[i], (potential(qp) - potential(qm)) / (2 * h), 1e-5) << "joint " << i;
+    }
+    EXPECT_NEAR(tau[0], 0.0, 1e-9);  // the base roll axis is vertical
+  }
+  // Known case, upright: only the COMs off the arm axis load the pitch joints. Shoulder (x = 0):
+  // link3 COM at x = 0.01 (9 kg), link4 COM at 0.07 - 0.04 (5 kg), the LST COM at 0.015 (2.6 kg).
+  // Elbow (x = 0.07): link4 at -0.04, link5 .. lst (12.15 kg) on the axis x = 0, i.e. at -0.07,
+  // plus the LST's own 0.015. Wrist pitch (x = 0): the LST only.
+  gravity_torques(m, ws, Eigen::VectorXd::Zero(7), tau);
+  Eigen::VectorXd tau_expected = Eigen::VectorXd::Zero(7);
+  tau_expected[1] = -9.81 * (9.0 * 0.01 + 5.0 * 0.03 + 2.6 * 0.015);  // holding torque = -(x m g) about +y
+  tau_expected[3] = -9.81 * (5.0 * -0.04 + 12.15 * -0.07 + 2.6 * 0.015);
+  tau_expected[5] = -9.81 * (2.6 * 0.015);
+  EXPECT_LT((tau - tau_expected).norm(), 1e-9) << tau.transpose();
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
+  q[1] = kPi / 2;
+  gravity_torques(m, ws, q, tau);
+  // Lever arms: COM heights above the shoulder in the upright pose become x distances.
+  const double moment = 6.0 * 0.08 + 9.0 * (0.18 + 0.24) + 5.0 * (0.60 + 0.08) + 6.0 * (0.76 + 0.20) +
+                        2.0 * (1.14 + 0.05) + 1.2 * (1.24 + 0.035) + 0.35 * (1.31 + 0.0175) + 2.6 * (1.345 + 0.09);
+  EXPECT_NEAR(tau[1], -9.81 * moment, 1e-9);  // gravity pulls the arm down: rotation about +y towards -z
+}
+
+TEST(Kinematics, InverseKinematicsRoundTripOnThousandRandomPoses) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(2026);
+  const int kPoses = 1000;
+  int ok = 0;
+  std::vector<double> times_us;
+  double worst_pos = 0.0, worst_rot = 0.0;
+  for (int n = 0; n < kPoses; ++n) {
+    const Eigen::VectorXd q_true = random_in_limits(m, rng);
+    const Eigen::VectorXd seed = random_in_limits(m, rng);
+    const Pose target = forward_kinematics(m, ws, q_true);
+    IkOptions opt;
+    opt.random_seed = static_cast<unsigned>(n);
+    const auto t0 = std::chrono::steady_clock::now();
+    const IkResult r = inverse_kinematics(m, ws, target, seed, opt);
+    times_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    ASSERT_EQ(r.q.size(), 7);
+    EXPECT_TRUE(m.within_limits(r.q)) << "pose " << n;
+    // Check the answer with the KDL FK, not the solver's own sweep.
+    const Pose T = forward_kinematics(m, ws, r.q);
+    const double pos = (T.translation() - target.translation()).norm();
+    const double rot = rotation_distance(T.linear(), target.linear());
+    EXPECT_NEAR(pos, r.position_error_m, 1e-9);
+    EXPECT_NEAR(rot, r.rotation_error_rad, 1e-7);
+    if (r.success) {
+      EXPECT_LE(pos, opt.position_tolerance_m + 1e-12);
+      EXPECT_LE(rot, opt.rotation_tolerance_rad + 1e-12);
+    }
+    if (r.success && pos <= 1e-3 && rot <= 0.1 * kDeg && m.within_limits(r.q)) {
+      ++ok;
+      worst_pos = std::max(worst_pos, pos);
+      worst_rot = std::max(worst_rot, rot);
+    }
+  }
+  std::sort(times_us.begin(), times_us.end());
+  std::printf("IK: %d/%d within 1 mm / 0.1 deg; median %.1f us, p99 %.1f us, max %.1f us; worst %.2e m %.2e rad\n",
+              ok, kPoses, times_us[kPoses / 2], times_us[kPoses * 99 / 100], times_us.back(), worst_pos, worst_rot);
+  EXPECT_GE(ok, 995);
+}
