@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
@@ -140,32 +141,17 @@ class MiniRemote {
   void ack(const msg::Command& command, msg::AckState state, msg::ReasonCode code = foresight_msg_REASON_NONE,
            const std::string& reason = {}, std::span<const double> final_q = {}) {
     fp::Sample<msg::CommandAck> a;
-    a->session_id = command.session_id;
-    a->command_id = command.command_id;
-    a->sequence_number = command.sequence_number;
-    a->kind = command.payload._d;
-    a->state = state;
-    a->code = code;
-    fp::set_text_truncated(a->reason, reason);
-    a->stamp_ns = fp::now_ns();
-    fp::assign(a->final_q_rad, final_q, msg::kMaxJoints, "final_q_rad");
+    fp::fill_ack(*a, command, state, code, reason, final_q);
     ack_.write(a);
   }
 
   void on_command(const msg::Command& c) {
     ack(c, foresight_msg_ACK_RECEIVED);
-    if (c.protocol_version != msg::kProtocolVersion) {
-      ack(c, foresight_msg_ACK_REJECTED, foresight_msg_REASON_VERSION_MISMATCH,
-          "protocol version " + std::to_string(c.protocol_version) + ", expected " +
-              std::to_string(msg::kProtocolVersion));
+    const auto verdict = checker_.check(c, fp::now_ns());
+    if (!verdict.ok()) {
+      ack(c, foresight_msg_ACK_REJECTED, verdict.code, verdict.reason);
       return;
     }
-    if (c.sequence_number <= last_sequence_) {
-      ack(c, foresight_msg_ACK_REJECTED, foresight_msg_REASON_BAD_SEQUENCE,
-          "sequence " + std::to_string(c.sequence_number) + " is not after " + std::to_string(last_sequence_));
-      return;
-    }
-    last_sequence_ = c.sequence_number;
     std::vector<double> final_q;
     switch (c.payload._d) {
       case foresight_msg_CMD_TRAJECTORY: {
@@ -209,7 +195,7 @@ class MiniRemote {
   fp::Sample<msg::TrajectoryChunk> chunk_sample_;
   fp::TrajectoryAssembler assembler_;
   std::map<std::uint64_t, Committed> committed_;
-  std::uint64_t last_sequence_ = 0;
+  fp::CommandChecker checker_;
 };
 
 int usage(const char* why) {

@@ -12,6 +12,7 @@
 #include <random>
 
 #include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
@@ -492,4 +493,84 @@ TEST_F(ProtocolDds, HandlesAreMoveOnlyAndOutliveNothing) {
   p.reset();  // deleting the participant deletes the writer too
   EXPECT_LT(dds_get_parent(handle), 0);
   w.reset();  // the writer's own delete then fails quietly
+}
+
+// ---------------------------------------------------------------- commands
+
+TEST(ProtocolCommands, SequencerNumbersCommandsWithinASession) {
+  fp::CommandSequencer seq(0x1234);
+  const auto a = seq.next(foresight_msg_CMD_GOTO_JOINT);
+  const auto b = seq.next(foresight_msg_CMD_ABORT, 2.0);
+  EXPECT_EQ(a->protocol_version, msg::kProtocolVersion);
+  EXPECT_EQ(a->session_id, 0x1234u);
+  EXPECT_EQ(a->sequence_number, 1u);
+  EXPECT_EQ(b->sequence_number, 2u);
+  EXPECT_NE(a->command_id, b->command_id);
+  EXPECT_EQ(a->payload._d, foresight_msg_CMD_GOTO_JOINT);
+  EXPECT_EQ(b->payload._d, foresight_msg_CMD_ABORT);
+  EXPECT_EQ(a->expires_ns, 0);
+  EXPECT_EQ(b->expires_ns - b->issued_ns, 2'000'000'000);
+  EXPECT_NE(fp::CommandSequencer().session_id(), fp::CommandSequencer().session_id());
+}
+
+TEST(ProtocolCommands, CheckerRejectsVersionReplayExpiryAndUnknownKind) {
+  fp::CommandSequencer ground(77);
+  fp::CommandChecker remote;
+  const std::int64_t now = 1'000'000'000'000;
+  auto c1 = ground.next(foresight_msg_CMD_REQUEST);
+  c1->issued_ns = now;
+  EXPECT_TRUE(remote.check(*c1, now).ok());
+  // The same command again (a replay) and an older one are refused.
+  auto replay = remote.check(*c1, now);
+  EXPECT_EQ(replay.code, foresight_msg_REASON_BAD_SEQUENCE);
+  EXPECT_EQ(replay.reason, "command 1: sequence 1 is not after 1 (replayed or reordered)");
+  auto c2 = ground.next(foresight_msg_CMD_REQUEST);
+  c2->protocol_version = 2;
+  auto v = remote.check(*c2, now);
+  EXPECT_EQ(v.code, foresight_msg_REASON_VERSION_MISMATCH);
+  EXPECT_EQ(v.reason, "command 2: protocol version 2, this remote speaks 1");
+  // Expiry is judged on the ground's clock: remote clock 3 s ahead.
+  auto c3 = ground.next(foresight_msg_CMD_GOTO_JOINT);
+  c3->expires_ns = now + 1'000'000'000;
+  const std::int64_t remote_now = now + 3'500'000'000;
+  EXPECT_TRUE(remote.check(*c3, remote_now, 3'000'000'000).ok());  // 0.5 s on the ground clock: in time
+  auto c4 = ground.next(foresight_msg_CMD_GOTO_JOINT);
+  c4->expires_ns = now + 1'000'000'000;
+  auto e = remote.check(*c4, now + 1'250'000'000);
+  EXPECT_EQ(e.code, foresight_msg_REASON_EXPIRED);
+  EXPECT_EQ(e.reason, "command 4: expired 0.250000 s ago");
+  auto c5 = ground.next(foresight_msg_CMD_REQUEST);
+  c5->payload._d = static_cast<msg::CommandKind>(42);
+  auto k = remote.check(*c5, now);
+  EXPECT_EQ(k.code, foresight_msg_REASON_BAD_ARGUMENT);
+  EXPECT_EQ(k.reason, "command 5: unknown kind 42");
+  EXPECT_EQ(remote.last_sequence(), 3u);
+  // A restarted ground (new session) starts again at 1.
+  fp::CommandSequencer restarted(78);
+  EXPECT_TRUE(remote.check(*restarted.next(foresight_msg_CMD_REQUEST), now).ok());
+  EXPECT_EQ(remote.last_sequence(), 1u);
+}
+
+TEST(ProtocolCommands, AckEchoesTheCommandAndCarriesFinalJointAngles) {
+  fp::CommandSequencer ground(9);
+  const auto c = ground.next(foresight_msg_CMD_GOTO_JOINT);
+  fp::Sample<msg::CommandAck> ack;
+  const std::vector<double> q{0.1, 0.2};
+  fp::fill_ack(*ack, *c, foresight_msg_ACK_COMPLETED, foresight_msg_REASON_NONE, "done", q);
+  EXPECT_EQ(ack->session_id, 9u);
+  EXPECT_EQ(ack->command_id, c->command_id);
+  EXPECT_EQ(ack->sequence_number, c->sequence_number);
+  EXPECT_EQ(ack->kind, foresight_msg_CMD_GOTO_JOINT);
+  EXPECT_EQ(ack->state, foresight_msg_ACK_COMPLETED);
+  EXPECT_EQ(fp::text(ack->reason), "done");
+  EXPECT_GT(ack->stamp_ns, 0);
+  ASSERT_EQ(ack->final_q_rad._length, 2u);
+  EXPECT_EQ(ack->final_q_rad._buffer[1], 0.2);
+  EXPECT_TRUE(fp::is_terminal(foresight_msg_ACK_COMPLETED));
+  EXPECT_TRUE(fp::is_terminal(foresight_msg_ACK_REJECTED));
+  EXPECT_TRUE(fp::is_terminal(foresight_msg_ACK_CANCELED));
+  EXPECT_TRUE(fp::is_terminal(foresight_msg_ACK_FAILED));
+  EXPECT_FALSE(fp::is_terminal(foresight_msg_ACK_EXECUTING));
+  EXPECT_FALSE(fp::is_terminal(foresight_msg_ACK_RECEIVED));
+  EXPECT_FALSE(fp::is_terminal(foresight_msg_ACK_QUEUED));
 }

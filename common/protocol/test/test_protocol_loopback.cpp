@@ -23,6 +23,7 @@
 #include <thread>
 
 #include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
@@ -154,16 +155,7 @@ struct GroundLink {
     FAIL() << "the peer never acknowledged a command";
   }
 
-  fp::Sample<msg::Command> make(msg::CommandKind kind) {
-    fp::Sample<msg::Command> c;
-    c->protocol_version = msg::kProtocolVersion;
-    c->session_id = 0x5e55;
-    c->sequence_number = ++sequence;
-    c->command_id = 1000 + sequence;
-    c->issued_ns = fp::now_ns();
-    c->payload._d = kind;
-    return c;
-  }
+  fp::Sample<msg::Command> make(msg::CommandKind kind) { return sequencer.next(kind); }
 
   /// Collects acks of `command_id` until a terminal state (or timeout).
   std::vector<fp::Sample<msg::CommandAck>> acks_until_done(std::uint64_t command_id) {
@@ -174,10 +166,7 @@ struct GroundLink {
       if (a->command_id != command_id) continue;
       const msg::AckState s = a->state;
       out.push_back(std::move(a));
-      if (s == foresight_msg_ACK_REJECTED || s == foresight_msg_ACK_COMPLETED || s == foresight_msg_ACK_FAILED ||
-          s == foresight_msg_ACK_CANCELED) {
-        break;
-      }
+      if (fp::is_terminal(s)) break;
     }
     return out;
   }
@@ -197,7 +186,7 @@ struct GroundLink {
   fp::Reader<msg::CommandAck> ack;
   fp::Writer<msg::TrajectoryChunk> chunk;
   fp::Reader<msg::TrajectoryStatus> status;
-  std::uint64_t sequence = 0;
+  fp::CommandSequencer sequencer;
 };
 
 foresight::Trajectory make_trajectory(int samples, int joints) {
@@ -552,7 +541,8 @@ TEST_F(ProtocolLoopback, BadCommandsAreRejectedWithReasonCodeAndText) {
     const auto acks = link.acks_until_done(c->command_id);
     ASSERT_EQ(acks.size(), 2u);
     EXPECT_EQ(acks[1]->code, foresight_msg_REASON_VERSION_MISMATCH);
-    EXPECT_EQ(fp::text(acks[1]->reason), "protocol version 99, expected 1");
+    EXPECT_EQ(fp::text(acks[1]->reason),
+              "command " + std::to_string(c->command_id) + ": protocol version 99, this remote speaks 1");
   }
   {
     fp::Sample<msg::Command> c = link.make(foresight_msg_CMD_REQUEST);
@@ -561,6 +551,9 @@ TEST_F(ProtocolLoopback, BadCommandsAreRejectedWithReasonCodeAndText) {
     const auto acks = link.acks_until_done(c->command_id);
     ASSERT_EQ(acks.size(), 2u);
     EXPECT_EQ(acks[1]->code, foresight_msg_REASON_BAD_SEQUENCE);
+    EXPECT_EQ(fp::text(acks[1]->reason), "command " + std::to_string(c->command_id) + ": sequence 1 is not after " +
+                                             std::to_string(link.sequencer.last_sequence() - 2) +
+                                             " (replayed or reordered)");
   }
 }
 
