@@ -594,6 +594,7 @@ void DriveSystem::push_event(const HwEvent& e) noexcept {
 }
 
 void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
+  if (!configured_) return;  // nothing is sent to nodes that configure() has not checked
   const bool quick_stop = quick_stop_.load(std::memory_order_acquire);
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     CanBus& bus = *buses_[bi];

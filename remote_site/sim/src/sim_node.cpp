@@ -41,6 +41,10 @@ void SimNode::send_emcy(std::uint16_t code, std::uint8_t error_register) {
   pending_emcy_code_ = code;
   pending_emcy_reg_ = error_register;
 }
+void SimNode::inject_reboot() {
+  std::lock_guard lock(mu_);
+  pending_reboot_ = true;
+}
 std::uint64_t SimNode::frames_handled() const {
   std::lock_guard lock(mu_);
   return frames_;
@@ -141,6 +145,10 @@ void SimNode::handle(const can_frame& f, Clock::time_point now, FrameSink& out) 
 void SimNode::tick(Clock::time_point now, FrameSink& out) {
   std::lock_guard lock(mu_);
   if (silent_) return;
+  if (pending_reboot_) {
+    pending_reboot_ = false;
+    boot(out);
+  }
   if (pending_emcy_) {
     pending_emcy_ = false;
     emit_emcy(pending_emcy_code_, pending_emcy_reg_, out);

@@ -146,6 +146,26 @@ TEST(DriveFaults, BusOffAndSilentDriveAreStops) {
   EXPECT_TRUE(rig.drives->bus(0).health().bus_off);
 }
 
+TEST(DriveFaults, RebootedDriveIsAStopAndStopsSendingPdos) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->drive(3).inject_reboot();
+  CycleStatus s = rig.run_until(has(HwFault::NodeRebooted), 50);
+  const HwEvent* e = find_event(s, HwFault::NodeRebooted);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->joint, 3);
+  EXPECT_TRUE(s.stop_required);
+  EXPECT_EQ(rig.drives->describe(*e), "joint4 (bus arm_a node 4): node rebooted (boot-up while operational)");
+  // Pre-operational after boot: no more TPDOs from it.
+  s = rig.run_until(has(HwFault::TpdoMissing), 40);
+  ASSERT_NE(find_event(s, HwFault::TpdoMissing), nullptr);
+  EXPECT_EQ(find_event(s, HwFault::TpdoMissing)->joint, 3);
+  // A new configure() + enable() brings it back.
+  rig.drives->configure();
+  rig.drives->enable();
+  EXPECT_EQ(rig.sim->drive(3).power_state(), PowerState::OperationEnabled);
+}
+
 TEST(DriveFaults, QuickStopHoldsPosition) {
   SimRig rig(project_config());
   rig.bring_up();

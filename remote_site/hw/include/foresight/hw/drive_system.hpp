@@ -133,6 +133,13 @@ struct CycleStatus {
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
 
+/// Joint limits by joint name from the robot model (URDF), for DriveSystem.
+inline std::map<std::string, JointLimits> joint_limits_by_name(const RobotModel& model) {
+  std::map<std::string, JointLimits> out;
+  for (std::size_t i = 0; i < model.joint_names().size(); ++i) out[model.joint_names()[i]] = model.limits()[i];
+  return out;
+}
+
 class DriveSystem {
  public:
   using Clock = std::chrono::steady_clock;
@@ -162,6 +169,7 @@ class DriveSystem {
 
   // ---- real-time cycle -------------------------------------------------------
   /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.
+  /// Does nothing before configure() has succeeded.
   void cycle_write(const JointTargets& targets) noexcept;
   /// Drain the buses and decode; fills `joints` and `ft`.
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;

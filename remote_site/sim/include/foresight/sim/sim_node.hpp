@@ -49,8 +49,11 @@ class SimNode {
   void inject_sdo_abort(std::uint16_t index, std::uint8_t sub, std::uint32_t code);
   /// Segmented uploads answer segment 1 with the wrong toggle bit.
   void inject_bad_toggle(bool on);
-  /// Send an EMCY frame (code, error register) now; no state change.
+  /// Send an EMCY frame (code, error register) at the next tick; no state change.
   void send_emcy(std::uint16_t code, std::uint8_t error_register);
+  /// Reboot at the next tick (a brown-out): boot-up message, pre-operational,
+  /// object dictionary back to its defaults (PDO mapping lost).
+  void inject_reboot();
 
   /// Frames this node has accepted (addressed to it or broadcast).
   std::uint64_t frames_handled() const;
@@ -112,6 +115,7 @@ class SimNode {
   Clock::time_point next_hb_{};
   bool hb_armed_ = false;
   std::uint64_t frames_ = 0;
+  bool pending_reboot_ = false;
   bool pending_emcy_ = false;
   std::uint16_t pending_emcy_code_ = 0;
   std::uint8_t pending_emcy_reg_ = 0;
