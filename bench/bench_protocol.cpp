@@ -10,8 +10,10 @@
 //     /committed               write all chunks -> the peer assembled them,
 //                              checked the SHA-256 and limits, and published
 //                              UPLOAD_COMMITTED
-//   BM_Discovery               new participant + writer -> matched with the
-//                              peer's reader (participant + endpoint discovery)
+//   BM_EndpointDiscovery       new participant + writer in a domain this process
+//                              already joined -> matched with the peer's reader
+//   BM_ColdDiscovery           first participant of a domain (domain start-up,
+//                              participant and endpoint discovery) -> matched
 
 #include <benchmark/benchmark.h>
 #include <signal.h>
@@ -51,21 +53,17 @@ std::string peer_path() {
       .string();
 }
 
-/// One peer process and one participant for the whole run.
-struct Setup {
-  Setup() {
-    fp::use_loopback_if_unconfigured();
-    domain = fp::unique_test_domain();
+/// A peer process in `domain`, killed (SIGTERM, then SIGKILL) on destruction.
+struct Peer {
+  explicit Peer(dds_domainid_t domain) {
     const std::string path = peer_path();
     const std::string d = std::to_string(domain);
     const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--lifetime-s", "600", nullptr};
     if (posix_spawn(&pid, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ) != 0) {
       throw std::runtime_error("cannot start " + path);
     }
-    participant = std::make_unique<fp::Participant>(domain);
   }
-  ~Setup() {
-    participant.reset();
+  ~Peer() {
     kill(pid, SIGTERM);
     int status = 0;
     for (int i = 0; i < 300 && waitpid(pid, &status, WNOHANG) != pid; ++i) std::this_thread::sleep_for(10ms);
@@ -74,8 +72,25 @@ struct Setup {
       waitpid(pid, &status, 0);
     }
   }
-  dds_domainid_t domain = 0;
+  Peer(const Peer&) = delete;
+  Peer& operator=(const Peer&) = delete;
   pid_t pid = -1;
+};
+
+/// One peer process and one participant for the whole run.
+struct Setup {
+  Setup() {
+    fp::use_loopback_if_unconfigured();
+    domain = fp::unique_test_domain();
+    peer = std::make_unique<Peer>(domain);
+    participant = std::make_unique<fp::Participant>(domain);
+  }
+  ~Setup() {
+    participant.reset();
+    peer.reset();
+  }
+  dds_domainid_t domain = 0;
+  std::unique_ptr<Peer> peer;
   std::unique_ptr<fp::Participant> participant;
 };
 
@@ -182,7 +197,9 @@ void BM_TrajectoryUpload2000x7(benchmark::State& state) {
 }
 BENCHMARK(BM_TrajectoryUpload2000x7)->ArgName("committed")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-void BM_Discovery(benchmark::State& state) {
+// A new participant in a domain this process already has (the peer's
+// participant is known): endpoint discovery only.
+void BM_EndpointDiscovery(benchmark::State& state) {
   setup();
   for (auto _ : state) {
     fp::Participant p(setup().domain);
@@ -193,7 +210,26 @@ void BM_Discovery(benchmark::State& state) {
     }
   }
 }
-BENCHMARK(BM_Discovery)->Unit(benchmark::kMillisecond)->Iterations(20)->UseRealTime();
+BENCHMARK(BM_EndpointDiscovery)->Unit(benchmark::kMillisecond)->Iterations(20)->UseRealTime();
+
+// A ground starting while the remote runs: the first participant of a domain
+// in this process (Cyclone creates the domain: sockets, threads), then
+// participant (SPDP) and endpoint (SEDP) discovery of the running peer.
+void BM_ColdDiscovery(benchmark::State& state) {
+  setup();
+  const dds_domainid_t domain = 1 + (setup().domain - 1 + 115) % 230;
+  Peer peer(domain);
+  std::this_thread::sleep_for(500ms);  // the peer is up before timing starts
+  for (auto _ : state) {
+    fp::Participant p(domain);
+    fp::Writer<msg::Command> w(p);
+    if (!w.wait_for_readers(2, 10s)) {
+      state.SkipWithError("peer not discovered within 10 s");
+      return;
+    }
+  }
+}
+BENCHMARK(BM_ColdDiscovery)->Unit(benchmark::kMillisecond)->Iterations(10)->UseRealTime();
 
 }  // namespace
 
