@@ -574,3 +574,49 @@ TEST(ProtocolCommands, AckEchoesTheCommandAndCarriesFinalJointAngles) {
   EXPECT_FALSE(fp::is_terminal(foresight_msg_ACK_RECEIVED));
   EXPECT_FALSE(fp::is_terminal(foresight_msg_ACK_QUEUED));
 }
+
+// ---------------------------------------------------------------- QoS behaviour
+
+TEST_F(ProtocolDds, LateJoinerSeesStatusButNeverOldCommands) {
+  fp::Participant remote(fp::unique_test_domain());
+  fp::Participant ground(fp::unique_test_domain());
+  fp::Writer<msg::ControllerStatus> status(remote);
+  fp::Writer<msg::Command> commands(ground);
+  msg::ControllerStatus s{};
+  s.mode = foresight_msg_MODE_STOPPED;
+  s.stop_category = foresight_msg_STOP_CAT2;
+  fp::set_text(s.stop_reason, "operator abort", "stop_reason");
+  status.write(s);
+  fp::CommandSequencer seq(5);
+  commands.write(seq.next(foresight_msg_CMD_GOTO_JOINT));
+
+  // Readers created after the writes: transient-local status is delivered,
+  // the volatile command is not (a restarted remote must not replay it).
+  fp::Reader<msg::ControllerStatus> late_status(ground);
+  fp::Reader<msg::Command> late_commands(remote);
+  fp::Sample<msg::ControllerStatus> got;
+  ASSERT_TRUE(late_status.wait_take(got, std::chrono::seconds(5)));
+  EXPECT_EQ(got->mode, foresight_msg_MODE_STOPPED);
+  EXPECT_EQ(fp::text(got->stop_reason), "operator abort");
+  fp::Sample<msg::Command> old;
+  EXPECT_FALSE(late_commands.wait_take(old, milliseconds(300)));
+}
+
+TEST_F(ProtocolDds, TakeReusesTheSamplesBuffers) {
+  fp::Participant p(fp::unique_test_domain());
+  fp::Writer<msg::JointState> writer(p);
+  fp::Reader<msg::JointState> reader(p);
+  fp::Sample<msg::JointState> js;
+  std::vector<double> q(7, 0.0);
+  fp::Sample<msg::JointState> got;
+  const double* first_buffer = nullptr;
+  for (int i = 0; i < 5; ++i) {
+    q[0] = i;
+    fp::assign(js->q_rad, std::span<const double>(q), msg::kMaxJoints, "q");
+    writer.write(js);
+    ASSERT_TRUE(reader.wait_take(got, std::chrono::seconds(5)));
+    EXPECT_EQ(got->q_rad._buffer[0], i);
+    if (i == 0) first_buffer = got->q_rad._buffer;
+    EXPECT_EQ(got->q_rad._buffer, first_buffer) << "take " << i << " reallocated q_rad";
+  }
+}
