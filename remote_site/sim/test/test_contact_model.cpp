@@ -35,7 +35,7 @@ ContactParams params() {
   return p;
 }
 
-struct Fixture : ::testing::Test {
+struct ContactTest : ::testing::Test {
   ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
   Pose base_T_oru = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml").base_T_object;
   ContactModel model{oru, params()};
@@ -51,7 +51,7 @@ double rel_err(double got, double want) { return std::abs(got - want) / std::abs
 
 }  // namespace
 
-TEST_F(Fixture, PressingOnTheFaceReadsStiffnessTimesPenetration) {
+TEST_F(ContactTest, PressingOnTheFaceReadsStiffnessTimesPenetration) {
   // Tool square to the face, 10 cm beside the hole, 1 mm into the face.
   const double depth = 1.0e-3;
   const ContactResult r = at(translation(0.10, 0.10, depth));
@@ -70,7 +70,7 @@ TEST_F(Fixture, PressingOnTheFaceReadsStiffnessTimesPenetration) {
   EXPECT_EQ(at(translation(0.10, 0.10, -1e-4)).sensor.force_n.norm(), 0.0);
 }
 
-TEST_F(Fixture, TiltedPressHasTheRightMomentArm) {
+TEST_F(ContactTest, TiltedPressHasTheRightMomentArm) {
   // Tilted by theta about the tip x axis, pressed d0 = 1 mm at the tip centre.
   // Each end-face point at tip-frame (x, y) penetrates d0 + y sin(theta). By
   // hand (disk second moment r^2/4), in the `oru` frame:
@@ -98,7 +98,7 @@ TEST_F(Fixture, TiltedPressHasTheRightMomentArm) {
   EXPECT_LT((res.sensor.torque_nm - M_s).norm(), 1e-9);
 }
 
-TEST_F(Fixture, FrictionWhileSlidingActsAtTheTipWithItsMomentArm) {
+TEST_F(ContactTest, FrictionWhileSlidingActsAtTheTipWithItsMomentArm) {
   // Pressed 1 mm, sliding at 5 cm/s along +x of the ORU face:
   // friction = mu k d v / sqrt(v^2 + vs^2) along -x, at the tip plane, so the
   // sensor reads M_y = -kArm x friction.
@@ -114,7 +114,7 @@ TEST_F(Fixture, FrictionWhileSlidingActsAtTheTipWithItsMomentArm) {
   EXPECT_NEAR(r.sensor.torque_nm.x(), 0.0, 1e-9);
 }
 
-TEST_F(Fixture, ToolInTheHoleWithClearanceReadsZero) {
+TEST_F(ContactTest, ToolInTheHoleWithClearanceReadsZero) {
   for (const char* tag : {"hole_entrance", "tool_inserted", "pulled_out_5cm", "approach_20cm"}) {
     const ContactResult r = at(oru.tags.at(tag));
     EXPECT_FALSE(r.in_contact()) << tag;
@@ -128,7 +128,7 @@ TEST_F(Fixture, ToolInTheHoleWithClearanceReadsZero) {
   }
 }
 
-TEST_F(Fixture, OffsetInsertionPushesBackFromTheWall) {
+TEST_F(ContactTest, OffsetInsertionPushesBackFromTheWall) {
   // Axis offset e = clearance + 0.2 mm along +x, 6 cm deep: the wall pushes
   // back along -x with k_wall x 0.2 mm x 0.06 m = 60 N, spread evenly over the
   // inserted 6 cm, so its centroid is 3 cm behind the tip: 0.265 m from the
@@ -151,7 +151,7 @@ TEST_F(Fixture, OffsetInsertionPushesBackFromTheWall) {
   EXPECT_NEAR(ry.sensor.force_n.x(), 0.0, 1e-9);
 }
 
-TEST_F(Fixture, TiltedInsertionTouchesTheRimOnTheOppositeSide) {
+TEST_F(ContactTest, TiltedInsertionTouchesTheRimOnTheOppositeSide) {
   // Tip on the hole axis 3 cm deep, tool tilted 0.06 rad about y: the shaft
   // leans to -x at the entrance (x = -3 cm tan 0.06 = -1.8 mm > clearance), so
   // the rim on the -x side pushes the tool towards +x, near the entrance.
@@ -179,7 +179,7 @@ TEST_F(Fixture, TiltedInsertionTouchesTheRimOnTheOppositeSide) {
   EXPECT_LT((mirrored.linear() * at(mirrored).sensor.force_n).x(), -1.0);
 }
 
-TEST_F(Fixture, HoleBottomPushesBackAlongTheAxis) {
+TEST_F(ContactTest, HoleBottomPushesBackAlongTheAxis) {
   const double over = 0.5e-3;
   const ContactResult r = at(translation(0.0, 0.0, oru.hole_depth_m + over));
   EXPECT_EQ(r.bottom_contacts, 64);
@@ -188,7 +188,7 @@ TEST_F(Fixture, HoleBottomPushesBackAlongTheAxis) {
   EXPECT_NEAR(r.sensor.torque_nm.norm(), 0.0, 1e-9);
 }
 
-TEST_F(Fixture, LandingHalfOnTheRimLoadsOnlyThePartOnTheFace) {
+TEST_F(ContactTest, LandingHalfOnTheRimLoadsOnlyThePartOnTheFace) {
   // Tool axis 2 cm off the hole axis (beyond the 1.5 cm radius): every probe
   // point outside the hole touches the face; those over the hole do not.
   const ContactResult r = at(translation(0.02, 0.0, 1.0e-3));
