@@ -68,6 +68,13 @@ TEST(LstToolConfig, LoadsTheRemoteYaml) {
   EXPECT_EQ(c.host, "127.0.0.1");
   EXPECT_GT(c.port, 0);
   EXPECT_GT(c.response_timeout_s, 0.0);
+  EXPECT_EQ(c.port, 1502);
+  EXPECT_DOUBLE_EQ(c.response_timeout_s, 0.05);
+  EXPECT_EQ(c.retries, 3);
+  EXPECT_DOUBLE_EQ(c.reconnect_delay_s, 0.5);
+  EXPECT_DOUBLE_EQ(c.speed_rad_s, 6.0);
+  EXPECT_DOUBLE_EQ(c.tighten_torque_nm, 20.0);
+  EXPECT_DOUBLE_EQ(c.loosen_torque_limit_nm, 40.0);
   EXPECT_LE(c.tighten_torque_nm, c.max_torque_nm);
   EXPECT_EQ(c.describe(), "tcp 127.0.0.1:" + std::to_string(c.port) + " unit " + std::to_string(c.unit_id));
 }
