@@ -114,6 +114,10 @@ class MiniRemote {
     status->code = progress.code;
     fp::set_text_truncated(status->reason, progress.reason);
     if (progress.whole()) {
+      // "Arrived whole, now validating": ASSEMBLING with every chunk counted.
+      status->state = foresight_msg_UPLOAD_ASSEMBLING;
+      status->stamp_ns = fp::now_ns();
+      status_.write(status);
       const auto assembled = assembler_.take(chunk.trajectory_id);
       foresight::TrajectoryLimits limits;
       limits.joints = assembled->trajectory.joints();
