@@ -10,6 +10,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <kdl/chaindynparam.hpp>
@@ -106,6 +107,7 @@ struct KinematicsWorkspace::Impl {
     ik_J_try.resize(6, n);
     ik_Jw.resize(6, n);
     ik_g.resize(n);
+    ik_q_pre.resize(n);
     ik_q.resize(n);
     ik_q_try.resize(n);
     ik_dq.resize(n);
@@ -159,7 +161,7 @@ struct KinematicsWorkspace::Impl {
   std::vector<FastSegment> segments;
   std::vector<Eigen::Vector3d> axis_w, origin_w;
   Eigen::Matrix<double, 6, Eigen::Dynamic> ik_J, ik_J_try, ik_Jw;
-  Eigen::VectorXd ik_g, ik_q, ik_q_try, ik_dq, ik_best, lower, upper;
+  Eigen::VectorXd ik_g, ik_q_pre, ik_q, ik_q_try, ik_dq, ik_best, lower, upper;
 };
 
 KinematicsWorkspace::KinematicsWorkspace(const RobotModel& model) : impl_(std::make_unique<Impl>(model)) {}
@@ -222,6 +224,7 @@ constexpr double kLambdaMin = 1e-9;
 constexpr double kLambdaMax = 1e3;    // beyond this the attempt is stuck: restart
 constexpr double kMaxStepRad = 1.0;   // largest joint step per iteration
 constexpr int kCentreIterations = 40;
+constexpr double kPostureSwitchRad = 2.0 * M_PI / 180.0;
 
 struct Residual {
   Eigen::Matrix<double, 6, 1> e;  // [p_target - p; rotation vector of R_target R^T], base frame
@@ -245,16 +248,21 @@ void clamp_to_limits(Eigen::VectorXd& q, const Eigen::VectorXd& lo, const Eigen:
   q = q.cwiseMax(lo).cwiseMin(hi);
 }
 
-/// Moves a converged solution (w.ik_best) along the arm's self-motion manifold
-/// away from the joint limits: gradient descent on H(q) = sum_i u_i^4,
-/// u_i = (q_i - mid_i) / half_range_i (a smooth stand-in for the smallest
+/// Smallest distance (rad) of any joint to either of its limits.
+double min_margin(const Eigen::VectorXd& q, const Eigen::VectorXd& lo, const Eigen::VectorXd& hi) {
+  return std::min((q - lo).minCoeff(), (hi - q).minCoeff());
+}
+
+/// Moves a converged solution q along the arm's self-motion manifold
+/// away from the joint limits: gradient descent on the barrier
+/// H(q) = sum_i 1/(q_i - lower_i)^2 + 1/(upper_i - q_i)^2 (rad; flat in the
+/// middle of a range, infinite at its ends, dominated by the smallest
 /// margin), projected into the null space of the Jacobian, each step followed
 /// by Gauss-Newton corrections back onto the target pose. Steps that lose the
 /// pose or do not lower H are refused. Returns the residual of the result.
 Residual centre_joints(KinematicsWorkspace::Impl& w, const Pose& target, int nseg, const IkOptions& options,
-                       Residual cur) {
+                       Residual cur, Eigen::VectorXd& q) {
   const int n = static_cast<int>(w.lower.size());
-  Eigen::VectorXd& q = w.ik_best;
   Eigen::VectorXd& q_try = w.ik_q_try;
   Eigen::VectorXd& g = w.ik_g;
   Eigen::VectorXd& dq = w.ik_dq;
@@ -264,8 +272,9 @@ Residual centre_joints(KinematicsWorkspace::Impl& w, const Pose& target, int nse
   const auto cost = [&](const Eigen::VectorXd& x) {
     double h = 0.0;
     for (int i = 0; i < n; ++i) {
-      const double u = (2.0 * x[i] - w.lower[i] - w.upper[i]) / (w.upper[i] - w.lower[i]);
-      h += u * u * u * u;
+      const double a = x[i] - w.lower[i], b = w.upper[i] - x[i];
+      if (!(a > 0.0 && b > 0.0)) return std::numeric_limits<double>::infinity();
+      h += 1.0 / (a * a) + 1.0 / (b * b);
     }
     return h;
   };
@@ -277,9 +286,8 @@ Residual centre_joints(KinematicsWorkspace::Impl& w, const Pose& target, int nse
   for (int it = 0; it < kCentreIterations && step_rad > 1e-4; ++it) {
     w.sweep(q, nseg, R, p, &J);
     for (int i = 0; i < n; ++i) {
-      const double half = 0.5 * (w.upper[i] - w.lower[i]);
-      const double u = (q[i] - 0.5 * (w.lower[i] + w.upper[i])) / half;
-      g[i] = 4.0 * u * u * u / half;
+      const double a = std::max(q[i] - w.lower[i], 1e-6), b = std::max(w.upper[i] - q[i], 1e-6);
+      g[i] = -2.0 / (a * a * a) + 2.0 / (b * b * b);
     }
     Eigen::Matrix<double, 6, 6> A;
     A.noalias() = J * J.transpose();
@@ -347,6 +355,8 @@ IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, co
   IkResult result;
   Residual best;
   best.cost = std::numeric_limits<double>::infinity();
+  double best_margin = -std::numeric_limits<double>::infinity();
+  int candidates = 0;
   const auto converged = [&](const Residual& r) {
     return r.position_m <= options.position_tolerance_m && r.rotation_rad <= options.rotation_tolerance_rad;
   };
@@ -390,15 +400,40 @@ IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, co
         if (lambda > kLambdaMax) break;
       }
     }
-    if (cur.cost < best.cost) {
+    if (!converged(cur)) {
+      if (!result.success && cur.cost < best.cost) {  // remember the closest miss
+        best = cur;
+        w.ik_best = q;
+      }
+      continue;
+    }
+    if (!options.centre_joints) {
+      result.success = true;
+      best = cur;
+      w.ik_best = q;
+      break;
+    }
+    // Centring: compare several solutions (self-motion cannot leave its
+    // posture), each taken centred unless centring lowered its smallest
+    // margin. A later posture must be clearly better than the earlier ones
+    // (the seeded one first), so ties keep the seed's posture.
+    w.ik_q_pre = q;
+    const Residual pre = cur;
+    const double margin_pre = min_margin(q, w.lower, w.upper);
+    cur = centre_joints(w, base_T_target, nseg, options, cur, q);
+    double margin = min_margin(q, w.lower, w.upper);
+    if (margin < margin_pre) {
+      q = w.ik_q_pre;
+      cur = pre;
+      margin = margin_pre;
+    }
+    if (!result.success || margin > best_margin + kPostureSwitchRad) {
+      result.success = true;
+      best_margin = margin;
       best = cur;
       w.ik_best = q;
     }
-    if (converged(cur)) break;
-  }
-  result.success = converged(best);
-  if (result.success && options.centre_joints) {
-    best = centre_joints(w, base_T_target, nseg, options, best);
+    if (++candidates >= std::max(1, options.centre_candidates)) break;
   }
   result.q = w.ik_best;
   result.position_error_m = best.position_m;

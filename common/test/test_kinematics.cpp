@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "foresight/common/kinematics.hpp"
@@ -235,4 +236,169 @@ TEST(Kinematics, InverseKinematicsRoundTripOnThousandRandomPoses) {
   std::printf("IK: %d/%d within 1 mm / 0.1 deg; median %.1f us, p99 %.1f us, max %.1f us; worst %.2e m %.2e rad\n",
               ok, kPoses, times_us[kPoses / 2], times_us[kPoses * 99 / 100], times_us.back(), worst_pos, worst_rot);
   EXPECT_GE(ok, 995);
+}
+
+TEST(Kinematics, InverseKinematicsUnreachableReportsFailureAndResidual) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  // 3 m in front of the base: the tip reaches at most 1.605 m from the shoulder (0, 0, 0.38).
+  const Pose target = make_pose(Eigen::Vector3d(3.0, 0.0, 0.5), Eigen::Vector3d::Zero());
+  IkOptions opt;
+  opt.max_restarts = 10;
+  const IkResult r = inverse_kinematics(m, ws, target, m.mid_configuration(), opt);
+  EXPECT_FALSE(r.success);
+  EXPECT_EQ(r.attempts, 11);
+  ASSERT_EQ(r.q.size(), 7);
+  EXPECT_TRUE(m.within_limits(r.q));
+  const double shoulder_distance = (target.translation() - Eigen::Vector3d(0, 0, 0.38)).norm();
+  EXPECT_GE(r.position_error_m, shoulder_distance - 1.605 - 1e-9);
+  // The residual is the one of the returned configuration.
+  const Pose T = forward_kinematics(m, ws, r.q);
+  EXPECT_NEAR((T.translation() - target.translation()).norm(), r.position_error_m, 1e-9);
+  EXPECT_NEAR(rotation_distance(T.linear(), target.linear()), r.rotation_error_rad, 1e-7);
+
+  // Reachable position, but an orientation the wrist cannot take there: the
+  // tool pointing back at the base from 1.5 m out needs the arm to fold past its limits.
+  const Pose behind = make_pose(Eigen::Vector3d(1.55, 0.0, 0.38), Eigen::Vector3d(0.0, -kPi / 2, 0.0));
+  const IkResult r2 = inverse_kinematics(m, ws, behind, m.mid_configuration(), opt);
+  EXPECT_FALSE(r2.success);
+  EXPECT_GT(r2.position_error_m + r2.rotation_error_rad, 1e-3);
+}
+
+TEST(Kinematics, InverseKinematicsIsDeterministicAndSeeded) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(99);
+  const Eigen::VectorXd q_true = random_in_limits(m, rng);
+  const Pose target = forward_kinematics(m, ws, q_true);
+  const IkResult a = inverse_kinematics(m, ws, target, random_in_limits(m, rng));
+  KinematicsWorkspace ws2(m);
+  std::mt19937 rng2(99);
+  random_in_limits(m, rng2);
+  const IkResult b = inverse_kinematics(m, ws2, target, random_in_limits(m, rng2));
+  ASSERT_TRUE(a.success);
+  EXPECT_EQ((a.q - b.q).norm(), 0.0);
+  EXPECT_EQ(a.attempts, b.attempts);
+  // Seeded at the answer: it is returned at once, unchanged.
+  const IkResult c = inverse_kinematics(m, ws, target, q_true);
+  EXPECT_TRUE(c.success);
+  EXPECT_EQ(c.attempts, 1);
+  EXPECT_LT((c.q - q_true).norm(), 1e-12);
+  // A small move from a known configuration stays on the same branch (close to the seed).
+  Eigen::VectorXd q_near = q_true;
+  q_near.array() += 0.02;
+  if (m.within_limits(q_near)) {
+    const IkResult d = inverse_kinematics(m, ws, forward_kinematics(m, ws, q_near), q_true);
+    EXPECT_TRUE(d.success);
+    EXPECT_LT((d.q - q_true).cwiseAbs().maxCoeff(), 0.1);
+  }
+}
+
+TEST(Kinematics, InverseKinematicsOfAnIntermediateLink) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(5);
+  const int ft = m.link_index("ft_sensor");
+  int ok = 0;
+  for (int n = 0; n < 50; ++n) {
+    const Pose target = forward_kinematics(m, ws, random_in_limits(m, rng), ft);
+    const IkResult r = inverse_kinematics(m, ws, target, random_in_limits(m, rng), IkOptions{}, ft);
+    const Pose T = forward_kinematics(m, ws, r.q, ft);
+    if (r.success && (T.translation() - target.translation()).norm() < 1e-3 &&
+        rotation_distance(T.linear(), target.linear()) < 0.1 * kDeg)
+      ++ok;
+  }
+  EXPECT_EQ(ok, 50);
+}
+
+TEST(Kinematics, CentredIkKeepsThePoseAndWidensTheMargins) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  std::mt19937 rng(17);
+  const auto margin = [&](const Eigen::VectorXd& q) {
+    double mm = 1e9;
+    for (int i = 0; i < m.dof(); ++i)
+      mm = std::min({mm, q[i] - m.limits()[i].lower_rad, m.limits()[i].upper_rad - q[i]});
+    return mm;
+  };
+  int wider = 0;
+  for (int n = 0; n < 100; ++n) {
+    const Eigen::VectorXd q_true = random_in_limits(m, rng);
+    const Pose target = forward_kinematics(m, ws, q_true);
+    IkOptions opt;
+    opt.centre_joints = true;
+    const IkResult r = inverse_kinematics(m, ws, target, q_true, opt);  // starts at a solution
+    ASSERT_TRUE(r.success);
+    const Pose T = forward_kinematics(m, ws, r.q);
+    EXPECT_LE((T.translation() - target.translation()).norm(), opt.position_tolerance_m);
+    EXPECT_LE(rotation_distance(T.linear(), target.linear()), opt.rotation_tolerance_rad);
+    EXPECT_TRUE(m.within_limits(r.q));
+    // The seeded solution itself is a candidate: never worse than q_true.
+    EXPECT_GE(margin(r.q), margin(q_true) - 1e-9);
+    if (margin(r.q) > margin(q_true) + 1 * kDeg) ++wider;
+  }
+  EXPECT_GE(wider, 80);  // random configurations are mostly close to some limit
+}
+
+TEST(Kinematics, BadArgumentsGiveNanOrThrow) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  const Eigen::VectorXd q6 = Eigen::VectorXd::Zero(6);
+  const Eigen::VectorXd q7 = Eigen::VectorXd::Zero(7);
+  // Real-time functions cannot throw: wrong sizes or link indices give NaN.
+  EXPECT_TRUE(std::isnan(forward_kinematics(m, ws, q6).translation().x()));
+  EXPECT_TRUE(std::isnan(forward_kinematics(m, ws, q7, m.tip_index() + 1).translation().x()));
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, 7);
+  jacobian(m, ws, q6, J);
+  EXPECT_TRUE(J.array().isNaN().all());
+  Eigen::VectorXd tau(7);
+  gravity_torques(m, ws, q6, tau);
+  EXPECT_TRUE(tau.array().isNaN().all());
+  // ... and a valid call afterwards works again.
+  EXPECT_NEAR(forward_kinematics(m, ws, q7).translation().z(), 1.985, 1e-12);
+  // IK is set-up code: it throws.
+  const Pose target = forward_kinematics(m, ws, q7);
+  EXPECT_THROW(inverse_kinematics(m, ws, target, q6), std::invalid_argument);
+  EXPECT_THROW(inverse_kinematics(m, ws, target, q7, IkOptions{}, 0), std::invalid_argument);
+  EXPECT_THROW(inverse_kinematics(m, ws, target, q7, IkOptions{}, 99), std::invalid_argument);
+  Pose bad = target;
+  bad.translation().x() = NAN;
+  EXPECT_THROW(inverse_kinematics(m, ws, bad, q7), std::invalid_argument);
+}
+
+TEST(Kinematics, OneModelManyThreadsEachWithItsWorkspace) {
+  const RobotModel& m = arm();
+  std::mt19937 rng(23);
+  std::vector<Eigen::VectorXd> qs;
+  for (int k = 0; k < 2000; ++k) qs.push_back(random_in_limits(m, rng));
+  std::vector<Pose> expected;
+  {
+    KinematicsWorkspace ws(m);
+    for (const auto& q : qs) expected.push_back(forward_kinematics(m, ws, q));
+  }
+  std::vector<int> mismatches(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      KinematicsWorkspace ws(m);
+      Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, m.dof());
+      for (int pass = 0; pass < 5; ++pass) {
+        for (std::size_t k = 0; k < qs.size(); ++k) {
+          jacobian(m, ws, qs[(k + t) % qs.size()], J);  // interleave other work on the same workspace
+          if (!forward_kinematics(m, ws, qs[k]).isApprox(expected[k], 1e-14)) ++mismatches[t];
+        }
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  for (int t = 0; t < 4; ++t) EXPECT_EQ(mismatches[t], 0) << "thread " << t;
+}
+
+TEST(Kinematics, WorkspaceCanBeMoved) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace a(m);
+  KinematicsWorkspace b(std::move(a));
+  KinematicsWorkspace c(m);
+  c = std::move(b);
+  EXPECT_NEAR(forward_kinematics(m, c, Eigen::VectorXd::Zero(7)).translation().z(), 1.985, 1e-12);
 }

@@ -52,11 +52,14 @@ struct IkOptions {
   double rotation_tolerance_rad = 1e-4;
   int max_restarts = 50;          ///< random restarts after the seeded attempt
   unsigned random_seed = 12345;   ///< restarts are deterministic
-  /// After convergence, use the redundancy (7 joints, 6 constraints) to move
-  /// the joints away from their limits while holding the pose (null-space
-  /// descent). Gives comfortable configurations for task frames; costs extra
-  /// time, and the solution then depends less on the seed.
+  /// Prefer configurations far from the joint limits: up to
+  /// centre_candidates solutions (the seeded one, then random restarts) are
+  /// each moved along the arm's self-motion (null space, pose held) away from
+  /// the limits, and the one with the largest smallest margin is returned.
+  /// For planning moves to task frames; ~10x slower, and the answer no longer
+  /// stays near the seed.
   bool centre_joints = false;
+  int centre_candidates = 8;
 };
 
 struct IkResult {
