@@ -584,6 +584,12 @@ void DriveSystem::disable() {
   enabled_ = false;
 }
 
+void DriveSystem::nmt_all(NmtCommand cmd) {
+  for (const Drive& d : drives_) nmt(d.bus, cmd, d.node);
+  if (ft_) nmt(static_cast<std::size_t>(ft_->cfg.bus_index), cmd, ft_->cfg.node_id);
+  if (cmd != NmtCommand::Start) enabled_ = false;
+}
+
 // ---- real-time cycle ---------------------------------------------------------------
 
 void DriveSystem::push_event(const HwEvent& e) noexcept {

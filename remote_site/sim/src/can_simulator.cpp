@@ -2,6 +2,9 @@
 
 #include <poll.h>
 
+#include <numbers>
+#include <stdexcept>
+
 namespace foresight::sim {
 
 struct CanSimulator::Bus final : FrameSink {
@@ -54,6 +57,8 @@ std::unique_ptr<CanSimulator> CanSimulator::from_config(const hw::RemoteConfig& 
     p.name = d.joint;
     p.counts_per_rev = d.counts_per_rev;
     sim->add_drive(static_cast<std::size_t>(config.bus_index(d.bus)), p);
+    sim->drives_.back().has_scaling = true;
+    sim->drives_.back().scaling = d;
   }
   if (config.ft.present) {
     SimFtParams p;
@@ -76,7 +81,7 @@ std::size_t CanSimulator::add_bus(std::unique_ptr<hw::CanBus> far_end) {
 SimDrive& CanSimulator::add_drive(std::size_t bus, const SimDriveParams& params) {
   auto node = std::make_unique<SimDrive>(params);
   buses_.at(bus)->nodes.push_back(node.get());
-  drives_.push_back({bus, std::move(node)});
+  drives_.push_back({bus, std::move(node), false, hw::DriveConfig{}});
   return *drives_.back().node;
 }
 
@@ -85,6 +90,17 @@ SimFtSensor& CanSimulator::add_ft_sensor(std::size_t bus, const SimFtParams& par
   ft_bus_ = bus;
   buses_.at(bus)->nodes.push_back(ft_.get());
   return *ft_;
+}
+
+void CanSimulator::joint_positions_rad(std::span<double> out) const {
+  if (out.size() < drives_.size()) throw std::logic_error("joint_positions_rad: output span too short");
+  for (std::size_t i = 0; i < drives_.size(); ++i) {
+    const DriveEntry& d = drives_[i];
+    if (!d.has_scaling) throw std::logic_error("joint_positions_rad: drive added without a DriveConfig");
+    const double counts = d.node->position_counts();
+    out[i] = d.scaling.offset_rad + counts * 2.0 * std::numbers::pi /
+                                        (d.scaling.direction * d.scaling.counts_per_rev * d.scaling.gear_ratio);
+  }
 }
 
 void CanSimulator::power_on() {

@@ -59,6 +59,10 @@ TEST(DriveBringUp, TracksACommandedMotionAndReportsTorque) {
   const double counts_per_rad = -131072.0 * 120 / (2 * std::numbers::pi);
   EXPECT_NEAR(rig.sim->drive(2).position_counts(), (q0 + dq) * counts_per_rad, 50.0);
   EXPECT_NEAR(rig.fb.joints[2].position_rad, q0 + dq, 1e-4);
+  double q_sim[7];
+  rig.sim->joint_positions_rad(q_sim);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NEAR(q_sim[j], rig.fb.joints[j].position_rad, 2e-6) << j;
+  EXPECT_NEAR(q_sim[2], q0 + dq, 1e-4);
   // 0.5 N*m at the motor, gear 100, direction +1 -> 50 N*m (0.1% of 2 N*m resolution = 0.2 N*m)
   EXPECT_NEAR(rig.fb.joints[6].torque_nm, 50.0, 0.25);
 }
@@ -153,4 +157,24 @@ TEST(DriveBringUp, JointsMissingFromTheRobotModelAreRefused) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("drives[6]: joint 'joint7' is not in the robot model"), std::string::npos) << e.what();
   }
+}
+
+TEST(DriveBringUp, DisableThenNmtStopIsSeenByTheHeartbeatConsumer) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.drives->disable();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::ReadyToSwitchOn) << j;
+  rig.drives->nmt_all(hw::canopen::NmtCommand::Stop);
+  // Stopped nodes send no PDOs, but their heartbeat says "stopped" (0x04).
+  int stopped = 0;
+  for (int i = 0; i < 100 && stopped < 8; ++i) {
+    const CycleStatus s = rig.cycle();
+    for (std::size_t k = 0; k < s.event_count; ++k)
+      if (s.events[k].fault == HwFault::NodeNotOperational) {
+        EXPECT_EQ(s.events[k].code, 0x04u);
+        ++stopped;
+      }
+  }
+  EXPECT_EQ(stopped, 8);  // 7 drives + F/T, each reported once
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).nmt_state(), hw::canopen::NmtState::Stopped);
 }

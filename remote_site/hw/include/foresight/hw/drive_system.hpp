@@ -16,6 +16,8 @@
 //                     then SYNC, on every bus.
 //      request_quick_stop() and request_tare() may be called from any thread.
 // Errors in the cycle are values (CycleStatus events), never exceptions.
+// Set-up calls and cycle calls must not overlap: run set-up before the
+// real-time thread starts, or from it while it is not cycling.
 
 #include <array>
 #include <atomic>
@@ -166,6 +168,11 @@ class DriveSystem {
   void enable();
   /// Set-up: shutdown (Ready to switch on) every drive, holding position.
   void disable();
+  /// Set-up: send an NMT command to every configured node (e.g. Stop after
+  /// disable(); EnterPreOperational for SDO-only service). The heartbeat
+  /// consumer then reports nodes leaving operational as NodeNotOperational;
+  /// configure() is needed to start again.
+  void nmt_all(canopen::NmtCommand cmd);
 
   // ---- real-time cycle -------------------------------------------------------
   /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -62,6 +63,11 @@ class CanSimulator {
   void inject(std::size_t bus, const can_frame& f);
 
   SimDrive& drive(std::size_t i) { return *drives_.at(i).node; }
+  /// Simulated joint angles (rad) of the drives built by from_config, in
+  /// config order, converted with the configured scaling (for a contact
+  /// model: FK of these gives the simulated tool pose). Any thread; not RT.
+  /// Throws std::logic_error for drives added without a DriveConfig.
+  void joint_positions_rad(std::span<double> out) const;
   std::size_t drive_count() const { return drives_.size(); }
   SimFtSensor* ft_sensor() { return ft_.get(); }
   std::uint64_t frames_received() const { return frames_in_.load(); }
@@ -73,6 +79,8 @@ class CanSimulator {
   struct DriveEntry {
     std::size_t bus;
     std::unique_ptr<SimDrive> node;
+    bool has_scaling = false;
+    hw::DriveConfig scaling;
   };
   void power_on();
   void run();
