@@ -8,6 +8,8 @@
 #include <fstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/robot_model.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/sim/contact_model.hpp"
@@ -198,6 +200,48 @@ TEST_F(ContactTest, LandingHalfOnTheRimLoadsOnlyThePartOnTheFace) {
   EXPECT_GT(r.sensor.force_n.z(), -200.0);
   // The load sits on the +x side of the socket: (x, 0, 0) x (0, 0, -f) = (0, x f, 0), M_y > 0.
   EXPECT_GT(r.sensor.torque_nm.y(), 0.0);
+}
+
+TEST_F(ContactTest, WholePathFromJointAnglesThroughFk) {
+  // The arm (config/robot.urdf) holds the tool tilted 0.05 rad about the tip x
+  // axis, 1 mm into the ORU face beside the hole (IK), then everything is
+  // taken from FK of those joint angles: tip pose -> contact model ->
+  // wrench in the sensor frame, against the hand formula evaluated with the
+  // FK tip and FK `ft_sensor` frames (so the config's sensor_to_tip must
+  // match the URDF).
+  const RobotModel robot = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  KinematicsWorkspace ws(robot);
+  const int sensor_link = robot.link_index("ft_sensor");
+  ASSERT_GE(sensor_link, 0);
+  const double th = 0.05, k = 2.0e5, r = 0.014;
+  Pose oru_T_goal = translation(0.10, 0.10, 1.0e-3);
+  oru_T_goal.linear() = Eigen::AngleAxisd(th, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  IkOptions opt;
+  opt.position_tolerance_m = 1e-6;
+  opt.rotation_tolerance_rad = 1e-6;
+  const IkResult ik = inverse_kinematics(robot, ws, base_T_oru * oru_T_goal, robot.mid_configuration(), opt);
+  ASSERT_TRUE(ik.success) << ik.position_error_m;
+  const Pose base_T_tip = forward_kinematics(robot, ws, ik.q);
+  const Pose base_T_sensor = forward_kinematics(robot, ws, ik.q, sensor_link);
+  // The URDF's sensor -> tip transform is what the contact config says.
+  EXPECT_LT(((base_T_sensor.inverse() * base_T_tip).matrix() - params().tip_T_sensor.inverse().matrix()).norm(), 1e-9);
+
+  const ContactResult res = model.compute(base_T_tip, base_T_oru);
+  const Pose oru_T_tip = base_T_oru.inverse() * base_T_tip;
+  const Pose oru_T_sensor = base_T_oru.inverse() * base_T_sensor;
+  const double d0 = oru_T_tip.translation().z();  // FK penetration at the tip centre
+  const Eigen::Vector3d F(0.0, 0.0, -k * d0);
+  const Eigen::Vector3d M = (oru_T_tip.translation() - oru_T_sensor.translation()).cross(F) +
+                            Eigen::Vector3d(-k * std::sin(th) * std::cos(th) * r * r / 4.0, 0.0, 0.0);
+  const Eigen::Vector3d F_s = oru_T_sensor.linear().transpose() * F;
+  const Eigen::Vector3d M_s = oru_T_sensor.linear().transpose() * M;
+  EXPECT_EQ(res.face_contacts, 64);
+  EXPECT_NEAR(d0, 1.0e-3, 1e-5);
+  EXPECT_LT(rel_err(res.sensor.force_n.z(), F_s.z()), 0.05);
+  EXPECT_LT(rel_err(res.sensor.force_n.y(), F_s.y()), 0.05);
+  EXPECT_LT(rel_err(res.sensor.torque_nm.x(), M_s.x()), 0.05);
+  EXPECT_LT((res.sensor.force_n - F_s).norm(), 1e-3);
+  EXPECT_LT((res.sensor.torque_nm - M_s).norm(), 1e-3);
 }
 
 TEST(ContactModel, LoadsTheSceneSection) {
