@@ -472,7 +472,7 @@ void DriveSystem::configure() {
   }
   for (BusState& b : bus_state_) {
     b.sync_sent = false;
-    b.bus_off_reported = b.passive_reported = b.closed_reported = false;
+    b.bus_off_reported = b.passive_reported = b.closed_reported = b.tx_fail_reported = false;
   }
   pending_count_ = 0;
   configured_ = true;
@@ -605,6 +605,7 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     CanBus& bus = *buses_[bi];
     BusState& bs = bus_state_[bi];
+    bool all_sent = true;
     for (std::size_t j : bs.drives) {
       Drive& d = drives_[j];
       std::int32_t counts = 0;
@@ -619,18 +620,26 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
       put_u16(f.data, d.controlword);
       put_u32(f.data + 2, static_cast<std::uint32_t>(d.target_counts));
       const CanIo io = bus.write(f);
-      if (io != CanIo::Ok)
-        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
-                    static_cast<std::uint32_t>(io), f.can_id});
+      if (io != CanIo::Ok) {
+        all_sent = false;
+        if (!bs.tx_fail_reported)
+          push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
+                      static_cast<std::uint32_t>(io), f.can_id});
+        bs.tx_fail_reported = true;
+      }
     }
     can_frame sync{};
     sync.can_id = kSync;
     sync.can_dlc = 0;
     const CanIo io = bus.write(sync);
-    if (io != CanIo::Ok)
-      push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(io), kSync});
-    else
+    if (io != CanIo::Ok) {
+      if (!bs.tx_fail_reported)
+        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(io), kSync});
+      bs.tx_fail_reported = true;
+    } else {
       bs.sync_sent = true;
+      if (all_sent) bs.tx_fail_reported = false;  // reported once per episode, not every cycle
+    }
   }
   ++cycle_;
 }

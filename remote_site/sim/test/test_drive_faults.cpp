@@ -166,6 +166,27 @@ TEST(DriveFaults, RebootedDriveIsAStopAndStopsSendingPdos) {
   EXPECT_EQ(rig.sim->drive(3).power_state(), PowerState::OperationEnabled);
 }
 
+TEST(DriveFaults, FullTransmitQueueIsReportedOncePerBus) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->stop();  // nobody drains the far end any more: the queues fill up
+  int tx_failed[2] = {0, 0};
+  for (int i = 0; i < 1000; ++i) {
+    rig.deadline = Clock::now();  // no need to wait: nothing answers
+    const CycleStatus s = rig.cycle();
+    for (std::size_t k = 0; k < s.event_count; ++k) {
+      if (s.events[k].fault == HwFault::TxFailed) {
+        ++tx_failed[s.events[k].bus];
+        EXPECT_EQ(s.events[k].code, static_cast<std::uint32_t>(hw::CanIo::WouldBlock));
+        EXPECT_TRUE(s.stop_required);
+      }
+    }
+  }
+  EXPECT_EQ(tx_failed[0], 1);
+  EXPECT_EQ(tx_failed[1], 1);
+  EXPECT_FALSE(rig.drives->bus(0).health().bus_off);  // a full queue is not bus-off
+}
+
 TEST(DriveFaults, QuickStopHoldsPosition) {
   SimRig rig(project_config());
   rig.bring_up();

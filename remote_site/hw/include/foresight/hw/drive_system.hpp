@@ -100,7 +100,7 @@ enum class HwFault : std::uint8_t {
   FtFrameMismatch,    ///< frames A and B of different samples (notice)
   BusOff,             ///< controller bus-off (stop)
   BusErrorPassive,    ///< controller error passive (notice)
-  TxFailed,           ///< a frame could not be queued; code = CanIo (stop)
+  TxFailed,           ///< a frame could not be queued; code = CanIo; once per episode (stop)
   RxFailed,           ///< read error / bus closed; code = CanIo (stop)
   MalformedFrame,     ///< wrong DLC / RTR / not a can_frame; code = COB-ID, detail = DLC (notice)
   UnknownCobId,       ///< a frame nobody on this bus should send; code = COB-ID (notice)
@@ -218,6 +218,7 @@ class DriveSystem {
     bool bus_off_reported = false;
     bool passive_reported = false;
     bool closed_reported = false;
+    bool tx_fail_reported = false;
   };
 
   void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;
