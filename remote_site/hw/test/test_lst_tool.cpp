@@ -196,3 +196,16 @@ TEST(LstTool, TimesOutAgainstAPeerThatNeverAnswers) {
   EXPECT_EQ(tool.stats().retries, 2u);
   EXPECT_EQ(tool.stats().reconnects, 2u);  // a fresh connection before each retry
 }
+
+TEST(LstTool, MissingSerialDeviceIsAConnectionFailure) {
+  LstToolConfig c;
+  c.transport = LstToolConfig::Transport::Rtu;
+  c.device = "/nonexistent/ttyLST";
+  c.retries = 0;
+  LstTool tool(c);
+  LstStatus s;
+  EXPECT_EQ(tool.read_status(s), LstError::ConnectionFailed);
+  EXPECT_EQ(tool.last_error_message(),
+            "read input registers 0..7 (rtu /nonexistent/ttyLST 115200 8N1 unit 1): connection failed "
+            "(connect: No such file or directory)");
+}
