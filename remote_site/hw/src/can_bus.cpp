@@ -196,8 +196,10 @@ SocketCanBus::SocketCanBus(const std::string& interface) : CanBus(interface, ope
 
 void SocketCanBus::set_filters(std::span<const can_filter> filters) {
   if (::setsockopt(fd(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.empty() ? nullptr : filters.data(),
-                   static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0)
-    throw CanError("SocketCAN interface '" + name() + "': CAN_RAW_FILTER failed: " + errno_text(errno));
+                   static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0) {
+    const int err = errno;
+    throw CanError("SocketCAN interface '" + name() + "': CAN_RAW_FILTER failed: " + errno_text(err));
+  }
   CanBus::set_filters(filters);  // also checked in user space (harmless, same result)
 }
 
@@ -206,8 +208,10 @@ void SocketCanBus::set_filters(std::span<const can_filter> filters) {
 std::pair<std::unique_ptr<MockCanBus>, std::unique_ptr<MockCanBus>> MockCanBus::create_pair(
     const std::string& name) {
   int sv[2];
-  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) < 0)
-    throw CanError("mock bus '" + name + "': socketpair(AF_UNIX, SOCK_SEQPACKET) failed: " + errno_text(errno));
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) < 0) {
+    const int err = errno;
+    throw CanError("mock bus '" + name + "': socketpair(AF_UNIX, SOCK_SEQPACKET) failed: " + errno_text(err));
+  }
   // Room for a few hundred frames each way, like a controller's queue.
   const int buf = 256 * 1024;
   for (int fd : sv) {

@@ -152,7 +152,22 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
 }
 
-DriveSystem::~DriveSystem() = default;
+DriveSystem::~DriveSystem() {
+  // Best effort, never throws: leave enabled drives in quick stop (they
+  // decelerate and hold) rather than following a target nobody updates.
+  if (!configured_ || !enabled_) return;
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+    for (std::size_t j : bus_state_[bi].drives) {
+      can_frame f{};
+      f.can_id = kRpdo1Base + drives_[j].node;
+      f.can_dlc = 6;
+      put_u16(f.data, controlword::kQuickStop);
+      put_u32(f.data + 2, static_cast<std::uint32_t>(drives_[j].target_counts));
+      (void)buses_[bi]->write(f);
+    }
+    (void)buses_[bi]->write(make_frame(kSync, {}));
+  }
+}
 
 std::string DriveSystem::node_label(std::size_t bus, std::uint8_t node) const {
   const std::string where = "(bus " + config_.buses[bus].name + " node " + std::to_string(node) + ")";

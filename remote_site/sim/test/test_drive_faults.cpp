@@ -218,3 +218,33 @@ TEST(FtSensorOnBus, ReadsTheTrueWrenchTaresAndReportsSaturation) {
   EXPECT_EQ(e->code, 0b000100u);  // Fz
   EXPECT_TRUE(s.stop_required);
 }
+
+TEST(FtSensorOnBus, SilentSensorAndSensorFaultAreNamed) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->ft_sensor()->inject_sensor_fault(true);
+  CycleStatus s = rig.run_until(has(HwFault::FtSensorFault), 20);
+  ASSERT_NE(find_event(s, HwFault::FtSensorFault), nullptr);
+  EXPECT_TRUE(rig.ft.sensor_fault);
+  rig.sim->ft_sensor()->stop_answering(true);
+  s = rig.run_until(has(HwFault::HeartbeatLost), 200);
+  const HwEvent* e = find_event(s, HwFault::HeartbeatLost);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->joint, -1);
+  EXPECT_EQ(e->node, 32);
+  EXPECT_NE(rig.drives->describe(*e).find("F/T sensor (bus arm_b node 32): heartbeat lost"), std::string::npos)
+      << rig.drives->describe(*e);
+}
+
+TEST(DriveFaults, DestroyingTheMasterQuickStopsEnabledDrives) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.drives.reset();
+  for (int i = 0; i < 200; ++i) {
+    bool all = true;
+    for (std::size_t j = 0; j < 7; ++j) all = all && rig.sim->drive(j).power_state() == PowerState::QuickStopActive;
+    if (all) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::QuickStopActive) << j;
+}

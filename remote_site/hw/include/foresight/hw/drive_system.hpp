@@ -153,6 +153,7 @@ class DriveSystem {
   /// Throws InputError (config) or HwError.
   DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus>> buses,
               std::map<std::string, JointLimits> joint_limits = {});
+  /// If drives are enabled, sends quick stop (one RPDO each + SYNC), best effort.
   ~DriveSystem();
   DriveSystem(const DriveSystem&) = delete;
   DriveSystem& operator=(const DriveSystem&) = delete;
