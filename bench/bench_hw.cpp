@@ -5,6 +5,8 @@
 //   BM_CycleMaster     master side only: cycle_read (decode 7 TPDOs + 2 F/T
 //                      frames) + cycle_write (7 RPDOs + 2 SYNCs), manual time
 //   BM_CycleRoundTrip  write -> simulated drives answer -> read, one thread
+//   BM_CycleThreaded   write, then read until all 9 answers are in, with the
+//                      simulator on its own thread (latency of the exchange)
 // Counters: frames/cycle (sent + received), per-bus worst-case load at the
 // configured rate, and the single-bus 1 kHz case the bus-load check refuses.
 
@@ -28,15 +30,19 @@ struct Rig {
   hw::JointFeedback fb;
   hw::FtReading ft;
 
-  Rig() {
+  explicit Rig(bool keep_sim_thread = false) {
     auto buses = sim::make_mock_buses(config);
     sim = sim::CanSimulator::from_config(config, std::move(buses.far));
     sim->start();
     drives = std::make_unique<hw::DriveSystem>(config, std::move(buses.master));
     drives->configure();
     drives->enable();
-    sim->stop();  // from here on the benchmark thread steps the simulator
-    sim->process(5);
+    if (!keep_sim_thread) {
+      sim->stop();  // from here on the benchmark thread steps the simulator
+      sim->process(5);
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
     drives->cycle_read(fb, ft);
     for (std::size_t j = 0; j < fb.count; ++j) targets.position_rad[j] = fb.joints[j].position_rad;
   }
@@ -94,6 +100,21 @@ void BM_CycleRoundTrip(benchmark::State& state) {
   add_bus_counters(state, rig.config);
 }
 BENCHMARK(BM_CycleRoundTrip)->Unit(benchmark::kMicrosecond);
+
+void BM_CycleThreaded(benchmark::State& state) {
+  Rig rig(true);
+  long timeouts = 0;
+  for (auto _ : state) {
+    rig.drives->cycle_write(rig.targets);
+    int got = 0;
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(20);
+    while (got < 9 && std::chrono::steady_clock::now() < end) got += rig.drives->cycle_read(rig.fb, rig.ft).frames_received;
+    if (got < 9) ++timeouts;
+  }
+  state.counters["timeouts"] = static_cast<double>(timeouts);
+  add_bus_counters(state, rig.config);
+}
+BENCHMARK(BM_CycleThreaded)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 
