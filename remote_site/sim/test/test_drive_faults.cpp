@@ -248,3 +248,24 @@ TEST(DriveFaults, DestroyingTheMasterQuickStopsEnabledDrives) {
   }
   for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::QuickStopActive) << j;
 }
+
+TEST(FtSensorOnBus, WrenchSourceSeesTheSimulatedArm) {
+  // A stand-in for the contact model: a spring on joint1, Fz = -1000 N/rad * q1,
+  // evaluated on the simulator thread at every SYNC from the simulated joints.
+  SimRig rig(project_config());
+  sim::CanSimulator* s = rig.sim.get();
+  s->ft_sensor()->set_wrench_source([s] {
+    double q[7];
+    s->joint_positions_rad(q);
+    return sim::SimFtSensor::Wrench{0.0, 0.0, -1000.0 * q[0], 0.0, 0.0, 0.0};
+  });
+  rig.bring_up();
+  const double q0 = rig.targets.position_rad[0];
+  for (int i = 1; i <= 100; ++i) {  // 0.2 s ramp to +0.01 rad
+    rig.targets.position_rad[0] = q0 + 0.01 * i / 100.0;
+    rig.cycle();
+  }
+  rig.run_until([](const CycleStatus&) { return false; }, 25);
+  EXPECT_NEAR(rig.fb.joints[0].position_rad, q0 + 0.01, 1e-5);
+  EXPECT_NEAR(rig.ft.wrench_ft[2], -1000.0 * (q0 + 0.01), 0.02);
+}
