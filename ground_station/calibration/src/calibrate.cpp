@@ -1,6 +1,8 @@
 #include "foresight/calibration/calibrate.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -44,9 +46,10 @@ void check_points(const std::vector<Correspondence>& pts, const std::string& nam
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& c : pts) mean += c.p_m;
   mean /= static_cast<double>(pts.size());
-  Eigen::MatrixXd P(pts.size(), 3);
-  for (std::size_t i = 0; i < pts.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = (pts[i].p_m - mean).transpose();
-  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(P).singularValues();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& c : pts) scatter += (c.p_m - mean) * (c.p_m - mean).transpose();
+  // Singular values of the centred point matrix, largest first.
+  const Eigen::Vector3d s = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
     throw EstimationError(who + "the " + std::to_string(pts.size()) +
                           " points are collinear (or coincide): calibration needs points spread in 3-D");
@@ -127,7 +130,15 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
     B.block<1, 3>(2 * i + 1, 8) = -uvn.y() * p.transpose();
     rhs[2 * i + 1] = uvn.y();
   }
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(B, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  // Least squares without normal equations: QR of [B | rhs], then the SVD of
+  // the 11x11 triangle (same singular values and solution as B's).
+  Eigen::Matrix<double, Eigen::Dynamic, 12> Bc(2 * n, 12);
+  Bc.leftCols<11>() = B;
+  Bc.col(11) = rhs;
+  const Eigen::HouseholderQR<Eigen::Matrix<double, Eigen::Dynamic, 12>> qr(Bc);
+  const Eigen::Matrix<double, 12, 12> R = qr.matrixQR().topRows<12>().triangularView<Eigen::Upper>();
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 11, 11>> svd(R.topLeftCorner<11, 11>(),
+                                                           Eigen::ComputeFullU | Eigen::ComputeFullV);
   const auto& sv = svd.singularValues();
   if (!(sv[10] > rank_tolerance * sv[0])) {
     std::ostringstream m;
@@ -135,7 +146,7 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
       << "): degenerate point geometry";
     throw EstimationError(m.str());
   }
-  const Eigen::Matrix<double, 11, 1> x = svd.solve(rhs);
+  const Eigen::Matrix<double, 11, 1> x = svd.solve(R.topRightCorner<11, 1>());
   const Eigen::Vector3d m1 = x.segment<3>(0), m2 = x.segment<3>(4), m3 = x.segment<3>(8);
   const double m14 = x[3], m24 = x[7], m34 = 1.0;
 

@@ -1,6 +1,8 @@
 #include "foresight/localization/localize.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -74,12 +76,37 @@ void check_geometry(const std::vector<Obs>& obs) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& d : distinct) mean += d;
   mean /= static_cast<double>(distinct.size());
-  Eigen::MatrixXd P(distinct.size(), 3);
-  for (std::size_t i = 0; i < distinct.size(); ++i) P.row(static_cast<Eigen::Index>(i)) = (distinct[i] - mean).transpose();
-  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(P).singularValues();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& d : distinct) scatter += (d - mean) * (d - mean).transpose();
+  const Eigen::Vector3d s =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
     throw EstimationError("the " + std::to_string(distinct.size()) +
                           " distinct model points are collinear: the object's rotation about that line is undetermined");
+}
+
+/// eq. 8 without normal equations: QR of [A | b], then the SVD of the U x U
+/// triangle (A's singular values and right singular vectors). x_p is the
+/// least-squares solution in the U-1 well-determined directions, x_h the
+/// (near) null-space vector. False when A's rank is below U-1.
+template <int U>
+bool particular_and_null(const Eigen::MatrixXd& A, const Eigen::VectorXd& b, double rank_tolerance,
+                         Eigen::VectorXd& xp, Eigen::VectorXd& xh) {
+  const Eigen::Index rows = std::max<Eigen::Index>(A.rows(), U + 1);
+  Eigen::Matrix<double, Eigen::Dynamic, U + 1> Ab = Eigen::Matrix<double, Eigen::Dynamic, U + 1>::Zero(rows, U + 1);
+  Ab.topLeftCorner(A.rows(), U) = A;  // zero rows pad the 6-click case
+  Ab.col(U).head(A.rows()) = b;
+  const Eigen::HouseholderQR<Eigen::Matrix<double, Eigen::Dynamic, U + 1>> qr(Ab);
+  const Eigen::Matrix<double, U + 1, U + 1> R = qr.matrixQR().template topRows<U + 1>().template triangularView<Eigen::Upper>();
+  const Eigen::JacobiSVD<Eigen::Matrix<double, U, U>> svd(R.template topLeftCorner<U, U>(),
+                                                         Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const auto& sv = svd.singularValues();
+  if (!(sv[U - 2] > rank_tolerance * sv[0])) return false;
+  const Eigen::Matrix<double, U, 1> Utb = svd.matrixU().transpose() * R.template topRightCorner<U, 1>();
+  xp = Eigen::VectorXd::Zero(U);
+  for (int s = 0; s < U - 1; ++s) xp += svd.matrixV().col(s) * (Utb[s] / sv[s]);
+  xh = svd.matrixV().col(U - 1);
+  return true;
 }
 
 Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
@@ -88,19 +115,20 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& o : obs) mean += o.c->p_m;
   mean /= n;
-  Eigen::MatrixXd P(n, 3);
-  for (int i = 0; i < n; ++i) P.row(i) = (obs[i].c->p_m - mean).transpose();
-  Eigen::JacobiSVD<Eigen::MatrixXd> pca(P, Eigen::ComputeFullV);
-  Eigen::Matrix3d Q = pca.matrixV();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& o : obs) scatter += (o.c->p_m - mean) * (o.c->p_m - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> pca(scatter);
+  Eigen::Matrix3d Q = pca.eigenvectors().rowwise().reverse();  // principal axes, largest first
   if (Q.determinant() < 0.0) Q.col(2) = -Q.col(2);
-  const Eigen::Vector3d ps = pca.singularValues();
+  const Eigen::Vector3d ps = pca.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   const double sigma = ps[0] / std::sqrt(static_cast<double>(n));
-  // Nearly coplanar model points: the 9-unknown form (two rotation columns)
-  // gives a better start; both forms are tried when the points are 3-D.
-  const bool planar_only = ps[2] < 1e-7 * ps[0];
+  // Nearly coplanar model points (thinner than a tenth of their extent): the
+  // 9-unknown form (two rotation columns, the third their cross product) is
+  // the better start; otherwise the full 12-unknown form of eq. 7.
+  const bool planar = ps[2] < 0.1 * ps[0];
   Pose best = Pose::Identity();
   std::pair<int, double> best_score{n + 1, 0.0};
-  for (int form = planar_only ? 1 : 0; form < 2; ++form) {
+  for (int form = planar ? 1 : 0; form < (planar ? 2 : 1); ++form) {
     const int cols = form == 0 ? 3 : 2;   // rotation columns solved for
     const int u = 3 * (cols + 1);         // unknowns: 12 or 9
     Eigen::MatrixXd A(2 * n, u);
@@ -122,20 +150,12 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
         b[2 * i + r] = a.dot(c);
       }
     }
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    const Eigen::VectorXd& sv = svd.singularValues();
-    if (!(sv[u - 2] > rank_tolerance * sv[0])) {
-      std::ostringstream m;
-      m << "the linear localization system is rank deficient (rank below " << u - 1
-        << "): degenerate geometry of the model points and views";
-      throw EstimationError(m.str());
-    }
-    // eq. 8: x = x_p + k x_h; x_p from the 11 (8) well-determined directions,
-    // x_h the (near) null-space vector.
-    Eigen::VectorXd xp = Eigen::VectorXd::Zero(u);
-    const Eigen::VectorXd Utb = svd.matrixU().transpose() * b;
-    for (int s = 0; s < u - 1; ++s) xp += svd.matrixV().col(s) * (Utb[s] / sv[s]);
-    const Eigen::VectorXd xh = svd.matrixV().col(u - 1);
+    Eigen::VectorXd xp, xh;
+    const bool ok = u == 12 ? particular_and_null<12>(A, b, rank_tolerance, xp, xh)
+                            : particular_and_null<9>(A, b, rank_tolerance, xp, xh);
+    if (!ok)
+      throw EstimationError("the linear localization system is rank deficient (rank below " + std::to_string(u - 1) +
+                            "): degenerate geometry of the model points and views");
     auto rot_part = [&](const Eigen::VectorXd& x) {
       Eigen::VectorXd r(3 * cols);
       for (int j = 0; j < 3; ++j) r.segment(j * cols, cols) = x.segment(j * (cols + 1), cols);

@@ -41,6 +41,13 @@ LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, R
         mu *= 10.0;
         continue;
       }
+      // The model's predicted decrease: nothing left to gain (to rounding).
+      const double predicted = -g.dot(delta) - 0.5 * delta.dot(H * delta);
+      if (predicted <= 1e-14 * cost || cost < 1e-28) {
+        rep.converged = true;
+        rep.cost = cost;
+        return rep;
+      }
       State candidate = retract(state, delta);
       evaluate(candidate, e_new, nullptr);
       const double cost_new = 0.5 * e_new.squaredNorm();
