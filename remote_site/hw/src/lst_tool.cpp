@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <sstream>
 #include <thread>
 
 #include "foresight/common/error.hpp"
@@ -35,6 +36,8 @@ class LstCategory final : public std::error_category {
       case LstError::InvalidArgument: return "invalid argument";
       case LstError::WaitTimeout: return "the tool did not reach the expected state in time";
       case LstError::ToolFault: return "the tool reports a fault";
+      case LstError::TorqueLimitReached: return "the tool stopped at its torque limit before the turns were done";
+      case LstError::RunInterrupted: return "the run ended before reaching its goal";
     }
     return "unknown lst_tool error " + std::to_string(ev);
   }
@@ -356,6 +359,53 @@ std::error_code LstTool::wait_for(const std::function<bool(const LstStatus&)>& d
                   1);
     sleep_s(poll_s);
   }
+}
+
+std::error_code LstTool::loosen(double turns, double torque_limit_nm, double speed_rad_s, double timeout_s,
+                                RunResult& result) {
+  result = RunResult{};
+  if (!std::isfinite(turns) || !(turns > 0.0) || !(timeout_s > 0.0))
+    return fail("loosen " + std::to_string(turns) + " turns", LstError::InvalidArgument, 1);
+  if (auto ec = reset_turns()) return ec;
+  if (auto ec = run(LstDirection::Loosen, speed_rad_s, torque_limit_nm)) return ec;
+  const double goal = -turns;
+  std::error_code ec = wait_for(
+      [goal](const LstStatus& st) { return st.turns <= goal || st.torque_reached() || !st.running(); }, timeout_s,
+      result.last, 0.005);
+  // Always try to clear RUN, whatever happened; the first error wins.
+  const std::error_code stop_ec = stop();
+  result.turns = result.last.turns;
+  result.peak_torque_nm = result.last.peak_torque_nm;
+  result.torque_reached = result.last.torque_reached();
+  if (ec) return ec;
+  if (stop_ec) return stop_ec;
+  if (result.last.fault()) return fail("loosen: " + result.last.describe(), LstError::ToolFault, 1);
+  if (result.turns <= goal) return {};
+  if (result.torque_reached) {
+    std::ostringstream os;
+    os << "loosen " << turns << " turns at " << torque_limit_nm << " N*m: stopped after " << (0.0 - result.turns) + 0.0
+       << " turns, peak torque " << result.peak_torque_nm << " N*m";
+    return fail(os.str(), LstError::TorqueLimitReached, 1);
+  }
+  return fail("loosen: " + result.last.describe(), LstError::RunInterrupted, 1);
+}
+
+std::error_code LstTool::tighten(double torque_nm, double speed_rad_s, double timeout_s, RunResult& result) {
+  result = RunResult{};
+  if (!(timeout_s > 0.0)) return fail("tighten", LstError::InvalidArgument, 1);
+  if (auto ec = reset_turns()) return ec;
+  if (auto ec = run(LstDirection::Tighten, speed_rad_s, torque_nm)) return ec;
+  std::error_code ec = wait_for([](const LstStatus& st) { return st.torque_reached() || !st.running(); },
+                                timeout_s, result.last, 0.005);
+  const std::error_code stop_ec = stop();
+  result.turns = result.last.turns;
+  result.peak_torque_nm = result.last.peak_torque_nm;
+  result.torque_reached = result.last.torque_reached();
+  if (ec) return ec;
+  if (stop_ec) return stop_ec;
+  if (result.last.fault()) return fail("tighten: " + result.last.describe(), LstError::ToolFault, 1);
+  if (result.torque_reached) return {};
+  return fail("tighten: " + result.last.describe(), LstError::RunInterrupted, 1);
 }
 
 }  // namespace foresight::hw

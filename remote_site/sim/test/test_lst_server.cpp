@@ -110,6 +110,36 @@ TEST(LstServer, LooseningTakesNTurnsAboveTThroughModbus) {
   EXPECT_LE(s.turns, -2.0);
 }
 
+TEST(LstServer, LoosenAndTightenTaskSteps) {
+  LstServer server(server_options());
+  LstTool tool(client_config(server));
+  LstTool::RunResult r;
+  // Too little torque: the screw does not break loose.
+  EXPECT_EQ(tool.loosen(2.0, 12.0, 20.0, 2.0, r), LstError::TorqueLimitReached);
+  EXPECT_EQ(tool.last_error_message(),
+            "loosen 2 turns at 12 N*m: stopped after 0 turns, peak torque -12 N*m (tcp 127.0.0.1:" +
+                std::to_string(server.port()) +
+                " unit 1): the tool stopped at its torque limit before the turns were done");
+  EXPECT_TRUE(r.torque_reached);
+  EXPECT_DOUBLE_EQ(server.state().engaged_turns, 2.0);
+  // Enough torque: 2 turns and the screw is free.
+  ASSERT_FALSE(tool.loosen(2.0, 20.0, 20.0, 2.0, r)) << tool.last_error_message();
+  EXPECT_LE(r.turns, -2.0);
+  EXPECT_NEAR(r.peak_torque_nm, -15.0, 1e-9);  // the breakaway torque
+  EXPECT_TRUE(server.state().screw_free());
+  EXPECT_FALSE(server.state().running);
+  // Tighten back to 25 N*m: 2 turns of run-down, then the torque rises.
+  ASSERT_FALSE(tool.tighten(25.0, 20.0, 2.0, r)) << tool.last_error_message();
+  EXPECT_TRUE(r.torque_reached);
+  EXPECT_NEAR(r.peak_torque_nm, 25.0, 1e-9);
+  EXPECT_NEAR(r.turns, 2.0 + (25.0 - 2.0) / 40.0 / (2.0 * std::numbers::pi), 2e-3);
+  EXPECT_NEAR(server.state().preload_nm, 25.0, 1e-9);
+  // Jammed: a named fault.
+  server.set_jam(true);
+  EXPECT_EQ(tool.loosen(1.0, 40.0, 20.0, 2.0, r), LstError::ToolFault);
+  EXPECT_TRUE(r.last.jammed());
+}
+
 TEST(LstServer, BelowBreakawayItStopsAtTheTorqueLimit) {
   LstServer server(server_options());
   LstTool tool(client_config(server));

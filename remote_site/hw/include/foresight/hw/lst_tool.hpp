@@ -52,6 +52,8 @@ enum class LstError {
   InvalidArgument,             ///< a value out of range or not finite: nothing was sent
   WaitTimeout,                 ///< wait_for: the condition did not become true in time
   ToolFault,                   ///< wait_for: the tool raised a fault bit while waiting
+  TorqueLimitReached,          ///< loosen: the tool stopped at its torque limit before the turns were done
+  RunInterrupted,              ///< loosen/tighten: the run ended without reaching its goal (RUN cleared elsewhere)
 };
 
 const std::error_category& lst_error_category() noexcept;
@@ -170,6 +172,22 @@ class LstTool {
   /// last status read.
   std::error_code wait_for(const std::function<bool(const LstStatus&)>& done, double timeout_s,
                            LstStatus& last, double poll_s = 0.01);
+
+  // ---- task steps (poll until done; RUN is always cleared at the end) ----------
+  struct RunResult {
+    double turns = 0.0;           ///< turns made in this run (+ = tightening)
+    double peak_torque_nm = 0.0;  ///< PEAK_TORQUE at the end
+    bool torque_reached = false;
+    LstStatus last;               ///< last status read
+  };
+  /// Zero the turns counter, loosen at speed_rad_s with the torque limit and
+  /// stop after `turns` turns. TorqueLimitReached when the screw would not
+  /// turn (breakaway above the limit), ToolFault on a fault (jam), WaitTimeout
+  /// after timeout_s.
+  std::error_code loosen(double turns, double torque_limit_nm, double speed_rad_s, double timeout_s,
+                         RunResult& result);
+  /// Tighten at speed_rad_s until the tool stops at torque_nm (TORQUE_REACHED).
+  std::error_code tighten(double torque_nm, double speed_rad_s, double timeout_s, RunResult& result);
 
   // ---- raw access (diagnostics, tests) --------------------------------------------
   std::error_code read_input_registers(int address, int count, std::uint16_t* dest);
