@@ -41,6 +41,18 @@ std::int16_t clamp16(double v) {
 
 }  // namespace
 
+LstServerOptions lst_server_options(const hw::LstToolConfig& tool, const std::string& scene_yaml_path) {
+  LstServerOptions o;
+  o.transport = tool.transport == hw::LstToolConfig::Transport::Tcp ? LstServerOptions::Transport::Tcp
+                                                                   : LstServerOptions::Transport::Rtu;
+  o.host = tool.host;
+  o.port = tool.port;
+  o.unit_id = tool.unit_id;
+  o.baud = tool.baud;
+  o.mechanism = load_lst_mechanism_params(scene_yaml_path);
+  return o;
+}
+
 LstServer::LstServer(LstServerOptions options)
     : options_(std::move(options)), impl_(std::make_unique<Impl>()), mech_(options_.mechanism) {
   if (!(options_.poll_s > 0.0 && options_.poll_s < 1.0)) throw LstServerError("LstServer: poll_s must lie in (0, 1) s");

@@ -330,3 +330,24 @@ TEST(LstServer, RtuOverAPty) {
   LstTool other(cfg);
   EXPECT_EQ(other.read_status(s), LstError::Timeout);
 }
+
+TEST(LstServer, OptionsFromTheProjectConfig) {
+  LstToolConfig tool = load_lst_tool_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  LstServerOptions o = lst_server_options(tool, FORESIGHT_CONFIG_DIR "/scene.yaml");
+  EXPECT_EQ(o.port, tool.port);
+  EXPECT_EQ(o.host, "127.0.0.1");
+  EXPECT_DOUBLE_EQ(o.mechanism.screw.engaged_turns, 8.0);
+  EXPECT_DOUBLE_EQ(o.mechanism.screw.breakaway_torque_nm, 15.0);
+  // The configured task torques fit the simulated screw and tool.
+  EXPECT_GT(tool.loosen_torque_limit_nm, o.mechanism.screw.breakaway_torque_nm);
+  EXPECT_LE(tool.loosen_torque_limit_nm, o.mechanism.max_torque_nm);
+  EXPECT_LE(tool.speed_rad_s, o.mechanism.max_speed_rad_s);
+  // Run it on an ephemeral port (the configured one may be taken by a parallel test).
+  o.port = 0;
+  LstServer server(o);
+  tool.port = server.port();
+  LstTool client(tool);
+  LstStatus s;
+  ASSERT_FALSE(client.read_status(s)) << client.last_error_message();
+  EXPECT_TRUE(s.ready());
+}

@@ -28,6 +28,7 @@
 #include <string>
 #include <thread>
 
+#include "foresight/hw/lst_tool.hpp"
 #include "foresight/sim/screw_model.hpp"
 
 namespace foresight::sim {
@@ -42,6 +43,12 @@ struct LstServerOptions {
   double poll_s = 0.005;  ///< indication timeout = longest physics step
   LstMechanismParams mechanism;
 };
+
+/// Options for the simulated tool the daemon's client will reach: the link
+/// of `tool` (its `tool:` section; TCP: host and port, RTU: unit id, the
+/// device then being the server's own pty) and the mechanism of the scene's
+/// `lst_sim:` section. Throws InputError from the scene loader.
+LstServerOptions lst_server_options(const hw::LstToolConfig& tool, const std::string& scene_yaml_path);
 
 /// The server could not be set up (bind, listen, openpty); set-up only.
 class LstServerError : public std::runtime_error {
