@@ -4,10 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
+#include <thread>
+#include <vector>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -58,6 +62,37 @@ struct MuteListener {
     port = ntohs(a.sin_port);
   }
   ~MuteListener() { close(fd); }
+};
+
+/// A TCP peer that answers every request with a response carrying the wrong
+/// transaction id (a garbled / misrouted answer).
+struct JunkServer {
+  MuteListener listener;
+  std::atomic<bool> stop{false};
+  std::vector<int> clients;
+  std::thread thread;
+  JunkServer() {
+    thread = std::thread([this] {
+      while (!stop) {
+        pollfd lp{listener.fd, POLLIN, 0};
+        if (poll(&lp, 1, 10) > 0) clients.push_back(accept(listener.fd, nullptr, nullptr));
+        for (int c : clients) {
+          pollfd cp{c, POLLIN, 0};
+          std::uint8_t req[260];
+          if (c < 0 || poll(&cp, 1, 0) <= 0) continue;
+          if (read(c, req, sizeof req) < 8) continue;
+          const std::uint8_t rsp[] = {static_cast<std::uint8_t>(req[0] ^ 0x5A), req[1], 0, 0, 0, 5, req[6], 0x04, 2, 0, 0};
+          (void)!write(c, rsp, sizeof rsp);
+        }
+      }
+      for (int c : clients)
+        if (c >= 0) close(c);
+    });
+  }
+  ~JunkServer() {
+    stop = true;
+    thread.join();
+  }
 };
 
 }  // namespace
@@ -208,4 +243,21 @@ TEST(LstTool, MissingSerialDeviceIsAConnectionFailure) {
   EXPECT_EQ(tool.last_error_message(),
             "read input registers 0..7 (rtu /nonexistent/ttyLST 115200 8N1 unit 1): connection failed "
             "(connect: No such file or directory)");
+}
+
+TEST(LstTool, GarbledResponsesAreBadResponseAfterRetries) {
+  JunkServer junk;
+  LstToolConfig c;
+  c.port = junk.listener.port;
+  c.response_timeout_s = 0.2;
+  c.retries = 1;
+  c.reconnect_delay_s = 0.0;
+  LstTool tool(c);
+  LstStatus s;
+  EXPECT_EQ(tool.read_status(s), LstError::BadResponse);
+  EXPECT_EQ(tool.stats().attempts, 2u);
+  EXPECT_EQ(tool.stats().timeouts, 0u);
+  EXPECT_EQ(tool.last_error_message(),
+            "read input registers 0..7 (tcp 127.0.0.1:" + std::to_string(c.port) +
+                " unit 1): bad response (CRC, length, unit or exception code) after 2 attempts");
 }

@@ -2,6 +2,10 @@
 // server on 127.0.0.1 with an ephemeral port, or RTU over a pty): register
 // map, screw physics through Modbus, named exceptions, timeout, reconnect.
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -350,4 +354,46 @@ TEST(LstServer, OptionsFromTheProjectConfig) {
   LstStatus s;
   ASSERT_FALSE(client.read_status(s)) << client.last_error_message();
   EXPECT_TRUE(s.ready());
+}
+
+TEST(LstServer, GarbageOnTheLinkIsDroppedAndTheNextRequestAnswered) {
+  LstServer server(server_options());
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(static_cast<std::uint16_t>(server.port()));
+  ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  // An MBAP header announcing 16 kB, then junk.
+  const std::uint8_t junk[] = {0x12, 0x34, 0x00, 0x00, 0x40, 0x00, 0x01, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF};
+  ASSERT_EQ(write(fd, junk, sizeof junk), static_cast<ssize_t>(sizeof junk));
+  // Longer than the server's 50 ms byte timeout: the junk's tail is dropped.
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  // A valid FC 04 request for the 8 status registers on the same connection.
+  const std::uint8_t req[] = {0x00, 0x07, 0x00, 0x00, 0x00, 0x06, 0x01, 0x04, 0x00, 0x00, 0x00, 0x08};
+  ASSERT_EQ(write(fd, req, sizeof req), static_cast<ssize_t>(sizeof req));
+  std::uint8_t rsp[128] = {};
+  std::size_t got = 0;
+  const auto t0 = Clock::now();
+  while (seconds_since(t0) < 0.3) {
+    pollfd p{fd, POLLIN, 0};
+    if (poll(&p, 1, 20) <= 0) continue;
+    const ssize_t n = read(fd, rsp + got, sizeof rsp - got);
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  close(fd);
+  // The junk's function code 0xFF is answered with exception 01 (illegal
+  // function), the rest of the junk is dropped, and our request is answered:
+  // MBAP 7 + function + byte count + 16 data bytes.
+  ASSERT_EQ(got, 9u + 25u) << "bytes received";
+  EXPECT_EQ(rsp[0], 0x12);
+  EXPECT_EQ(rsp[1], 0x34);
+  EXPECT_EQ(rsp[8], 0x01);
+  const std::uint8_t* r = rsp + 9;
+  EXPECT_EQ(r[1], 0x07);  // our transaction id
+  EXPECT_EQ(r[7], 0x04);
+  EXPECT_EQ(r[8], 16);
+  EXPECT_EQ(r[10] & lst::kStatusReady, lst::kStatusReady);  // STATUS low byte
+  EXPECT_TRUE(server.running());
 }
