@@ -1,0 +1,79 @@
+#include "foresight/render/overlay_inputs.hpp"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <vector>
+
+#include "foresight/common/error.hpp"
+
+namespace foresight::render {
+
+Camera load_camera(const std::string& path, const std::string& name) {
+  const auto cams = load_cameras(path);
+  const auto it = cams.find(name);
+  if (it == cams.end()) {
+    std::string known;
+    for (const auto& [n, r] : cams) known += (known.empty() ? "" : ", ") + n;
+    throw InputError(path, "no camera '" + name + "' (known: " + known + ")");
+  }
+  return it->second.camera;
+}
+
+Pose read_object_pose_json(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw InputError(path, "cannot open object pose file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path, std::string("malformed JSON: ") + e.what());
+  }
+  if (!j.is_object() || !j.contains("base_T_object")) throw InputError(path, "no key 'base_T_object'");
+  const auto& m = j["base_T_object"];
+  if (!m.is_array() || m.size() != 4) throw InputError(path, "base_T_object must be 4 rows of 4 numbers");
+  Eigen::Matrix4d M;
+  for (int r = 0; r < 4; ++r) {
+    if (!m[r].is_array() || m[r].size() != 4)
+      throw InputError(path, "base_T_object row " + std::to_string(r + 1) + " must have 4 numbers");
+    for (int c = 0; c < 4; ++c) {
+      if (!m[r][c].is_number())
+        throw InputError(path, "base_T_object row " + std::to_string(r + 1) + " has a non-number");
+      M(r, c) = m[r][c].get<double>();
+      if (!std::isfinite(M(r, c))) throw InputError(path, "base_T_object has a non-finite number");
+    }
+  }
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0 ||
+      (M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-9)
+    throw InputError(path, "base_T_object is not a rigid transform (rotation not orthonormal or last row not 0 0 0 1)");
+  Pose T;
+  T.matrix() = M;
+  return T;
+}
+
+Eigen::VectorXd parse_joints(const std::string& text, const std::string& option, const RobotModel& model,
+                             bool degrees) {
+  std::vector<double> v;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    char* end = nullptr;
+    const double x = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
+      throw std::invalid_argument(option + ": element " + std::to_string(v.size() + 1) + " ('" + item +
+                                  "') is not a finite number");
+    v.push_back(degrees ? x * M_PI / 180.0 : x);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (static_cast<int>(v.size()) != model.dof())
+    throw std::invalid_argument(option + " has " + std::to_string(v.size()) + " values but the arm has " +
+                                std::to_string(model.dof()) + " joints");
+  return Eigen::Map<Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+}  // namespace foresight::render
