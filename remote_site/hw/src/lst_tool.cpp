@@ -197,7 +197,9 @@ std::error_code LstTool::transact(const std::string& what, const std::function<i
   for (; attempt < max_attempts; ++attempt) {
     if (attempt > 0) {
       ++stats_.retries;
-      if (!connected_ || ec == LstError::Timeout || ec == LstError::ConnectionFailed) sleep_s(config_.reconnect_delay_s);
+      // Pause before a reconnect, and give a busy tool time.
+      if (!connected_ || ec == LstError::Timeout || ec == LstError::ConnectionFailed || ec == LstError::DeviceBusy)
+        sleep_s(config_.reconnect_delay_s);
     }
     if (!connected_) {
       ec = open_link();
