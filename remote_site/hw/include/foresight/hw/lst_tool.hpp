@@ -66,7 +66,12 @@ struct std::is_error_code_enum<foresight::hw::LstError> : std::true_type {};
 
 namespace foresight::hw {
 
-/// The `tool:` section of config/remote.yaml (docs/hardware.md).
+/// The `tool:` section of config/remote.yaml (docs/hardware.md): the link in
+/// `tool.modbus` (transport, host, port, device, baud, parity, data_bits,
+/// stop_bits, unit_id, response_timeout_ms, retries, reconnect_interval_ms),
+/// limits and task defaults directly under `tool` (max_speed_rad_s,
+/// max_torque_nm, speed_rad_s, tighten_torque_nm, loosen_torque_limit_nm).
+/// SI inside: the _ms keys are converted to seconds.
 struct LstToolConfig {
   enum class Transport { Tcp, Rtu };
   Transport transport = Transport::Tcp;
@@ -99,9 +104,10 @@ struct LstToolConfig {
 };
 
 /// Read and validate the `tool:` section of a remote.yaml. Throws InputError
-/// "<file>:<line>: tool.<key> ..." naming the key: missing section, unknown
-/// transport, out-of-range port/unit/baud/parity/bits, non-positive timeouts,
-/// negative or > 10 retries, torque/speed defaults above the maxima.
+/// "<file>:<line>: tool.<key> ..." naming the key (e.g. tool.modbus.port):
+/// missing section, unknown keys, unknown transport, out-of-range
+/// port/unit/baud/parity/bits, non-positive timeouts, negative or > 10
+/// retries, torque/speed defaults above the maxima.
 LstToolConfig load_lst_tool_config(const std::string& path);
 /// As load_lst_tool_config, from YAML text; `source_name` is used in messages.
 LstToolConfig parse_lst_tool_config(const std::string& yaml_text, const std::string& source_name);
