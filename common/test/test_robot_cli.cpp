@@ -1,0 +1,113 @@
+// `foresight robot` end to end: the real executable, its output, its exit
+// statuses (0 ok, 1 IK failed, 2 bad input) and its error messages.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+namespace {
+
+struct CliRun {
+  int status = -1;
+  std::string out;
+  std::string err;
+};
+
+CliRun run(const std::string& args) {
+  char err_path[] = "/tmp/foresight_robot_cli_XXXXXX";
+  const int fd = mkstemp(err_path);
+  EXPECT_GE(fd, 0);
+  ::close(fd);
+  const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight robot " + args + " 2>" + err_path;
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  std::ifstream in(err_path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  r.err = ss.str();
+  std::remove(err_path);
+  return r;
+}
+
+}  // namespace
+
+TEST(RobotCli, PrintsModelAndFkAtMidConfiguration) {
+  const CliRun r = run("");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("7 joints, 11 links on the chain base -> lst_tip"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("joint4       -160.0      160.0"), std::string::npos) << r.out;
+  // Mid configuration is straight up: the tip at z = 1.985 m.
+  EXPECT_NE(r.out.find("lst_tip      0.0000   0.0000   1.9850"), std::string::npos) << r.out;
+}
+
+TEST(RobotCli, JsonFkAndIk) {
+  // Joints in degrees; shoulder pitch 90: the arm points along +x.
+  CliRun r = run("--json --joints 0,90,0,0,0,0,0");
+  ASSERT_EQ(r.status, 0) << r.err;
+  nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["dof"], 7);
+  EXPECT_EQ(j["links"].size(), 11u);
+  EXPECT_EQ(j["links"][10]["name"], "lst_tip");
+  EXPECT_NEAR(j["links"][10]["xyz_m"][0].get<double>(), 1.605, 1e-9);
+  EXPECT_NEAR(j["links"][10]["xyz_m"][2].get<double>(), 0.38, 1e-9);
+  EXPECT_NEAR(j["q_rad"][1].get<double>(), M_PI / 2, 1e-12);
+  EXPECT_NEAR(j["joints"][1]["upper_deg"].get<double>(), 120.0, 1e-4);
+
+  // IK to the ORU hole entrance (config/scene.yaml): tool along +x.
+  r = run("--json --target 1.0,0.15,0.55,0,90,0");
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["ik"]["success"].get<bool>());
+  EXPECT_LT(j["ik"]["position_error_m"].get<double>(), 1e-4);
+  const auto& tip = j["ik"]["tip"]["xyz_m"];
+  EXPECT_NEAR(tip[0].get<double>(), 1.0, 1e-4);
+  EXPECT_NEAR(tip[1].get<double>(), 0.15, 1e-4);
+  EXPECT_NEAR(tip[2].get<double>(), 0.55, 1e-4);
+  EXPECT_NEAR(j["ik"]["tip"]["base_T_link"][0][2].get<double>(), 1.0, 1e-4);  // tip z along base +x
+}
+
+TEST(RobotCli, UnreachableTargetExitsOneWithResidual) {
+  const CliRun r = run("--target 3,0,0.5,0,0,0");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("FAILED after 51 attempt(s); residual"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("foresight robot: IK did not reach the target (residual"), std::string::npos) << r.err;
+}
+
+TEST(RobotCli, BadArgumentsExitTwoWithMessage) {
+  CliRun r = run("--joints 1,2,3");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --joints: expected 7 joint angles (deg), got 3\n");
+  EXPECT_TRUE(r.out.empty());
+  r = run("--joints 1,2,x,4,5,6,7");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --joints: element 3 ('x') is not a finite number\n");
+  r = run("--joints 0,0,0,170,0,0,0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --joints: joint4 = 170 deg is outside its limits [-160.0, 160.0] deg\n");
+  r = run("--target 1,2");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --target: expected 6 numbers x,y,z (m), roll,pitch,yaw (deg), got 2\n");
+  EXPECT_TRUE(r.out.empty());
+  r = run("--seed 0,0,0,0,0,0,0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --seed: only meaningful with --target\n");
+  r = run("--target 1,0,0.5,0,90,0 --seed 0,0,0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --seed: expected 7 joint angles (deg), got 3\n");
+  r = run("--robot /nonexistent/robot.urdf");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: /nonexistent/robot.urdf: cannot open URDF file\n");
+}
