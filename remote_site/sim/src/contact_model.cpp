@@ -156,6 +156,10 @@ ContactResult ContactModel::compute(const Pose& base_T_tip, const Pose& base_T_o
     if (rho >= R || rho < 1e-12) continue;  // axis in the material (end face handles it) / centred
     const double pen = rho + r - R;
     if (pen <= 0.0) continue;
+    // Overlap deeper sideways than the slice is below the face: the material
+    // is nearer through the face, which the end face already pushes against
+    // (a socket landing across the rim is pushed out, not sideways).
+    if (c.z() < pen) continue;
     const Eigen::Vector3d u = radial / rho;
     const Eigen::Vector3d p(hole_xy_m_.x() + R * u.x(), hole_xy_m_.y() + R * u.y(), c.z());
     contact(p, -u, kw, cw, pen);

@@ -200,6 +200,13 @@ TEST_F(ContactTest, LandingHalfOnTheRimLoadsOnlyThePartOnTheFace) {
   EXPECT_GT(r.sensor.force_n.z(), -200.0);
   // The load sits on the +x side of the socket: (x, 0, 0) x (0, 0, -f) = (0, x f, 0), M_y > 0.
   EXPECT_GT(r.sensor.torque_nm.y(), 0.0);
+  // Axis inside the hole radius (1 cm off), 1 mm down: the socket sits across
+  // the rim. Only the face pushes, straight back; no sideways wall force.
+  const ContactResult across = at(translation(0.01, 0.0, 1.0e-3));
+  EXPECT_GT(across.face_contacts, 0);
+  EXPECT_EQ(across.wall_contacts, 0);
+  EXPECT_LT(across.sensor.force_n.z(), 0.0);
+  EXPECT_NEAR(across.sensor.force_n.head<2>().norm(), 0.0, 1e-12);
 }
 
 TEST_F(ContactTest, WholePathFromJointAnglesThroughFk) {

@@ -21,8 +21,9 @@
 //  - shaft on the hole wall and rim: shaft_stations slices of length
 //    ds = tool_length / stations along the axis; a slice whose centre lies in
 //    the hole (0 <= z <= depth, radial offset rho < R) and whose circle
-//    reaches past the wall (rho + r > R) pushes back towards the axis with
-//    wall_stiffness x (rho + r - R) x ds, applied on the wall.
+//    reaches past the wall by p = rho + r - R > 0, with p <= z (else the face
+//    is the nearer way out of the material), pushes back towards the axis
+//    with wall_stiffness x p x ds, applied on the wall.
 //    (Circle cross-sections: exact for an untilted tool, fine for small tilts.)
 //  - friction at every contact: regularised Coulomb,
 //    f_t = -mu |f_n| v_t / sqrt(|v_t|^2 + v_s^2), v_t the sliding velocity of
