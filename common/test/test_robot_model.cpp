@@ -283,3 +283,19 @@ TEST(RobotModelBadInput, UrdfdomRejectionIsReported) {
                            "explicitly defined in the robot description. To fix this problem you can either remove "
                            "this joint [j2] from your urdf file, or add \"<link name=\"nowhere\" />\" to your urdf file.");
 }
+
+TEST(RobotModelBadInput, JointWithoutNameOrWithZeroAxis) {
+  std::string xml = small_urdf();
+  xml.replace(xml.find("<joint name=\"j2\""), 16, "<joint");
+  EXPECT_EQ(error_of(xml), "test.urdf:12: <joint> without a name attribute");
+  xml = small_urdf();
+  xml.replace(xml.find("<axis xyz=\"0 1 0\"/>"), 19, "<axis xyz=\"0 0 0\"/>");
+  EXPECT_EQ(error_of(xml), "test.urdf:12: joint 'j2': zero <axis>");
+}
+
+TEST(RobotModelBadInput, NoRevoluteJointOnTheChain) {
+  RobotModelOptions o;
+  o.base_link = "l2";
+  o.tip_link = "tip";
+  EXPECT_EQ(error_of(small_urdf(), o), "test.urdf: no revolute joint between base link 'l2' and tip link 'tip'");
+}

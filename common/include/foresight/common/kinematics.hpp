@@ -4,7 +4,11 @@
 // once at construction; after that, forward_kinematics, jacobian and
 // gravity_torques are real-time safe: no allocation, no locks, noexcept.
 // inverse_kinematics is not for the control loop (iterative, ~0.1 ms).
-// One workspace per thread; the model may be shared.
+// One workspace per thread; the model may be shared. (Each workspace holds its
+// own copy of the KDL chain: KDL::Joint caches its last pose in mutable
+// members, so the solvers of two threads must never share one chain.)
+// The real-time functions cannot throw: a q of the wrong size or a link index
+// out of range gives NaN outputs.
 
 #include <Eigen/Core>
 #include <memory>
