@@ -166,6 +166,11 @@ ContactResult ContactModel::compute(const Pose& base_T_tip, const Pose& base_T_o
     ++out.wall_contacts;
   }
 
+  out.insertion_depth_m = p_tip.z();
+  out.tip_radial_offset_m = std::hypot(p_tip.x() - hole_xy_m_.x(), p_tip.y() - hole_xy_m_.y());
+  out.tilt_rad = std::acos(std::clamp(axis.z(), -1.0, 1.0));
+  out.hole_radius_m = R;
+
   const Eigen::Matrix3d R_os = oru_T_sensor.linear();
   out.sensor.force_n = R_os.transpose() * force;
   out.sensor.torque_nm = R_os.transpose() * torque;

@@ -122,6 +122,12 @@ TEST_F(ContactTest, ToolInTheHoleWithClearanceReadsZero) {
     EXPECT_FALSE(r.in_contact()) << tag;
     EXPECT_EQ(r.sensor.force_n.norm(), 0.0) << tag;
   }
+  const ContactResult inserted = at(oru.tags.at("tool_inserted"));
+  EXPECT_TRUE(inserted.tip_in_hole());
+  EXPECT_NEAR(inserted.insertion_depth_m, 0.06, 1e-12);
+  EXPECT_NEAR(inserted.tip_radial_offset_m, 0.0, 1e-12);
+  EXPECT_NEAR(inserted.tilt_rad, 0.0, 1e-7);
+  EXPECT_FALSE(at(oru.tags.at("approach_20cm")).tip_in_hole());
   // Offset by half the clearance, any direction: still free.
   ASSERT_NEAR(model.clearance_m(), 1.0e-3, 1e-15);
   for (double phi = 0.0; phi < 6.28; phi += 0.5) {
@@ -164,6 +170,7 @@ TEST_F(ContactTest, TiltedInsertionTouchesTheRimOnTheOppositeSide) {
   const ContactResult r = at(oru_T_tip);
   EXPECT_GT(r.wall_contacts, 0);
   EXPECT_EQ(r.face_contacts + r.bottom_contacts, 0);
+  EXPECT_NEAR(r.tilt_rad, th, 1e-12);
   const Eigen::Vector3d F_oru = R * r.sensor.force_n;
   EXPECT_GT(F_oru.x(), 1.0);
   EXPECT_NEAR(F_oru.y(), 0.0, 1e-9);

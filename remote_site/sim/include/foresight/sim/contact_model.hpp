@@ -95,6 +95,13 @@ struct ContactResult {
   int bottom_contacts = 0;       ///< end-face probe points on the hole bottom
   int wall_contacts = 0;         ///< shaft slices on the hole wall
   double max_penetration_m = 0.0;
+  // Where the tip is relative to the hole (for the plant: is the socket on
+  // the bolt, may the latch close?).
+  double insertion_depth_m = 0.0;    ///< tip depth along the hole axis (z of the tip in `oru`)
+  double tip_radial_offset_m = 0.0;  ///< tip distance from the hole axis
+  double tilt_rad = 0.0;             ///< angle between the tool axis and the hole axis
+  bool tip_in_hole() const { return insertion_depth_m > 0.0 && tip_radial_offset_m < hole_radius_m; }
+  double hole_radius_m = 0.0;
   bool in_contact() const { return face_contacts + bottom_contacts + wall_contacts > 0; }
 };
 
