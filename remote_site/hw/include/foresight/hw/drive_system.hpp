@@ -177,7 +177,9 @@ class DriveSystem {
 
   // ---- real-time cycle -------------------------------------------------------
   /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.
-  /// Does nothing before configure() has succeeded.
+  /// Does nothing before configure() has succeeded. After enable(), start
+  /// from the positions in the feedback: a jump beyond the following-error
+  /// window faults the drive (EMCY 0x8611).
   void cycle_write(const JointTargets& targets) noexcept;
   /// Drain the buses and decode; fills `joints` and `ft`.
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;
