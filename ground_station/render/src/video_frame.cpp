@@ -1,5 +1,6 @@
 #include "foresight/render/video_frame.hpp"
 
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -14,6 +15,7 @@ std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_s
 
 cv::Mat read_video_frame(const std::string& path, int frame_index) {
   if (frame_index < 0) throw InputError(path, "frame index " + std::to_string(frame_index) + " is negative");
+  if (!std::ifstream(path).good()) throw InputError(path, "cannot read image or video");
   cv::Mat img;
   if (frame_index == 0 && cv::haveImageReader(path)) img = cv::imread(path, cv::IMREAD_COLOR);
   if (!img.empty()) return img;
