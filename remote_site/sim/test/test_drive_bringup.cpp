@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/robot_model.hpp"
 #include "sim_fixture.hpp"
 
 using namespace foresight;
@@ -177,4 +178,22 @@ TEST(DriveBringUp, DisableThenNmtStopIsSeenByTheHeartbeatConsumer) {
   }
   EXPECT_EQ(stopped, 8);  // 7 drives + F/T, each reported once
   for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).nmt_state(), hw::canopen::NmtState::Stopped);
+}
+
+TEST(DriveBringUp, UrdfLimitsAreWrittenToTheDrives) {
+  const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  SimRig rig(project_config(), hw::joint_limits_by_name(model));
+  rig.drives->configure();
+  for (std::size_t j = 0; j < 7; ++j) {
+    const hw::DriveConfig& d = rig.config.drives[j];
+    const std::size_t bus = static_cast<std::size_t>(d.bus_index);
+    std::int32_t lo = 0, hi = 0;
+    ASSERT_TRUE(d.to_counts(model.limits()[j].lower_rad, lo));
+    ASSERT_TRUE(d.to_counts(model.limits()[j].upper_rad, hi));
+    if (lo > hi) std::swap(lo, hi);  // direction -1
+    EXPECT_EQ(static_cast<std::int32_t>(rig.drives->sdo_read(bus, d.node_id, 0x607D, 1)), lo) << d.joint;
+    EXPECT_EQ(static_cast<std::int32_t>(rig.drives->sdo_read(bus, d.node_id, 0x607D, 2)), hi) << d.joint;
+  }
+  // joint1: +-2.96706 rad x 131072 x 160 / 2 pi = +-9903333 counts (direction +1)
+  EXPECT_NEAR(static_cast<std::int32_t>(rig.drives->sdo_read(0, 1, 0x607D, 2)), 2.967060 * 131072 * 160 / (2 * std::numbers::pi), 0.6);
 }
