@@ -89,7 +89,7 @@ PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& ar
   cv::Mat layer, frame;
   auto draw_at = [&](double t) {
     list.clear();
-    arm.append(sample_trajectory(tr, t), list);
+    arm.append(sample_trajectory(tr, t), list, render::kArmWireRgba, o.arm_rgba);
     append_extras(extras, list);
     if (o.tool_path) list.lines.push_back(path);
     result.triangles_per_frame = renderer.render(camera, list, st, layer);

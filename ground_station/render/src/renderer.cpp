@@ -403,6 +403,7 @@ int Renderer::render(const Camera& camera, const DrawList& list, const RenderSet
     GLint first = 0;
     for (const auto& s : list.lines) {
       const auto n = static_cast<GLsizei>(s.points_base.size());
+      gl.LineWidth(s.width_px);
       gl.DrawArrays(s.strip ? GL_LINE_STRIP : GL_LINES, first, n);
       first += n;
     }

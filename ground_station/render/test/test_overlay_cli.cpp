@@ -114,19 +114,26 @@ TEST_F(OverlayCli, WireFrameLandsOnTheSyntheticArm) {
   ASSERT_FALSE(mask.empty());
   cv::Mat near_arm;
   cv::dilate(mask, near_arm, cv::Mat::ones(5, 5, CV_8U));
-  int green = 0, green_on_arm = 0, yellow = 0;
+  // Arm edges are drawn in (R, G, B) = (51, 255, 77), the object's in (255, 217, 26),
+  // the tag triads' y axes in pure green.
+  auto is = [](const cv::Vec3b& p, int r, int g, int b) {
+    return std::abs(p[2] - r) <= 2 && std::abs(p[1] - g) <= 2 && std::abs(p[0] - b) <= 2;
+  };
+  int green = 0, green_on_arm = 0, yellow = 0, triad = 0;
   for (int r = 0; r < img.rows; ++r)
     for (int c = 0; c < img.cols; ++c) {
       const cv::Vec3b p = img.at<cv::Vec3b>(r, c);
-      if (p[1] > 200 && p[2] < 90 && p[0] < 120) {
+      if (is(p, 51, 255, 77)) {
         ++green;
         green_on_arm += near_arm.at<std::uint8_t>(r, c) > 0;
       }
-      yellow += (p[2] > 200 && p[1] > 170 && p[0] < 80);
+      yellow += is(p, 255, 217, 26);
+      triad += is(p, 0, 255, 0);
     }
   EXPECT_GT(green, 1000);
   EXPECT_GT(green_on_arm, 0.98 * green);
   EXPECT_GT(yellow, 200);
+  EXPECT_GT(triad, 20);
 }
 
 TEST_F(OverlayCli, EveryModeAndBothBackEnds) {

@@ -37,6 +37,9 @@ struct PreviewOptions {
   double fps = 30.0;                          ///< video frame rate
   render::RenderMode mode = render::RenderMode::Ghost;
   double ghost_alpha = 0.6;
+  /// Solid/ghost colour of the simulated arm, so it stands apart from the
+  /// real arm in the video; nullopt keeps the URDF colours.
+  std::optional<Eigen::Vector4d> arm_rgba = Eigen::Vector4d(0.45, 0.95, 0.55, 1.0);
   bool tool_path = true;                      ///< the tip's path as a polyline
   int sheet_frames = 6;                       ///< key frames on the contact sheet (>= 2)
   int sheet_columns = 3;

@@ -50,6 +50,7 @@ struct LineSet {
   std::vector<Eigen::Vector3d> points_base;  ///< metres, base frame
   Eigen::Vector4d rgba{1.0, 1.0, 1.0, 1.0};
   bool strip = true;  ///< a polyline; false: independent segments (point pairs)
+  float width_px = 2.0f;
 };
 
 struct DrawList {
