@@ -150,6 +150,7 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
     b.routes[kSdoTxBase + n] = {kFtSdo, 0};
   }
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
+  master_hb_period_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_producer_s * 1e9));
 }
 
 DriveSystem::~DriveSystem() {
@@ -392,6 +393,11 @@ void DriveSystem::configure() {
                     std::to_string(type & 0xFFFF) + ", expected 402)");
     d.device_name = sdo_read_string(b, n, od::kDeviceName, 0);
     sdo_write(b, n, od::kProducerHeartbeat, 0, hb_ms, 2);
+    // The drive watches the master's heartbeat: a silent master faults it
+    // (EMCY 0x8130) instead of leaving it following a stale target.
+    const auto consumer_ms = static_cast<std::uint32_t>(std::lround(config_.heartbeat_consumer_s * 1e3));
+    sdo_write(b, n, od::kConsumerHeartbeat, 1,
+              (static_cast<std::uint32_t>(config_.master_node_id) << 16) | (consumer_ms & 0xFFFF), 4);
     // RPDO1: controlword + target position, applied at the next SYNC.
     sdo_write(b, n, od::kRpdo1Comm, 1, od::kCobIdInvalid | (kRpdo1Base + n), 4);
     sdo_write(b, n, od::kRpdo1Comm, 2, 1, 1);
@@ -517,14 +523,12 @@ void DriveSystem::enable() {
   Clock::time_point deadline = start;
   JointFeedback fb;
   CycleStatus status;
-  // Send a first SYNC so the drives report their state.
-  for (Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
+  // Decide only on states reported by TPDOs answering this enable()'s SYNCs:
+  // the last known state may be stale (e.g. after the cycle stopped).
+  for (Drive& d : drives_) d.have_actual = false;
   for (;;) {
     for (Drive& d : drives_) {
-      if (!d.have_actual) {
-        d.controlword = controlword::kDisableVoltage;
-        continue;
-      }
+      if (!d.have_actual) continue;  // keep the last controlword until the drive reports
       if (d.st.state != PowerState::OperationEnabled) d.target_counts = d.st.position_counts;  // hold
       switch (d.st.state) {
         case PowerState::Fault:
@@ -583,6 +587,7 @@ void DriveSystem::disable() {
   JointFeedback fb;
   CycleStatus status;
   JointTargets t;
+  for (Drive& d : drives_) d.have_actual = false;  // as in enable(): fresh states only
   for (;;) {
     for (std::size_t j = 0; j < drives_.size(); ++j) {
       Drive& d = drives_[j];
@@ -593,7 +598,7 @@ void DriveSystem::disable() {
     cycle_write(t);
     run_cycle_blocking(deadline, fb, status);
     bool all = true;
-    for (const Drive& d : drives_) all = all && d.st.state != PowerState::OperationEnabled;
+    for (const Drive& d : drives_) all = all && d.have_actual && d.st.state != PowerState::OperationEnabled;
     if (all || Clock::now() > end) break;
   }
   enabled_ = false;
@@ -617,6 +622,9 @@ void DriveSystem::push_event(const HwEvent& e) noexcept {
 void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
   if (!configured_) return;  // nothing is sent to nodes that configure() has not checked
   const bool quick_stop = quick_stop_.load(std::memory_order_acquire);
+  const auto now = Clock::now();
+  const bool send_heartbeat = now - last_master_hb_ >= master_hb_period_;
+  if (send_heartbeat) last_master_hb_ = now;
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     CanBus& bus = *buses_[bi];
     BusState& bs = bus_state_[bi];
@@ -643,6 +651,8 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
         bs.tx_fail_reported = true;
       }
     }
+    if (send_heartbeat)  // the master's own heartbeat (NMT state operational)
+      (void)bus.write(make_frame(kHeartbeatBase + config_.master_node_id, {static_cast<std::uint8_t>(NmtState::Operational)}));
     can_frame sync{};
     sync.can_id = kSync;
     sync.can_dlc = 0;

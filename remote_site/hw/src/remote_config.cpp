@@ -113,9 +113,13 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   c.source = source_name;
   c.cycle_rate_hz = p.get<double>(root, "cycle_rate_hz", "top level");
   if (const YAML::Node hb = root["heartbeat"]) {
-    p.check_keys(hb, "heartbeat", {"producer_ms", "consumer_ms"});
+    p.check_keys(hb, "heartbeat", {"producer_ms", "consumer_ms", "master_node_id"});
     c.heartbeat_producer_s = p.get<double>(hb, "producer_ms", "heartbeat") * 1e-3;
     c.heartbeat_consumer_s = p.get<double>(hb, "consumer_ms", "heartbeat") * 1e-3;
+    const int master = p.get_or<int>(hb, "master_node_id", "heartbeat", 127);
+    if (master < 1 || master > canopen::kMaxNodeId)
+      p.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
+    c.master_node_id = static_cast<std::uint8_t>(master);
   } else {
     p.fail(root, "top level: missing 'heartbeat' (producer_ms, consumer_ms)");
   }
@@ -253,6 +257,8 @@ void validate(RemoteConfig& c) {
       fail(d.line, where + ": offset_rad must be finite and within +-2 pi");
     if (!(d.following_error_limit_rad > 0.0 && d.following_error_limit_rad < 1.0))
       fail(d.line, where + ": following_error_limit_rad must be in (0, 1) rad");
+    if (d.node_id == c.master_node_id)
+      fail(d.line, where + ": node_id " + std::to_string(d.node_id) + " is the master's heartbeat id (heartbeat.master_node_id)");
     for (std::size_t j = 0; j < i; ++j) {
       const DriveConfig& o = c.drives[j];
       if (o.bus_index == d.bus_index && o.node_id == d.node_id)
@@ -270,6 +276,8 @@ void validate(RemoteConfig& c) {
       fail(f.line, "ft_sensor: force_counts_per_n must be > 0 (missing or bad scaling)");
     if (!(f.torque_counts_per_nm > 0.0 && std::isfinite(f.torque_counts_per_nm)))
       fail(f.line, "ft_sensor: torque_counts_per_nm must be > 0 (missing or bad scaling)");
+    if (f.node_id == c.master_node_id)
+      fail(f.line, "ft_sensor: node_id " + std::to_string(f.node_id) + " is the master's heartbeat id (heartbeat.master_node_id)");
     for (std::size_t j = 0; j < c.drives.size(); ++j)
       if (c.drives[j].bus_index == f.bus_index && c.drives[j].node_id == f.node_id)
         fail(f.line, "ft_sensor: node_id " + std::to_string(f.node_id) + " on bus '" + f.bus +
@@ -308,7 +316,7 @@ std::vector<BusLoad> compute_bus_loads(const RemoteConfig& c) {
       l.bits_per_cycle = worst_case_frame_bits(0) +
                          l.drives * (worst_case_frame_bits(kRpdoBytes) + worst_case_frame_bits(kTpdoBytes)) +
                          (l.ft ? 2 * worst_case_frame_bits(kFtBytes) : 0);
-      l.heartbeat_bits_per_s = nodes * worst_case_frame_bits(1) / c.heartbeat_producer_s;
+      l.heartbeat_bits_per_s = (nodes + 1) * worst_case_frame_bits(1) / c.heartbeat_producer_s;  // + master
     }
     l.bits_per_s = l.bits_per_cycle * c.cycle_rate_hz + l.heartbeat_bits_per_s;
     l.load = l.bits_per_s / l.bitrate_bps;

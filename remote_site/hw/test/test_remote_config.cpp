@@ -41,16 +41,17 @@ TEST(RemoteConfig, LoadsTheProjectFile) {
   EXPECT_TRUE(c.ft.present);
   EXPECT_EQ(c.ft.bus_index, 1);
   EXPECT_DOUBLE_EQ(c.heartbeat_consumer_s, 0.15);
-  // Known loads: arm_a 4 drives: (55 + 4*(115+135)) * 500 + 4*65/0.05 = 532700 bit/s
+  // Known loads: arm_a 4 drives: (55 + 4*(115+135)) * 500 + (4+1 master)*65/0.05 = 534000 bit/s
   const auto loads = compute_bus_loads(c);
   ASSERT_EQ(loads.size(), 2u);
   EXPECT_EQ(loads[0].frames_per_cycle, 9);
   EXPECT_EQ(loads[0].bits_per_cycle, 1055);
-  EXPECT_NEAR(loads[0].load, 0.5327, 1e-6);
-  // arm_b 3 drives + F/T: (55 + 3*250 + 2*135) * 500 + 4*65/0.05 = 542700 bit/s
+  EXPECT_NEAR(loads[0].load, 0.5340, 1e-6);
+  // arm_b 3 drives + F/T: (55 + 3*250 + 2*135) * 500 + (4+1)*65/0.05 = 544000 bit/s
   EXPECT_EQ(loads[1].frames_per_cycle, 9);
   EXPECT_EQ(loads[1].bits_per_cycle, 1075);
-  EXPECT_NEAR(loads[1].load, 0.5427, 1e-6);
+  EXPECT_NEAR(loads[1].load, 0.5440, 1e-6);
+  EXPECT_EQ(c.master_node_id, 127);
 }
 
 TEST(RemoteConfig, CountsRadiansRoundTripWithDirectionAndOffset) {
@@ -71,15 +72,15 @@ TEST(RemoteConfig, SevenDrivesOnOneBusAt500HzAreRefusedWithTheNumbers) {
   std::string drives;
   for (int i = 1; i <= 7; ++i) drives += drive("joint" + std::to_string(i), "b", i);
   const std::string msg = error_of(base_yaml(drives));
-  // (55 + 7*250 + 270) * 500 + 8*65/0.05 = 1047900 bit/s
+  // (55 + 7*250 + 270) * 500 + (8+1)*65/0.05 = 1049200 bit/s
   EXPECT_NE(msg.find("remote.yaml:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("bus b: 7 drives + F/T, 17 frames/cycle"), std::string::npos) << msg;
   EXPECT_NE(msg.find("2075 bits/cycle"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("104.8% of 1000 kbit/s"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("104.9% of 1000 kbit/s"), std::string::npos) << msg;
   EXPECT_NE(msg.find("exceeds the 70% limit"), std::string::npos) << msg;
-  // The same bus at 250 Hz fits (52.9%).
+  // The same bus at 250 Hz fits (53.0%).
   const RemoteConfig ok = parse_remote_config(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 250\n"), "x");
-  EXPECT_NEAR(compute_bus_loads(ok)[1].load, 0.52915, 1e-6);
+  EXPECT_NEAR(compute_bus_loads(ok)[1].load, 0.53045, 1e-6);
 }
 
 TEST(RemoteConfig, DuplicateNodeIdOnABusIsNamed) {
@@ -107,6 +108,7 @@ TEST(RemoteConfig, MissingScalingIsNamed) {
 TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_NE(error_of(base_yaml(drive("joint1", "c", 1))).find("drives[0] (joint1): bus 'c' is not defined in buses"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 128))).find("node_id 128 is outside 1..127"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 127))).find("drives[0] (joint1): node_id 127 is the master's heartbeat id"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1) + drive("joint1", "a", 2))).find("joint 'joint1' has two drives"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, direction: 2, following_error_limit_rad: 0.02")))
                 .find("direction must be 1 or -1, not 2"), std::string::npos);

@@ -66,6 +66,9 @@ void SimDrive::reset_application() {
   // Defaults differ from what the master needs (as on many real drives): the
   // master must map the PDOs and select the mode, or the frames are wrong.
   define(od::kCommCyclePeriod, 0, 4, true, 0);
+  define(od::kConsumerHeartbeat, 0, 1, false, 1);
+  define(od::kConsumerHeartbeat, 1, 4, true, 0);
+  master_hb_armed_ = false;
   define(od::kRpdo1Comm, 1, 4, true, kRpdo1Base + node_id_);
   define(od::kRpdo1Comm, 2, 1, true, 255);
   define(od::kRpdo1Map, 0, 1, true, 1);
@@ -137,8 +140,24 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
   return 0;
 }
 
+void SimDrive::on_tick(Clock::time_point now, FrameSink& out) {
+  const std::uint32_t consumer = get(od::kConsumerHeartbeat, 1);
+  const auto ms = std::chrono::milliseconds(consumer & 0xFFFF);
+  if (master_hb_armed_ && ms.count() > 0 && now - master_hb_ > ms) {
+    master_hb_armed_ = false;  // re-armed by the next heartbeat
+    if (state_ != PowerState::Fault) fault(0x8130, out);
+    else emit_emcy(0x8130, 0x11, out);
+  }
+}
+
 void SimDrive::on_frame(const can_frame& f, FrameSink& out) {
   const std::uint32_t id = f.can_id & CAN_SFF_MASK;
+  const std::uint32_t consumer = get(od::kConsumerHeartbeat, 1);
+  if ((consumer & 0xFFFF) != 0 && id == kHeartbeatBase + ((consumer >> 16) & 0x7F) && f.can_dlc == 1) {
+    master_hb_armed_ = true;
+    master_hb_ = now_;
+    return;
+  }
   const std::uint32_t rpdo_cob = get(od::kRpdo1Comm, 1);
   if (nmt_ != NmtState::Operational || (rpdo_cob & od::kCobIdInvalid) || id != (rpdo_cob & 0x7FF)) return;
   int bits = 0;

@@ -100,11 +100,13 @@ void SimNode::emit_emcy(std::uint16_t code, std::uint8_t error_register, FrameSi
 }
 
 void SimNode::on_frame(const can_frame&, FrameSink&) {}
+void SimNode::on_tick(Clock::time_point, FrameSink&) {}
 std::uint32_t SimNode::check_sdo_write(std::uint16_t, std::uint8_t, std::uint32_t) { return 0; }
 
 void SimNode::handle(const can_frame& f, Clock::time_point now, FrameSink& out) {
   std::lock_guard lock(mu_);
   if (silent_) return;
+  now_ = now;
   if (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) return;
   const std::uint32_t id = f.can_id & CAN_SFF_MASK;
   if (id == kNmt) {
@@ -145,6 +147,7 @@ void SimNode::handle(const can_frame& f, Clock::time_point now, FrameSink& out) 
 void SimNode::tick(Clock::time_point now, FrameSink& out) {
   std::lock_guard lock(mu_);
   if (silent_) return;
+  now_ = now;
   if (pending_reboot_) {
     pending_reboot_ = false;
     boot(out);
@@ -153,6 +156,7 @@ void SimNode::tick(Clock::time_point now, FrameSink& out) {
     pending_emcy_ = false;
     emit_emcy(pending_emcy_code_, pending_emcy_reg_, out);
   }
+  on_tick(now, out);
   const std::uint32_t period_ms = get(od::kProducerHeartbeat, 0);
   if (period_ms == 0) {
     hb_armed_ = false;

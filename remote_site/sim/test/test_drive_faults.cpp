@@ -269,3 +269,28 @@ TEST(FtSensorOnBus, WrenchSourceSeesTheSimulatedArm) {
   EXPECT_NEAR(rig.fb.joints[0].position_rad, q0 + 0.01, 1e-5);
   EXPECT_NEAR(rig.ft.wrench_ft[2], -1000.0 * (q0 + 0.01), 0.02);
 }
+
+TEST(DriveFaults, DrivesFaultWhenTheMasterStopsCycling) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.run_until([](const CycleStatus&) { return false; }, 30);
+  // The master falls silent (no SYNC, no heartbeat): after heartbeat.consumer_ms
+  // the drives fault on their own (0x1016 consumer), EMCY 0x8130.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::Fault) << j;
+  const CycleStatus s = rig.drives->cycle_read(rig.fb, rig.ft);
+  int heartbeat_emcy = 0;
+  for (std::size_t k = 0; k < s.event_count; ++k)
+    if (s.events[k].fault == HwFault::Emergency && s.events[k].code == 0x8130) {
+      ++heartbeat_emcy;
+      EXPECT_NE(rig.drives->describe(s.events[k]).find("0x8130 life guard or heartbeat error"), std::string::npos);
+    }
+  EXPECT_EQ(heartbeat_emcy, 7);
+  // Cycling again and enable() recover.
+  rig.drives->enable();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::OperationEnabled) << j;
+  rig.deadline = Clock::now();
+  for (std::size_t j = 0; j < 7; ++j) rig.targets.position_rad[j] = rig.fb.joints[j].position_rad;
+  const CycleStatus after = rig.run_until([](const CycleStatus& st) { return !st.ok(); }, 50);
+  EXPECT_TRUE(after.ok()) << (after.event_count ? rig.drives->describe(after.events[0]) : "");
+}

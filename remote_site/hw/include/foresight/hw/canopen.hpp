@@ -174,6 +174,7 @@ inline constexpr std::uint16_t kErrorRegister = 0x1001;
 inline constexpr std::uint16_t kCobIdSync = 0x1005;
 inline constexpr std::uint16_t kCommCyclePeriod = 0x1006;  // us
 inline constexpr std::uint16_t kDeviceName = 0x1008;       // visible string (segmented upload)
+inline constexpr std::uint16_t kConsumerHeartbeat = 0x1016;  // sub 1: node id << 16 | ms
 inline constexpr std::uint16_t kProducerHeartbeat = 0x1017;  // ms
 inline constexpr std::uint16_t kRpdo1Comm = 0x1400;
 inline constexpr std::uint16_t kRpdo1Map = 0x1600;

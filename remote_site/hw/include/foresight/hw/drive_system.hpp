@@ -13,7 +13,10 @@
 //        cycle_read:  drain every bus; TPDOs -> feedback; heartbeats, EMCY,
 //                     error frames -> events; heartbeat/TPDO timeouts.
 //        cycle_write: one RPDO (controlword + target position) per drive,
-//                     then SYNC, on every bus.
+//                     then SYNC, on every bus; the master's own heartbeat
+//                     (0x700 + heartbeat.master_node_id) every producer period,
+//                     which the drives consume (0x1016): a master that stops
+//                     cycling faults the drives (EMCY 0x8130).
 //      request_quick_stop() and request_tare() may be called from any thread.
 // Errors in the cycle are values (CycleStatus events), never exceptions.
 // Set-up calls and cycle calls must not overlap: run set-up before the
@@ -240,6 +243,8 @@ class DriveSystem {
   std::unique_ptr<Ft> ft_;
   std::vector<BusState> bus_state_;
   std::chrono::nanoseconds heartbeat_timeout_;
+  std::chrono::nanoseconds master_hb_period_;
+  Clock::time_point last_master_hb_{};
 
   std::array<HwEvent, CycleStatus::kMaxEvents> pending_{};
   std::size_t pending_count_ = 0;

@@ -57,8 +57,9 @@ struct FtConfig {
 struct RemoteConfig {
   std::string source;  ///< file name (for messages)
   double cycle_rate_hz = 500.0;
-  double heartbeat_producer_s = 0.1;  ///< period each node sends its heartbeat
-  double heartbeat_consumer_s = 0.25; ///< a node silent longer than this is a fault
+  double heartbeat_producer_s = 0.1;  ///< period each node (and the master) sends its heartbeat
+  double heartbeat_consumer_s = 0.25; ///< a node silent longer than this is a fault (both ways)
+  std::uint8_t master_node_id = 127;  ///< node id of the master's own heartbeat (0x700 + id)
   double sdo_timeout_s = 0.1;
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
   int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
@@ -98,7 +99,8 @@ struct BusLoad {
   double bits_per_s = 0.0;      ///< cycle traffic x rate + heartbeats
   std::uint32_t bitrate_bps = 0;
   double load = 0.0;            ///< bits_per_s / bitrate
-  /// "bus arm_a: 4 drives, SYNC + 8 PDOs = 9 frames/cycle, 1055 bits/cycle x 500 Hz + heartbeats 2520 bit/s = 530 kbit/s = 53.0% of 1000 kbit/s"
+  /// "bus arm_a: 4 drives, 9 frames/cycle (SYNC + 8 PDOs), 1055 bits/cycle worst case x 500 Hz + heartbeats
+  /// 6500 bit/s = 534.0 kbit/s = 53.4% of 1000 kbit/s" (heartbeats: every node and the master)
   std::string describe() const;
 };
 std::vector<BusLoad> compute_bus_loads(const RemoteConfig& config);

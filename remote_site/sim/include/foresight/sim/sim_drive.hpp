@@ -2,7 +2,8 @@
 // A simulated CiA 402 servo drive (CANopen node): the power state machine,
 // cyclic synchronous position mode with second-order position tracking
 // (velocity feed-forward from successive targets), following-error and
-// position-limit faults with their EMCY codes, PDOs exactly as mapped by the
+// position-limit faults with their EMCY codes, a consumer of the master's
+// heartbeat (0x1016; a silent master faults the drive, EMCY 0x8130), PDOs exactly as mapped by the
 // master over SDO (a wrong mapping gives wrong frames), heartbeat, and fault
 // injection. Positions are drive counts (motor encoder); physics advances one
 // communication cycle period (0x1006) per SYNC, so runs are deterministic.
@@ -51,6 +52,7 @@ class SimDrive final : public SimNode {
   void reset_application() override;
   void on_sync(Clock::time_point now, FrameSink& out) override;
   void on_frame(const can_frame& f, FrameSink& out) override;
+  void on_tick(Clock::time_point now, FrameSink& out) override;
   std::uint32_t check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value) override;
 
  private:
@@ -75,6 +77,8 @@ class SimDrive final : public SimNode {
   bool have_rpdo_ = false;
   std::array<std::uint8_t, 8> rpdo_{};
   std::uint8_t rpdo_len_ = 0;
+  bool master_hb_armed_ = false;  // heartbeat consumer (0x1016): armed by the first heartbeat
+  Clock::time_point master_hb_{};
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };

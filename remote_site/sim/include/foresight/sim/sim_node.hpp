@@ -82,12 +82,14 @@ class SimNode {
   /// Device hooks, called with mu_ held.
   virtual void reset_application() = 0;  ///< OD and device state to power-on defaults
   virtual void on_sync(Clock::time_point now, FrameSink& out) = 0;
-  virtual void on_frame(const can_frame& f, FrameSink& out);  ///< PDOs etc.
+  virtual void on_frame(const can_frame& f, FrameSink& out);  ///< PDOs, other nodes' heartbeats
+  virtual void on_tick(Clock::time_point now, FrameSink& out);  ///< time-driven device behaviour
   /// Validate an SDO download; 0 to accept, else the abort code.
   virtual std::uint32_t check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value);
   void emit_emcy(std::uint16_t code, std::uint8_t error_register, FrameSink& out);
 
   mutable std::mutex mu_;
+  Clock::time_point now_{};  ///< time of the frame or tick being handled
   std::map<std::uint32_t, Entry> od_;
   hw::canopen::NmtState nmt_ = hw::canopen::NmtState::PreOperational;
   const std::uint8_t node_id_;
