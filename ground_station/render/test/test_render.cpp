@@ -1,9 +1,11 @@
 // Renderer tests on both GL back ends: projection consistency with
 // Camera::project, render modes, compositing, bad input.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
@@ -11,6 +13,7 @@
 #include "foresight/render/gl_context.hpp"
 #include "foresight/render/renderer.hpp"
 #include "foresight/render/scene_geometry.hpp"
+#include "foresight/render/video_frame.hpp"
 
 using namespace foresight;
 using namespace foresight::render;
@@ -287,3 +290,50 @@ TEST(RenderBadInput, NamesAndModes) {
 
 INSTANTIATE_TEST_SUITE_P(Backends, BackendTest, ::testing::Values(GlBackend::OSMesa, GlBackend::Egl),
                          [](const auto& info) { return std::string(to_string(info.param)); });
+
+// The video frame: a still image, or frame K of a video file.
+TEST(VideoFrame, ReadsTheRequestedFrameOfAVideo) {
+  char tmpl[] = "/tmp/foresight_video_XXXXXX";
+  const int fd = mkstemp(tmpl);
+  close(fd);
+  std::remove(tmpl);
+  const std::string path = std::string(tmpl) + ".avi";
+  {
+    cv::VideoWriter w(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10.0, cv::Size(64, 48));
+    ASSERT_TRUE(w.isOpened());
+    for (int k = 0; k < 5; ++k) w.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(40 * k + 20, 40 * k + 20, 40 * k + 20)));
+  }
+  for (int k : {0, 3, 4}) {
+    const cv::Mat f = read_video_frame(path, k);
+    ASSERT_EQ(f.type(), CV_8UC3);
+    EXPECT_NEAR(cv::mean(f)[1], 40 * k + 20, 3.0) << "frame " << k;
+  }
+  try {
+    read_video_frame(path, 7);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": video has only 5 frames; frame 7 requested");
+  }
+  Camera cam;
+  cam.name = "side";
+  cam.viewport = {64, 48};
+  EXPECT_EQ(fit_to_viewport(read_video_frame(path, 1), path, cam, false).cols, 64);
+  cam.viewport = {128, 96};
+  try {
+    fit_to_viewport(read_video_frame(path, 1), path, cam, false);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              path + ": image is 64x48 but camera 'side' has a 128x96 viewport (pass --scale-image to resize it)");
+  }
+  const cv::Mat scaled = fit_to_viewport(read_video_frame(path, 1), path, cam, true);
+  EXPECT_EQ(scaled.cols, 128);
+  EXPECT_EQ(scaled.rows, 96);
+  std::remove(path.c_str());
+  try {
+    read_video_frame(path);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": cannot read image or video");
+  }
+}
