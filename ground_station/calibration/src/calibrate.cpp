@@ -331,10 +331,12 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   Eigen::VectorXd e(2 * m);
   Eigen::Matrix<double, Eigen::Dynamic, 7> J(2 * m, 7);
   evaluate(state, e, &J);
+  res.information = J.transpose() * J;
   const Eigen::Vector3d rpy = rpy_from_rotation(state.R);
   J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy)).eval();
   const double dof = std::max(2 * m - 7, 1);
   const double s2 = e.squaredNorm() / dof;
+  res.residual_variance_px2 = s2;
   const Eigen::Matrix<double, 7, 7> H = J.transpose() * J;
   res.covariance = s2 * H.inverse();
   res.sigma = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();

@@ -137,7 +137,7 @@ std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
         info.rms_px = c["rms_px"].as<double>(0.0);
         info.max_px = c["max_px"].as<double>(0.0);
         info.n_points = c["n_points"].as<int>(0);
-        if (c["outliers"]) info.outliers = c["outliers"].as<std::vector<int>>();
+        if (c["outliers"] && !c["outliers"].IsNull()) info.outliers = c["outliers"].as<std::vector<int>>();
         info.date = c["date"].as<std::string>("");
         rec.calibration = info;
       }
@@ -167,7 +167,7 @@ void save_cameras(const std::string& path, const std::map<std::string, CameraRec
       cn["rms_px"] = c.rms_px;
       cn["max_px"] = c.max_px;
       cn["n_points"] = c.n_points;
-      YAML::Node outl;
+      YAML::Node outl(YAML::NodeType::Sequence);  // an empty list, not null
       outl.SetStyle(YAML::EmitterStyle::Flow);
       for (int o : c.outliers) outl.push_back(o);
       cn["outliers"] = outl;

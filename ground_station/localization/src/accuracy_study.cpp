@@ -167,7 +167,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       c.crlb_depth95_m = 2.0 * std::sqrt(joint(2, 2));
       res.combos.push_back(c);
     }
-  std::vector<Accumulator> ours(res.combos.size()), pnp_it(res.combos.size()), pnp_sq(res.combos.size()),
+  std::vector<Accumulator> ours(res.combos.size()), ours_joint(res.combos.size()), pnp_it(res.combos.size()), pnp_sq(res.combos.size()),
       tri(res.combos.size());
   std::vector<double> calib_rms_sum(nv, 0.0);
   int good_trials = 0;
@@ -175,6 +175,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   std::normal_distribution<double> noise(0.0, opt.noise_px);
   for (int t = 0; t < opt.trials; ++t) {
     std::map<std::string, Camera> cams;
+    std::map<std::string, Eigen::Matrix<double, 7, 7>> information;
     std::vector<Correspondence> clicks;
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
@@ -191,6 +192,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       try {
         const CalibrationResult r = calibrate_camera(cal, view.truth.viewport, view.truth.name);
         cams[view.truth.name] = r.camera;
+        information[view.truth.name] = r.information;
         calib_rms_sum[v] += r.rms_px;
       } catch (const EstimationError&) {
         ok = false;
@@ -224,6 +226,13 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       } catch (const EstimationError&) {
         ++combo.failures;
       }
+      try {
+        LocalizationOptions lj = lo;
+        lj.camera_information = information;
+        ours_joint[ci].add(pose_error(localize_object(pts, cams, lj).base_T_object, setup.base_T_object));
+      } catch (const EstimationError&) {
+        ++combo.joint_failures;
+      }
       if (combo.views.size() == 1) {
         const Camera& cam = cams.at(lo.views[0]);
         if (const auto T = solve_pnp_opencv(pts, cam, PnpMethod::Iterative))
@@ -238,6 +247,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   }
   for (std::size_t ci = 0; ci < res.combos.size(); ++ci) {
     res.combos[ci].ours = ours[ci].stats();
+    res.combos[ci].ours_joint = ours_joint[ci].stats();
     res.combos[ci].pnp_iterative = pnp_it[ci].stats();
     res.combos[ci].pnp_sqpnp = pnp_sq[ci].stats();
     res.combos[ci].triangulation = tri[ci].stats();

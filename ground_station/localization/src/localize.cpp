@@ -1,5 +1,6 @@
 #include "foresight/localization/localize.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/QR>
@@ -294,6 +295,105 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   std::vector<double> r;
   const std::vector<bool> inlier = detail::flag_outliers(n, 6, opt.outliers, fit, r);
   if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+  idx.clear();
+  for (int i = 0; i < n; ++i)
+    if (inlier[i]) idx.push_back(i);
+  const int m = static_cast<int>(idx.size());
+
+  // Optional joint refinement: the pose and every camera that comes with its
+  // calibration information, the cameras held to their calibration by a
+  // prior (a Gaussian with information J^T J in pixel units). Asymptotically
+  // the joint maximum likelihood of calibration and localization clicks.
+  std::vector<std::string> joint_names;
+  for (const auto& v : res.views)
+    if (opt.camera_information.count(v)) joint_names.push_back(v);
+  const int kj = static_cast<int>(joint_names.size());
+  std::map<std::string, Camera> refined;
+  Eigen::MatrixXd joint_H;
+  double joint_ss = 0.0;
+  if (kj > 0) {
+    std::map<std::string, int> slot;
+    std::vector<Eigen::Matrix<double, 7, 7>> Lt(kj);
+    std::vector<Camera> cams0;
+    for (int j = 0; j < kj; ++j) {
+      slot[joint_names[j]] = j;
+      cams0.push_back(cameras.at(joint_names[j]));
+      const Eigen::Matrix<double, 7, 7>& info = opt.camera_information.at(joint_names[j]);
+      const Eigen::LLT<Eigen::Matrix<double, 7, 7>> llt(info);
+      if (llt.info() != Eigen::Success || !info.allFinite())
+        throw EstimationError("camera '" + joint_names[j] + "': calibration information is not positive definite");
+      Lt[j] = llt.matrixL().transpose();
+    }
+    struct JointState {
+      Eigen::Matrix3d R;
+      Eigen::Vector3d t;
+      std::vector<Camera> cams;
+    };
+    JointState js{state.R, state.t, cams0};
+    const int np = 6 + 7 * kj, nr = 2 * m + 7 * kj;
+    auto jevaluate = [&](const JointState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>* J) {
+      if (J) J->setZero();
+      for (int k = 0; k < m; ++k) {
+        const Obs& o = obs[idx[k]];
+        const auto it = slot.find(o.c->cam);
+        const Camera& cam = it == slot.end() ? *o.cam : s.cams[it->second];
+        const Eigen::Matrix3d& Rc = cam.base_T_camera.linear();
+        const Eigen::Vector3d pc = Rc.transpose() * (s.R * o.c->p_m + s.t - cam.base_T_camera.translation());
+        const double iz = 1.0 / pc.z(), f = cam.f_px;
+        const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
+        e.segment<2>(2 * k) = cam.principal_point() + f * xy - o.c->uv_px;
+        if (J) {
+          Eigen::Matrix<double, 2, 3> dproj;
+          dproj << f * iz, 0.0, -f * xy.x() * iz, 0.0, f * iz, -f * xy.y() * iz;
+          const Eigen::Matrix<double, 2, 3> d = dproj * Rc.transpose();
+          J->block<2, 3>(2 * k, 0) = -d * s.R * skew(o.c->p_m);
+          J->block<2, 3>(2 * k, 3) = d;
+          if (it != slot.end()) {
+            const int c0 = 6 + 7 * it->second;
+            J->block<2, 3>(2 * k, c0) = dproj * skew(pc);
+            J->block<2, 3>(2 * k, c0 + 3) = -d;
+            J->block<2, 1>(2 * k, c0 + 6) = xy;
+          }
+        }
+      }
+      for (int j = 0; j < kj; ++j) {
+        Eigen::Matrix<double, 7, 1> dlt;
+        const Eigen::AngleAxisd aa(cams0[j].base_T_camera.linear().transpose() * s.cams[j].base_T_camera.linear());
+        dlt << aa.angle() * aa.axis(), s.cams[j].base_T_camera.translation() - cams0[j].base_T_camera.translation(),
+            s.cams[j].f_px - cams0[j].f_px;
+        e.segment<7>(2 * m + 7 * j) = Lt[j] * dlt;
+        if (J) J->block<7, 7>(2 * m + 7 * j, 6 + 7 * j) = Lt[j];
+      }
+    };
+    auto jretract = [&](const JointState& s, const Eigen::VectorXd& d) {
+      JointState out{s.R * exp_so3(d.head<3>()), s.t + d.segment<3>(3), s.cams};
+      for (int j = 0; j < kj; ++j) {
+        const auto dc = d.segment<7>(6 + 7 * j);
+        out.cams[j].base_T_camera.linear() = s.cams[j].base_T_camera.linear() * exp_so3(dc.head<3>());
+        out.cams[j].base_T_camera.translation() += dc.segment<3>(3);
+        out.cams[j].f_px += dc[6];
+      }
+      return out;
+    };
+    iterations += detail::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, opt.max_iterations, np)
+                      .iterations;
+    state.R = js.R;
+    state.t = js.t;
+    for (int j = 0; j < kj; ++j) refined[joint_names[j]] = js.cams[j];
+    Eigen::VectorXd e(nr);
+    Eigen::MatrixXd J(nr, np);
+    jevaluate(js, e, &J);
+    joint_H = J.transpose() * J;
+    joint_ss = e.squaredNorm();
+    res.camera_uncertainty = true;
+    res.refined_cameras = refined;
+  }
+  auto camera_of = [&](const Obs& o) -> const Camera& {
+    const auto it = refined.find(o.c->cam);
+    return it == refined.end() ? *o.cam : it->second;
+  };
+
+  if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
   res.base_T_object = Pose::Identity();
   res.base_T_object.linear() = state.R;
   res.base_T_object.translation() = state.t;
@@ -301,16 +401,16 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
 
   std::string behind;
   double ss = 0.0;
-  int m = 0;
   std::vector<Obs> in_obs;
   for (int i = 0; i < n; ++i) {
     const Obs& o = obs[i];
-    const Eigen::Vector3d pc = o.cam->to_camera(res.base_T_object * o.c->p_m);
+    const Camera& cam = camera_of(o);
+    const Eigen::Vector3d pc = cam.to_camera(res.base_T_object * o.c->p_m);
     PointResidual pr;
     pr.n = o.c->n;
     pr.cam = o.c->cam;
     pr.line = o.c->line;
-    pr.r_px = o.c->uv_px - o.cam->project_camera(pc);
+    pr.r_px = o.c->uv_px - cam.project_camera(pc);
     pr.px = pr.r_px.norm();
     pr.outlier = !inlier[i];
     if (pr.outlier) {
@@ -319,7 +419,6 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(*o.c);
       ss += pr.px * pr.px;
       res.max_px = std::max(res.max_px, pr.px);
-      ++m;
       in_obs.push_back(o);
     }
     res.residuals.push_back(pr);
@@ -328,16 +427,23 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   res.rms_px = std::sqrt(ss / m);
   res.linear_rms_px = score(res.outliers.empty() ? linear_all : linear_pose(in_obs, opt.rank_tolerance), in_obs).second;
 
-  idx.clear();
-  for (int i = 0; i < n; ++i)
-    if (inlier[i]) idx.push_back(i);
-  Eigen::VectorXd e(2 * m);
-  Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m, 6);
-  evaluate(state, e, &J);
-  J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy_from_rotation(state.R))).eval();
-  const double s2 = e.squaredNorm() / std::max(2 * m - 6, 1);
-  const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
-  res.covariance = s2 * H.inverse();
+  // Covariance of (rpy, position): s^2 H^-1 (its pose block in the joint
+  // case), the body rotation increments mapped to rpy rates.
+  Eigen::Matrix<double, 6, 6> C_body;
+  if (kj > 0) {
+    const double s2 = joint_ss / std::max(2 * m - 6, 1);
+    C_body = s2 * joint_H.inverse().topLeftCorner<6, 6>();
+  } else {
+    Eigen::VectorXd e(2 * m);
+    Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m, 6);
+    evaluate(state, e, &J);
+    const double s2 = e.squaredNorm() / std::max(2 * m - 6, 1);
+    const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
+    C_body = s2 * H.inverse();
+  }
+  Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
+  G.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(state.R)).inverse();
+  res.covariance = G * C_body * G.transpose();
   const Eigen::Matrix<double, 6, 1> sd = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   res.sigma_rpy_rad = sd.head<3>();
   res.sigma_position_m = sd.tail<3>();

@@ -100,8 +100,9 @@ TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
     // The estimate is unbiased to within its spread and not better than the bound.
     for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(c.ours.mean[i]), 4.0 * c.ours.sd[i] / std::sqrt(150.0) + 1e-12);
     EXPECT_GT(c.ours.position_rmse_m, 0.8 * c.crlb_position_m) << c.label;
-    std::printf("%-8s pos rmse %.3f mm crlb %.3f (known cams %.3f) rot rmse %.4f deg crlb %.4f | pnp %.3f sqpnp %.3f tri %.3f\n",
-                c.label.c_str(), 1e3 * c.ours.position_rmse_m, 1e3 * c.crlb_position_m,
+    std::printf("%-8s joint %.3f mm %.4f deg | pos rmse %.3f mm crlb %.3f (known cams %.3f) rot rmse %.4f deg crlb %.4f | pnp %.3f sqpnp %.3f tri %.3f\n",
+                c.label.c_str(), 1e3 * c.ours_joint.position_rmse_m, c.ours_joint.rotation_rmse_rad * 180 / M_PI,
+                1e3 * c.ours.position_rmse_m, 1e3 * c.crlb_position_m,
                 1e3 * c.crlb_known_cameras_sd.head<3>().norm(), c.ours.rotation_rmse_rad * 180 / M_PI,
                 c.crlb_rotation_rad * 180 / M_PI, 1e3 * c.pnp_iterative.position_rmse_m, 1e3 * c.pnp_sqpnp.position_rmse_m,
                 1e3 * c.triangulation.position_rmse_m);

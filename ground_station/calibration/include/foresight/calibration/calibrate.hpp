@@ -74,6 +74,13 @@ struct CalibrationResult {
   /// the inlier residual variance: s^2 (J^T J)^-1, s^2 = SSR / (2 N - 7).
   Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Zero();
   Eigen::Matrix<double, 7, 1> sigma = Eigen::Matrix<double, 7, 1>::Zero();  ///< sqrt(diag(covariance))
+  /// J^T J of the inlier reprojection errors (pixels) at the solution, in
+  /// the parameters (body-frame rotation increment of base_T_camera [rad],
+  /// position [m], f_px): the information the clicks carry about the camera,
+  /// before the noise variance. Localization can use it to weigh the
+  /// camera's uncertainty (LocalizationOptions::camera_information).
+  Eigen::Matrix<double, 7, 7> information = Eigen::Matrix<double, 7, 7>::Zero();
+  double residual_variance_px2 = 0.0;  ///< s^2 = SSR / (2 N - 7), per axis
   double rms_px = 0.0;           ///< over inliers
   double max_px = 0.0;           ///< over inliers
   double linear_rms_px = 0.0;    ///< the linear stage alone, over inliers

@@ -63,7 +63,11 @@ struct ErrorStats {
 struct ComboStats {
   std::vector<int> views;  ///< 0-based view indices
   std::string label;       ///< "1+2+4" (1-based, as the paper)
-  ErrorStats ours;         ///< calibrate, then localize (linear + Gauss-Newton)
+  ErrorStats ours;         ///< calibrate, then localize (linear + Gauss-Newton), the paper's method
+  /// The same, with the calibrations' information as camera priors: pose and
+  /// cameras refined together (LocalizationOptions::camera_information).
+  ErrorStats ours_joint;
+  int joint_failures = 0;
   ErrorStats pnp_iterative;   ///< single views only
   ErrorStats pnp_sqpnp;       ///< single views only
   ErrorStats triangulation;   ///< two or more views

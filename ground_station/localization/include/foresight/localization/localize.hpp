@@ -34,6 +34,14 @@ struct LocalizationOptions {
   /// listed view without points is an error.
   std::vector<std::string> views;
   double rank_tolerance = 1e-9;
+  /// Optional, per camera name: the calibration's information matrix
+  /// (CalibrationResult::information, J^T J in pixels, parameters body
+  /// rotation, position, f_px). The cameras listed here are refined together
+  /// with the pose, held to their calibration by this prior: the joint
+  /// estimate of calibration and localization, whose reported sigma includes
+  /// the cameras' uncertainty. Empty: the paper's 6-parameter fit with the
+  /// cameras taken as exact.
+  std::map<std::string, Eigen::Matrix<double, 7, 7>> camera_information;
 };
 
 struct LocalizationResult {
@@ -50,6 +58,8 @@ struct LocalizationResult {
   std::vector<std::string> views;       ///< the views used, sorted
   std::vector<PointResidual> residuals; ///< every point used, input order
   std::vector<int> outliers;            ///< `n` of each flagged point
+  bool camera_uncertainty = false;      ///< the joint refinement ran
+  std::map<std::string, Camera> refined_cameras;  ///< cameras refined with the pose (joint case)
 
   Eigen::Vector3d rpy_rad() const;
   Eigen::Vector3d position_m() const { return base_T_object.translation(); }

@@ -17,13 +17,15 @@ struct LmReport {
 
 /// Problem: `evaluate(state, e, J)` fills residuals e (m) and, when J is not
 /// null, the Jacobian de/dparams (m x P); `retract(state, delta)` returns the
-/// state moved by delta. Residuals are predicted minus measured.
+/// state moved by delta. Residuals are predicted minus measured. P may be
+/// Eigen::Dynamic, with the count in `params`.
 template <int P, class State, class Evaluate, class Retract>
-LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, Retract&& retract, int max_iterations) {
+LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, Retract&& retract, int max_iterations,
+                             int params = P) {
   using MatP = Eigen::Matrix<double, P, P>;
   using VecP = Eigen::Matrix<double, P, 1>;
   Eigen::VectorXd e(residuals), e_new(residuals);
-  Eigen::Matrix<double, Eigen::Dynamic, P> J(residuals, P);
+  Eigen::Matrix<double, Eigen::Dynamic, P> J(residuals, params);
   evaluate(state, e, &J);
   double cost = 0.5 * e.squaredNorm();
   double mu = 1e-4;
@@ -35,7 +37,7 @@ LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, R
     bool accepted = false;
     for (int tries = 0; tries < 20 && !accepted; ++tries) {
       MatP A = H;
-      for (int i = 0; i < P; ++i) A(i, i) += mu * std::max(H(i, i), 1e-12);
+      for (int i = 0; i < params; ++i) A(i, i) += mu * std::max(H(i, i), 1e-12);
       const VecP delta = -A.ldlt().solve(g);
       if (!delta.allFinite()) {
         mu *= 10.0;

@@ -1,0 +1,40 @@
+#include "foresight/calibration/robot_points.hpp"
+
+namespace foresight {
+
+RobotLinkPoints::RobotLinkPoints(std::string urdf_path) : path_(std::move(urdf_path)) {}
+
+RobotLinkPoints::RobotLinkPoints(const RobotModel& model) : model_(model) {
+  ws_ = std::make_unique<KinematicsWorkspace>(*model_);
+}
+
+RobotLinkPoints::~RobotLinkPoints() = default;
+
+void RobotLinkPoints::load() const {
+  if (model_) return;
+  model_.emplace(RobotModel::from_file(path_));
+  ws_ = std::make_unique<KinematicsWorkspace>(*model_);
+}
+
+const RobotModel& RobotLinkPoints::model() const {
+  load();
+  return *model_;
+}
+
+int RobotLinkPoints::dof() const { return model().dof(); }
+
+bool RobotLinkPoints::has_link(const std::string& link) const { return model().link_index(link) >= 0; }
+
+std::string RobotLinkPoints::link_list() const {
+  std::string s;
+  for (const auto& l : model().links()) s += (s.empty() ? "" : ", ") + l.name;
+  return s;
+}
+
+Eigen::Vector3d RobotLinkPoints::to_base(const std::string& link, const Eigen::Vector3d& p_link,
+                                         const Eigen::VectorXd& q) const {
+  const RobotModel& m = model();
+  return forward_kinematics(m, *ws_, q, m.link_index(link)) * p_link;
+}
+
+}  // namespace foresight

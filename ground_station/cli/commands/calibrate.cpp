@@ -1,0 +1,143 @@
+// foresight calibrate: camera calibration with the robot arm as the fixture.
+//
+//   foresight calibrate POINTS.csv --camera NAME [--viewport 646x486]
+//                       [--robot config/robot.urdf] [--out cameras.yaml] [--json]
+//
+// Uses the rows of POINTS.csv whose cam column is NAME (base-frame points or
+// points on arm links with their joint angles). Exit: 0 ok, 2 bad input
+// (file, rows, too few or degenerate points), 1 the fit failed.
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <iostream>
+#include <set>
+
+#include "command.hpp"
+#include "foresight/calibration/calibrate.hpp"
+#include "foresight/calibration/robot_points.hpp"
+#include "foresight/common/error.hpp"
+#include "json_util.hpp"
+
+namespace foresight::cli {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+struct CalibrateArgs {
+  std::string points;
+  std::string camera;
+  std::string viewport = "646x486";
+  std::string robot = default_config("robot.urdf");
+  std::string out;
+  bool json = false;
+};
+
+std::string utc_now() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+int run_calibrate(const CalibrateArgs& a) {
+  const Viewport vp = parse_viewport(a.viewport);
+  RobotLinkPoints robot(a.robot);
+  const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
+  const std::vector<Correspondence> pts = select_camera(all, a.camera);
+  if (pts.empty()) {
+    std::set<std::string> names;
+    for (const auto& c : all) names.insert(c.cam);
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
+  }
+  const CalibrationResult r = calibrate_camera(pts, vp, a.camera);
+  const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
+  const Eigen::Vector3d pos = r.position_m();
+  const double fovy_deg = r.camera.fovy_rad() / kDeg;
+  const Eigen::Vector3d sigma_rpy_deg = r.sigma.head<3>() / kDeg;
+  const Eigen::Vector3d sigma_pos = r.sigma.segment<3>(3);
+
+  if (!a.out.empty()) {
+    std::map<std::string, CameraRecord> cams;
+    if (std::filesystem::exists(a.out)) cams = load_cameras(a.out);
+    cams[a.camera] = CameraRecord{r.camera, r.info(utc_now())};
+    save_cameras(a.out, cams);
+  }
+
+  if (a.json) {
+    nlohmann::json residuals = nlohmann::json::array();
+    for (const auto& p : r.residuals)
+      residuals.push_back({{"n", p.n}, {"px", p.px}, {"du_px", p.r_px.x()}, {"dv_px", p.r_px.y()}, {"outlier", p.outlier},
+                           {"line", p.line}});
+    nlohmann::json j = {{"camera", a.camera},
+                        {"viewport", {vp.width_px, vp.height_px}},
+                        {"f_px", r.camera.f_px},
+                        {"fovy_deg", fovy_deg},
+                        {"position_m", vec_json(pos)},
+                        {"rpy_deg", vec_json(rpy_deg)},
+                        {"base_T_camera", pose_json(r.camera.base_T_camera)},
+                        {"rms_px", r.rms_px},
+                        {"max_px", r.max_px},
+                        {"linear_rms_px", r.linear_rms_px},
+                        {"linear_cross_product", r.linear_cross_product},
+                        {"residuals_px", residuals},
+                        {"outliers", r.outliers},
+                        {"sigma", {{"f_px", r.sigma[6]}, {"position_m", vec_json(sigma_pos)}, {"rpy_deg", vec_json(sigma_rpy_deg)}}},
+                        {"covariance", matrix_rows(r.covariance)},
+                        {"iterations", r.iterations},
+                        {"n_points", r.n_points}};
+    if (!a.out.empty()) j["out"] = a.out;
+    std::cout << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  std::printf("camera %s  (%d points, viewport %dx%d, principal point at the centre)\n", a.camera.c_str(), r.n_points,
+              vp.width_px, vp.height_px);
+  std::printf("  f_px        %10.2f  +- %.2f   (vertical field of view %.2f deg)\n", r.camera.f_px, r.sigma[6], fovy_deg);
+  std::printf("  position m  %10.4f %10.4f %10.4f  +- %.4f %.4f %.4f\n", pos.x(), pos.y(), pos.z(), sigma_pos.x(),
+              sigma_pos.y(), sigma_pos.z());
+  std::printf("  rpy deg     %10.3f %10.3f %10.3f  +- %.3f %.3f %.3f\n", rpy_deg.x(), rpy_deg.y(), rpy_deg.z(),
+              sigma_rpy_deg.x(), sigma_rpy_deg.y(), sigma_rpy_deg.z());
+  std::printf("  base_T_camera\n");
+  for (int i = 0; i < 4; ++i)
+    std::printf("    %10.6f %10.6f %10.6f %10.6f\n", r.camera.base_T_camera(i, 0), r.camera.base_T_camera(i, 1),
+                r.camera.base_T_camera(i, 2), r.camera.base_T_camera(i, 3));
+  std::printf("  rms %.3f px, max %.3f px (inliers); linear stage rms %.3f px%s; %d iterations\n", r.rms_px, r.max_px,
+              r.linear_rms_px, r.linear_cross_product ? " (r3 = r1 x r2)" : "", r.iterations);
+  std::printf("  residuals (px):");
+  for (std::size_t i = 0; i < r.residuals.size(); ++i)
+    std::printf("%s n%d %.2f%s", i % 8 == 0 ? "\n   " : "", r.residuals[i].n, r.residuals[i].px,
+                r.residuals[i].outlier ? "*" : "");
+  std::printf("\n");
+  if (r.outliers.empty()) {
+    std::printf("  outliers: none\n");
+  } else {
+    for (const auto& p : r.residuals)
+      if (p.outlier)
+        std::printf("  outlier: point n=%d (line %d) residual %.2f px, left out of the fit\n", p.n, p.line, p.px);
+  }
+  if (!a.out.empty()) std::printf("  written to %s\n", a.out.c_str());
+  return kExitOk;
+}
+
+std::function<int()> setup(CLI::App& sub) {
+  auto a = std::make_shared<CalibrateArgs>();
+  sub.add_option("points", a->points, "clicked points CSV (n,cam,x,y,z,u,v or n,cam,link,lx,ly,lz,q1..qN,u,v)")
+      ->required();
+  sub.add_option("--camera", a->camera, "camera name (the cam column)")->required();
+  sub.add_option("--viewport", a->viewport, "viewport WIDTHxHEIGHT in pixels")->capture_default_str();
+  sub.add_option("--robot", a->robot, "robot URDF for points on arm links")->capture_default_str();
+  sub.add_option("--out", a->out, "cameras.yaml to add this camera to (others are kept)");
+  sub.add_flag("--json", a->json, "print one JSON object");
+  return [a] { return run_calibrate(*a); };
+}
+
+const bool registered = register_command({"calibrate", "calibrate a camera with the robot arm as the fixture", setup});
+
+}  // namespace
+}  // namespace foresight::cli

@@ -1,0 +1,317 @@
+// CLI-level tests: run the built `foresight` binary on generated files and
+// check exit codes, stderr messages and the --json contract of calibrate,
+// localize and eval localization.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+
+#include "foresight/calibration/robot_points.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/scene.hpp"
+#include "foresight/localization/localize.hpp"
+
+using namespace foresight;
+
+namespace {
+
+struct CliRun {
+  int status = -1;
+  std::string out, err;
+};
+
+std::string temp_path(const std::string& suffix) {
+  char name[] = "/tmp/foresight_cli_est_XXXXXX";
+  const int fd = mkstemp(name);
+  EXPECT_GE(fd, 0);
+  ::close(fd);
+  std::remove(name);
+  return std::string(name) + suffix;
+}
+
+std::string write_file(const std::string& text, const std::string& suffix = ".csv") {
+  const std::string p = temp_path(suffix);
+  std::ofstream(p) << text;
+  return p;
+}
+
+CliRun run(const std::string& args) {
+  const std::string err_path = temp_path(".err");
+  const std::string cmd = std::string(FORESIGHT_BIN_DIR "/foresight ") + args + " 2>" + err_path;
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  std::ifstream e(err_path);
+  std::stringstream ss;
+  ss << e.rdbuf();
+  r.err = ss.str();
+  std::remove(err_path.c_str());
+  return r;
+}
+
+std::map<std::string, Camera> scene_cameras() {
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  std::map<std::string, Camera> out;
+  for (const auto& [name, c] : scene.cameras)
+    out[name] = Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up);
+  return out;
+}
+
+/// Base-frame clicks for `cam`: workspace points it sees, noisy pixels.
+std::string calibration_csv(const Camera& cam, int count, double noise, unsigned seed, int outlier_n = -1) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> x(0.35, 0.95), y(-0.35, 0.55), z(0.2, 1.0);
+  std::normal_distribution<double> g(0.0, noise);
+  std::ostringstream s;
+  s.precision(12);
+  s << "n,cam,x,y,z,u,v\n";
+  int n = 0;
+  while (n < count) {
+    const Eigen::Vector3d p(x(rng), y(rng), z(rng));
+    if (!cam.in_front(p) || !cam.in_view(cam.project(p))) continue;
+    ++n;
+    Eigen::Vector2d uv = cam.project(p) + Eigen::Vector2d(g(rng), g(rng));
+    if (n == outlier_n) uv += Eigen::Vector2d(30.0, -20.0);
+    s << n << ',' << cam.name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+  }
+  return s.str();
+}
+
+}  // namespace
+
+TEST(CliCalibrate, JsonContractAndCamerasFile) {
+  const auto cams = scene_cameras();
+  const Camera& side = cams.at("side");
+  const std::string pts = write_file(calibration_csv(side, 30, 0.3, 1, 7) + calibration_csv(cams.at("oblique"), 25, 0.3, 2).substr(16));
+  const std::string out = temp_path(".yaml");
+  const CliRun r = run("calibrate " + pts + " --camera side --json --out " + out);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"camera", "f_px", "fovy_deg", "position_m", "rpy_deg", "base_T_camera", "rms_px", "max_px",
+                          "linear_rms_px", "residuals_px", "outliers", "sigma", "iterations", "n_points"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["camera"], "side");
+  EXPECT_EQ(j["n_points"], 30);
+  EXPECT_EQ(j["outliers"], nlohmann::json::array({7}));
+  EXPECT_EQ(j["residuals_px"].size(), 30u);
+  EXPECT_EQ(j["residuals_px"][6]["n"], 7);
+  EXPECT_GT(j["residuals_px"][6]["px"].get<double>(), 20.0);
+  EXPECT_EQ(j["base_T_camera"].size(), 4u);
+  EXPECT_EQ(j["base_T_camera"][0].size(), 4u);
+  EXPECT_LT(j["rms_px"].get<double>(), 1.0);
+  const double f = j["f_px"], sf = j["sigma"]["f_px"];
+  EXPECT_LT(std::abs(f - side.f_px), 5.0 * sf);
+  for (int i = 0; i < 3; ++i) {
+    const double p = j["position_m"][i], sp = j["sigma"]["position_m"][i];
+    EXPECT_LT(std::abs(p - side.base_T_camera.translation()[i]), 5.0 * sp) << i;
+    EXPECT_GT(j["sigma"]["rpy_deg"][i].get<double>(), 0.0);
+  }
+  EXPECT_NEAR(j["fovy_deg"].get<double>(), 2.0 * std::atan(243.0 / f) * 180.0 / M_PI, 1e-9);
+  // --out adds the camera and keeps the others.
+  const CliRun r2 = run("calibrate " + pts + " --camera oblique --out " + out);
+  ASSERT_EQ(r2.status, 0) << r2.err;
+  EXPECT_NE(r2.out.find("camera oblique"), std::string::npos);
+  const auto file = load_cameras(out);
+  ASSERT_EQ(file.size(), 2u);
+  EXPECT_NEAR(file.at("side").camera.f_px, f, 1e-6);
+  ASSERT_TRUE(file.at("side").calibration.has_value());
+  EXPECT_EQ(file.at("side").calibration->outliers, std::vector<int>{7});
+  EXPECT_GT(file.at("side").calibration->covariance(6, 6), 0.0);
+  std::remove(pts.c_str());
+  std::remove(out.c_str());
+}
+
+TEST(CliCalibrate, ArmAsFixtureRows) {
+  // Points on the arm's links at three arm poses, through the URDF's FK.
+  const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  const RobotLinkPoints robot(model);
+  const Camera side = scene_cameras().at("side");
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> off(-0.05, 0.05);
+  std::ostringstream s;
+  s.precision(12);
+  s << "n,cam,link";
+  s << ",lx,ly,lz";
+  for (int i = 1; i <= model.dof(); ++i) s << ",q" << i;
+  s << ",u,v\n";
+  int n = 0;
+  for (int pose = 0; pose < 3; ++pose) {
+    Eigen::VectorXd q = model.mid_configuration();
+    for (int i = 0; i < q.size(); ++i) q[i] += 0.25 * (pose - 1) * ((i % 2) ? 1.0 : -0.6);
+    for (int k = 1; k < static_cast<int>(model.links().size()); ++k) {
+      const Eigen::Vector3d pl(off(rng), off(rng), off(rng));
+      const Eigen::Vector3d pb = robot.to_base(model.links()[k].name, pl, q);
+      if (!side.in_front(pb) || !side.in_view(side.project(pb))) continue;
+      const Eigen::Vector2d uv = side.project(pb);
+      s << ++n << ",side," << model.links()[k].name << ',' << pl.x() << ',' << pl.y() << ',' << pl.z();
+      for (int i = 0; i < q.size(); ++i) s << ',' << q[i];
+      s << ',' << uv.x() << ',' << uv.y() << '\n';
+    }
+  }
+  ASSERT_GE(n, 8);
+  const std::string pts = write_file(s.str());
+  const CliRun r = run("calibrate " + pts + " --camera side --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["f_px"].get<double>(), side.f_px, 1e-4);
+  EXPECT_LT(j["rms_px"].get<double>(), 1e-6);
+  // A wrong joint count and an unknown link, with their line numbers.
+  std::string text = s.str();
+  const std::size_t second_line = text.find('\n') + 1;
+  std::string bad_link = text;
+  bad_link.replace(bad_link.find(",side,", second_line) + 6, 0, "no_such_");
+  const std::string p2 = write_file(bad_link);
+  const CliRun r2 = run("calibrate " + p2 + " --camera side");
+  EXPECT_EQ(r2.status, 2);
+  EXPECT_NE(r2.err.find(p2 + ":2: unknown link 'no_such_"), std::string::npos) << r2.err;
+  std::string short_q = text.substr(0, second_line) + "1,side,lst_tip,0,0,0,0.1,0.2,100,200\n";
+  const std::string p3 = write_file(short_q);
+  const CliRun r3 = run("calibrate " + p3 + " --camera side");
+  EXPECT_EQ(r3.status, 2);
+  EXPECT_NE(r3.err.find(p3 + ":2: point on link 'lst_tip' needs " + std::to_string(model.dof()) + " joint angles"),
+            std::string::npos)
+      << r3.err;
+  for (const auto& p : {pts, p2, p3}) std::remove(p.c_str());
+}
+
+TEST(CliCalibrate, BadInputsExitTwoWithTheirMessage) {
+  const Camera side = scene_cameras().at("side");
+  const CliRun missing = run("calibrate /nonexistent/pts.csv --camera side");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_NE(missing.err.find("/nonexistent/pts.csv: cannot open points file"), std::string::npos) << missing.err;
+
+  const std::string good = calibration_csv(side, 10, 0.0, 4);
+  const std::string bad_row = write_file(good.substr(0, good.find('\n', good.find('\n') + 1) + 1) + "2,side,1,2,3,x,5\n");
+  const CliRun r1 = run("calibrate " + bad_row + " --camera side");
+  EXPECT_EQ(r1.status, 2);
+  EXPECT_NE(r1.err.find(bad_row + ":3: field 'u' is not a number: 'x'"), std::string::npos) << r1.err;
+
+  const std::string nan_row = write_file("n,cam,x,y,z,u,v\n1,side,1,2,nan,4,5\n");
+  const CliRun r2 = run("calibrate " + nan_row + " --camera side");
+  EXPECT_EQ(r2.status, 2);
+  EXPECT_NE(r2.err.find(nan_row + ":2: field 'z' is not finite: 'nan'"), std::string::npos) << r2.err;
+
+  const std::string ten = write_file(good);
+  const CliRun r3 = run("calibrate " + ten + " --camera top");
+  EXPECT_EQ(r3.status, 2);
+  EXPECT_NE(r3.err.find("no points for camera 'top' (cameras in the file: side)"), std::string::npos) << r3.err;
+
+  const std::string five = write_file(calibration_csv(side, 5, 0.0, 5));
+  const CliRun r4 = run("calibrate " + five + " --camera side --json");
+  EXPECT_EQ(r4.status, 2);
+  EXPECT_TRUE(r4.out.empty());
+  EXPECT_NE(r4.err.find("camera 'side': 5 points; the linear calibration needs at least 6"), std::string::npos) << r4.err;
+
+  // Coplanar points (all at z = 0.5).
+  std::ostringstream s;
+  s << "n,cam,x,y,z,u,v\n";
+  for (int i = 0; i < 9; ++i) {
+    const Eigen::Vector3d p(0.6 + 0.05 * (i % 3), 0.1 * (i / 3), 0.5);
+    const Eigen::Vector2d uv = side.project(p);
+    s << i + 1 << ",side," << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+  }
+  const std::string plane = write_file(s.str());
+  const CliRun r5 = run("calibrate " + plane + " --camera side");
+  EXPECT_EQ(r5.status, 2);
+  EXPECT_NE(r5.err.find("camera 'side': the 9 points are coplanar"), std::string::npos) << r5.err;
+
+  const CliRun r6 = run("calibrate " + ten + " --camera side --viewport 646by486");
+  EXPECT_EQ(r6.status, 2);
+  EXPECT_NE(r6.err.find("viewport '646by486' is not WIDTHxHEIGHT"), std::string::npos) << r6.err;
+  for (const auto& p : {bad_row, nan_row, ten, five, plane}) std::remove(p.c_str());
+}
+
+TEST(CliLocalize, JsonContractTagsViewsAndBadInputs) {
+  const auto cams = scene_cameras();
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  std::map<std::string, CameraRecord> recs;
+  for (const auto& [name, c] : cams) recs[name] = CameraRecord{c, std::nullopt};
+  const std::string cam_file = temp_path(".yaml");
+  save_cameras(cam_file, recs);
+  std::ostringstream s;
+  s.precision(12);
+  s << "n,cam,x,y,z,u,v\n";
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g(0.0, 0.2);
+  for (const auto& name : {"side", "oblique", "overhead_wide"})
+    for (std::size_t i = 0; i < oru.points.size(); ++i) {
+      const Eigen::Vector3d p = oru.points[i].p_m;
+      if (p.z() > 0.0) continue;  // the back of the ORU is inside the panel
+      const Eigen::Vector2d uv = cams.at(name).project(scene.base_T_object * p) + Eigen::Vector2d(g(rng), g(rng));
+      s << i + 1 << ',' << name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+    }
+  const std::string pts = write_file(s.str());
+  const CliRun r = run("localize " + pts + " --cameras " + cam_file + " --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"object", "base_T_object", "position_m", "rpy_deg", "sigma", "rms_px", "outliers", "views", "tags"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["object"], "oru");
+  EXPECT_EQ(j["views"], nlohmann::json::array({"oblique", "overhead_wide", "side"}));
+  for (int i = 0; i < 3; ++i) {
+    const double p = j["position_m"][i], sp = j["sigma"]["position_m"][i];
+    EXPECT_LT(std::abs(p - scene.base_T_object.translation()[i]), 5.0 * sp + 1e-9) << i;
+    EXPECT_GT(j["sigma"]["rpy_deg"][i].get<double>(), 0.0);
+  }
+  ASSERT_TRUE(j["tags"].contains("hole_entrance"));
+  Eigen::Matrix4d T, H;
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b) {
+      T(a, b) = j["base_T_object"][a][b];
+      H(a, b) = j["tags"]["approach_20cm"][a][b];
+    }
+  EXPECT_LT((H - T * oru.tags.at("approach_20cm").matrix()).norm(), 1e-9);
+  EXPECT_EQ(j["tags"].size(), oru.tags.size());
+
+  const CliRun two = run("localize " + pts + " --cameras " + cam_file + " --views side,oblique --json");
+  ASSERT_EQ(two.status, 0) << two.err;
+  EXPECT_EQ(nlohmann::json::parse(two.out)["views"], nlohmann::json::array({"oblique", "side"}));
+
+  const CliRun noview = run("localize " + pts + " --cameras " + cam_file + " --views side,overhead_zoom");
+  EXPECT_EQ(noview.status, 2);
+  EXPECT_NE(noview.err.find("view 'overhead_zoom' has no points"), std::string::npos) << noview.err;
+
+  const std::string unknown = write_file(s.str() + "99,top,0,0,0,100,100\n");
+  const CliRun r2 = run("localize " + unknown + " --cameras " + cam_file);
+  EXPECT_EQ(r2.status, 2);
+  EXPECT_NE(r2.err.find("point n=99 (line"), std::string::npos) << r2.err;
+  EXPECT_NE(r2.err.find("unknown camera 'top' (known cameras: oblique, overhead_wide, overhead_zoom, side)"),
+            std::string::npos)
+      << r2.err;
+
+  const CliRun r3 = run("localize " + pts + " --cameras /nonexistent/cameras.yaml");
+  EXPECT_EQ(r3.status, 2);
+  EXPECT_NE(r3.err.find("/nonexistent/cameras.yaml: cannot open camera file"), std::string::npos) << r3.err;
+  for (const auto& p : {pts, unknown, cam_file}) std::remove(p.c_str());
+}
+
+TEST(CliEval, LocalizationJsonAndProgressOnStderr) {
+  const CliRun r = run("eval localization --trials 12 --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);  // the progress bar stays off stdout
+  EXPECT_EQ(j["trials"], 12);
+  ASSERT_EQ(j["combos"].size(), 15u);
+  EXPECT_EQ(j["combos"][14]["views"], "1+2+3+4");
+  for (const char* key : {"ours", "ours_joint", "crlb", "crlb_known_cameras", "pnp_sqpnp", "pnp_iterative", "triangulation"})
+    EXPECT_TRUE(j["combos"][0].contains(key)) << key;
+  EXPECT_EQ(j["views"].size(), 4u);
+  EXPECT_GT(j["four_view"]["crlb_position_m"].get<double>(), 0.0);
+  EXPECT_GT(j["four_view"]["position_rmse_m"].get<double>(), 0.0);
+  EXPECT_NE(r.err.find("100%"), std::string::npos);
+  const CliRun bad = run("eval localization --trials 0");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.err.find("--trials must be at least 1"), std::string::npos) << bad.err;
+  const CliRun none = run("eval");
+  EXPECT_EQ(none.status, 2);
+}
