@@ -8,6 +8,9 @@
 // cam column names a camera of cameras.yaml. Exit: 0 ok, 2 bad input, 1 the
 // fit failed.
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -27,8 +30,30 @@ struct LocalizeArgs {
   std::string cameras;
   std::string object = default_config("oru.yaml");
   std::string views;
+  bool camera_uncertainty = false;
   bool json = false;
 };
+
+/// The information (J^T J, pixels; body rotation, position, f) of a camera's
+/// calibration from what cameras.yaml keeps: covariance C in (roll, pitch,
+/// yaw, x, y, z, f) = s^2 (J_rpy^T J_rpy)^-1, with s^2 = rms^2 m / (2 m - 7)
+/// over the m inliers; J_rpy = J_body W(rpy).
+Eigen::Matrix<double, 7, 7> calibration_information(const std::string& file, const std::string& name,
+                                                    const CameraRecord& rec) {
+  if (!rec.calibration) throw std::invalid_argument(file + ": camera '" + name + "' has no calibration covariance (--camera-uncertainty)");
+  const CameraCalibrationInfo& c = *rec.calibration;
+  const int m = c.n_points - static_cast<int>(c.outliers.size());
+  if (m < 4 || !(c.rms_px > 0.0))
+    throw std::invalid_argument(file + ": camera '" + name + "' calibration has no usable rms_px/n_points (--camera-uncertainty)");
+  const double s2 = c.rms_px * c.rms_px * m / std::max(2 * m - 7, 1);
+  const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(c.covariance);
+  if (ldlt.info() != Eigen::Success || !(c.covariance.diagonal().array() > 0.0).all())
+    throw std::invalid_argument(file + ": camera '" + name + "' covariance is not positive definite");
+  const Eigen::Matrix<double, 7, 7> H_rpy = s2 * ldlt.solve(Eigen::Matrix<double, 7, 7>::Identity());
+  Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
+  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(rec.camera.base_T_camera.linear())).inverse();
+  return T.transpose() * H_rpy * T;
+}
 
 std::vector<std::string> split_views(const std::string& text) {
   std::vector<std::string> out;
@@ -47,10 +72,18 @@ std::vector<std::string> split_views(const std::string& text) {
 int run_localize(const LocalizeArgs& a) {
   const ObjectModel object = ObjectModel::from_file(a.object);
   std::map<std::string, Camera> cameras;
-  for (const auto& [name, rec] : load_cameras(a.cameras)) cameras[name] = rec.camera;
+  const auto records = load_cameras(a.cameras);
+  for (const auto& [name, rec] : records) cameras[name] = rec.camera;
   const std::vector<Correspondence> pts = read_correspondences_csv(a.points);
   LocalizationOptions opt;
   if (!a.views.empty()) opt.views = split_views(a.views);
+  if (a.camera_uncertainty)
+    for (const auto& [name, rec] : records) {
+      bool used = false;
+      for (const auto& c : pts) used = used || c.cam == name;
+      if (used && (opt.views.empty() || std::find(opt.views.begin(), opt.views.end(), name) != opt.views.end()))
+        opt.camera_information[name] = calibration_information(a.cameras, name, rec);
+    }
   const LocalizationResult r = localize_object(pts, cameras, opt);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
   const Eigen::Vector3d pos = r.position_m();
@@ -80,6 +113,7 @@ int run_localize(const LocalizeArgs& a) {
                               {"outliers", r.outliers},
                               {"outlier_details", outlier_details},
                               {"views", r.views},
+                              {"camera_uncertainty", r.camera_uncertainty},
                               {"tags", tags}};
     std::cout << j.dump(2) << "\n";
     return kExitOk;
@@ -95,8 +129,9 @@ int run_localize(const LocalizeArgs& a) {
   for (int i = 0; i < 4; ++i)
     std::printf("    %10.6f %10.6f %10.6f %10.6f\n", r.base_T_object(i, 0), r.base_T_object(i, 1), r.base_T_object(i, 2),
                 r.base_T_object(i, 3));
-  std::printf("  rms %.3f px, max %.3f px (inliers); linear stage rms %.3f px; %d iterations\n", r.rms_px, r.max_px,
-              r.linear_rms_px, r.iterations);
+  std::printf("  rms %.3f px, max %.3f px (inliers); linear stage rms %.3f px; %d iterations%s\n", r.rms_px, r.max_px,
+              r.linear_rms_px, r.iterations,
+              r.camera_uncertainty ? "; cameras refined under their calibration covariance" : "");
   if (r.outliers.empty()) std::printf("  outliers: none\n");
   for (const auto& p : r.residuals)
     if (p.outlier)
@@ -117,6 +152,9 @@ std::function<int()> setup(CLI::App& sub) {
   sub.add_option("--cameras", a->cameras, "calibrated cameras (cameras.yaml)")->required();
   sub.add_option("--object", a->object, "object model")->capture_default_str();
   sub.add_option("--views", a->views, "comma-separated camera names to use (default: all in the file)");
+  sub.add_flag("--camera-uncertainty", a->camera_uncertainty,
+               "refine the cameras with the pose under their calibration covariance (cameras.yaml); sigma then "
+               "includes the calibration error");
   sub.add_flag("--json", a->json, "print one JSON object");
   return [a] { return run_localize(*a); };
 }

@@ -290,6 +290,12 @@ TEST(CliLocalize, JsonContractTagsViewsAndBadInputs) {
             std::string::npos)
       << r2.err;
 
+  const CliRun r4 = run("localize " + pts + " --cameras " + cam_file + " --camera-uncertainty");
+  EXPECT_EQ(r4.status, 2);
+  EXPECT_NE(r4.err.find(cam_file + ": camera 'oblique' has no calibration covariance (--camera-uncertainty)"),
+            std::string::npos)
+      << r4.err;
+
   const CliRun r3 = run("localize " + pts + " --cameras /nonexistent/cameras.yaml");
   EXPECT_EQ(r3.status, 2);
   EXPECT_NE(r3.err.find("/nonexistent/cameras.yaml: cannot open camera file"), std::string::npos) << r3.err;
@@ -314,4 +320,48 @@ TEST(CliEval, LocalizationJsonAndProgressOnStderr) {
   EXPECT_NE(bad.err.find("--trials must be at least 1"), std::string::npos) << bad.err;
   const CliRun none = run("eval");
   EXPECT_EQ(none.status, 2);
+}
+
+TEST(CliLocalize, CalibrateThenLocalizeWithCameraUncertainty) {
+  // The whole chain through the binary: calibrate three cameras into one
+  // cameras.yaml, then localize with and without their covariance.
+  const auto cams = scene_cameras();
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  const std::string cam_file = temp_path(".yaml");
+  std::string cal = "n,cam,x,y,z,u,v\n";
+  unsigned seed = 20;
+  for (const auto& name : {"side", "oblique", "overhead_wide"})
+    cal += calibration_csv(cams.at(name), 25, 0.5, ++seed).substr(16);
+  const std::string cal_file = write_file(cal);
+  for (const auto& name : {"side", "oblique", "overhead_wide"}) {
+    const CliRun r = run("calibrate " + cal_file + " --camera " + name + " --out " + cam_file);
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+  std::ostringstream s;
+  s.precision(12);
+  s << "n,cam,x,y,z,u,v\n";
+  std::mt19937 rng(4);
+  std::normal_distribution<double> g(0.0, 0.5);
+  for (const auto& name : {"side", "oblique", "overhead_wide"})
+    for (std::size_t i = 0; i < oru.points.size(); ++i) {
+      const Eigen::Vector3d p = oru.points[i].p_m;
+      if (p.z() > 0.0) continue;
+      const Eigen::Vector2d uv = cams.at(name).project(scene.base_T_object * p) + Eigen::Vector2d(g(rng), g(rng));
+      s << i + 1 << ',' << name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+    }
+  const std::string pts = write_file(s.str());
+  const CliRun plain = run("localize " + pts + " --cameras " + cam_file + " --json");
+  const CliRun joint = run("localize " + pts + " --cameras " + cam_file + " --camera-uncertainty --json");
+  ASSERT_EQ(plain.status, 0) << plain.err;
+  ASSERT_EQ(joint.status, 0) << joint.err;
+  const auto jp = nlohmann::json::parse(plain.out), jj = nlohmann::json::parse(joint.out);
+  EXPECT_EQ(jp["camera_uncertainty"], false);
+  EXPECT_EQ(jj["camera_uncertainty"], true);
+  for (int i = 0; i < 3; ++i) {
+    const double sj = jj["sigma"]["position_m"][i], sp = jp["sigma"]["position_m"][i];
+    EXPECT_GT(sj, sp) << i;  // the calibration error is part of the uncertainty now
+    EXPECT_LT(std::abs(jj["position_m"][i].get<double>() - scene.base_T_object.translation()[i]), 5.0 * sj) << i;
+  }
+  for (const auto& p : {pts, cal_file, cam_file}) std::remove(p.c_str());
 }
