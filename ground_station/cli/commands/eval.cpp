@@ -229,6 +229,10 @@ int run_eval(const EvalArgs& a) {
   auto pr = [](const ErrorStats& s) {
     char b[40];
     if (s.n == 0) return std::string("              -");
+    if (s.position_rmse_m > 10.0) {  // a peer whose failed trials dominate its RMSE
+      std::snprintf(b, sizeof b, "  >10 m/%6.1f", s.rotation_rmse_rad / kDeg);
+      return std::string(b);
+    }
     std::snprintf(b, sizeof b, "%7.3f/%6.3f", s.position_rmse_m * 1e3, s.rotation_rmse_rad / kDeg);
     return std::string(b);
   };
