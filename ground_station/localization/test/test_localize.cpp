@@ -150,6 +150,22 @@ TEST(Localize, ViewSelection) {
   EXPECT_LT(pose_error(r.base_T_object, s.base_T_object).cwiseAbs().maxCoeff(), 1e-6);
 }
 
+TEST(LocalizeBadInput, PointBehindItsCamera) {
+  // Projection is algebraic: a model point behind the camera still "projects";
+  // the exact fit reproduces it and then shows it behind its camera.
+  std::mt19937 rng(12);
+  const Scenario s = make_setup(rng, 2, 8);
+  auto pts = s.exact;
+  const Camera& cam = s.cameras.at("cam1");
+  Correspondence c = pts[0];
+  c.n = 42;
+  c.line = 20;
+  c.p_m = s.base_T_object.inverse() * (cam.base_T_camera * Eigen::Vector3d(0.1, 0.05, -0.3));
+  c.uv_px = cam.project_camera(cam.to_camera(s.base_T_object * c.p_m));
+  pts.push_back(c);
+  EXPECT_EQ(error_of(pts, s.cameras), "points behind their camera at the fitted pose: n=42 in view 'cam1' (line 20)");
+}
+
 TEST(LocalizeBadInput, EveryBadInputHasItsMessage) {
   std::mt19937 rng(10);
   const Scenario s = make_setup(rng, 2, 8);
