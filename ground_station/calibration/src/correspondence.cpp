@@ -97,8 +97,8 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
       c.link = f[2];
       if (robot == nullptr)
         throw InputError(source, line_no,
-                         "point on link '" + c.link + "' but no robot model: give x,y,z (this command solves in " +
-                             "the object frame) or a robot URDF");
+                         "point on link '" + c.link + "' but no robot model here: arm-link rows are for calibrate; " +
+                             "give x,y,z in the object frame");
       if (!robot->has_link(c.link))
         throw InputError(source, line_no, "unknown link '" + c.link + "' (the robot's links: " + robot->link_list() + ")");
       const int dof = robot->dof();

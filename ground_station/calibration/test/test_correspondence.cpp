@@ -87,6 +87,6 @@ TEST(PointsCsv, BadInputsNameFileAndLine) {
   EXPECT_EQ(error_of("n,cam,link,lx,ly,lz,q1,q2,u,v\n1,side,l1,0,0,0,0,nan,1,2\n", &arm),
             "pts.csv:2: field 'q2' is not finite: 'nan'");
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,side,l1,0,0,0,0,0,1,2\n"),
-            "pts.csv:2: point on link 'l1' but no robot model: give x,y,z (this command solves in the object frame) or a "
-            "robot URDF");
+            "pts.csv:2: point on link 'l1' but no robot model here: arm-link rows are for calibrate; give x,y,z in the "
+            "object frame");
 }
