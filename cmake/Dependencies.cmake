@@ -36,6 +36,8 @@ function(foresight_add_test name)
   cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
+  # Shared test helpers (foresight/test/cli.hpp: run the CLI, scratch files).
+  target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/common/test/support)
   target_compile_definitions(${name} PRIVATE
     FORESIGHT_CONFIG_DIR="${CMAKE_SOURCE_DIR}/config"
     FORESIGHT_SOURCE_DIR="${CMAKE_SOURCE_DIR}"

@@ -192,32 +192,32 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
 
   std::vector<bool> row_ok(n, true);  // finite t and q
   for (int i = 0; i < n; ++i) {
-    const std::string row = "row " + std::to_string(i + 1);
+    auto row = [i] { return "row " + std::to_string(i + 1); };  // built only for a violation
     if (!std::isfinite(traj.time_s[i])) {
-      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, row + ": t is not finite");
+      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, row() + ": t is not finite");
       row_ok[i] = false;
     }
     for (int j = 0; j < dof; ++j) {
       const double q = traj.positions_rad(i, j);
-      const std::string where = row + ", joint " + qname(j + 1);
+      auto where = [&] { return row() + ", joint " + qname(j + 1); };
       if (!std::isfinite(q)) {
-        add(R::NonFinite, i + 1, j + 1, q, 0.0, where + ": position is not finite");
+        add(R::NonFinite, i + 1, j + 1, q, 0.0, where() + ": position is not finite");
         row_ok[i] = false;
         continue;
       }
       const JointLimits& jl = lim.joint_limits[j];
       if (q < jl.lower_rad || q > jl.upper_rad)
         add(R::PositionLimit, i + 1, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad,
-            where + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) + "] rad");
+            where() + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) + "] rad");
     }
     if (i > 0 && row_ok[i] && row_ok[i - 1]) {
       const double dt = traj.time_s[i] - traj.time_s[i - 1];
       if (!(dt > 0.0))
         add(R::TimeNotIncreasing, i + 1, 0, traj.time_s[i], traj.time_s[i - 1],
-            row + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " + fmt(traj.time_s[i - 1]) + " s)");
+            row() + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " + fmt(traj.time_s[i - 1]) + " s)");
       else if (dt > lim.max_sample_interval_s)
         add(R::SampleGap, i + 1, 0, dt, lim.max_sample_interval_s,
-            row + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) + " s");
+            row() + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) + " s");
     }
   }
 
@@ -232,18 +232,18 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
     for (int j = 0; j < dof; ++j) {
       const JointLimits& jl = lim.joint_limits[j];
       const double v = (traj.positions_rad(i, j) - traj.positions_rad(i - 1, j)) / dt;
-      const std::string where = "row " + std::to_string(i + 1) + ", joint " + qname(j + 1);
+      auto where = [&] { return "row " + std::to_string(i + 1) + ", joint " + qname(j + 1); };
       if (std::abs(v) > jl.velocity_rad_s * slack)
         add(R::VelocityLimit, i + 1, j + 1, v, jl.velocity_rad_s,
-            where + ": velocity " + fmt(v) + " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s");
+            where() + ": velocity " + fmt(v) + " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s");
       if (i >= 2 && interval_ok(i - 1)) {
         const double dt0 = traj.time_s[i - 1] - traj.time_s[i - 2];
         const double v0 = (traj.positions_rad(i - 1, j) - traj.positions_rad(i - 2, j)) / dt0;
         const double a = (v - v0) / (0.5 * (dt + dt0));
-        const std::string mid = "row " + std::to_string(i) + ", joint " + qname(j + 1);
+        auto mid = [&] { return "row " + std::to_string(i) + ", joint " + qname(j + 1); };
         if (std::abs(a) > jl.acceleration_rad_s2 * slack)
           add(R::AccelerationLimit, i, j + 1, a, jl.acceleration_rad_s2,
-              mid + ": acceleration " + fmt(a) + " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2");
+              mid() + ": acceleration " + fmt(a) + " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2");
       }
     }
   }

@@ -12,35 +12,13 @@
 #include <sstream>
 #include <string>
 
+#include "foresight/test/cli.hpp"
+
 namespace {
 
-struct CliRun {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
+using foresight::test::CliRun;
 
-CliRun run(const std::string& args) {
-  char err_path[] = "/tmp/foresight_robot_cli_XXXXXX";
-  const int fd = mkstemp(err_path);
-  EXPECT_GE(fd, 0);
-  ::close(fd);
-  const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight robot " + args + " 2>" + err_path;
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  std::ifstream in(err_path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  r.err = ss.str();
-  std::remove(err_path);
-  return r;
-}
+CliRun run(const std::string& args) { return foresight::test::run_foresight("robot " + args); }
 
 }  // namespace
 

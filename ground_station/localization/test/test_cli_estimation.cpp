@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "foresight/calibration/robot_points.hpp"
+#include "foresight/test/cli.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/localization/localize.hpp"
@@ -20,43 +21,11 @@ using namespace foresight;
 
 namespace {
 
-struct CliRun {
-  int status = -1;
-  std::string out, err;
-};
-
-std::string temp_path(const std::string& suffix) {
-  char name[] = "/tmp/foresight_cli_est_XXXXXX";
-  const int fd = mkstemp(name);
-  EXPECT_GE(fd, 0);
-  ::close(fd);
-  std::remove(name);
-  return std::string(name) + suffix;
-}
-
+using test::CliRun;
+using test::temp_path;
+CliRun run(const std::string& args) { return test::run_foresight(args); }
 std::string write_file(const std::string& text, const std::string& suffix = ".csv") {
-  const std::string p = temp_path(suffix);
-  std::ofstream(p) << text;
-  return p;
-}
-
-CliRun run(const std::string& args) {
-  const std::string err_path = temp_path(".err");
-  const std::string cmd = std::string(FORESIGHT_BIN_DIR "/foresight ") + args + " 2>" + err_path;
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  std::ifstream e(err_path);
-  std::stringstream ss;
-  ss << e.rdbuf();
-  r.err = ss.str();
-  std::remove(err_path.c_str());
-  return r;
+  return test::write_temp_file(text, suffix);
 }
 
 std::map<std::string, Camera> scene_cameras() {

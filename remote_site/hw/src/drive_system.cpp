@@ -579,6 +579,10 @@ void DriveSystem::enable() {
   enabled_ = true;
 }
 
+void DriveSystem::held_targets(JointTargets& out) const noexcept {
+  for (std::size_t j = 0; j < drives_.size(); ++j) out.position_rad[j] = drives_[j].cfg.to_rad(drives_[j].target_counts);
+}
+
 void DriveSystem::disable() {
   if (!configured_) return;
   const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(

@@ -54,10 +54,10 @@ struct SimRig {
   void bring_up() {
     drives->configure();
     drives->enable();
-    // targets = actual positions: the controller starts from where the arm is
+    // The controller starts from where the arm is: the targets enable() holds.
+    drives->held_targets(targets);
     deadline = Clock::now();
     cycle();
-    for (std::size_t j = 0; j < fb.count; ++j) targets.position_rad[j] = fb.joints[j].position_rad;
   }
 
   /// One real-time period: read, then write the current targets.

@@ -72,16 +72,10 @@ TEST(ContactThroughFtSensor, PressingTheFaceReadsTheModelForceOverCan) {
       return sim::SimFtSensor::Wrench{f.x(), f.y(), f.z(), m.x(), m.y(), m.z()};
     });
   });
-  // Bring-up without a first write (SimRig::bring_up would command the
-  // zero-initialised targets once): hold the arm where it powered on.
-  rig.drives->configure();
-  rig.drives->enable();
-  for (int i = 0; i < 200 && !(rig.fb.count == config.drives.size() && rig.fb.joints[0].fresh); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    rig.drives->cycle_read(rig.fb, rig.ft);
-  }
+  // Hold the arm where it powered on (SimRig::bring_up starts from the
+  // targets enable() holds, i.e. the actual positions).
+  rig.bring_up();
   ASSERT_EQ(rig.fb.count, config.drives.size());
-  for (std::size_t j = 0; j < rig.fb.count; ++j) rig.targets.position_rad[j] = rig.fb.joints[j].position_rad;
   rig.deadline = Clock::now();
   int fresh = 0;
   for (int i = 0; i < 500 && fresh < 10; ++i) {

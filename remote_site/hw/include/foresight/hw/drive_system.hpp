@@ -170,6 +170,10 @@ class DriveSystem {
   /// holding target = actual position, until all are Operation enabled.
   /// Throws HwError naming each drive that did not get there, and its state.
   void enable();
+  /// The targets the drives hold right now (after enable(): their actual
+  /// positions at enable time, then the last cycle_write). The controller's
+  /// first cycle_write starts from these, so nothing jumps.
+  void held_targets(JointTargets& out) const noexcept;
   /// Set-up: shutdown (Ready to switch on) every drive, holding position.
   void disable();
   /// Set-up: send an NMT command to every configured node (e.g. Stop after
