@@ -33,7 +33,7 @@ TEST(RobotCli, PrintsModelAndFkAtMidConfiguration) {
 
 TEST(RobotCli, JsonFkAndIk) {
   // Joints in degrees; shoulder pitch 90: the arm points along +x.
-  CliRun r = run("--json --joints 0,90,0,0,0,0,0");
+  CliRun r = run("--json --joints-deg 0,90,0,0,0,0,0");
   ASSERT_EQ(r.status, 0) << r.err;
   nlohmann::json j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["dof"], 7);
@@ -67,14 +67,17 @@ TEST(RobotCli, UnreachableTargetExitsOneWithResidual) {
 TEST(RobotCli, BadArgumentsExitTwoWithMessage) {
   CliRun r = run("--joints 1,2,3");
   EXPECT_EQ(r.status, 2);
-  EXPECT_EQ(r.err, "foresight robot: error: --joints: expected 7 joint angles (deg), got 3\n");
+  EXPECT_EQ(r.err, "foresight robot: error: --joints has 3 values but the arm has 7 joints\n");
   EXPECT_TRUE(r.out.empty());
   r = run("--joints 1,2,x,4,5,6,7");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err, "foresight robot: error: --joints: element 3 ('x') is not a finite number\n");
-  r = run("--joints 0,0,0,170,0,0,0");
+  r = run("--joints-deg 0,0,0,170,0,0,0");
   EXPECT_EQ(r.status, 2);
-  EXPECT_EQ(r.err, "foresight robot: error: --joints: joint4 = 170 deg is outside its limits [-160.0, 160.0] deg\n");
+  EXPECT_EQ(r.err, "foresight robot: error: --joints-deg: joint4 = 170 deg is outside its limits [-160.0, 160.0] deg\n");
+  r = run("--joints 0,0,0,3,0,0,0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight robot: error: --joints: joint4 = 3 rad is outside its limits [-2.7925, 2.7925] rad\n");
   r = run("--target 1,2");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err, "foresight robot: error: --target: expected 6 numbers x,y,z (m), roll,pitch,yaw (deg), got 2\n");
@@ -82,9 +85,9 @@ TEST(RobotCli, BadArgumentsExitTwoWithMessage) {
   r = run("--seed 0,0,0,0,0,0,0");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err, "foresight robot: error: --seed: only meaningful with --target\n");
-  r = run("--target 1,0,0.5,0,90,0 --seed 0,0,0");
+  r = run("--target 1,0,0.5,0,90,0 --seed-deg 0,0,0");
   EXPECT_EQ(r.status, 2);
-  EXPECT_EQ(r.err, "foresight robot: error: --seed: expected 7 joint angles (deg), got 3\n");
+  EXPECT_EQ(r.err, "foresight robot: error: --seed-deg has 3 values but the arm has 7 joints\n");
   r = run("--robot /nonexistent/robot.urdf");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err, "foresight robot: error: /nonexistent/robot.urdf: cannot open URDF file\n");

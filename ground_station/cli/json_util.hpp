@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "foresight/common/number_list.hpp"
 #include "foresight/common/pose.hpp"
 
 namespace foresight::cli {
@@ -48,24 +49,5 @@ inline Pose pose_from_json(const nlohmann::json& j, const std::string& what) {
   return T;
 }
 
-/// Parse "a,b,c" into numbers; throws std::invalid_argument naming the option
-/// and the bad element.
-inline Eigen::VectorXd parse_numbers(const std::string& text, const std::string& option) {
-  std::vector<double> v;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    char* end = nullptr;
-    const double x = std::strtod(item.c_str(), &end);
-    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
-      throw std::invalid_argument(option + ": element " + std::to_string(v.size() + 1) + " ('" + item +
-                                  "') is not a finite number");
-    v.push_back(x);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return Eigen::Map<Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
 
 }  // namespace foresight::cli

@@ -19,6 +19,7 @@
 #include "command.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
+#include "foresight/common/number_list.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/renderer.hpp"
 #include "foresight/render/scene_geometry.hpp"

@@ -1,7 +1,7 @@
 // foresight robot: print the robot model (joints, limits), the pose of every
 // chain link at a configuration, and optionally solve IK for a target pose.
 //
-//   foresight robot [--robot config/robot.urdf] [--joints q1,..,q7 (deg)]
+//   foresight robot [--robot config/robot.urdf] [--joints q1,..,q7 (rad) | --joints-deg ...]
 //                   [--target x,y,z,roll,pitch,yaw (m, deg)] [--seed q1,..,q7 (deg)]
 //                   [--centre] [--json]
 // Exit: 0 ok, 1 IK did not converge (best attempt and residual still printed),
@@ -24,31 +24,12 @@ constexpr double kDeg = M_PI / 180.0;
 
 struct RobotArgs {
   std::string robot_path = default_config("robot.urdf");
-  std::string joints_deg;
+  std::string joints, joints_deg;
   std::string target;
-  std::string seed_deg;
+  std::string seed, seed_deg;
   bool centre = false;
   bool json = false;
 };
-
-/// Joint angles in degrees from "a,b,c,..."; checks the count and the limits.
-Eigen::VectorXd joints_from_deg(const RobotModel& m, const std::string& text, const std::string& option) {
-  const Eigen::VectorXd deg = parse_numbers(text, option);
-  if (deg.size() != m.dof())
-    throw std::invalid_argument(option + ": expected " + std::to_string(m.dof()) + " joint angles (deg), got " +
-                                std::to_string(deg.size()));
-  const Eigen::VectorXd q = deg * kDeg;
-  for (int i = 0; i < m.dof(); ++i) {
-    const JointLimits& l = m.limits()[i];
-    if (q[i] < l.lower_rad - 1e-9 || q[i] > l.upper_rad + 1e-9) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, ": %s = %g deg is outside its limits [%.1f, %.1f] deg", m.joint_names()[i].c_str(),
-                    deg[i], l.lower_rad / kDeg, l.upper_rad / kDeg);
-      throw std::invalid_argument(option + buf);
-    }
-  }
-  return q;
-}
 
 /// Roll, pitch, yaw in degrees, rounding-noise zeros shown as 0 (not -0.00).
 Eigen::Vector3d rpy_deg(const Pose& T) {
@@ -86,8 +67,11 @@ int run_robot(const RobotArgs& a) {
   const RobotModel m = RobotModel::from_file(a.robot_path);
   KinematicsWorkspace ws(m);
   // Every argument is checked before anything is printed.
-  const Eigen::VectorXd q = a.joints_deg.empty() ? m.mid_configuration() : joints_from_deg(m, a.joints_deg, "--joints");
-  if (!a.seed_deg.empty() && a.target.empty()) throw std::invalid_argument("--seed: only meaningful with --target");
+  const Eigen::VectorXd q = !a.joints.empty()       ? parse_joints(a.joints, "--joints", m)
+                            : !a.joints_deg.empty() ? parse_joints(a.joints_deg, "--joints-deg", m, true)
+                                                    : m.mid_configuration();
+  if (!(a.seed.empty() && a.seed_deg.empty()) && a.target.empty())
+    throw std::invalid_argument(std::string(a.seed.empty() ? "--seed-deg" : "--seed") + ": only meaningful with --target");
   Eigen::VectorXd t;
   if (!a.target.empty()) {
     t = parse_numbers(a.target, "--target");
@@ -95,7 +79,9 @@ int run_robot(const RobotArgs& a) {
       throw std::invalid_argument("--target: expected 6 numbers x,y,z (m), roll,pitch,yaw (deg), got " +
                                   std::to_string(t.size()));
   }
-  const Eigen::VectorXd seed = a.seed_deg.empty() ? q : joints_from_deg(m, a.seed_deg, "--seed");
+  const Eigen::VectorXd seed = !a.seed.empty()       ? parse_joints(a.seed, "--seed", m)
+                               : !a.seed_deg.empty() ? parse_joints(a.seed_deg, "--seed-deg", m, true)
+                                                     : q;
 
   nlohmann::json out;
   out["robot"] = a.robot_path;
@@ -169,9 +155,11 @@ int run_robot(const RobotArgs& a) {
 std::function<int()> setup(CLI::App& sub) {
   auto a = std::make_shared<RobotArgs>();
   sub.add_option("--robot", a->robot_path, "URDF of the arm")->capture_default_str();
-  sub.add_option("--joints", a->joints_deg, "joint angles q1,...,qN in degrees (default: mid configuration)");
+  auto* joints = sub.add_option("--joints", a->joints, "joint angles q1,...,qN in radians (default: mid configuration)");
+  sub.add_option("--joints-deg", a->joints_deg, "joint angles in degrees (instead of --joints)")->excludes(joints);
   sub.add_option("--target", a->target, "IK target for the tool tip: x,y,z,roll,pitch,yaw (m, deg; base frame)");
-  sub.add_option("--seed", a->seed_deg, "IK seed q1,...,qN in degrees (default: --joints)");
+  auto* seed = sub.add_option("--seed", a->seed, "IK seed q1,...,qN in radians (default: the joints above)");
+  sub.add_option("--seed-deg", a->seed_deg, "IK seed in degrees (instead of --seed)")->excludes(seed);
   sub.add_flag("--centre", a->centre, "after IK, move the joints away from their limits (null space)");
   sub.add_flag("--json", a->json, "one JSON object on stdout");
   return [a] { return run_robot(*a); };

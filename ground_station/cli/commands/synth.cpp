@@ -18,6 +18,7 @@
 #include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/common/number_list.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/synthetic_camera.hpp"
 #include "json_util.hpp"

@@ -54,26 +54,4 @@ Pose read_object_pose_json(const std::string& path) {
   return T;
 }
 
-Eigen::VectorXd parse_joints(const std::string& text, const std::string& option, const RobotModel& model,
-                             bool degrees) {
-  std::vector<double> v;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    char* end = nullptr;
-    const double x = std::strtod(item.c_str(), &end);
-    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
-      throw std::invalid_argument(option + ": element " + std::to_string(v.size() + 1) + " ('" + item +
-                                  "') is not a finite number");
-    v.push_back(degrees ? x * M_PI / 180.0 : x);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  if (static_cast<int>(v.size()) != model.dof())
-    throw std::invalid_argument(option + " has " + std::to_string(v.size()) + " values but the arm has " +
-                                std::to_string(model.dof()) + " joints");
-  return Eigen::Map<Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
-
 }  // namespace foresight::render

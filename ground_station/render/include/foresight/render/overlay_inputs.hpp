@@ -20,11 +20,5 @@ Camera load_camera(const std::string& cameras_yaml, const std::string& name);
 /// 4 numbers, orthonormal rotation). InputError naming the file otherwise.
 Pose read_object_pose_json(const std::string& path);
 
-/// Joint angles from "q1,...,qN" (radians, or degrees when `degrees`),
-/// checked against the arm's joint count. std::invalid_argument:
-/// "<option>: element K ('x') is not a finite number",
-/// "<option> has N values but the arm has M joints".
-Eigen::VectorXd parse_joints(const std::string& text, const std::string& option, const RobotModel& model,
-                             bool degrees = false);
 
 }  // namespace foresight::render
