@@ -19,7 +19,6 @@
 #include <iostream>
 
 #include "command.hpp"
-#include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
@@ -41,56 +40,6 @@ struct EvalArgs {
   bool json = false;
 };
 
-/// The arm as the calibration fixture: link points (each link's origin and
-/// the centres of its visual shapes) at several arm poses (the tool in front
-/// of the ORU at different places, by IK), grouped by pose.
-std::vector<std::vector<Eigen::Vector3d>> arm_points_by_pose(const RobotModel& m) {
-  KinematicsWorkspace ws(m);
-  const Eigen::Vector3d tool_along_x(0.0, M_PI / 2, 0.0);  // tip z (tool axis) along base +x
-  const std::vector<Pose> targets = {
-      make_pose({0.55, -0.20, 0.40}, tool_along_x),
-      make_pose({0.60, 0.35, 0.75}, tool_along_x + Eigen::Vector3d(0.0, -0.3, 0.2)),
-      make_pose({0.45, 0.05, 0.95}, tool_along_x + Eigen::Vector3d(0.3, 0.2, -0.2)),
-      make_pose({0.70, 0.20, 0.55}, tool_along_x),
-  };
-  std::vector<std::vector<Eigen::Vector3d>> out;
-  Eigen::VectorXd seed = m.mid_configuration();
-  for (const Pose& target : targets) {
-    const IkResult ik = inverse_kinematics(m, ws, target, seed);
-    if (!ik.success) continue;
-    std::vector<Eigen::Vector3d> pts;
-    for (int k = 1; k < static_cast<int>(m.links().size()); ++k) {
-      const Pose T = forward_kinematics(m, ws, ik.q, k);
-      std::vector<Eigen::Vector3d> local = {Eigen::Vector3d::Zero()};
-      for (const auto& v : m.links()[k].visuals) local.push_back(v.link_T_shape.translation());
-      for (const auto& p : local) {
-        const Eigen::Vector3d pb = T * p;
-        bool dup = false;
-        for (const auto& q : pts) dup = dup || (q - pb).norm() < 0.03;  // distinct features only
-        if (!dup) pts.push_back(pb);
-      }
-    }
-    out.push_back(pts);
-  }
-  if (out.size() < 2) throw std::runtime_error("eval: inverse kinematics reached fewer than 2 calibration arm poses");
-  return out;
-}
-
-/// Per camera: the arm points it sees, at most 8 per arm pose (evenly
-/// spread over the visible ones), as an operator would click 15-30 points.
-void choose_calibration_points(StudySetup& setup, const std::vector<std::vector<Eigen::Vector3d>>& poses) {
-  for (auto& v : setup.views) {
-    v.calibration_points_base.clear();
-    for (const auto& pose : poses) {
-      std::vector<Eigen::Vector3d> seen;
-      for (const auto& p : pose)
-        if (v.truth.in_front(p) && v.truth.in_view(v.truth.project(p))) seen.push_back(p);
-      const std::size_t take = std::min<std::size_t>(8, seen.size());
-      for (std::size_t i = 0; i < take; ++i) v.calibration_points_base.push_back(seen[i * seen.size() / take]);
-    }
-  }
-}
-
 nlohmann::json stats_json(const ErrorStats& s) {
   return {{"n", s.n},
           {"mean_cm", vec_json(s.mean.head<3>() * 100.0)},
@@ -109,9 +58,8 @@ int run_eval(const EvalArgs& a) {
   const Scene scene = Scene::from_file(a.scene);
   const ObjectModel object = ObjectModel::from_file(a.object);
   const RobotModel robot = RobotModel::from_file(a.robot);
-  const auto poses = arm_points_by_pose(robot);
   StudySetup setup = make_study_setup(scene, object, {});
-  choose_calibration_points(setup, poses);
+  choose_calibration_points(setup, arm_calibration_poses(robot));
 
   StudyOptions opt;
   opt.trials = a.trials;

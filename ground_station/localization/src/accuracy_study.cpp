@@ -2,11 +2,14 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <map>
 #include <random>
 
 #include "foresight/calibration/calibrate.hpp"
+#include "foresight/common/kinematics.hpp"
 #include "foresight/localization/localize.hpp"
 #include "foresight/localization/peers.hpp"
 
@@ -61,6 +64,57 @@ std::string label_of(const std::vector<int>& views) {
 }
 
 }  // namespace
+
+std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& m) {
+  KinematicsWorkspace ws(m);
+  const Eigen::Vector3d tool_along_x(0.0, M_PI / 2, 0.0);  // tip z (tool axis) along base +x
+  const std::vector<Pose> targets = {
+      make_pose({0.55, -0.20, 0.40}, tool_along_x),
+      make_pose({0.60, 0.35, 0.75}, tool_along_x + Eigen::Vector3d(0.0, -0.3, 0.2)),
+      make_pose({0.45, 0.05, 0.95}, tool_along_x + Eigen::Vector3d(0.3, 0.2, -0.2)),
+      make_pose({0.70, 0.20, 0.55}, tool_along_x),
+  };
+  std::vector<ArmCalibrationPose> out;
+  const Eigen::VectorXd seed = m.mid_configuration();
+  for (const Pose& target : targets) {
+    const IkResult ik = inverse_kinematics(m, ws, target, seed);
+    if (!ik.success) continue;
+    ArmCalibrationPose pose;
+    pose.q = ik.q;
+    for (int k = 1; k < static_cast<int>(m.links().size()); ++k) {
+      const Pose T = forward_kinematics(m, ws, ik.q, k);
+      std::vector<Eigen::Vector3d> local = {Eigen::Vector3d::Zero()};
+      for (const auto& v : m.links()[k].visuals) local.push_back(v.link_T_shape.translation());
+      for (const auto& p : local) {
+        const Eigen::Vector3d pb = T * p;
+        bool dup = false;
+        for (const auto& f : pose.features) dup = dup || (f.p_base - pb).norm() < 0.03;  // distinct features only
+        if (!dup) pose.features.push_back({k, p, pb});
+      }
+    }
+    out.push_back(std::move(pose));
+  }
+  if (out.size() < 2) throw std::runtime_error("inverse kinematics reached fewer than 2 calibration arm poses");
+  return out;
+}
+
+std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrationPose& pose, int max_count) {
+  std::vector<ArmFeature> seen;
+  for (const auto& f : pose.features)
+    if (camera.in_front(f.p_base) && camera.in_view(camera.project(f.p_base))) seen.push_back(f);
+  const std::size_t take = std::min<std::size_t>(static_cast<std::size_t>(std::max(max_count, 0)), seen.size());
+  std::vector<ArmFeature> out;
+  for (std::size_t i = 0; i < take; ++i) out.push_back(seen[i * seen.size() / take]);
+  return out;
+}
+
+void choose_calibration_points(StudySetup& setup, const std::vector<ArmCalibrationPose>& poses) {
+  for (auto& v : setup.views) {
+    v.calibration_points_base.clear();
+    for (const auto& pose : poses)
+      for (const auto& f : visible_features(v.truth, pose)) v.calibration_points_base.push_back(f.p_base);
+  }
+}
 
 StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
                             const std::vector<Eigen::Vector3d>& arm_points_base) {

@@ -22,6 +22,7 @@
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/pose.hpp"
+#include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
 
 namespace foresight {
@@ -44,6 +45,33 @@ struct StudySetup {
 /// from the front side; points deeper in the panel are hidden).
 StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
                             const std::vector<Eigen::Vector3d>& arm_points_base);
+
+/// A point fixed on an arm link that an operator can click in a camera
+/// image: a link origin or the centre of one of its visual shapes.
+struct ArmFeature {
+  int link = 0;                                    ///< index in RobotModel::links()
+  Eigen::Vector3d p_link = Eigen::Vector3d::Zero();  ///< in the link frame
+  Eigen::Vector3d p_base = Eigen::Vector3d::Zero();  ///< FK(q) * p_link
+};
+
+/// One arm pose of the calibration: joint angles and the distinct features
+/// (at least 3 cm apart) the arm shows there.
+struct ArmCalibrationPose {
+  Eigen::VectorXd q;
+  std::vector<ArmFeature> features;
+};
+
+/// The arm as the calibration fixture: four arm poses with the tool in front
+/// of the work site at different places and heights (by IK), and the
+/// features at each. Throws std::runtime_error when IK reaches fewer than two.
+std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& model);
+
+/// The features of `pose` that `camera` sees (in front, inside the view), at
+/// most `max_count` spread evenly over them, as an operator clicks 6-8 a pose.
+std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrationPose& pose, int max_count = 8);
+
+/// Sets every view's calibration points to the visible features of every pose.
+void choose_calibration_points(StudySetup& setup, const std::vector<ArmCalibrationPose>& poses);
 
 /// Per-axis statistics of pose errors: order x, y, z (m), theta x, y, z
 /// (rad), in the object frame.

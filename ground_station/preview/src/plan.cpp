@@ -1,0 +1,205 @@
+#include "foresight/preview/plan.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "foresight/common/kinematics.hpp"
+
+namespace foresight::preview {
+
+namespace {
+
+constexpr double kPeakVel = 1.875;                 // max ds/dtau of the quintic
+const double kPeakAcc = 10.0 / std::sqrt(3.0);     // max |d2s/dtau2|
+
+std::string mm_deg(double m, double rad) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.2f mm, %.3f deg", m * 1e3, rad * 180.0 / M_PI);
+  return buf;
+}
+
+/// Samples per segment for a duration: at least 2, duration rounded up to the sample period.
+int sample_count(double duration_s, double rate_hz) {
+  return std::max(2, static_cast<int>(std::ceil(duration_s * rate_hz - 1e-9)));
+}
+
+/// Appends samples k = 1..n (k/n of the segment) produced by q_at(tau).
+template <typename F>
+void append(Trajectory& traj, std::vector<Eigen::VectorXd>& rows, double t0, int n, double rate_hz, F q_at) {
+  for (int k = 1; k <= n; ++k) {
+    traj.time_s.push_back(t0 + k / rate_hz);
+    rows.push_back(q_at(static_cast<double>(k) / n));
+  }
+}
+
+/// Largest |qdot| / limit over consecutive rows [first-1, last].
+double peak_velocity_fraction(const std::vector<Eigen::VectorXd>& rows, std::size_t first, double rate_hz,
+                              const std::vector<JointLimits>& lim) {
+  double worst = 0.0;
+  for (std::size_t i = std::max<std::size_t>(first, 1); i < rows.size(); ++i)
+    for (Eigen::Index j = 0; j < rows[i].size(); ++j)
+      worst = std::max(worst, std::abs(rows[i][j] - rows[i - 1][j]) * rate_hz / lim[j].velocity_rad_s);
+  return worst;
+}
+
+}  // namespace
+
+const char* to_string(SegmentKind kind) { return kind == SegmentKind::Joint ? "joint" : "linear"; }
+
+double min_jerk(double tau) {
+  tau = std::clamp(tau, 0.0, 1.0);
+  return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+}
+
+Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const std::vector<Goal>& goals,
+                 const PlanOptions& o) {
+  if (!(o.rate_hz > 0.0) || !(o.limit_fraction > 0.0 && o.limit_fraction <= 1.0) || !(o.tool_speed_m_s > 0.0) ||
+      !(o.tool_accel_m_s2 > 0.0) || !(o.tool_rate_rad_s > 0.0) || !(o.dwell_s >= 0.0) || !(o.min_segment_s > 0.0))
+    throw PlanError("plan options: rate, limit fraction (0, 1], tool speed/acceleration/rate and segment time must "
+                    "be positive, dwell not negative");
+  if (q_start.size() != model.dof())
+    throw PlanError("start joints: " + std::to_string(q_start.size()) + " values, the arm has " +
+                    std::to_string(model.dof()));
+  const auto& lim = model.limits();
+  for (int j = 0; j < model.dof(); ++j)
+    if (!(q_start[j] >= lim[j].lower_rad - 1e-9 && q_start[j] <= lim[j].upper_rad + 1e-9))
+      throw PlanError("start joints: " + model.joint_names()[j] + " is outside its limits");
+  if (goals.empty()) throw PlanError("no goals to plan to");
+
+  KinematicsWorkspace ws(model);
+  Plan plan;
+  std::vector<Eigen::VectorXd> rows{q_start};
+  plan.trajectory.time_s.push_back(0.0);
+  Eigen::VectorXd q = q_start;
+  double t = 0.0;
+
+  for (const Goal& g : goals) {
+    PlannedSegment seg;
+    seg.goal = g.name;
+    seg.kind = g.kind;
+    seg.start_s = t;
+    const std::size_t first_row = rows.size();
+    if (g.kind == SegmentKind::Joint) {
+      Eigen::VectorXd q_goal;
+      if (g.is_pose) {
+        IkOptions ik;
+        ik.position_tolerance_m = o.position_tolerance_m;
+        ik.rotation_tolerance_rad = o.rotation_tolerance_rad;
+        const IkResult r = inverse_kinematics(model, ws, g.base_T_tip, q, ik);
+        if (!r.success)
+          throw PlanError("goal '" + g.name + "': inverse kinematics did not reach it (residual " +
+                          mm_deg(r.position_error_m, r.rotation_error_rad) + ")");
+        q_goal = r.q;
+      } else {
+        if (g.q.size() != model.dof())
+          throw PlanError("goal '" + g.name + "': " + std::to_string(g.q.size()) + " joint values, the arm has " +
+                          std::to_string(model.dof()));
+        for (int j = 0; j < model.dof(); ++j)
+          if (!(g.q[j] >= lim[j].lower_rad - 1e-9 && g.q[j] <= lim[j].upper_rad + 1e-9))
+            throw PlanError("goal '" + g.name + "': " + model.joint_names()[j] + " is outside its limits");
+        q_goal = g.q;
+      }
+      const Eigen::VectorXd dq = q_goal - q;
+      double T = o.min_segment_s;
+      for (int j = 0; j < model.dof(); ++j) {
+        const double d = std::abs(dq[j]);
+        T = std::max({T, kPeakVel * d / (o.limit_fraction * lim[j].velocity_rad_s),
+                      std::sqrt(kPeakAcc * d / (o.limit_fraction * lim[j].acceleration_rad_s2))});
+      }
+      const int n = sample_count(T, o.rate_hz);
+      const Eigen::VectorXd q0 = q;
+      append(plan.trajectory, rows, t, n, o.rate_hz, [&](double tau) -> Eigen::VectorXd {
+        return q0 + dq * min_jerk(tau);
+      });
+      seg.duration_s = n / o.rate_hz;
+      q = q_goal;
+    } else {
+      if (!g.is_pose) throw PlanError("goal '" + g.name + "': a linear move needs a tool pose, not joint angles");
+      const Pose A = forward_kinematics(model, ws, q);
+      const Pose& B = g.base_T_tip;
+      const Eigen::Vector3d dp = B.translation() - A.translation();
+      const Eigen::AngleAxisd rot(A.linear().transpose() * B.linear());
+      const double L = dp.norm(), theta = std::abs(rot.angle());
+      double T = std::max({o.min_segment_s, kPeakVel * L / o.tool_speed_m_s, std::sqrt(kPeakAcc * L / o.tool_accel_m_s2),
+                           kPeakVel * theta / o.tool_rate_rad_s});
+      IkOptions ik;
+      ik.position_tolerance_m = o.position_tolerance_m;
+      ik.rotation_tolerance_rad = o.rotation_tolerance_rad;
+      ik.max_restarts = 0;  // stay on the arm's current configuration branch
+      std::vector<Eigen::VectorXd> path;
+      for (int attempt = 0;; ++attempt) {
+        const int n = sample_count(T, o.rate_hz);
+        path.clear();
+        Eigen::VectorXd qk = q;
+        for (int k = 1; k <= n; ++k) {
+          const double s = min_jerk(static_cast<double>(k) / n);
+          Pose P = Pose::Identity();
+          P.translation() = A.translation() + s * dp;
+          P.linear() = A.linear() * Eigen::AngleAxisd(s * rot.angle(), rot.axis()).toRotationMatrix();
+          const IkResult r = inverse_kinematics(model, ws, P, qk, ik);
+          if (!r.success) {
+            char where[64];
+            std::snprintf(where, sizeof where, "%.0f%%", 100.0 * k / n);
+            throw PlanError("goal '" + g.name + "': the straight line leaves the arm's reach at " + where +
+                            " of the move (IK residual " + mm_deg(r.position_error_m, r.rotation_error_rad) + ")");
+          }
+          if ((r.q - qk).cwiseAbs().maxCoeff() > o.max_joint_step_rad)
+            throw PlanError("goal '" + g.name + "': the straight line needs a joint jump of " +
+                            std::to_string((r.q - qk).cwiseAbs().maxCoeff()) +
+                            " rad between samples (near a singularity or a joint limit)");
+          qk = r.q;
+          path.push_back(qk);
+        }
+        // Joint velocity and acceleration along the sampled path, against the limits.
+        double worst_v = 0.0, worst_a = 0.0;
+        Eigen::VectorXd prev_v = Eigen::VectorXd::Zero(model.dof());
+        Eigen::VectorXd prev = q;
+        for (int k = 0; k <= n; ++k) {
+          const Eigen::VectorXd cur = k < n ? path[k] : path[n - 1];
+          const Eigen::VectorXd v = (cur - prev) * o.rate_hz;
+          for (int j = 0; j < model.dof(); ++j) {
+            worst_v = std::max(worst_v, std::abs(v[j]) / (o.limit_fraction * lim[j].velocity_rad_s));
+            worst_a = std::max(worst_a, std::abs(v[j] - prev_v[j]) * o.rate_hz / (o.limit_fraction * lim[j].acceleration_rad_s2));
+          }
+          prev_v = v;
+          prev = cur;
+        }
+        if ((worst_v <= 1.0 && worst_a <= 1.0) || attempt == 8) {
+          if (worst_v > 1.0 || worst_a > 1.0)
+            throw PlanError("goal '" + g.name + "': the straight line cannot be timed within the joint limits");
+          break;
+        }
+        T *= std::max({worst_v, std::sqrt(worst_a), 1.05});
+      }
+      for (std::size_t k = 0; k < path.size(); ++k) {
+        plan.trajectory.time_s.push_back(t + static_cast<double>(k + 1) / o.rate_hz);
+        rows.push_back(path[k]);
+      }
+      seg.duration_s = static_cast<double>(path.size()) / o.rate_hz;
+      q = path.back();
+    }
+    t += seg.duration_s;
+    if (o.dwell_s > 0.0) {
+      const int n = static_cast<int>(std::ceil(o.dwell_s * o.rate_hz - 1e-9));
+      const Eigen::VectorXd hold = q;
+      append(plan.trajectory, rows, t, n, o.rate_hz, [&](double) -> Eigen::VectorXd { return hold; });
+      t += n / o.rate_hz;
+    }
+    seg.q_end = q;
+    seg.peak_velocity_fraction = peak_velocity_fraction(rows, first_row, o.rate_hz, lim);
+    if (g.is_pose) {
+      const Pose tip = forward_kinematics(model, ws, q);
+      seg.position_error_m = (tip.translation() - g.base_T_tip.translation()).norm();
+      seg.rotation_error_rad = rotation_distance(tip.linear(), g.base_T_tip.linear());
+    }
+    plan.segments.push_back(seg);
+  }
+
+  plan.trajectory.positions_rad.resize(static_cast<Eigen::Index>(rows.size()), model.dof());
+  for (std::size_t i = 0; i < rows.size(); ++i) plan.trajectory.positions_rad.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+  return plan;
+}
+
+}  // namespace foresight::preview
