@@ -41,7 +41,7 @@ struct Args {
 std::ofstream open_out(const std::string& path) {
   std::ofstream f(path);
   if (!f) throw InputError(path, "cannot write the file");
-  f.precision(10);
+  f.precision(15);
   return f;
 }
 

@@ -111,7 +111,7 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
       const int n = sample_count(T, o.rate_hz);
       const Eigen::VectorXd q0 = q;
       append(plan.trajectory, rows, t, n, o.rate_hz, [&](double tau) -> Eigen::VectorXd {
-        return q0 + dq * min_jerk(tau);
+        return tau >= 1.0 ? q_goal : Eigen::VectorXd(q0 + dq * min_jerk(tau));  // the goal exactly
       });
       seg.duration_s = n / o.rate_hz;
       q = q_goal;
