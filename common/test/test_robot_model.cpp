@@ -108,7 +108,7 @@ TEST(RobotModel, LoadsTheArm) {
   EXPECT_GE(shapes, 25);
   const VisualShape& socket = m.links()[9].visuals.back();
   EXPECT_EQ(socket.type, VisualShape::Type::Cylinder);
-  EXPECT_DOUBLE_EQ(socket.size_m.x(), 0.016);  // radius
+  EXPECT_DOUBLE_EQ(socket.size_m.x(), 0.014);  // radius: 28 mm socket in the 30 mm hole
   EXPECT_DOUBLE_EQ(socket.size_m.y(), 0.035);  // length
   EXPECT_NEAR(socket.link_T_shape.translation().z(), 0.2425, 1e-12);
   EXPECT_NEAR(socket.rgba[0], 0.60, 1e-6);  // urdfdom keeps colours as float
