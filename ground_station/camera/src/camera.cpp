@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 
 namespace foresight {
 
@@ -101,14 +102,7 @@ YAML::Node write_matrix(const Eigen::Matrix<double, R, C>& M) {
 }  // namespace
 
 std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw InputError(path, "cannot open camera file");
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
-  }
+  const YAML::Node root = yaml::load_file(path, "cannot open camera file");
   if (!root.IsMap()) throw InputError(path, "expected a map from camera name to camera");
   std::map<std::string, CameraRecord> out;
   for (const auto& kv : root) {

@@ -1,11 +1,10 @@
 // The `tool:` section of config/remote.yaml (LST over Modbus).
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <fstream>
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/lst_tool.hpp"
 
 namespace foresight::hw {
@@ -19,7 +18,7 @@ std::string LstToolConfig::describe() const {
 
 namespace {
 
-int line_of(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+using yaml::line_of;
 
 class ToolParser {
  public:
@@ -33,39 +32,18 @@ class ToolParser {
   YAML::Node node(const char* key) const { return section_[key]; }
 
   void check_keys(std::initializer_list<const char*> allowed) const {
-    for (const auto& kv : section_) {
-      const std::string key = kv.first.as<std::string>();
-      bool known = false;
-      for (const char* k : allowed) known = known || key == k;
-      if (!known) {
-        std::string list;
-        for (const char* k : allowed) list += std::string(list.empty() ? "" : ", ") + k;
-        fail(kv.first, key + ": unknown key (expected one of: " + list + ")");
-      }
-    }
+    if (const auto key = yaml::unknown_key(section_, allowed))
+      fail(*key, key->as<std::string>() + ": unknown key (expected one of: " + yaml::key_list(allowed) + ")");
   }
 
   double number(const char* key, double fallback) const {
-    const YAML::Node n = section_[key];
-    if (!n) return fallback;
-    double v = 0.0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      fail(n, std::string(key) + ": not a number: '" + n.Scalar() + "'");
-    }
-    if (!std::isfinite(v)) fail(n, std::string(key) + ": not a finite number");
+    const double v = yaml::number_or(section_, key, fallback, source_, prefix_);
+    if (!std::isfinite(v)) fail(section_[key], std::string(key) + ": not a finite number");
     return v;
   }
 
   int integer(const char* key, int fallback) const {
-    const YAML::Node n = section_[key];
-    if (!n) return fallback;
-    try {
-      return n.as<int>();
-    } catch (const YAML::Exception&) {
-      fail(n, std::string(key) + ": not an integer: '" + n.Scalar() + "'");
-    }
+    return yaml::integer_or(section_, key, fallback, source_, prefix_);
   }
 
   std::string text(const char* key, const std::string& fallback) const {
@@ -178,13 +156,7 @@ void validate(const LstToolConfig& c) {
 }
 
 LstToolConfig parse_lst_tool_config(const std::string& yaml_text, const std::string& source_name) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw InputError(source_name, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
-  }
-  return parse_root(root, source_name);
+  return parse_root(yaml::parse(yaml_text, source_name), source_name);
 }
 
 LstToolConfig load_lst_tool_config(const std::string& path) {

@@ -1,7 +1,5 @@
 #include "foresight/hw/remote_config.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -11,6 +9,7 @@
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/canopen.hpp"
 
 namespace foresight::hw {
@@ -42,7 +41,7 @@ int RemoteConfig::bus_index(const std::string& name) const {
 
 namespace {
 
-int line_of(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+using yaml::line_of;
 
 class Parser {
  public:
@@ -53,16 +52,9 @@ class Parser {
   }
 
   void check_keys(const YAML::Node& map, const std::string& where, std::initializer_list<const char*> allowed) {
-    for (const auto& kv : map) {
-      const std::string key = kv.first.as<std::string>();
-      bool ok = false;
-      for (const char* a : allowed) ok = ok || key == a;
-      if (!ok) {
-        std::string list;
-        for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
-        fail(kv.first, where + ": unknown key '" + key + "' (expected one of: " + list + ")");
-      }
-    }
+    if (const auto key = yaml::unknown_key(map, allowed))
+      fail(*key, where + ": unknown key '" + key->as<std::string>() + "' (expected one of: " + yaml::key_list(allowed) +
+                     ")");
   }
 
   template <typename T>

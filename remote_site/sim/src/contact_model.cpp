@@ -1,13 +1,12 @@
 #include "foresight/sim/contact_model.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 
 namespace foresight::sim {
 
@@ -180,43 +179,15 @@ ContactResult ContactModel::compute(const Pose& base_T_tip, const Pose& base_T_o
 
 // ---- config --------------------------------------------------------------------
 
-namespace {
-
-int line_of(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
-
-}  // namespace
-
 ContactParams load_contact_params(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw InputError(path, "cannot open the scene file");
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
-  }
+  using yaml::line_of;
+  const YAML::Node root = yaml::load_file(path, "cannot open the scene file");
   const YAML::Node sec = root["contact"];
   if (!sec) throw InputError(path, "missing section 'contact' (tool/ORU contact model)");
   if (!sec.IsMap()) throw InputError(path, line_of(sec), "contact: expected a map");
   ContactParams p;
-  auto number = [&](const char* key, double& v) {
-    const YAML::Node n = sec[key];
-    if (!n) return;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      throw InputError(path, line_of(n), std::string("contact.") + key + ": not a number: '" + n.Scalar() + "'");
-    }
-  };
-  auto integer = [&](const char* key, int& v) {
-    const YAML::Node n = sec[key];
-    if (!n) return;
-    try {
-      v = n.as<int>();
-    } catch (const YAML::Exception&) {
-      throw InputError(path, line_of(n), std::string("contact.") + key + ": not an integer: '" + n.Scalar() + "'");
-    }
-  };
+  auto number = [&](const char* key, double& v) { v = yaml::number_or(sec, key, v, path, "contact."); };
+  auto integer = [&](const char* key, int& v) { v = yaml::integer_or(sec, key, v, path, "contact."); };
   auto vec3 = [&](const char* key, Eigen::Vector3d& v) {
     const YAML::Node n = sec[key];
     if (!n) return false;
@@ -237,11 +208,8 @@ ContactParams load_contact_params(const std::string& path) {
       "wall_stiffness_n_per_m2", "damping_n_s_per_m", "friction_coefficient", "friction_velocity_m_s",
       "face_rings",        "face_ring_points",     "shaft_stations",         "sensor_to_tip_m",
       "sensor_to_tip_rpy_deg"};
-  for (const auto& kv : sec) {
-    const std::string key = kv.first.as<std::string>();
-    if (std::none_of(std::begin(kKeys), std::end(kKeys), [&](const char* k) { return key == k; }))
-      throw InputError(path, line_of(kv.first), "contact." + key + ": unknown key");
-  }
+  if (const auto key = yaml::unknown_key(sec, kKeys))
+    throw InputError(path, line_of(*key), "contact." + key->as<std::string>() + ": unknown key");
   number("socket_diameter_m", p.socket_diameter_m);
   number("tool_length_m", p.tool_length_m);
   number("face_stiffness_n_per_m", p.face_stiffness_n_per_m);

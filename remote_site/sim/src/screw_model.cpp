@@ -1,13 +1,12 @@
 #include "foresight/sim/screw_model.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/lst_tool_registers.hpp"
 
 namespace foresight::sim {
@@ -196,56 +195,31 @@ bool LstMechanism::step(const LstCommand& cmd, double dt_s) noexcept {
 
 // ---- config --------------------------------------------------------------------
 
-namespace {
-
-int line_of(const YAML::Node& n) { return n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
-
-double read_number(const YAML::Node& map, const char* key, double fallback, const std::string& file,
-                   const std::string& prefix) {
-  const YAML::Node n = map[key];
-  if (!n) return fallback;
-  double v = 0.0;
-  try {
-    v = n.as<double>();
-  } catch (const YAML::Exception&) {
-    throw InputError(file, line_of(n), prefix + key + ": not a number: '" + n.Scalar() + "'");
-  }
-  return v;
-}
-
-}  // namespace
-
 LstMechanismParams load_lst_mechanism_params(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw InputError(path, "cannot open the scene file");
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
-  }
+  using yaml::line_of;
+  const YAML::Node root = yaml::load_file(path, "cannot open the scene file");
   const YAML::Node sec = root["lst_sim"];
   if (!sec) throw InputError(path, "missing section 'lst_sim' (simulated LST and screw)");
   if (!sec.IsMap()) throw InputError(path, line_of(sec), "lst_sim: expected a map");
   LstMechanismParams p;
-  p.max_speed_rad_s = read_number(sec, "max_speed_rad_s", p.max_speed_rad_s, path, "lst_sim.");
-  p.max_torque_nm = read_number(sec, "max_torque_nm", p.max_torque_nm, path, "lst_sim.");
-  p.latch_travel_s = read_number(sec, "latch_travel_s", p.latch_travel_s, path, "lst_sim.");
-  p.stall_time_s = read_number(sec, "stall_time_s", p.stall_time_s, path, "lst_sim.");
+  p.max_speed_rad_s = yaml::number_or(sec, "max_speed_rad_s", p.max_speed_rad_s, path, "lst_sim.");
+  p.max_torque_nm = yaml::number_or(sec, "max_torque_nm", p.max_torque_nm, path, "lst_sim.");
+  p.latch_travel_s = yaml::number_or(sec, "latch_travel_s", p.latch_travel_s, path, "lst_sim.");
+  p.stall_time_s = yaml::number_or(sec, "stall_time_s", p.stall_time_s, path, "lst_sim.");
   const YAML::Node screw = sec["screw"];
   if (screw) {
     if (!screw.IsMap()) throw InputError(path, line_of(screw), "lst_sim.screw: expected a map");
     ScrewParams& s = p.screw;
     const std::string pre = "lst_sim.screw.";
-    s.engaged_turns = read_number(screw, "engaged_turns", s.engaged_turns, path, pre);
-    s.breakaway_torque_nm = read_number(screw, "breakaway_torque_nm", s.breakaway_torque_nm, path, pre);
-    s.rundown_torque_nm = read_number(screw, "rundown_torque_nm", s.rundown_torque_nm, path, pre);
+    s.engaged_turns = yaml::number_or(screw, "engaged_turns", s.engaged_turns, path, pre);
+    s.breakaway_torque_nm = yaml::number_or(screw, "breakaway_torque_nm", s.breakaway_torque_nm, path, pre);
+    s.rundown_torque_nm = yaml::number_or(screw, "rundown_torque_nm", s.rundown_torque_nm, path, pre);
     s.seated_stiffness_nm_per_rad =
-        read_number(screw, "seated_stiffness_nm_per_rad", s.seated_stiffness_nm_per_rad, path, pre);
-    s.free_torque_nm = read_number(screw, "free_torque_nm", s.free_torque_nm, path, pre);
-    s.loosen_ratio = read_number(screw, "loosen_ratio", s.loosen_ratio, path, pre);
-    s.initial_engaged_turns = read_number(screw, "initial_engaged_turns", s.engaged_turns, path, pre);
-    s.initial_preload_nm = read_number(screw, "initial_preload_nm", s.initial_preload_nm, path, pre);
+        yaml::number_or(screw, "seated_stiffness_nm_per_rad", s.seated_stiffness_nm_per_rad, path, pre);
+    s.free_torque_nm = yaml::number_or(screw, "free_torque_nm", s.free_torque_nm, path, pre);
+    s.loosen_ratio = yaml::number_or(screw, "loosen_ratio", s.loosen_ratio, path, pre);
+    s.initial_engaged_turns = yaml::number_or(screw, "initial_engaged_turns", s.engaged_turns, path, pre);
+    s.initial_preload_nm = yaml::number_or(screw, "initial_preload_nm", s.initial_preload_nm, path, pre);
   }
   try {
     validate(p);

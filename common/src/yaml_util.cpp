@@ -1,0 +1,94 @@
+#include "foresight/common/yaml_util.hpp"
+
+#include <numbers>
+
+namespace foresight::yaml {
+
+int line_of(const YAML::Node& n) { return n && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
+
+YAML::Node load_file(const std::string& path, const std::string& cannot_open) {
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw InputError(path, cannot_open);
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
+  }
+}
+
+YAML::Node parse(const std::string& text, const std::string& source) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError(source, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
+  }
+}
+
+double read_positive(const YAML::Node& n, const std::string& file, const std::string& key) {
+  if (!n) throw InputError(file, "missing key '" + key + "'");
+  double v = 0.0;
+  try {
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    throw InputError(file, line_of(n), "'" + key + "' is not a number");
+  }
+  if (!(v > 0.0) || !std::isfinite(v)) throw InputError(file, line_of(n), "'" + key + "' must be a positive number");
+  return v;
+}
+
+Pose read_xyz_rpy(const YAML::Node& map, const std::string& file, const std::string& key) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  return make_pose(read_vector<3>(map["xyz_m"], file, key + ".xyz_m"),
+                   read_vector<3>(map["rpy_deg"], file, key + ".rpy_deg") * kDeg);
+}
+
+Pose read_pose(const YAML::Node& n, const std::string& file, const std::string& key) {
+  if (!n) throw InputError(file, "missing key '" + key + "'");
+  if (!n.IsMap()) throw InputError(file, line_of(n), "'" + key + "' must be a map {xyz_m, rpy_deg}");
+  return read_xyz_rpy(n, file, key);
+}
+
+namespace {
+
+/// map[key] as a T, `fallback` when absent. InputError "<prefix><key>: not <a_t>: '<text>'".
+template <typename T>
+T scalar_or(const YAML::Node& map, const char* key, T fallback, const std::string& file, const std::string& prefix,
+            const char* a_t) {
+  const YAML::Node n = map[key];
+  if (!n) return fallback;
+  try {
+    return n.as<T>();
+  } catch (const YAML::Exception&) {
+    throw InputError(file, line_of(n), prefix + key + ": not " + a_t + ": '" + n.Scalar() + "'");
+  }
+}
+
+}  // namespace
+
+double number_or(const YAML::Node& map, const char* key, double fallback, const std::string& file,
+                 const std::string& prefix) {
+  return scalar_or(map, key, fallback, file, prefix, "a number");
+}
+
+int integer_or(const YAML::Node& map, const char* key, int fallback, const std::string& file,
+               const std::string& prefix) {
+  return scalar_or(map, key, fallback, file, prefix, "an integer");
+}
+
+std::optional<YAML::Node> unknown_key(const YAML::Node& map, std::span<const char* const> allowed) {
+  for (const auto& kv : map) {
+    const std::string key = kv.first.as<std::string>();
+    bool known = false;
+    for (const char* a : allowed) known = known || key == a;
+    if (!known) return kv.first;
+  }
+  return std::nullopt;
+}
+
+std::string key_list(std::span<const char* const> keys) {
+  std::string list;
+  for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
+  return list;
+}
+
+}  // namespace foresight::yaml
