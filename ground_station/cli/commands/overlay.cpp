@@ -14,10 +14,8 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "command.hpp"
-#include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/render/overlay_inputs.hpp"
@@ -76,12 +74,7 @@ int run_overlay(const OverlayArgs& a) {
   const int triangles = renderer.render(camera, list, settings, layer);
   composite(layer, mode_opacity(mode, a.alpha), video);
   const double render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_render).count();
-  bool written = false;
-  try {
-    written = cv::imwrite(a.out, video);
-  } catch (const cv::Exception&) {
-  }
-  if (!written) throw InputError(a.out, "cannot write image");
+  write_image(a.out, video);
   const double total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
 
   const Pose tip = arm.tip_pose(q);

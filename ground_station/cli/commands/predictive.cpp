@@ -11,10 +11,8 @@
 
 #include <cstdio>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "command.hpp"
-#include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/preview/preview.hpp"
 #include "foresight/common/number_list.hpp"
@@ -55,12 +53,7 @@ int run_predictive(const PredictiveArgs& a) {
   preview::PredictiveOptions o;
   o.ghost_alpha = a.alpha;
   const cv::Mat out = preview::predictive_frame(renderer, arm, camera, video, q_cmd, q_act, a.delay_s, extras, o);
-  bool written = false;
-  try {
-    written = cv::imwrite(a.out, out);
-  } catch (const cv::Exception&) {
-  }
-  if (!written) throw InputError(a.out, "cannot write image");
+  write_image(a.out, out);
   const double tip_gap_m = (arm.tip_pose(q_cmd).translation() - arm.tip_pose(q_act).translation()).norm();
   if (a.json) {
     std::cout << nlohmann::json{{"out", a.out},           {"camera", camera.name},   {"gl", to_string(backend)},

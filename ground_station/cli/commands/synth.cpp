@@ -12,15 +12,14 @@
 
 #include <cstdio>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "command.hpp"
-#include "foresight/common/error.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/synthetic_camera.hpp"
+#include "foresight/render/video_frame.hpp"
 #include "json_util.hpp"
 
 namespace foresight::cli {
@@ -35,15 +34,6 @@ struct SynthArgs {
   unsigned seed = 1;
   bool json = false;
 };
-
-void write_png(const std::string& path, const cv::Mat& img) {
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path, img);
-  } catch (const cv::Exception&) {
-  }
-  if (!ok) throw InputError(path, "cannot write image");
-}
 
 int run_synth(const SynthArgs& a) {
   using namespace foresight::render;
@@ -69,8 +59,8 @@ int run_synth(const SynthArgs& a) {
   o.seed = a.seed;
   SyntheticCamera synth(*context, model, object, scene, camera.viewport, o);
   const SyntheticFrame f = synth.render(camera, q);
-  write_png(a.out, f.image_bgr);
-  if (!a.arm_mask.empty()) write_png(a.arm_mask, f.arm_mask);
+  write_image(a.out, f.image_bgr);
+  if (!a.arm_mask.empty()) write_image(a.arm_mask, f.arm_mask);
   if (a.json) {
     std::cout << nlohmann::json{{"out", a.out},
                                 {"camera", camera.name},

@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
+#include "foresight/render/video_frame.hpp"
 
 namespace foresight::preview {
 
@@ -128,12 +128,7 @@ PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& ar
       put_label(tile, "t = " + seconds_text(result.sheet_times_s[i] - t0), cv::Point(6, 18));
       tile.copyTo(sheet(cv::Rect((i % cols) * tw, (i / cols) * th, tw, th)));
     }
-    bool ok = false;
-    try {
-      ok = cv::imwrite(sheet_path, sheet);
-    } catch (const cv::Exception&) {
-    }
-    if (!ok) throw InputError(sheet_path, "cannot write contact sheet");
+    render::write_image(sheet_path, sheet, "cannot write contact sheet");
   }
   return result;
 }

@@ -50,4 +50,13 @@ cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const Cam
   return out;
 }
 
+void write_image(const std::string& path, const cv::Mat& image, const std::string& cannot_write) {
+  bool written = false;
+  try {
+    written = cv::imwrite(path, image);
+  } catch (const cv::Exception&) {
+  }
+  if (!written) throw InputError(path, cannot_write);
+}
+
 }  // namespace foresight::render

@@ -22,4 +22,8 @@ cv::Mat read_video_frame(const std::string& path, int frame_index = 0);
 /// resize it)".
 cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const Camera& camera, bool scale);
 
+/// Writes `image` to `path` (format from the extension). Throws InputError
+/// "<path>: <cannot_write>" when OpenCV cannot write it.
+void write_image(const std::string& path, const cv::Mat& image, const std::string& cannot_write = "cannot write image");
+
 }  // namespace foresight::render
