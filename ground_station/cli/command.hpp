@@ -40,6 +40,26 @@ inline std::string default_config(const std::string& file) {
   return std::string(dir != nullptr && *dir != '\0' ? dir : FORESIGHT_DEFAULT_CONFIG_DIR) + "/" + file;
 }
 
+/// --cameras, --camera, --image and --frame: the calibrated camera and the
+/// video frame the commands that draw over a video frame (overlay, preview,
+/// predictive) read. `image_help` describes --image.
+inline void add_video_frame_options(CLI::App& sub, std::string& cameras, std::string& camera, std::string& image,
+                                    int& frame, const std::string& image_help) {
+  sub.add_option("--cameras", cameras, "cameras.yaml from `foresight calibrate`")->required();
+  sub.add_option("--camera", camera, "camera name in cameras.yaml")->required();
+  sub.add_option("--image", image, image_help)->required();
+  sub.add_option("--frame", frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+}
+
+/// --gl, --robot, --object and --json: the options every command that renders
+/// the arm shares. Give `robot` and `object` their defaults first (default_config).
+inline void add_render_options(CLI::App& sub, std::string& gl, std::string& robot, std::string& object, bool& json) {
+  sub.add_option("--gl", gl, "GL back end: osmesa | egl")->capture_default_str();
+  sub.add_option("--robot", robot, "robot URDF")->capture_default_str();
+  sub.add_option("--object", object, "task object model")->capture_default_str();
+  sub.add_flag("--json", json, "print one JSON object");
+}
+
 /// Exit statuses shared by all commands.
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;   ///< the computation failed (e.g. IK did not converge)

@@ -110,10 +110,8 @@ const bool registered = register_command(
     {"overlay", "draw the arm (and the localized object) through a calibrated camera over a video frame",
      [](CLI::App& sub) -> std::function<int()> {
        auto a = std::make_shared<OverlayArgs>();
-       sub.add_option("--cameras", a->cameras, "cameras.yaml from `foresight calibrate`")->required();
-       sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
-       sub.add_option("--image", a->image, "video frame: an image file, or a video file (see --frame)")->required();
-       sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+       add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
+                               "video frame: an image file, or a video file (see --frame)");
        sub.add_option("--joints", a->joints, "arm joint angles q1,...,qN in radians");
        sub.add_option("--joints-deg", a->joints_deg, "arm joint angles in degrees (instead of --joints)");
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)");
@@ -122,10 +120,7 @@ const bool registered = register_command(
        sub.add_option("--alpha", a->alpha, "ghost opacity in [0, 1]")->capture_default_str();
        sub.add_option("--out", a->out, "output image (PNG)")->required();
        sub.add_flag("--scale-image", a->scale_image, "resize an image whose size differs from the camera viewport");
-       sub.add_option("--gl", a->gl, "GL back end: osmesa | egl")->capture_default_str();
-       sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
-       sub.add_option("--object", a->object, "task object model")->capture_default_str();
-       sub.add_flag("--json", a->json, "print one JSON object");
+       add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_overlay(*a); };
      }});
 

@@ -73,10 +73,8 @@ const bool registered = register_command(
     {"predictive", "predictive display: the commanded arm (ghost) over the delayed actual arm (solid), labelled",
      [](CLI::App& sub) -> std::function<int()> {
        auto a = std::make_shared<PredictiveArgs>();
-       sub.add_option("--cameras", a->cameras, "cameras.yaml from `foresight calibrate`")->required();
-       sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
-       sub.add_option("--image", a->image, "video frame: an image, or a video file (see --frame)")->required();
-       sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+       add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
+                               "video frame: an image, or a video file (see --frame)");
        sub.add_option("--commanded", a->commanded, "commanded joint angles q1,...,qN (rad)")->required();
        sub.add_option("--actual", a->actual, "actual (delayed) joint angles q1,...,qN (rad)")->required();
        sub.add_flag("--deg", a->deg, "joint angles are in degrees");
@@ -85,10 +83,7 @@ const bool registered = register_command(
        sub.add_option("--alpha", a->alpha, "ghost opacity of the commanded arm")->capture_default_str();
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)");
        sub.add_flag("--scale-image", a->scale_image, "resize an image whose size differs from the camera viewport");
-       sub.add_option("--gl", a->gl, "GL back end: osmesa | egl")->capture_default_str();
-       sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
-       sub.add_option("--object", a->object, "task object model")->capture_default_str();
-       sub.add_flag("--json", a->json, "print one JSON object");
+       add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_predictive(*a); };
      }});
 

@@ -110,11 +110,8 @@ const bool registered = register_command(
      [](CLI::App& sub) -> std::function<int()> {
        auto a = std::make_shared<PreviewArgs>();
        sub.add_option("trajectory", a->trajectory, "trajectory CSV t,q1,...,qN (s, rad)")->required();
-       sub.add_option("--cameras", a->cameras, "cameras.yaml from `foresight calibrate`")->required();
-       sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
-       sub.add_option("--image", a->image, "the quasi-static video frame: an image, or a video file (see --frame)")
-           ->required();
-       sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+       add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
+                               "the quasi-static video frame: an image, or a video file (see --frame)");
        sub.add_option("--out", a->out, "output video (.mp4, .avi or .webm)")->required();
        sub.add_option("--contact-sheet", a->sheet, "also write a PNG contact sheet of key frames");
        sub.add_option("--speed", a->speed, "playback speed relative to the trajectory's time")->capture_default_str();
@@ -125,10 +122,7 @@ const bool registered = register_command(
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)");
        sub.add_flag("--tags", a->tags, "draw the object's tag frames (needs --object-pose)");
        sub.add_flag("--scale-image", a->scale_image, "resize an image whose size differs from the camera viewport");
-       sub.add_option("--gl", a->gl, "GL back end: osmesa | egl")->capture_default_str();
-       sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
-       sub.add_option("--object", a->object, "task object model")->capture_default_str();
-       sub.add_flag("--json", a->json, "print one JSON object");
+       add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_preview(*a); };
      }});
 

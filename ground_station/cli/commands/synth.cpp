@@ -96,10 +96,7 @@ const bool registered = register_command(
        sub.add_option("--seed", a->seed, "noise seed")->capture_default_str();
        sub.add_option("--write-cameras", a->write_cameras, "write the true cameras as cameras.yaml");
        sub.add_option("--scene", a->scene, "the work site")->capture_default_str();
-       sub.add_option("--gl", a->gl, "GL back end: osmesa | egl")->capture_default_str();
-       sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
-       sub.add_option("--object", a->object, "task object model")->capture_default_str();
-       sub.add_flag("--json", a->json, "print one JSON object");
+       add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_synth(*a); };
      }});
 
