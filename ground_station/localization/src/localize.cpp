@@ -13,6 +13,7 @@
 
 #include "foresight/calibration/detail/levenberg_marquardt.hpp"
 #include "foresight/calibration/detail/robust.hpp"
+#include "foresight/calibration/detail/so3.hpp"
 
 namespace foresight {
 
@@ -24,17 +25,8 @@ std::string point_name(const Correspondence& c) {
   return s;
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
-
-Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
-  const double a = w.norm();
-  if (a < 1e-300) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-}
+using detail::exp_so3;
+using detail::skew;
 
 std::string names_of(const std::map<std::string, Camera>& cameras) {
   std::string s;
