@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
 
 namespace foresight {
 
@@ -105,11 +106,7 @@ Trajectory parse_trajectory_csv(const std::string& text, const std::string& sour
 }
 
 Trajectory read_trajectory_csv(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw InputError(path, "cannot open trajectory file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_trajectory_csv(ss.str(), path);
+  return parse_trajectory_csv(read_text_file(path, "cannot open trajectory file"), path);
 }
 
 std::string to_csv(const Trajectory& traj) {

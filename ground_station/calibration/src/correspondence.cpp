@@ -3,11 +3,11 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <iomanip>
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
 
 namespace foresight {
 
@@ -121,11 +121,7 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
 }
 
 std::vector<Correspondence> read_correspondences_csv(const std::string& path, const LinkPointResolver* robot) {
-  std::ifstream f(path);
-  if (!f) throw InputError(path, "cannot open points file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parse_correspondences_csv(ss.str(), path, robot);
+  return parse_correspondences_csv(read_text_file(path, "cannot open points file"), path, robot);
 }
 
 std::vector<Correspondence> select_camera(const std::vector<Correspondence>& points, const std::string& cam) {

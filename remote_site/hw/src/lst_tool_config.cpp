@@ -1,9 +1,9 @@
 // The `tool:` section of config/remote.yaml (LST over Modbus).
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
 #include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/lst_tool.hpp"
 
@@ -160,11 +160,7 @@ LstToolConfig parse_lst_tool_config(const std::string& yaml_text, const std::str
 }
 
 LstToolConfig load_lst_tool_config(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "cannot open the remote configuration");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_lst_tool_config(ss.str(), path);
+  return parse_lst_tool_config(read_text_file(path, "cannot open the remote configuration"), path);
 }
 
 }  // namespace foresight::hw

@@ -2,13 +2,12 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <numbers>
 #include <set>
-#include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
 #include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/canopen.hpp"
 
@@ -183,11 +182,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
 }
 
 RemoteConfig load_remote_config(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "cannot open the remote configuration file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_remote_config(ss.str(), path);
+  return parse_remote_config(read_text_file(path, "cannot open the remote configuration file"), path);
 }
 
 void validate(RemoteConfig& c) {
