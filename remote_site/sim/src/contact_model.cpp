@@ -7,19 +7,15 @@
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/yaml_util.hpp"
+#include "param_checks.hpp"
 
 namespace foresight::sim {
 
 namespace {
 
 void check_fields(const ContactParams& p) {
-  auto positive = [](double v, const char* name) {
-    if (!(v > 0.0) || !std::isfinite(v)) throw std::invalid_argument(std::string("contact.") + name + " must be a positive number");
-  };
-  auto non_negative = [](double v, const char* name) {
-    if (!(v >= 0.0) || !std::isfinite(v))
-      throw std::invalid_argument(std::string("contact.") + name + " must be a non-negative number");
-  };
+  auto positive = [](double v, const char* name) { require_positive(v, "contact", name); };
+  auto non_negative = [](double v, const char* name) { require_non_negative(v, "contact", name); };
   positive(p.socket_diameter_m, "socket_diameter_m");
   positive(p.tool_length_m, "tool_length_m");
   positive(p.face_stiffness_n_per_m, "face_stiffness_n_per_m");

@@ -8,6 +8,7 @@
 #include "foresight/common/error.hpp"
 #include "foresight/common/yaml_util.hpp"
 #include "foresight/hw/lst_tool_registers.hpp"
+#include "param_checks.hpp"
 
 namespace foresight::sim {
 
@@ -16,13 +17,8 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 }
 
 void validate(const LstMechanismParams& p) {
-  auto positive = [](double v, const char* name) {
-    if (!(v > 0.0) || !std::isfinite(v)) throw std::invalid_argument(std::string("lst_sim.") + name + " must be a positive number");
-  };
-  auto non_negative = [](double v, const char* name) {
-    if (!(v >= 0.0) || !std::isfinite(v))
-      throw std::invalid_argument(std::string("lst_sim.") + name + " must be a non-negative number");
-  };
+  auto positive = [](double v, const char* name) { require_positive(v, "lst_sim", name); };
+  auto non_negative = [](double v, const char* name) { require_non_negative(v, "lst_sim", name); };
   positive(p.max_speed_rad_s, "max_speed_rad_s");
   positive(p.max_torque_nm, "max_torque_nm");
   positive(p.latch_travel_s, "latch_travel_s");
