@@ -1,0 +1,68 @@
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
+#include "foresight/common/yaml_util.hpp"
+
+using namespace foresight;
+
+namespace {
+
+template <typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(YamlUtil, LoadAndParseErrorsNameTheFile) {
+  EXPECT_EQ(error_of([] { yaml::load_file("/nonexistent/x.yaml", "cannot open x file"); }),
+            "/nonexistent/x.yaml: cannot open x file");
+  EXPECT_EQ(error_of([] { yaml::parse("a: [1, 2\nb: 3\n", "F"); }).rfind("F:", 0), 0u);
+  EXPECT_NE(error_of([] { yaml::parse("a: [1, 2\nb: 3\n", "F"); }).find("malformed YAML: "), std::string::npos);
+  EXPECT_EQ(error_of([] { read_text_file("/nonexistent/t.csv", "cannot open t file"); }),
+            "/nonexistent/t.csv: cannot open t file");
+}
+
+TEST(YamlUtil, LineOf) {
+  const YAML::Node root = yaml::parse("a: 1\nb:\n  c: 2\n", "F");
+  EXPECT_EQ(yaml::line_of(root["a"]), 1);
+  EXPECT_EQ(yaml::line_of(root["b"]["c"]), 3);
+  EXPECT_EQ(yaml::line_of(root["missing"]), 0);
+}
+
+TEST(YamlUtil, RequiredValues) {
+  const YAML::Node root = yaml::parse("v: [1, 2, x]\nw: [1, 2]\np: -1\nq: {xyz_m: [1, 2, 3], rpy_deg: [0, 0, 90]}\n", "F");
+  EXPECT_EQ(error_of([&] { yaml::read_vector<3>(root["v"], "F", "v"); }), "F:1: 'v' element 3 is not a number");
+  EXPECT_EQ(error_of([&] { yaml::read_vector<3>(root["w"], "F", "w"); }), "F:2: 'w' must be a list of 3 numbers");
+  EXPECT_EQ(error_of([&] { yaml::read_vector<3>(root["u"], "F", "u"); }), "F: missing key 'u'");
+  EXPECT_EQ(error_of([&] { yaml::read_positive(root["p"], "F", "p"); }), "F:3: 'p' must be a positive number");
+  EXPECT_EQ(error_of([&] { yaml::read_pose(root["p"], "F", "p"); }), "F:3: 'p' must be a map {xyz_m, rpy_deg}");
+  const Pose T = yaml::read_pose(root["q"], "F", "q");
+  EXPECT_TRUE(T.translation().isApprox(Eigen::Vector3d(1, 2, 3)));
+  EXPECT_TRUE((T.linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY()));
+}
+
+TEST(YamlUtil, OptionalSettingsAndKeys) {
+  const YAML::Node sec = yaml::parse("a: 2.5\nb: many\nc: 1.5\n", "F");
+  EXPECT_EQ(yaml::number_or(sec, "a", 0.0, "F", "s."), 2.5);
+  EXPECT_EQ(yaml::number_or(sec, "z", 7.0, "F", "s."), 7.0);
+  EXPECT_EQ(yaml::integer_or(sec, "z", 3, "F", "s."), 3);
+  EXPECT_EQ(error_of([&] { yaml::number_or(sec, "b", 0.0, "F", "s."); }), "F:2: s.b: not a number: 'many'");
+  EXPECT_EQ(error_of([&] { yaml::integer_or(sec, "c", 0, "F", "s."); }), "F:3: s.c: not an integer: '1.5'");
+  const char* allowed[] = {"a", "b"};
+  const auto unknown = yaml::unknown_key(sec, allowed);
+  ASSERT_TRUE(unknown.has_value());
+  EXPECT_EQ(unknown->as<std::string>(), "c");
+  EXPECT_EQ(yaml::line_of(*unknown), 3);
+  EXPECT_EQ(yaml::key_list(allowed), "a, b");
+  const char* all[] = {"a", "b", "c"};
+  EXPECT_FALSE(yaml::unknown_key(sec, all).has_value());
+}
+
+}  // namespace
