@@ -24,6 +24,13 @@ YAML::Node parse(const std::string& text, const std::string& source) {
   }
 }
 
+YAML::Node section(const YAML::Node& root, const std::string& name, const std::string& file, const std::string& what) {
+  const YAML::Node sec = root[name];
+  if (!sec) throw InputError(file, "missing section '" + name + "' (" + what + ")");
+  if (!sec.IsMap()) throw InputError(file, line_of(sec), name + ": expected a map");
+  return sec;
+}
+
 double read_positive(const YAML::Node& n, const std::string& file, const std::string& key) {
   if (!n) throw InputError(file, "missing key '" + key + "'");
   double v = 0.0;

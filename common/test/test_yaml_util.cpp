@@ -65,4 +65,11 @@ TEST(YamlUtil, OptionalSettingsAndKeys) {
   EXPECT_FALSE(yaml::unknown_key(sec, all).has_value());
 }
 
+TEST(YamlUtil, Section) {
+  const YAML::Node root = yaml::parse("s:\n  a: 1\nt: 2\n", "F");
+  EXPECT_EQ(yaml::section(root, "s", "F", "the s part")["a"].as<int>(), 1);
+  EXPECT_EQ(error_of([&] { yaml::section(root, "u", "F", "the u part"); }), "F: missing section 'u' (the u part)");
+  EXPECT_EQ(error_of([&] { yaml::section(root, "t", "F", "the t part"); }), "F:3: t: expected a map");
+}
+
 }  // namespace

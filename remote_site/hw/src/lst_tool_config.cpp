@@ -61,9 +61,7 @@ class ToolParser {
 
 LstToolConfig parse_root(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) throw InputError(source, "expected a map at the top level");
-  const YAML::Node section = root["tool"];
-  if (!section) throw InputError(source, "missing section 'tool' (the LST power tool)");
-  if (!section.IsMap()) throw InputError(source, line_of(section), "tool: expected a map");
+  const YAML::Node section = yaml::section(root, "tool", source, "the LST power tool");
   ToolParser t(source, section, "tool.");
   t.check_keys({"modbus", "max_speed_rad_s", "max_torque_nm", "speed_rad_s", "tighten_torque_nm",
                 "loosen_torque_limit_nm"});

@@ -178,9 +178,7 @@ ContactResult ContactModel::compute(const Pose& base_T_tip, const Pose& base_T_o
 ContactParams load_contact_params(const std::string& path) {
   using yaml::line_of;
   const YAML::Node root = yaml::load_file(path, "cannot open the scene file");
-  const YAML::Node sec = root["contact"];
-  if (!sec) throw InputError(path, "missing section 'contact' (tool/ORU contact model)");
-  if (!sec.IsMap()) throw InputError(path, line_of(sec), "contact: expected a map");
+  const YAML::Node sec = yaml::section(root, "contact", path, "tool/ORU contact model");
   ContactParams p;
   auto number = [&](const char* key, double& v) { v = yaml::number_or(sec, key, v, path, "contact."); };
   auto integer = [&](const char* key, int& v) { v = yaml::integer_or(sec, key, v, path, "contact."); };

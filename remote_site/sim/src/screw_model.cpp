@@ -194,9 +194,7 @@ bool LstMechanism::step(const LstCommand& cmd, double dt_s) noexcept {
 LstMechanismParams load_lst_mechanism_params(const std::string& path) {
   using yaml::line_of;
   const YAML::Node root = yaml::load_file(path, "cannot open the scene file");
-  const YAML::Node sec = root["lst_sim"];
-  if (!sec) throw InputError(path, "missing section 'lst_sim' (simulated LST and screw)");
-  if (!sec.IsMap()) throw InputError(path, line_of(sec), "lst_sim: expected a map");
+  const YAML::Node sec = yaml::section(root, "lst_sim", path, "simulated LST and screw");
   LstMechanismParams p;
   p.max_speed_rad_s = yaml::number_or(sec, "max_speed_rad_s", p.max_speed_rad_s, path, "lst_sim.");
   p.max_torque_nm = yaml::number_or(sec, "max_torque_nm", p.max_torque_nm, path, "lst_sim.");

@@ -27,6 +27,10 @@ YAML::Node load_file(const std::string& path, const std::string& cannot_open);
 /// InputError "<source>:<line>: malformed YAML: <reason>".
 YAML::Node parse(const std::string& text, const std::string& source);
 
+/// The section `root[name]` of a configuration file, a map. InputError
+/// "missing section '<name>' (<what>)", "<name>: expected a map".
+YAML::Node section(const YAML::Node& root, const std::string& name, const std::string& file, const std::string& what);
+
 // ---- required values; messages quote `key`: "missing key 'K'", "'K' ..." ----
 
 /// A list of N finite numbers. InputError "missing key 'K'",
