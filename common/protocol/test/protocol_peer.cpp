@@ -51,6 +51,10 @@ template <fp::Message T>
 struct Echo : Pump {
   Echo(const fp::Participant& p, const char* topic)
       : reader(p, topic), writer(p, std::string(topic) + "/echo", fp::MessageTraits<T>::qos()) {}
+  /// With the echo writer's own QoS (e.g. transient-local, so that echoes
+  /// written before the test's reader matched this writer still reach it).
+  Echo(const fp::Participant& p, const char* topic, const fp::Qos& echo_qos)
+      : reader(p, topic), writer(p, std::string(topic) + "/echo", echo_qos) {}
   void attach(fp::WaitSet& waitset) override { waitset.attach(reader); }
   void pump() override {
     while (reader.take(sample)) writer.write(sample);
@@ -238,7 +242,10 @@ int main(int argc, char** argv) {
     std::vector<std::unique_ptr<Pump>> echoes;
     echoes.push_back(std::make_unique<Echo<msg::Command>>(participant, fp::topics::kCommand));
     echoes.push_back(std::make_unique<Echo<msg::CommandAck>>(participant, fp::topics::kCommandAck));
-    echoes.push_back(std::make_unique<Echo<msg::TrajectoryChunk>>(participant, fp::topics::kTrajectoryChunk));
+    // The upload test cannot re-send (round_trip does): the chunk echoes are
+    // kept (transient-local) for a reader that matches this writer late.
+    echoes.push_back(std::make_unique<Echo<msg::TrajectoryChunk>>(participant, fp::topics::kTrajectoryChunk,
+                                                                  fp::qos::trajectory_chunk().transient_local()));
     echoes.push_back(std::make_unique<Echo<msg::TrajectoryStatus>>(participant, fp::topics::kTrajectoryStatus));
     echoes.push_back(std::make_unique<Echo<msg::JointState>>(participant, fp::topics::kJointState));
     echoes.push_back(std::make_unique<Echo<msg::Wrench>>(participant, fp::topics::kWrench));

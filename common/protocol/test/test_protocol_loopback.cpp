@@ -564,8 +564,11 @@ TEST_F(ProtocolLoopback, BadCommandsAreRejectedWithReasonCodeAndText) {
 TEST_F(ProtocolLoopback, ChunkedTrajectoryUploadIsAssembledVerifiedCommittedAndRun) {
   GroundLink link(*participant_);
   ASSERT_NO_FATAL_FAILURE(link.connect());
+  // Transient-local, as the peer's echo writer: the echoes reach this reader
+  // even when the peer's writer has not yet matched it (discovery is not
+  // symmetric in time; a volatile echo would then be lost).
   fp::Reader<msg::TrajectoryChunk> echo(*participant_, echo_topic(fp::topics::kTrajectoryChunk),
-                                        fp::qos::trajectory_chunk());
+                                        fp::qos::trajectory_chunk().transient_local());
   ASSERT_TRUE(echo.wait_for_writers(1, kDiscoveryTimeout));
 
   const foresight::Trajectory t = make_trajectory(2000, 7);
