@@ -243,9 +243,11 @@ int main(int argc, char** argv) {
     echoes.push_back(std::make_unique<Echo<msg::Command>>(participant, fp::topics::kCommand));
     echoes.push_back(std::make_unique<Echo<msg::CommandAck>>(participant, fp::topics::kCommandAck));
     // The upload test cannot re-send (round_trip does): the chunk echoes are
-    // kept (transient-local) for a reader that matches this writer late.
-    echoes.push_back(std::make_unique<Echo<msg::TrajectoryChunk>>(participant, fp::topics::kTrajectoryChunk,
-                                                                  fp::qos::trajectory_chunk().transient_local()));
+    // kept (transient-local) for a reader that matches this writer late. The
+    // last 64 only: keep-all would hold every echo of a benchmark run in the
+    // writer's history until Cyclone blocks the writer.
+    echoes.push_back(std::make_unique<Echo<msg::TrajectoryChunk>>(
+        participant, fp::topics::kTrajectoryChunk, fp::qos::trajectory_chunk().transient_local().keep_last(64)));
     echoes.push_back(std::make_unique<Echo<msg::TrajectoryStatus>>(participant, fp::topics::kTrajectoryStatus));
     echoes.push_back(std::make_unique<Echo<msg::JointState>>(participant, fp::topics::kJointState));
     echoes.push_back(std::make_unique<Echo<msg::Wrench>>(participant, fp::topics::kWrench));
