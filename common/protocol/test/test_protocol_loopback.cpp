@@ -571,6 +571,25 @@ TEST_F(ProtocolLoopback, ChunkedTrajectoryUploadIsAssembledVerifiedCommittedAndR
                                         fp::qos::trajectory_chunk().transient_local());
   ASSERT_TRUE(echo.wait_for_writers(1, kDiscoveryTimeout));
 
+  // Prove the chunk echo path first, as round_trip() does: the peer's echo
+  // reader may not have matched link.chunk yet (discovery is not symmetric),
+  // and a volatile reader skips what was written before its match. A 1-chunk
+  // warm-up upload is re-sent until its echo comes back.
+  {
+    const foresight::Trajectory w = make_trajectory(10, 7);
+    const auto warm = fp::make_chunks(w, 0x7a10, 0x5e55, foresight::trajectory_hash(w), 250);
+    ASSERT_EQ(warm.size(), 1u);
+    fp::Sample<msg::TrajectoryChunk> got;
+    bool echoed = false;
+    for (const auto until = Clock::now() + kReplyTimeout; !echoed && Clock::now() < until;) {
+      link.chunk.write(warm[0]);
+      echoed = echo.wait_take(got, 250ms);
+    }
+    ASSERT_TRUE(echoed) << "no echo of the warm-up chunk";
+    while (echo.wait_take(got, 100ms)) {
+    }  // re-sent warm-up echoes
+  }
+
   const foresight::Trajectory t = make_trajectory(2000, 7);
   const foresight::TrajectoryHash hash = foresight::trajectory_hash(t);
   const std::uint64_t id = 0x7a11;
