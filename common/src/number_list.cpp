@@ -8,20 +8,28 @@
 
 namespace foresight {
 
-Eigen::VectorXd parse_numbers(const std::string& text, const std::string& option) {
-  std::vector<double> v;
+std::vector<std::string_view> split_commas(std::string_view text) {
+  std::vector<std::string_view> out;
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    out.push_back(text.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+Eigen::VectorXd parse_numbers(const std::string& text, const std::string& option) {
+  std::vector<double> v;
+  for (const std::string_view field : split_commas(text)) {
+    const std::string item(field);
     char* end = nullptr;
     const double x = std::strtod(item.c_str(), &end);
     if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
       throw std::invalid_argument(option + ": element " + std::to_string(v.size() + 1) + " ('" + item +
                                   "') is not a finite number");
     v.push_back(x);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
   }
   return Eigen::Map<Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }

@@ -1,5 +1,7 @@
 #include "foresight/common/trajectory.hpp"
 
+#include "foresight/common/number_list.hpp"
+
 #include <openssl/evp.h>
 
 #include <bit>
@@ -16,18 +18,6 @@
 namespace foresight {
 
 namespace {
-
-std::vector<std::string_view> split_commas(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = line.find(',', start);
-    out.push_back(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
-    if (comma == std::string_view::npos) break;
-    start = comma + 1;
-  }
-  return out;
-}
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/number_list.hpp"
 #include "foresight/common/text_file.hpp"
 
 namespace foresight {
@@ -22,13 +23,7 @@ std::string trim(const std::string& s) {
 
 std::vector<std::string> split(const std::string& line) {
   std::vector<std::string> out;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = line.find(',', start);
-    out.push_back(trim(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
+  for (const std::string_view field : split_commas(line)) out.push_back(trim(std::string(field)));
   return out;
 }
 

@@ -16,6 +16,7 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/localization/localize.hpp"
 #include "json_util.hpp"
@@ -57,14 +58,9 @@ Eigen::Matrix<double, 7, 7> calibration_information(const std::string& file, con
 
 std::vector<std::string> split_views(const std::string& text) {
   std::vector<std::string> out;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t comma = text.find(',', start);
-    const std::string v = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+  for (const std::string_view v : split_commas(text)) {
     if (v.empty()) throw std::invalid_argument("--views: empty view name in '" + text + "'");
-    out.push_back(v);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
+    out.emplace_back(v);
   }
   return out;
 }

@@ -38,10 +38,8 @@ struct Args {
 std::vector<preview::Goal> parse_goals(const std::string& text, const ObjectModel& object, const Pose& base_T_object,
                                        const Eigen::VectorXd& q_start) {
   std::vector<preview::Goal> goals;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t comma = text.find(',', start);
-    std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+  for (const std::string_view field : split_commas(text)) {
+    std::string item(field);
     preview::Goal g;
     const std::size_t colon = item.find(':');
     if (colon != std::string::npos) {
@@ -68,8 +66,6 @@ std::vector<preview::Goal> parse_goals(const std::string& text, const ObjectMode
       g.base_T_tip = base_T_object * tag->second;
     }
     goals.push_back(g);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
   }
   return goals;
 }

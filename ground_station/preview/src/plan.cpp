@@ -69,6 +69,11 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
   if (goals.empty()) throw PlanError("no goals to plan to");
 
   KinematicsWorkspace ws(model);
+  IkOptions ik;  // goals: seeded from the current joints, with restarts
+  ik.position_tolerance_m = o.position_tolerance_m;
+  ik.rotation_tolerance_rad = o.rotation_tolerance_rad;
+  IkOptions ik_line = ik;  // along a line: no restarts, stay on the arm's configuration branch
+  ik_line.max_restarts = 0;
   Plan plan;
   std::vector<Eigen::VectorXd> rows{q_start};
   plan.trajectory.time_s.push_back(0.0);
@@ -84,9 +89,6 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
     if (g.kind == SegmentKind::Joint) {
       Eigen::VectorXd q_goal;
       if (g.is_pose) {
-        IkOptions ik;
-        ik.position_tolerance_m = o.position_tolerance_m;
-        ik.rotation_tolerance_rad = o.rotation_tolerance_rad;
         const IkResult r = inverse_kinematics(model, ws, g.base_T_tip, q, ik);
         if (!r.success)
           throw PlanError("goal '" + g.name + "': inverse kinematics did not reach it (residual " +
@@ -124,10 +126,6 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
       const double L = dp.norm(), theta = std::abs(rot.angle());
       double T = std::max({o.min_segment_s, kPeakVel * L / o.tool_speed_m_s, std::sqrt(kPeakAcc * L / o.tool_accel_m_s2),
                            kPeakVel * theta / o.tool_rate_rad_s});
-      IkOptions ik;
-      ik.position_tolerance_m = o.position_tolerance_m;
-      ik.rotation_tolerance_rad = o.rotation_tolerance_rad;
-      ik.max_restarts = 0;  // stay on the arm's current configuration branch
       std::vector<Eigen::VectorXd> path;
       for (int attempt = 0;; ++attempt) {
         const int n = sample_count(T, o.rate_hz);
@@ -138,7 +136,7 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
           Pose P = Pose::Identity();
           P.translation() = A.translation() + s * dp;
           P.linear() = A.linear() * Eigen::AngleAxisd(s * rot.angle(), rot.axis()).toRotationMatrix();
-          const IkResult r = inverse_kinematics(model, ws, P, qk, ik);
+          const IkResult r = inverse_kinematics(model, ws, P, qk, ik_line);
           if (!r.success) {
             char where[64];
             std::snprintf(where, sizeof where, "%.0f%%", 100.0 * k / n);

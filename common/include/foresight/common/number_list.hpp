@@ -4,10 +4,16 @@
 
 #include <Eigen/Core>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "foresight/common/robot_model.hpp"
 
 namespace foresight {
+
+/// "a,b,,c" -> {"a", "b", "", "c"}: every field, untrimmed; one field for
+/// text without a comma. The views point into `text`.
+std::vector<std::string_view> split_commas(std::string_view text);
 
 /// "a,b,c" -> numbers. std::invalid_argument:
 /// "<option>: element K ('x') is not a finite number".
