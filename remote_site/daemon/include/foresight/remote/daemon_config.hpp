@@ -1,0 +1,50 @@
+#pragma once
+// The `controller:` section of config/remote.yaml: what the daemon
+// foresight-remote does above the hardware (which config/remote.yaml's other
+// sections describe): the link-loss policy, report rates, the journal, the
+// E-stop input of the simulated cabinet, trajectory start tolerance.
+// Set-up code only: throws InputError "<file>:<line>: controller.<key> ...".
+
+#include <string>
+
+namespace foresight::remote {
+
+enum class LinkLossPolicy {
+  FinishAndHold,  ///< a committed motion runs to its end, then the arm holds
+  Stop,           ///< controlled stop (category 2) at once, the arm holds powered
+};
+const char* to_string(LinkLossPolicy policy) noexcept;
+
+struct ReportRates {
+  double joint_state_hz = 50.0;
+  double wrench_hz = 50.0;
+  double tool_hz = 5.0;
+  double status_hz = 2.0;
+};
+
+struct JournalSettings {
+  std::string path = "foresight-journal.db";  ///< relative to the working directory; --journal overrides
+  double max_mb = 64.0;                       ///< rotate past this size
+  int keep_files = 4;                         ///< rotated files kept
+  double telemetry_hz = 10.0;                 ///< telemetry rows per second
+};
+
+struct DaemonConfig {
+  std::string source;                     ///< the file, for messages
+  int line = 0;                           ///< line of `controller:`
+  double start_tolerance_rad = 0.01;      ///< a trajectory must start this close to the arm, every joint
+  double link_loss_timeout_s = 3.0;       ///< no ground heartbeat this long: the link is lost
+  LinkLossPolicy link_loss_policy = LinkLossPolicy::FinishAndHold;
+  ReportRates reports;
+  JournalSettings journal;
+  std::string estop_file;                 ///< E-stop (category 0) while this file exists; "" = no such input
+  double tool_poll_hz = 5.0;              ///< LST status reads when the tool is idle
+  double default_algorithm_timeout_s = 60.0;
+};
+
+/// Reads the optional `controller:` section (defaults when absent). Unknown
+/// keys, wrong types, non-positive rates and unknown policies are refused.
+DaemonConfig load_daemon_config(const std::string& remote_yaml_path);
+DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string& source_name);
+
+}  // namespace foresight::remote

@@ -1,0 +1,80 @@
+// The `controller:` section of remote.yaml: defaults, every key, and bad
+// values refused with the file, line and key.
+#include <gtest/gtest.h>
+
+#include "foresight/common/error.hpp"
+#include "foresight/remote/daemon_config.hpp"
+
+using namespace foresight;
+using namespace foresight::remote;
+
+namespace {
+
+std::string error_of(const std::string& yaml) {
+  try {
+    parse_daemon_config(yaml, "r.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST(DaemonConfig, ProjectFileLoads) {
+  const DaemonConfig c = load_daemon_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  EXPECT_GT(c.line, 0);
+  EXPECT_GT(c.link_loss_timeout_s, 0.0);
+  EXPECT_GT(c.reports.joint_state_hz, 0.0);
+}
+
+TEST(DaemonConfig, DefaultsWhenTheSectionIsAbsent) {
+  const DaemonConfig c = parse_daemon_config("cycle_rate_hz: 500\n", "r.yaml");
+  EXPECT_EQ(c.line, 0);
+  EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.01);
+  EXPECT_EQ(c.link_loss_policy, LinkLossPolicy::FinishAndHold);
+  EXPECT_EQ(c.journal.keep_files, 4);
+  EXPECT_TRUE(c.estop_file.empty());
+}
+
+TEST(DaemonConfig, EveryKeyIsRead) {
+  const DaemonConfig c = parse_daemon_config(
+      "controller:\n"
+      "  start_tolerance_rad: 0.02\n"
+      "  link: {loss_timeout_s: 7.5, loss_policy: stop}\n"
+      "  reports: {joint_state_hz: 20, wrench_hz: 25, tool_hz: 2, status_hz: 1}\n"
+      "  journal: {path: j.db, max_mb: 8, keep_files: 2, telemetry_hz: 4}\n"
+      "  estop_file: /tmp/estop\n"
+      "  tool_poll_hz: 3\n"
+      "  default_algorithm_timeout_s: 30\n",
+      "r.yaml");
+  EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.02);
+  EXPECT_DOUBLE_EQ(c.link_loss_timeout_s, 7.5);
+  EXPECT_EQ(c.link_loss_policy, LinkLossPolicy::Stop);
+  EXPECT_DOUBLE_EQ(c.reports.joint_state_hz, 20);
+  EXPECT_DOUBLE_EQ(c.reports.wrench_hz, 25);
+  EXPECT_DOUBLE_EQ(c.reports.tool_hz, 2);
+  EXPECT_DOUBLE_EQ(c.reports.status_hz, 1);
+  EXPECT_EQ(c.journal.path, "j.db");
+  EXPECT_DOUBLE_EQ(c.journal.max_mb, 8);
+  EXPECT_EQ(c.journal.keep_files, 2);
+  EXPECT_DOUBLE_EQ(c.journal.telemetry_hz, 4);
+  EXPECT_EQ(c.estop_file, "/tmp/estop");
+  EXPECT_DOUBLE_EQ(c.tool_poll_hz, 3);
+  EXPECT_DOUBLE_EQ(c.default_algorithm_timeout_s, 30);
+}
+
+TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
+  EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
+            "r.yaml:2: controller: unknown key 'speed' (expected one of: start_tolerance_rad, link, reports, journal, "
+            "estop_file, tool_poll_hz, default_algorithm_timeout_s)");
+  EXPECT_EQ(error_of("controller:\n  link:\n    loss_policy: panic\n"),
+            "r.yaml:3: controller.link.loss_policy: 'panic' is not a policy (expected finish_and_hold or stop)");
+  EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: -5\n"),
+            "r.yaml:3: controller.reports.wrench_hz: must be a positive number");
+  EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: fast\n"),
+            "r.yaml:3: controller.reports.wrench_hz: not a number: 'fast'");
+  EXPECT_EQ(error_of("controller:\n  journal: {keep_files: 0}\n"),
+            "r.yaml:2: controller.journal.keep_files: must be in 1..100");
+  EXPECT_EQ(error_of("controller: 5\n"), "r.yaml:1: controller: expected a map");
+}
