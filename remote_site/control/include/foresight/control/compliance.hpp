@@ -1,0 +1,142 @@
+#pragma once
+// Wrist force/torque compliance, in three pieces the Controller chains every
+// cycle (each usable alone, e.g. in tests):
+//
+//  1. WrenchCompensator: the F/T reading (sensor frame, bias already removed
+//     by the decoder's tare) -> the contact wrench on the tool, in the tool
+//     tip frame and about the tip. Removes the tool's weight for the current
+//     sensor orientation (mass, CoM in the sensor frame), adding back the
+//     weight that was in the reading when the sensor was tared, and a fixed
+//     extra bias; then a first-order low-pass, a deadband (soft: |w| - band)
+//     and a clamp (force/torque limits of what the admittance may use).
+//  2. Admittance: per axis i of a chosen frame (x y z rx ry rz),
+//        M_i x_i'' + D_i x_i' + K_i x_i = w_i
+//     discretized exactly for a wrench held over each cycle (zero-order hold:
+//     the 2x2 state transition exp(A dt) precomputed at set-up), so the step
+//     response equals the analytic mass-spring-damper at the samples. x is the
+//     offset of the commanded tool pose from the reference (m, rad), clamped
+//     to max_offset.
+//  3. dls_step(): damped least-squares inverse of the tip Jacobian,
+//        dq = J^T (J J^T + lambda^2 I)^-1 e
+//     (lambda grows near singularities: manipulability-based).
+//
+// Set-up (may allocate/throw std::invalid_argument naming the field):
+// constructors and configure(). Real-time (noexcept, no allocation): all the
+// rest.
+
+#include <Eigen/Core>
+#include <array>
+
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/pose.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/control/rt_types.hpp"
+
+namespace foresight::control {
+
+using Vector6 = Eigen::Matrix<double, 6, 1>;
+/// Joint-space vectors with inline storage (no heap) for up to kMaxJoints.
+using JointVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, static_cast<int>(kMaxJoints), 1>;
+using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, static_cast<int>(kMaxJoints)>;
+
+/// The tool on the sensor (config/robot.urdf: the LST, 2.6 kg).
+struct ToolParams {
+  double mass_kg = 2.6;
+  Vec3 com_sensor_m{0.015, 0.0, 0.125};  ///< centre of mass in the sensor frame
+  Pose sensor_T_tip = Pose(Eigen::Translation3d(0.0, 0.0, 0.295));
+  Wrench6 extra_bias_ft{};  ///< subtracted from the reading (sensor frame), beyond the tare
+};
+
+struct WrenchFilterParams {
+  double cutoff_hz = 30.0;          ///< first-order low-pass; 0 = off
+  double force_deadband_n = 1.0;
+  double torque_deadband_nm = 0.1;
+  double force_clamp_n = 100.0;     ///< what the admittance may see, per axis
+  double torque_clamp_nm = 10.0;
+};
+
+class WrenchCompensator {
+ public:
+  /// Throws std::invalid_argument ("tool.mass_kg must be >= 0", ...).
+  WrenchCompensator(ToolParams tool, WrenchFilterParams filter, double cycle_rate_hz, Eigen::Vector3d gravity_base);
+
+  /// The reading was tared with the sensor at this orientation: the tool's
+  /// weight at that orientation is in the bias and is added back. RT-safe.
+  void set_tare_orientation(const Eigen::Matrix3d& base_R_sensor) noexcept;
+  /// Reset the filter to `wrench_tool` (e.g. zero after a tare). RT-safe.
+  void reset(const Wrench6& wrench_tool = {}) noexcept;
+
+  struct Output {
+    Wrench6 raw_tool{};       ///< compensated, tool frame about the tip, before filtering
+    Wrench6 filtered_tool{};  ///< low-passed (what telemetry and limits use)
+    Wrench6 shaped_tool{};    ///< deadband + clamp applied (what the admittance uses)
+  };
+  /// One sample: wrench_ft from hw::FtReading (sensor frame, about the
+  /// sensor origin, bias removed). `fresh` false keeps the filter state.
+  /// RT-safe.
+  const Output& update(const Wrench6& wrench_ft, const Eigen::Matrix3d& base_R_sensor, bool fresh) noexcept;
+  const Output& output() const noexcept { return out_; }
+
+  /// The tool's weight as the sensor sees it at this orientation (sensor frame). RT-safe.
+  Wrench6 tool_gravity_ft(const Eigen::Matrix3d& base_R_sensor) const noexcept;
+  const ToolParams& tool() const noexcept { return tool_; }
+
+ private:
+  ToolParams tool_;
+  WrenchFilterParams filter_;
+  double alpha_ = 1.0;
+  Eigen::Vector3d gravity_base_;
+  Wrench6 tare_gravity_ft_{};
+  Output out_{};
+  bool primed_ = false;
+};
+
+struct AdmittanceParams {
+  TaskFrame frame = TaskFrame::Tool;  ///< Tool: axes of the tip frame; Base: of the base frame
+  /// Per axis x y z (kg, N s/m, N/m) and rx ry rz (kg m^2, N m s/rad, N m/rad).
+  std::array<double, 6> mass{4.0, 4.0, 4.0, 0.05, 0.05, 0.05};
+  std::array<double, 6> damping{3000.0, 3000.0, 3000.0, 10.0, 10.0, 10.0};
+  std::array<double, 6> stiffness{2000.0, 2000.0, 2000.0, 20.0, 20.0, 20.0};
+  std::array<double, 6> max_offset{0.02, 0.02, 0.02, 0.1, 0.1, 0.1};  ///< m, rad
+};
+
+class Admittance {
+ public:
+  Admittance() = default;
+  /// Set-up: validates (mass > 0, damping >= 0, stiffness >= 0, max_offset > 0;
+  /// std::invalid_argument naming the axis) and precomputes the transitions.
+  Admittance(const AdmittanceParams& params, double cycle_rate_hz);
+  /// Change parameters keeping the state (real-time: no throw; returns false
+  /// and keeps the old parameters when invalid). Uses a 2x2 matrix exponential
+  /// (Pade, fixed size): a few microseconds.
+  bool configure(const AdmittanceParams& params) noexcept;
+
+  /// Advance one cycle with the wrench w (in params().frame, about the tip). RT-safe.
+  void step(const Vector6& w) noexcept;
+  void reset() noexcept;  ///< offset and velocity to zero. RT-safe.
+
+  const Vector6& offset() const noexcept { return x_; }
+  const Vector6& velocity() const noexcept { return v_; }
+  const AdmittanceParams& params() const noexcept { return params_; }
+  double dt() const noexcept { return dt_; }
+
+ private:
+  AdmittanceParams params_{};
+  double dt_ = 0.002;
+  std::array<Eigen::Matrix2d, 6> phi_{};
+  std::array<Eigen::Vector2d, 6> gamma_{};
+  Vector6 x_ = Vector6::Zero();
+  Vector6 v_ = Vector6::Zero();
+};
+
+/// 6-vector pose error (linear m, rotation vector rad; base frame) taking
+/// `from` to `to`. RT-safe.
+Vector6 pose_error(const Pose& from, const Pose& to) noexcept;
+
+/// Damped least squares: dq = J^T (J J^T + lambda^2 I)^-1 e, lambda^2 =
+/// lambda_max^2 (1 - (w / w0)^2) when the manipulability w = sqrt(det J J^T)
+/// is below w0, else 0 (plus a floor of 1e-6). RT-safe.
+void dls_step(const Jacobian& J, const Vector6& e, JointVector& dq, double lambda_max = 0.05,
+              double w0 = 0.01) noexcept;
+
+}  // namespace foresight::control

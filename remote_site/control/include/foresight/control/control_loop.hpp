@@ -1,0 +1,155 @@
+#pragma once
+// The real-time thread around Controller::step():
+//
+//   every period (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME), 1/cycle_rate_hz):
+//     drives.cycle_read -> pop commands -> controller.step -> drives.cycle_write
+//     -> push events / stop events / telemetry (every telemetry_decimation cycles)
+//
+// Start-up (start()): the thread asks for SCHED_FIFO at `rt_priority`, locks
+// memory (mlockall) and pins itself to `cpu` (-1: no pinning); where not
+// permitted (this machine, CI) it records a warning (warnings()) and runs as a
+// normal thread. The daemon starts the loop with the drives configured but
+// NOT enabled: the loop cycles from the first period, so the master's CANopen
+// heartbeat and SYNC keep going, and the drives stay disabled (mode Disabled)
+// until an Enable/Recover command.
+//
+// Drive power (DriveSystem::enable()/disable() are set-up calls that run
+// their own cycles): when the Controller asks for them (CycleOutputs::
+// drive_request), the loop thread runs them itself in a non-real-time phase
+// between two cycles. They keep cycling the bus (heartbeat and SYNC continue),
+// take up to enable_timeout_ms; a failure (HwError) becomes the command's
+// Failed event with the error text. Overruns are not counted for that phase,
+// and the period grid restarts after it. Commands queue meanwhile.
+//
+// Threads: one supervisor thread produces commands (send) and consumes events,
+// stop events and telemetry (poll_*); set_estop/set_link_lost/stats may be
+// called from any thread. The RT side never blocks on a full ring: a dropped
+// event or sample is counted (stats().events_dropped, telemetry_dropped).
+//
+// Set-up (may allocate, throw): constructor, start(), stop(), warnings().
+// Any thread, lock-free: send, poll_*, set_estop, set_link_lost, stats.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "foresight/control/controller.hpp"
+#include "foresight/control/rt_types.hpp"
+#include "foresight/control/spsc_ring.hpp"
+#include "foresight/hw/drive_system.hpp"
+
+namespace foresight::control {
+
+struct LoopOptions {
+  int rt_priority = 80;            ///< SCHED_FIFO priority (1-99)
+  int cpu = -1;                    ///< pin the loop to this CPU; -1: do not pin
+  bool lock_memory = true;         ///< mlockall(MCL_CURRENT | MCL_FUTURE)
+  int telemetry_decimation = 5;    ///< one TelemetrySample every N cycles (500 Hz / 5 = 100 Hz)
+};
+
+/// Cycle statistics, updated by the loop with relaxed atomics; read from any
+/// thread (a consistent-enough snapshot, no locks).
+struct LoopStats {
+  static constexpr std::size_t kBins = 64;        ///< histogram bins
+  static constexpr double kBinWidthUs = 10.0;     ///< bin i: [10 i, 10 (i + 1)) us; the last bin: everything above
+  std::uint64_t cycles = 0;
+  std::uint64_t overruns = 0;          ///< cycles whose work ended after the next deadline (periods skipped)
+  std::uint64_t events_dropped = 0;    ///< event/stop rings full
+  std::uint64_t telemetry_dropped = 0;
+  double compute_us_max = 0.0;         ///< read + step + write
+  double compute_us_mean = 0.0;
+  double wakeup_latency_us_max = 0.0;  ///< wake-up time - deadline (jitter)
+  double wakeup_latency_us_mean = 0.0;
+  std::array<std::uint64_t, kBins> compute_hist{};
+  std::array<std::uint64_t, kBins> latency_hist{};
+  bool realtime = false;               ///< SCHED_FIFO was granted
+  /// Percentile (0..1) of a histogram in us (bin upper edge).
+  static double percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept;
+};
+
+class ControlLoop {
+ public:
+  static constexpr std::size_t kCommandCapacity = 64;
+  static constexpr std::size_t kEventCapacity = 256;
+  static constexpr std::size_t kStopCapacity = 16;
+  static constexpr std::size_t kTelemetryCapacity = 1024;
+
+  /// Set-up. `drives` configured (configure() done), not enabled, and not
+  /// cycled by anyone else while the loop runs; outlives the loop. Throws
+  /// std::invalid_argument when the joint counts differ or config is bad.
+  ControlLoop(hw::DriveSystem& drives, const RobotModel& model, const ControllerConfig& config,
+              LoopOptions options = {});
+  /// Stops the thread (stop()).
+  ~ControlLoop();
+  ControlLoop(const ControlLoop&) = delete;
+  ControlLoop& operator=(const ControlLoop&) = delete;
+
+  /// Start the thread. Throws std::runtime_error if already started.
+  void start();
+  /// Shutdown: a Cat1 stop if the drives are enabled (controlled stop, then
+  /// disable), waits (bounded: 5 s) for rest, ends the thread. Idempotent.
+  void stop();
+  bool running() const noexcept { return running_.load(std::memory_order_acquire); }
+
+  /// Supervisor thread. False when the command ring is full (nothing sent).
+  bool send(const MotionCommand& cmd) noexcept { return commands_.try_push(cmd); }
+  /// Supervisor thread. False when nothing is waiting.
+  bool poll_event(MotionEvent& out) noexcept { return events_.try_pop(out); }
+  bool poll_stop(StopEvent& out) noexcept { return stops_.try_pop(out); }
+  bool poll_telemetry(TelemetrySample& out) noexcept { return telemetry_.try_pop(out); }
+
+  /// Inputs, any thread.
+  void set_estop(bool pressed) noexcept { estop_.store(pressed, std::memory_order_release); }
+  void set_link_lost(bool lost) noexcept { link_lost_.store(lost, std::memory_order_release); }
+
+  LoopStats stats() const noexcept;
+  /// Start-up warnings (no SCHED_FIFO, no mlockall, no affinity). Call after
+  /// start() returned (it waits until the thread has tried).
+  std::vector<std::string> warnings() const;
+  /// The controller, for inspection in tests after stop() (not while running).
+  const Controller& controller() const noexcept { return *controller_; }
+
+ private:
+  void run() noexcept;
+  void setup_thread() noexcept;
+  void perform(DriveRequest request) noexcept;
+  void cycle(std::int64_t stamp_ns) noexcept;
+
+  hw::DriveSystem& drives_;
+  LoopOptions options_;
+  std::unique_ptr<Controller> controller_;
+  std::size_t dof_ = 0;
+
+  SpscRing<MotionCommand, kCommandCapacity> commands_;
+  SpscRing<MotionEvent, kEventCapacity> events_;
+  SpscRing<StopEvent, kStopCapacity> stops_;
+  SpscRing<TelemetrySample, kTelemetryCapacity> telemetry_;
+
+  std::atomic<bool> estop_{false};
+  std::atomic<bool> link_lost_{false};
+  std::atomic<bool> running_{false};
+  std::atomic<bool> quit_{false};
+  std::atomic<bool> shutdown_requested_{false};
+  std::atomic<bool> setup_done_{false};
+  std::thread thread_;
+  std::vector<std::string> warnings_;  // written by the thread before setup_done_, read after
+
+  // statistics (written by the loop thread only)
+  std::atomic<std::uint64_t> cycles_{0}, overruns_{0}, events_dropped_{0}, telemetry_dropped_{0};
+  std::atomic<double> compute_max_{0.0}, compute_sum_{0.0}, latency_max_{0.0}, latency_sum_{0.0};
+  std::array<std::atomic<std::uint64_t>, LoopStats::kBins> compute_hist_{};
+  std::array<std::atomic<std::uint64_t>, LoopStats::kBins> latency_hist_{};
+  std::atomic<bool> realtime_{false};
+
+  // cycle scratch (loop thread only)
+  hw::JointFeedback fb_{};
+  hw::FtReading ft_{};
+  hw::JointTargets targets_{};
+  CycleInputs in_{};
+  CycleOutputs out_{};
+};
+
+}  // namespace foresight::control

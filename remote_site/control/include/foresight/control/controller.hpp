@@ -1,0 +1,203 @@
+#pragma once
+// The per-cycle control logic, without threads and without CAN: the loop
+// (control_loop.hpp) reads the drives, calls Controller::step(), writes the
+// drives. Tests drive step() directly with synthetic inputs.
+//
+//   modes (command.hpp ControllerMode):
+//     Disabled  drives not enabled; q_cmd follows q (nothing jumps at enable)
+//     Idle      holding the last commanded pose (stiff, or compliant on Hold{compliant})
+//     Trajectory  running a PreparedTrajectory (optionally compliant)
+//     Algorithm   running guarded_move / insert / pull_out (algorithms.hpp)
+//     Stopping  controlled stop: every joint decelerates at stop_decel_fraction of
+//               its URDF acceleration limit to rest
+//     Stopped   after a Cat2 stop: holding, powered; leaves only on Recover
+//     Fault     after a Cat0/Cat1 stop: drives disabled; leaves only on Recover
+//
+//   stops (IEC 60204-1), every one with a StopEvent (cause, cycle, evidence):
+//     Cat0 (quick stop now, then drives off): E-stop (configurable), drive
+//          faults (CycleStatus.stop_required with a drive/bus event), Stop{Cat0}
+//     Cat1 (controlled stop, then drives off): following error, F/T sensor
+//          faults/saturation/missing, Stop{Cat1}
+//     Cat2 (controlled stop, hold powered): joint position/velocity limit of
+//          the command (the offending command is dropped), force/torque
+//          safety limits, link loss with policy Stop, Stop{Cat2}
+//   Link loss with policy FinishThenHold: what runs runs to its end, then the
+//   arm holds; new motions are rejected (NotInControl) while the link is lost.
+//
+// Drive power: the controller never calls the drives. It asks through
+// CycleOutputs::drive_request (Enable / Disable); whoever runs the drives
+// (ControlLoop, or a test) performs it and reports back with
+// drive_request_done(). Cat0 additionally sets CycleOutputs::quick_stop for
+// the drive system's request_quick_stop().
+//
+// Set-up (allocates, throws std::invalid_argument naming the field): the
+// constructor. Real-time (noexcept, no allocation, no locks, no logging):
+// command(), step(), drive_request_done(), and every accessor.
+
+#include <array>
+#include <cstdint>
+
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/control/algorithms.hpp"
+#include "foresight/control/compliance.hpp"
+#include "foresight/control/rt_types.hpp"
+#include "foresight/control/trajectory_executor.hpp"
+
+namespace foresight::control {
+
+enum class LinkLossPolicy : std::uint8_t { FinishThenHold = 0, Stop };
+
+struct ControllerConfig {
+  double cycle_rate_hz = 500.0;
+  ToolParams tool{};
+  WrenchFilterParams filter{};
+  AdmittanceParams admittance{};           ///< default compliance (Hold{compliant}, compliant trajectories)
+  double start_tolerance_rad = 0.01;       ///< a trajectory must start this close to the commanded joints
+  // Safety limits, checked every cycle.
+  double position_margin_rad = 0.0;        ///< q_cmd must stay inside [lower + m, upper - m]
+  double velocity_limit_fraction = 1.0;    ///< of the URDF joint velocity limit
+  double following_error_rad = 0.05;       ///< |q_cmd - q| per joint (the drives' own window is 0.02-0.03)
+  double force_limit_n = 150.0;            ///< |F| of the compensated contact force
+  double torque_limit_nm = 15.0;           ///< |T| about the tip
+  double stop_decel_fraction = 1.0;        ///< controlled stops: of the URDF acceleration limits
+  StopCategory estop_category = StopCategory::Cat0;
+  LinkLossPolicy link_loss = LinkLossPolicy::FinishThenHold;
+  int sensor_fault_cycles = 5;             ///< F/T saturated or faulty this many cycles in a row: Cat1
+  double velocity_filter_hz = 50.0;        ///< dq telemetry low-pass
+};
+
+/// What the loop read this cycle.
+struct CycleInputs {
+  std::uint64_t cycle = 0;
+  std::int64_t stamp_ns = 0;
+  std::size_t joints = 0;              ///< must equal the model's dof (else: Cat0, DriveFault)
+  JointArray q{};                      ///< measured joint positions
+  JointArray torque{};
+  bool drives_enabled = false;         ///< every drive in Operation enabled
+  Wrench6 wrench_ft{};                 ///< hw::FtReading::wrench_ft (sensor frame, bias removed)
+  bool ft_fresh = false;
+  std::uint8_t ft_saturated_mask = 0;
+  bool ft_fault = false;
+  bool ft_tare_in_progress = false;
+  bool hw_stop_required = false;       ///< hw::CycleStatus::stop_required
+  bool hw_drive_fault = false;         ///< a stop-requiring event came from a drive or bus (else F/T)
+  std::uint8_t hw_fault = 0;           ///< hw::HwFault of the first stop-requiring event
+  std::uint8_t hw_node = 0;
+  std::int8_t hw_joint = -1;
+  std::uint32_t hw_code = 0;
+  bool estop = false;                  ///< E-stop input (true = pressed)
+  bool link_lost = false;              ///< link-loss input
+};
+
+enum class DriveRequest : std::uint8_t { None = 0, Enable, Disable };
+
+/// What the loop must do this cycle.
+struct CycleOutputs {
+  static constexpr std::size_t kMaxEvents = 8;
+  JointArray q_cmd{};                  ///< targets for cycle_write
+  bool quick_stop = false;             ///< call DriveSystem::request_quick_stop() (Cat0)
+  int tare_samples = 0;                ///< > 0: call DriveSystem::request_tare(tare_samples)
+  DriveRequest drive_request = DriveRequest::None;  ///< perform, then drive_request_done()
+  std::size_t event_count = 0;
+  std::array<MotionEvent, kMaxEvents> events{};
+  const StopEvent* stop = nullptr;     ///< a new stop this cycle (valid until the next step)
+  TelemetrySample telemetry{};
+};
+
+class Controller {
+ public:
+  /// Set-up. Throws std::invalid_argument: dof > kMaxJoints, a bad config
+  /// field (named), the model without an "ft_sensor" link.
+  Controller(const RobotModel& model, const ControllerConfig& config);
+
+  /// Hand over a command (the loop pops them from its ring before step()).
+  /// Its events come out of the next step(). RT-safe.
+  void command(const MotionCommand& cmd) noexcept;
+
+  /// One control cycle. RT-safe.
+  void step(const CycleInputs& in, CycleOutputs& out) noexcept;
+
+  /// The drive request of a previous step was performed: ok, or failed with
+  /// `text` (the HwError's message, truncated). `held` = the targets the
+  /// drives hold now (hw::DriveSystem::held_targets). RT-safe.
+  void drive_request_done(DriveRequest request, bool ok, const char* text, const JointArray& held) noexcept;
+
+  ControllerMode mode() const noexcept { return mode_; }
+  const StopEvent& last_stop() const noexcept { return stop_; }
+  const ControllerConfig& config() const noexcept { return config_; }
+  const RobotModel& model() const noexcept { return model_; }
+  std::size_t joints() const noexcept { return dof_; }
+  /// Commanded tip pose of the last cycle (base frame).
+  const Pose& commanded_tip() const noexcept { return base_T_tip_cmd_; }
+  /// Measured tip pose of the last cycle (base frame).
+  const Pose& measured_tip() const noexcept { return base_T_tip_; }
+  const AlgorithmRunner& algorithm() const noexcept { return algo_; }
+  const WrenchCompensator& compensator() const noexcept { return comp_; }
+  const Admittance& admittance() const noexcept { return adm_; }
+
+ private:
+  enum class Active : std::uint8_t { None, Hold, Trajectory, Algorithm, Enable, Disable, Recover, Tare };
+  void emit(std::uint64_t id, MotionCommandKind cmd, MotionEventKind kind, Reason code, const char* text) noexcept;
+  void finish_active(MotionEventKind kind, Reason code, const char* text) noexcept;
+  void begin_stop(StopCause cause, StopCategory cat, int joint, double value, double limit,
+                  const char* text) noexcept;
+  void hold_here() noexcept;
+  bool check_safety(const CycleInputs& in) noexcept;
+  void controlled_stop_step() noexcept;
+  void compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointVector& q_seed, bool tracking) noexcept;
+  void record_evidence(const CycleInputs& in) noexcept;
+
+  const RobotModel& model_;
+  ControllerConfig config_;
+  KinematicsWorkspace ws_;
+  std::size_t dof_ = 0;
+  int ft_link_ = -1;
+  int tip_link_ = -1;
+  double dt_ = 0.002;
+  JointArray lower_{}, upper_{}, vmax_{}, amax_{};
+
+  ControllerMode mode_ = ControllerMode::Disabled;
+  Active active_ = Active::None;
+  std::uint64_t active_id_ = 0;
+  MotionCommandKind active_cmd_ = MotionCommandKind::Hold;
+  bool hold_compliant_ = false;
+  bool traj_compliant_ = false;
+  bool drives_enabled_ = false;
+  bool drive_request_pending_ = false;
+  DriveRequest pending_request_ = DriveRequest::None;
+  StopCategory pending_stop_category_ = StopCategory::None;  // Stopping -> what after rest
+  bool link_lost_ = false;
+  int sensor_bad_cycles_ = 0;
+  int tare_request_ = 0;
+  int tare_wait_cycles_ = 0;
+
+  const PreparedTrajectory* traj_ = nullptr;
+  double traj_t_ = 0.0;
+  std::size_t traj_hint_ = 0;
+
+  JointArray q_{}, q_prev_{}, dq_{}, q_cmd_{}, q_cmd_prev_{}, q_hold_{}, v_cmd_{};
+  bool have_q_ = false;
+  Pose base_T_tip_ = Pose::Identity();
+  Pose base_T_tip_cmd_ = Pose::Identity();
+  Pose base_T_hold_ = Pose::Identity();  // reference tip pose of a compliant hold
+  JointVector qv_, qv2_, dqv_;
+  Jacobian J_;
+
+  WrenchCompensator comp_;
+  Admittance adm_;
+  AlgorithmRunner algo_;
+
+  std::array<MotionEvent, CycleOutputs::kMaxEvents> pending_events_{};
+  std::size_t pending_event_count_ = 0;
+  StopEvent stop_{};
+  bool stop_new_ = false;
+  std::array<EvidenceSample, StopEvent::kEvidence> evidence_{};
+  std::size_t evidence_head_ = 0;
+  std::size_t evidence_count_ = 0;
+  std::uint64_t cycle_ = 0;
+  std::int64_t stamp_ns_ = 0;
+  Wrench6 wrench_tool_{};
+};
+
+}  // namespace foresight::control
