@@ -11,6 +11,9 @@ const char* to_string(msg::CommandKind value) noexcept {
     case foresight_msg_CMD_GOTO_JOINT: return "CMD_GOTO_JOINT";
     case foresight_msg_CMD_GOTO_CART: return "CMD_GOTO_CART";
     case foresight_msg_CMD_ABORT: return "CMD_ABORT";
+    case foresight_msg_CMD_TAKE_CONTROL: return "CMD_TAKE_CONTROL";
+    case foresight_msg_CMD_RELEASE_CONTROL: return "CMD_RELEASE_CONTROL";
+    case foresight_msg_CMD_RECOVER: return "CMD_RECOVER";
   }
   return "UNKNOWN";
 }
@@ -50,6 +53,7 @@ const char* to_string(msg::ReasonCode value) noexcept {
     case foresight_msg_REASON_FORCE_LIMIT: return "REASON_FORCE_LIMIT";
     case foresight_msg_REASON_TOOL_FAULT: return "REASON_TOOL_FAULT";
     case foresight_msg_REASON_INTERNAL: return "REASON_INTERNAL";
+    case foresight_msg_REASON_NOT_IN_CONTROL: return "REASON_NOT_IN_CONTROL";
   }
   return "UNKNOWN";
 }

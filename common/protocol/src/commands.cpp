@@ -41,7 +41,7 @@ CommandChecker::Verdict CommandChecker::check(const msg::Command& c, std::int64_
                std::to_string(msg::kProtocolVersion);
     return v;
   }
-  if (static_cast<unsigned>(c.payload._d) > static_cast<unsigned>(foresight_msg_CMD_ABORT)) {
+  if (static_cast<unsigned>(c.payload._d) > static_cast<unsigned>(foresight_msg_CMD_RECOVER)) {
     v.code = foresight_msg_REASON_BAD_ARGUMENT;
     v.reason = name + "unknown kind " + std::to_string(static_cast<unsigned>(c.payload._d));
     return v;

@@ -197,6 +197,10 @@ TEST(ProtocolCodec, EnumNames) {
   EXPECT_STREQ(fp::to_string(foresight_msg_UPLOAD_COMMITTED), "UPLOAD_COMMITTED");
   EXPECT_STREQ(fp::to_string(foresight_msg_MODE_STOPPED), "MODE_STOPPED");
   EXPECT_STREQ(fp::to_string(foresight_msg_STOP_CAT1), "STOP_CAT1");
+  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_TAKE_CONTROL), "CMD_TAKE_CONTROL");
+  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_RECOVER), "CMD_RECOVER");
+  EXPECT_STREQ(fp::to_string(foresight_msg_REASON_NOT_IN_CONTROL), "REASON_NOT_IN_CONTROL");
+  EXPECT_EQ(msg::kProtocolVersion, 2u);
 }
 
 // ---------------------------------------------------------------- upload
@@ -525,10 +529,10 @@ TEST(ProtocolCommands, CheckerRejectsVersionReplayExpiryAndUnknownKind) {
   EXPECT_EQ(replay.code, foresight_msg_REASON_BAD_SEQUENCE);
   EXPECT_EQ(replay.reason, "command 1: sequence 1 is not after 1 (replayed or reordered)");
   auto c2 = ground.next(foresight_msg_CMD_REQUEST);
-  c2->protocol_version = 2;
+  c2->protocol_version = 1;  // the version before the IDL 4 renames
   auto v = remote.check(*c2, now);
   EXPECT_EQ(v.code, foresight_msg_REASON_VERSION_MISMATCH);
-  EXPECT_EQ(v.reason, "command 2: protocol version 2, this remote speaks 1");
+  EXPECT_EQ(v.reason, "command 2: protocol version 1, this remote speaks 2");
   // Expiry is judged on the ground's clock: remote clock 3 s ahead.
   auto c3 = ground.next(foresight_msg_CMD_GOTO_JOINT);
   c3->expires_ns = now + 1'000'000'000;

@@ -544,7 +544,7 @@ TEST_F(ProtocolLoopback, BadCommandsAreRejectedWithReasonCodeAndText) {
     ASSERT_EQ(acks.size(), 2u);
     EXPECT_EQ(acks[1]->code, foresight_msg_REASON_VERSION_MISMATCH);
     EXPECT_EQ(fp::text(acks[1]->reason),
-              "command " + std::to_string(c->command_id) + ": protocol version 99, this remote speaks 1");
+              "command " + std::to_string(c->command_id) + ": protocol version 99, this remote speaks " + std::to_string(msg::kProtocolVersion));
   }
   {
     fp::Sample<msg::Command> c = link.make(foresight_msg_CMD_REQUEST);

@@ -1,0 +1,143 @@
+#pragma once
+// The ground station's DDS side: one participant, a CommandSequencer (this
+// process's session), our heartbeat, the DelayMonitor, and a thread that
+// collects acks, upload status, telemetry and the remote's heartbeat.
+//
+//   send(kind, payload)          -> the command id (the ack topic echoes it)
+//   wait_final(id, timeout)      -> every ack seen for it, up to a terminal one
+//   execute(kind, payload, ...)  -> send + wait_final with a timeout derived
+//                                   from the measured delay
+//   upload(trajectory, timeout)  -> chunks out, waits for COMMITTED/REJECTED,
+//                                   the remote's hash beside the local one
+//   joint_state(), wrench(), tool(), status() -> the latest, with its age on
+//                                   the ground clock (clock offset applied)
+//
+// Threads: every public method is thread-safe. Not real-time. Construction
+// and send()/upload() may throw (DDS set-up, bad payload); waits return
+// results, never throw on timeout.
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "foresight/common/trajectory.hpp"
+#include "foresight/control/command.hpp"
+#include "foresight/ground_link/delay_monitor.hpp"
+
+namespace foresight::ground_link {
+
+struct Config {
+  int domain = 0;                       ///< DDS domain id
+  double heartbeat_period_s = 0.25;
+  double remote_loss_s = 2.0;           ///< no remote heartbeat this long: remote_alive() false
+  DelayMonitor::Config delay{};
+  /// Commands expire this long after issue (0 = never). Keep it above the
+  /// worst one-way delay.
+  double command_lifetime_s = 0.0;
+  std::size_t ack_history = 1024;       ///< commands whose acks are remembered (oldest dropped)
+  double timeout_margin_s = 2.0;        ///< added to every derived timeout
+  /// Round trip assumed before any pong arrived (for derived timeouts).
+  double default_rtt_s = 1.0;
+};
+
+/// Every ack seen for one command, in arrival order.
+struct CommandResult {
+  std::uint64_t command_id = 0;
+  std::vector<control::Ack> acks;
+  bool finished = false;  ///< a terminal ack arrived (else the wait timed out)
+  /// The terminal ack's (or the last ack's) state, code and reason.
+  control::AckState state = control::AckState::Received;
+  control::Reason code = control::Reason::None;
+  std::string reason;
+  std::vector<double> final_q_rad;
+  double elapsed_s = 0.0;  ///< from send (or the wait's start) to the terminal ack
+  /// True only for COMPLETED.
+  bool succeeded() const noexcept { return finished && state == control::AckState::Completed; }
+};
+
+struct UploadResult {
+  std::uint64_t trajectory_id = 0;
+  control::UploadState state = control::UploadState::Assembling;  ///< Assembling = timed out
+  control::Reason code = control::Reason::None;
+  std::string reason;
+  TrajectoryHash local_hash{};
+  TrajectoryHash remote_hash{};  ///< from the COMMITTED (or REJECTED) status
+  std::uint32_t chunk_count = 0;
+  double elapsed_s = 0.0;        ///< first chunk written -> final status
+  bool committed() const noexcept {
+    return state == control::UploadState::Committed && local_hash == remote_hash;
+  }
+};
+
+/// A telemetry value with its age: ground now - (remote stamp - clock offset).
+template <class T>
+struct Timed {
+  T value;
+  std::int64_t received_ns = 0;  ///< ground clock
+  double age_s = 0.0;            ///< computed when read
+};
+
+class GroundLink {
+ public:
+  /// Set-up: participant, writers, readers, delay monitor, link thread.
+  /// Throws protocol::ProtocolError.
+  explicit GroundLink(Config config);
+  ~GroundLink();
+  GroundLink(const GroundLink&) = delete;
+  GroundLink& operator=(const GroundLink&) = delete;
+
+  /// Waits until the remote's command reader matched ours and a first pong
+  /// arrived (bounded by `timeout`). False on timeout.
+  bool wait_for_remote(std::chrono::nanoseconds timeout);
+
+  /// Sends one command; returns its id. `lifetime_s` < 0 uses
+  /// Config::command_lifetime_s. Throws std::invalid_argument (payload not of
+  /// `kind`), std::length_error (a bound), protocol::ProtocolError (write).
+  std::uint64_t send(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+                     double lifetime_s = -1.0);
+  /// Every ack of `command_id` until a terminal one or `timeout`.
+  CommandResult wait_final(std::uint64_t command_id, std::chrono::nanoseconds timeout);
+  /// send() then wait_final() with timeout_for(expected_duration_s).
+  CommandResult execute(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+                        double expected_duration_s = 0.0);
+  /// expected_duration_s + 3 x the window's p99 round trip (default_rtt_s
+  /// before any) + timeout_margin_s.
+  std::chrono::nanoseconds timeout_for(double expected_duration_s) const;
+
+  /// Splits, writes every chunk and waits for COMMITTED or REJECTED of this
+  /// upload (bounded by `timeout`). `trajectory_id` 0 = a fresh random id.
+  /// Throws std::invalid_argument (make_chunks) or protocol::ProtocolError.
+  UploadResult upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
+                      std::uint64_t trajectory_id = 0);
+
+  std::optional<Timed<control::JointReport>> joint_state() const;
+  std::optional<Timed<control::WrenchReport>> wrench() const;
+  std::optional<Timed<control::ToolReport>> tool() const;
+  std::optional<Timed<control::StatusReport>> status() const;
+
+  /// A remote heartbeat within Config::remote_loss_s.
+  bool remote_alive() const;
+  /// Seconds since the last remote heartbeat (infinity before the first).
+  double remote_silence_s() const;
+  std::uint64_t remote_boot_id() const;
+
+  DelayMonitor& delay() noexcept;
+  const DelayMonitor& delay() const noexcept;
+  std::uint64_t session_id() const noexcept;
+  const protocol::Participant& participant() const noexcept;
+
+  /// Stops our heartbeat (the remote then sees a link loss); tests and the
+  /// link-loss drill. resume_heartbeat() starts it again.
+  void pause_heartbeat() noexcept;
+  void resume_heartbeat() noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace foresight::ground_link

@@ -1,0 +1,388 @@
+#include "foresight/ground_link/ground_link.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+#include "foresight/remote_link/convert.hpp"
+
+namespace foresight::ground_link {
+
+namespace msg = protocol::msg;
+using protocol::Reader;
+using protocol::Sample;
+using protocol::Writer;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+enum Token : dds_attach_t { kStop = 1, kAck, kUpload, kJoint, kWrench, kTool, kStatus, kHeartbeat };
+constexpr int kTakeBatch = 64;
+constexpr std::size_t kUploadHistory = 64;
+
+std::chrono::nanoseconds seconds(double s) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
+}
+
+struct UploadSeen {
+  control::UploadState state = control::UploadState::Assembling;
+  std::uint32_t chunks_received = 0, chunk_count = 0;
+  TrajectoryHash hash{};
+  control::Reason code = control::Reason::None;
+  std::string reason;
+  Clock::time_point when{};
+};
+
+}  // namespace
+
+struct GroundLink::Impl {
+  explicit Impl(Config c)
+      : config(std::move(c)),
+        participant(config.domain),
+        commands(participant),
+        chunks(participant),
+        heartbeat_out(participant),
+        acks(participant),
+        uploads(participant),
+        joints(participant),
+        wrenches(participant),
+        tools(participant),
+        statuses(participant),
+        heartbeats(participant),
+        stop_guard(participant),
+        waitset(participant),
+        delay(participant, config.delay),
+        boot_id(protocol::random_id()) {
+    waitset.attach(stop_guard, kStop);
+    waitset.attach(acks, kAck);
+    waitset.attach(uploads, kUpload);
+    waitset.attach(joints, kJoint);
+    waitset.attach(wrenches, kWrench);
+    waitset.attach(tools, kTool);
+    waitset.attach(statuses, kStatus);
+    waitset.attach(heartbeats, kHeartbeat);
+    thread = std::thread([this] { run(); });
+  }
+
+  void run() noexcept;
+  void take_all();
+  double age_s(std::int64_t stamp_ns) const {
+    const std::int64_t remote_now_on_ground = stamp_ns - delay.clock_offset_ns();
+    return static_cast<double>(protocol::now_ns() - remote_now_on_ground) * 1e-9;
+  }
+
+  Config config;
+  protocol::Participant participant;
+  std::mutex send_mutex;  // sequencer + command writer
+  protocol::CommandSequencer sequencer;
+  Writer<msg::Command> commands;
+  std::mutex chunk_mutex;
+  Writer<msg::TrajectoryChunk> chunks;
+  Writer<msg::Heartbeat> heartbeat_out;
+  Reader<msg::CommandAck> acks;
+  Reader<msg::TrajectoryStatus> uploads;
+  Reader<msg::JointState> joints;
+  Reader<msg::Wrench> wrenches;
+  Reader<msg::ToolState> tools;
+  Reader<msg::ControllerStatus> statuses;
+  Reader<msg::Heartbeat> heartbeats;
+  protocol::GuardCondition stop_guard;
+  protocol::WaitSet waitset;
+  DelayMonitor delay;
+  const std::uint64_t boot_id;
+
+  std::atomic<bool> stopping{false};
+  std::atomic<bool> heartbeat_paused{false};
+
+  mutable std::mutex mutex;
+  std::condition_variable changed;
+  std::map<std::uint64_t, std::vector<control::Ack>> ack_log;  // by command id (our session only)
+  std::deque<std::uint64_t> ack_order;
+  std::map<std::uint64_t, Clock::time_point> sent_at;
+  std::map<std::uint64_t, UploadSeen> upload_log;
+  std::deque<std::uint64_t> upload_order;
+  std::optional<Timed<control::JointReport>> joint_state;
+  std::optional<Timed<control::WrenchReport>> wrench;
+  std::optional<Timed<control::ToolReport>> tool;
+  std::optional<Timed<control::StatusReport>> status;
+  std::optional<Clock::time_point> remote_heard;
+  std::uint64_t remote_boot = 0;
+  // Link thread only: reused take buffers.
+  Sample<msg::CommandAck> ack;
+  Sample<msg::TrajectoryStatus> up;
+  Sample<msg::JointState> js;
+  Sample<msg::Wrench> wr;
+  Sample<msg::ToolState> ts;
+  Sample<msg::ControllerStatus> cs;
+  Sample<msg::Heartbeat> hb;
+  std::thread thread;
+};
+
+void GroundLink::Impl::run() noexcept {
+  Sample<msg::Heartbeat> beat;
+  beat->side = foresight_msg_SIDE_GROUND;
+  beat->boot_id = boot_id;
+  auto next_beat = Clock::now();
+  const auto period = seconds(config.heartbeat_period_s);
+  while (!stopping.load()) {
+    try {
+      const auto now = Clock::now();
+      if (now >= next_beat) {
+        if (!heartbeat_paused.load()) {
+          ++beat->counter;
+          beat->stamp_ns = protocol::now_ns();
+          (void)heartbeat_out.try_write(*beat);
+        }
+        next_beat = now + period;
+      }
+      waitset.wait(std::max(std::chrono::nanoseconds(0),
+                            std::chrono::duration_cast<std::chrono::nanoseconds>(next_beat - Clock::now())));
+      take_all();
+    } catch (const std::exception& e) {
+      spdlog::error("ground link: {}", e.what());
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+}
+
+void GroundLink::Impl::take_all() {
+  bool any = false;
+  for (int i = 0; i < kTakeBatch && acks.take(ack); ++i) {
+    if (ack->session_id != sequencer.session_id()) continue;  // another ground station's command
+    control::Ack a = remote_link::from_wire(*ack);
+    std::lock_guard lock(mutex);
+    auto [it, fresh] = ack_log.try_emplace(a.command_id);
+    if (fresh) {
+      ack_order.push_back(a.command_id);
+      while (ack_order.size() > std::max<std::size_t>(1, config.ack_history)) {
+        ack_log.erase(ack_order.front());
+        sent_at.erase(ack_order.front());
+        ack_order.pop_front();
+      }
+    }
+    it->second.push_back(std::move(a));
+    any = true;
+  }
+  for (int i = 0; i < kTakeBatch && uploads.take(up); ++i) {
+    UploadSeen seen;
+    seen.state = static_cast<control::UploadState>(up->state);
+    seen.chunks_received = up->chunks_received;
+    seen.chunk_count = up->chunk_count;
+    seen.hash = protocol::get_hash(up->content_hash);
+    seen.code = static_cast<control::Reason>(up->code);
+    seen.reason = std::string(protocol::text(up->reason));
+    seen.when = Clock::now();
+    std::lock_guard lock(mutex);
+    auto [it, fresh] = upload_log.insert_or_assign(up->trajectory_id, std::move(seen));
+    (void)it;
+    if (fresh) {
+      upload_order.push_back(up->trajectory_id);
+      if (upload_order.size() > kUploadHistory) {
+        upload_log.erase(upload_order.front());
+        upload_order.pop_front();
+      }
+    }
+    any = true;
+  }
+  const std::int64_t now = protocol::now_ns();
+  for (int i = 0; i < kTakeBatch && joints.take(js); ++i) {
+    auto v = remote_link::from_wire(*js);
+    std::lock_guard lock(mutex);
+    joint_state = Timed<control::JointReport>{std::move(v), now, 0.0};
+    any = true;
+  }
+  for (int i = 0; i < kTakeBatch && wrenches.take(wr); ++i) {
+    std::lock_guard lock(mutex);
+    wrench = Timed<control::WrenchReport>{remote_link::from_wire(*wr), now, 0.0};
+    any = true;
+  }
+  for (int i = 0; i < kTakeBatch && tools.take(ts); ++i) {
+    std::lock_guard lock(mutex);
+    tool = Timed<control::ToolReport>{remote_link::from_wire(*ts), now, 0.0};
+    any = true;
+  }
+  for (int i = 0; i < kTakeBatch && statuses.take(cs); ++i) {
+    auto v = remote_link::from_wire(*cs);
+    std::lock_guard lock(mutex);
+    status = Timed<control::StatusReport>{std::move(v), now, 0.0};
+    any = true;
+  }
+  for (int i = 0; i < kTakeBatch && heartbeats.take(hb); ++i) {
+    if (hb->side != foresight_msg_SIDE_REMOTE) continue;
+    std::lock_guard lock(mutex);
+    remote_heard = Clock::now();
+    remote_boot = hb->boot_id;
+  }
+  if (any) changed.notify_all();
+}
+
+GroundLink::GroundLink(Config config) {
+  if (!(config.heartbeat_period_s > 0.0)) throw std::invalid_argument("GroundLink: heartbeat_period_s must be positive");
+  impl_ = std::make_unique<Impl>(std::move(config));
+}
+
+GroundLink::~GroundLink() {
+  impl_->stopping.store(true);
+  try {
+    impl_->stop_guard.trigger();
+  } catch (...) {
+    // the loop wakes within one heartbeat period anyway
+  }
+  if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->delay.stop();
+}
+
+bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  if (!impl_->commands.wait_for_readers(1, timeout)) return false;
+  if (!impl_->chunks.wait_for_readers(1, deadline - Clock::now())) return false;
+  const auto left = deadline - Clock::now();
+  if (left <= Clock::duration::zero()) return false;
+  return impl_->delay.wait_samples(1, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
+}
+
+std::uint64_t GroundLink::send(control::CommandKind kind, const control::Payload& payload, double lifetime_s) {
+  const double lifetime = lifetime_s < 0.0 ? impl_->config.command_lifetime_s : lifetime_s;
+  std::lock_guard send_lock(impl_->send_mutex);
+  auto c = impl_->sequencer.next(static_cast<msg::CommandKind>(kind), lifetime);
+  remote_link::fill_payload(*c, kind, payload);  // throws before the sequence is used on the wire
+  const std::uint64_t id = c->command_id;
+  {
+    std::lock_guard lock(impl_->mutex);
+    impl_->sent_at[id] = Clock::now();
+  }
+  impl_->commands.write(c);
+  return id;
+}
+
+CommandResult GroundLink::wait_final(std::uint64_t command_id, std::chrono::nanoseconds timeout) {
+  const auto start = Clock::now();
+  CommandResult r;
+  r.command_id = command_id;
+  std::unique_lock lock(impl_->mutex);
+  const auto terminal = [&] {
+    const auto it = impl_->ack_log.find(command_id);
+    if (it == impl_->ack_log.end()) return false;
+    return std::any_of(it->second.begin(), it->second.end(),
+                       [](const control::Ack& a) { return remote_link::is_final(a.state); });
+  };
+  r.finished = impl_->changed.wait_for(lock, timeout, terminal);
+  const auto it = impl_->ack_log.find(command_id);
+  if (it != impl_->ack_log.end()) {
+    r.acks = it->second;
+    const control::Ack* last = &r.acks.back();
+    for (const auto& a : r.acks) {
+      if (remote_link::is_final(a.state)) last = &a;
+    }
+    r.state = last->state;
+    r.code = last->code;
+    r.reason = last->reason;
+    r.final_q_rad = last->final_q_rad;
+  }
+  const auto sent = impl_->sent_at.find(command_id);
+  const auto from = sent != impl_->sent_at.end() ? sent->second : start;
+  r.elapsed_s = std::chrono::duration<double>(Clock::now() - from).count();
+  return r;
+}
+
+std::chrono::nanoseconds GroundLink::timeout_for(double expected_duration_s) const {
+  const auto stats = impl_->delay.stats();
+  const double p99 = stats.count > 0 ? stats.p99_s : impl_->config.default_rtt_s;
+  return seconds(std::max(0.0, expected_duration_s) + 3.0 * p99 + impl_->config.timeout_margin_s);
+}
+
+CommandResult GroundLink::execute(control::CommandKind kind, const control::Payload& payload,
+                                  double expected_duration_s) {
+  const auto id = send(kind, payload);
+  return wait_final(id, timeout_for(expected_duration_s));
+}
+
+UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
+                                std::uint64_t trajectory_id) {
+  const auto start = Clock::now();
+  UploadResult r;
+  r.trajectory_id = trajectory_id != 0 ? trajectory_id : protocol::random_id();
+  r.local_hash = trajectory_hash(trajectory);
+  auto parts = protocol::make_chunks(trajectory, r.trajectory_id, impl_->sequencer.session_id(), r.local_hash);
+  r.chunk_count = static_cast<std::uint32_t>(parts.size());
+  {
+    std::lock_guard lock(impl_->mutex);
+    impl_->upload_log.erase(r.trajectory_id);
+  }
+  {
+    std::lock_guard lock(impl_->chunk_mutex);
+    for (const auto& chunk : parts) impl_->chunks.write(chunk);
+  }
+  std::unique_lock lock(impl_->mutex);
+  const auto final_state = [&] {
+    const auto it = impl_->upload_log.find(r.trajectory_id);
+    return it != impl_->upload_log.end() && it->second.state != control::UploadState::Assembling;
+  };
+  impl_->changed.wait_until(lock, start + timeout, final_state);
+  const auto it = impl_->upload_log.find(r.trajectory_id);
+  if (it != impl_->upload_log.end()) {
+    r.state = it->second.state;
+    r.code = it->second.code;
+    r.reason = it->second.reason;
+    if (r.state != control::UploadState::Assembling) r.remote_hash = it->second.hash;
+  }
+  r.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  return r;
+}
+
+std::optional<Timed<control::JointReport>> GroundLink::joint_state() const {
+  std::lock_guard lock(impl_->mutex);
+  auto v = impl_->joint_state;
+  if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
+  return v;
+}
+std::optional<Timed<control::WrenchReport>> GroundLink::wrench() const {
+  std::lock_guard lock(impl_->mutex);
+  auto v = impl_->wrench;
+  if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
+  return v;
+}
+std::optional<Timed<control::ToolReport>> GroundLink::tool() const {
+  std::lock_guard lock(impl_->mutex);
+  auto v = impl_->tool;
+  if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
+  return v;
+}
+std::optional<Timed<control::StatusReport>> GroundLink::status() const {
+  std::lock_guard lock(impl_->mutex);
+  auto v = impl_->status;
+  if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
+  return v;
+}
+
+bool GroundLink::remote_alive() const { return remote_silence_s() <= impl_->config.remote_loss_s; }
+
+double GroundLink::remote_silence_s() const {
+  std::lock_guard lock(impl_->mutex);
+  if (!impl_->remote_heard) return std::numeric_limits<double>::infinity();
+  return std::chrono::duration<double>(Clock::now() - *impl_->remote_heard).count();
+}
+
+std::uint64_t GroundLink::remote_boot_id() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->remote_boot;
+}
+
+DelayMonitor& GroundLink::delay() noexcept { return impl_->delay; }
+const DelayMonitor& GroundLink::delay() const noexcept { return impl_->delay; }
+std::uint64_t GroundLink::session_id() const noexcept { return impl_->sequencer.session_id(); }
+const protocol::Participant& GroundLink::participant() const noexcept { return impl_->participant; }
+void GroundLink::pause_heartbeat() noexcept { impl_->heartbeat_paused.store(true); }
+void GroundLink::resume_heartbeat() noexcept { impl_->heartbeat_paused.store(false); }
+
+}  // namespace foresight::ground_link

@@ -1,0 +1,140 @@
+#pragma once
+// The remote site's DDS side: one participant, one thread serving a WaitSet.
+//
+//   Command  -> envelope checks (version, per-session sequence, expiry) and
+//               hostile-sample checks -> Handlers::on_command, with either the
+//               command or its rejection (code + reason). The link NEVER acks
+//               by itself: the daemon journals durably first, then calls ack()
+//               (RECEIVED, then REJECTED or QUEUED -> EXECUTING -> final).
+//   TrajectoryChunk -> TrajectoryAssembler; a whole upload -> verify() against
+//               the robot model's TrajectoryLimits -> TrajectoryStatus
+//               (ASSEMBLING progress, COMMITTED with the remote's hash,
+//               REJECTED with the reason, DISCARDED when evicted) and
+//               Handlers::on_upload. At most Config::max_committed committed
+//               uploads are kept (the oldest is discarded).
+//   Ping     -> Pong at once (t2 on arrival, t3 just before the write).
+//   Heartbeat: the remote's own every heartbeat_period_s; no ground heartbeat
+//               for link_loss_s -> Handlers::on_link(Lost); the next one ->
+//               on_link(Regained). The daemon applies the link-loss policy.
+//
+// Threads: the handlers run ON THE LINK THREAD, one at a time, and must not
+// block long (pings and heartbeats wait behind them) and must not throw (an
+// exception is caught, logged and counted). ack(), publish(), committed() and
+// stats() are thread-safe and never throw; call them from any thread,
+// including from inside a handler. Nothing here is real-time: the daemon's
+// control loop hands reports to a non-real-time thread that calls publish().
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "foresight/common/trajectory.hpp"
+#include "foresight/control/command.hpp"
+
+namespace foresight::remote_link {
+
+struct Config {
+  int domain = 0;                          ///< DDS domain id
+  double heartbeat_period_s = 0.25;        ///< our heartbeat; also the link thread's wake-up period
+  double link_loss_s = 2.0;                ///< no ground heartbeat this long -> on_link(Lost)
+  TrajectoryLimits trajectory_limits;      ///< from the robot model (TrajectoryLimits::from_model)
+  std::size_t max_committed = 8;           ///< committed uploads kept; the oldest is discarded
+  std::size_t max_pending_uploads = 4;     ///< uploads assembling at once
+  std::size_t max_sessions = 16;           ///< ground sessions whose sequence is tracked (LRU)
+  /// The remote's clock minus the ground's, for the expiry check (expires_ns
+  /// is on the ground's clock). 0: both synchronized (NTP/PTP).
+  std::int64_t clock_offset_ns = 0;
+};
+
+/// A command as received: accepted (code None; `command` complete) or
+/// rejected by the link (code and reason; `command` has the envelope only,
+/// payload NoPayload, kind as received even when unknown). Either way the
+/// daemon journals it and acks RECEIVED then, for a rejection, REJECTED.
+struct CommandEvent {
+  control::Command command;
+  control::Reason code = control::Reason::None;
+  std::string reason;
+  /// The same (session, command id, sequence) as a command already accepted:
+  /// code BadSequence; the daemon may re-send that command's last ack
+  /// instead of a rejection (a re-sent command is idempotent).
+  bool duplicate = false;
+  bool accepted() const noexcept { return code == control::Reason::None; }
+};
+
+/// One upload's state change.
+struct UploadEvent {
+  std::uint64_t trajectory_id = 0;
+  std::uint64_t session_id = 0;
+  control::UploadState state = control::UploadState::Assembling;
+  std::uint32_t chunks_received = 0;
+  std::uint32_t chunk_count = 0;
+  control::Reason code = control::Reason::None;
+  std::string reason;
+  TrajectoryHash hash{};  ///< Committed: the remote's own over what arrived; Rejected by verify: the same
+  std::shared_ptr<const Trajectory> trajectory;  ///< Committed only
+};
+
+struct LinkEvent {
+  enum class Kind { Lost, Regained };
+  Kind kind = Kind::Lost;
+  double silence_s = 0.0;            ///< since the last ground heartbeat (Lost) / how long it was lost (Regained)
+  std::uint64_t ground_boot_id = 0;  ///< of the last ground heartbeat (a change means a restarted ground)
+};
+
+struct Handlers {
+  std::function<void(const CommandEvent&)> on_command;
+  std::function<void(const UploadEvent&)> on_upload;  ///< optional
+  std::function<void(const LinkEvent&)> on_link;      ///< optional
+};
+
+struct LinkStats {
+  std::uint64_t commands = 0;          ///< command samples taken
+  std::uint64_t rejected = 0;          ///< rejected by the link (envelope or payload)
+  std::uint64_t acks_written = 0;
+  std::uint64_t write_failures = 0;    ///< acks and reports that Cyclone refused
+  std::uint64_t pings = 0;
+  std::uint64_t chunks = 0;
+  std::uint64_t uploads_committed = 0;
+  std::uint64_t uploads_rejected = 0;
+  std::uint64_t handler_exceptions = 0;
+  bool link_up = false;                ///< a ground heartbeat within link_loss_s
+};
+
+class RemoteLink {
+ public:
+  /// Set-up: creates the participant, readers, writers and starts the link
+  /// thread. Throws protocol::ProtocolError (DDS) or std::invalid_argument
+  /// (no on_command handler, a non-positive period).
+  RemoteLink(Config config, Handlers handlers);
+  /// Stops and joins the link thread, then deletes the entities.
+  ~RemoteLink();
+  RemoteLink(const RemoteLink&) = delete;
+  RemoteLink& operator=(const RemoteLink&) = delete;
+
+  /// Publishes one ack. False when it could not be written (bad size, DDS
+  /// error); counted in stats().write_failures.
+  bool ack(const control::Ack& ack) noexcept;
+
+  bool publish(const control::JointReport& report) noexcept;
+  bool publish(const control::WrenchReport& report) noexcept;
+  bool publish(const control::ToolReport& report) noexcept;
+  bool publish(const control::StatusReport& report) noexcept;
+  /// Re-publishes the TrajectoryStatus of every kept upload (REQUEST_TRAJECTORIES).
+  void republish_uploads() noexcept;
+
+  /// A committed upload by id (nullptr when unknown or discarded).
+  std::shared_ptr<const Trajectory> committed(std::uint64_t trajectory_id) const noexcept;
+  LinkStats stats() const noexcept;
+  std::uint64_t boot_id() const noexcept;
+
+  /// Stops the link thread early (idempotent; the destructor calls it).
+  void stop() noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace foresight::remote_link

@@ -1,0 +1,458 @@
+#include "foresight/remote_link/convert.hpp"
+
+#include <cmath>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <stdexcept>
+#include <type_traits>
+
+#include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+
+namespace foresight::remote_link {
+
+namespace msg = protocol::msg;
+using protocol::text;
+using protocol::view;
+
+// The control enums mirror the IDL's order and values (control/command.hpp).
+static_assert(static_cast<int>(control::CommandKind::Abort) == foresight_msg_CMD_ABORT);
+static_assert(static_cast<int>(control::CommandKind::TakeControl) == foresight_msg_CMD_TAKE_CONTROL);
+static_assert(static_cast<int>(control::CommandKind::ReleaseControl) == foresight_msg_CMD_RELEASE_CONTROL);
+static_assert(static_cast<int>(control::CommandKind::Recover) == foresight_msg_CMD_RECOVER);
+static_assert(static_cast<int>(control::AckState::Canceled) == foresight_msg_ACK_CANCELED);
+static_assert(static_cast<int>(control::Reason::Internal) == foresight_msg_REASON_INTERNAL);
+static_assert(static_cast<int>(control::Reason::NotInControl) == foresight_msg_REASON_NOT_IN_CONTROL);
+static_assert(static_cast<int>(control::StopCategory::Cat2) == foresight_msg_STOP_CAT2);
+static_assert(static_cast<int>(control::ControllerMode::Fault) == foresight_msg_MODE_FAULT);
+static_assert(static_cast<int>(control::RequestWhat::Trajectories) == foresight_msg_REQUEST_TRAJECTORIES);
+static_assert(static_cast<int>(control::CameraAction::Grab) == foresight_msg_CAMERA_GRAB);
+static_assert(static_cast<int>(control::UploadState::Discarded) == foresight_msg_UPLOAD_DISCARDED);
+
+namespace {
+
+PayloadVerdict bad(std::string reason, control::Reason code = control::Reason::BadArgument) {
+  return PayloadVerdict{code, std::move(reason)};
+}
+
+bool finite_all(std::span<const double> values, std::size_t& first_bad) {
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!std::isfinite(values[i])) {
+      first_bad = i;
+      return false;
+    }
+  }
+  return true;
+}
+
+/// Printable ASCII only (no control characters, no bytes >= 0x80): names end
+/// up in logs, the journal and file names.
+bool printable(std::string_view s) {
+  for (const char c : s) {
+    if (c < 0x20 || c > 0x7e) return false;
+  }
+  return true;
+}
+
+std::optional<PayloadVerdict> check_name(std::string_view value, const std::string& field, bool required) {
+  if (required && value.empty()) return bad(field + " is empty");
+  if (!printable(value)) return bad(field + " has a non-printable character");
+  return std::nullopt;
+}
+
+std::optional<PayloadVerdict> check_number(double value, const std::string& field) {
+  if (!std::isfinite(value)) return bad(field + " is not finite");
+  return std::nullopt;
+}
+
+std::optional<PayloadVerdict> check_speed(double value, const std::string& field) {
+  if (auto v = check_number(value, field)) return v;
+  if (!(value > 0.0 && value <= 1.0)) return bad(field + " " + std::to_string(value) + " is not in (0, 1]");
+  return std::nullopt;
+}
+
+std::optional<PayloadVerdict> check_non_negative(double value, const std::string& field) {
+  if (auto v = check_number(value, field)) return v;
+  if (value < 0.0) return bad(field + " " + std::to_string(value) + " is negative");
+  return std::nullopt;
+}
+
+}  // namespace
+
+PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits) {
+  const auto& u = c.payload._u;
+  std::size_t at = 0;
+  switch (c.payload._d) {
+    case foresight_msg_CMD_TRAJECTORY: {
+      const auto& p = u.trajectory;
+      if (p.trajectory_id == 0) return bad("trajectory.trajectory_id is 0", control::Reason::UnknownTrajectory);
+      if (auto v = check_non_negative(p.start_tolerance_rad, "trajectory.start_tolerance_rad")) return *v;
+      return {};
+    }
+    case foresight_msg_CMD_INVOKE_ALGORITHM: {
+      const auto& p = u.algorithm;
+      if (auto v = check_name(text(p.name), "algorithm.name", true)) return *v;
+      const auto params = view(p.params);
+      for (std::size_t i = 0; i < params.size(); ++i) {
+        const std::string field = "algorithm.params[" + std::to_string(i) + "]";
+        if (auto v = check_name(text(params[i].name), field + ".name", true)) return *v;
+        if (auto v = check_number(params[i].value, field + ".value")) return *v;
+      }
+      if (auto v = check_non_negative(p.timeout_s, "algorithm.timeout_s")) return *v;
+      return {};
+    }
+    case foresight_msg_CMD_REQUEST:
+      if (static_cast<unsigned>(u.request.what) > foresight_msg_REQUEST_TRAJECTORIES) {
+        return bad("request.what " + std::to_string(static_cast<unsigned>(u.request.what)) + " is unknown");
+      }
+      return {};
+    case foresight_msg_CMD_CAMERA: {
+      const auto& p = u.camera;
+      if (auto v = check_name(text(p.camera), "camera.camera", true)) return *v;
+      if (static_cast<unsigned>(p.action) > foresight_msg_CAMERA_GRAB) {
+        return bad("camera.action " + std::to_string(static_cast<unsigned>(p.action)) + " is unknown");
+      }
+      if (auto v = check_number(p.pan_rad, "camera.pan_rad")) return *v;
+      if (auto v = check_number(p.tilt_rad, "camera.tilt_rad")) return *v;
+      if (auto v = check_non_negative(p.focal_px, "camera.focal_px")) return *v;
+      return {};
+    }
+    case foresight_msg_CMD_GOTO_JOINT: {
+      const auto& p = u.goto_joint;
+      const auto q = view(p.q_rad);
+      if (static_cast<int>(q.size()) != limits.joints) {
+        return bad("goto_joint.q_rad has " + std::to_string(q.size()) + " angles; the arm has " +
+                       std::to_string(limits.joints) + " joints",
+                   control::Reason::JointCount);
+      }
+      if (!finite_all(q, at)) return bad("goto_joint.q_rad[" + std::to_string(at) + "] is not finite");
+      if (auto v = check_speed(p.speed_fraction, "goto_joint.speed_fraction")) return *v;
+      return {};
+    }
+    case foresight_msg_CMD_GOTO_CART: {
+      const auto& p = u.goto_cart;
+      if (auto v = check_name(text(p.frame), "goto_cart.frame", true)) return *v;
+      if (!finite_all(p.position_m, at)) return bad("goto_cart.position_m[" + std::to_string(at) + "] is not finite");
+      if (!finite_all(p.orientation_xyzw, at)) {
+        return bad("goto_cart.orientation_xyzw[" + std::to_string(at) + "] is not finite");
+      }
+      const double* o = p.orientation_xyzw;
+      const double norm = std::sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2] + o[3] * o[3]);
+      if (std::abs(norm - 1.0) > 1e-6) {
+        return bad("goto_cart.orientation_xyzw has norm " + std::to_string(norm) + ", not a unit quaternion");
+      }
+      if (auto v = check_speed(p.speed_fraction, "goto_cart.speed_fraction")) return *v;
+      return {};
+    }
+    case foresight_msg_CMD_ABORT: {
+      const auto& p = u.abort;
+      const auto cat = static_cast<unsigned>(p.category);
+      if (cat > foresight_msg_STOP_CAT2) return bad("abort.category " + std::to_string(cat) + " is unknown");
+      if (!printable(text(p.reason))) return bad("abort.reason has a non-printable character");
+      return {};
+    }
+    case foresight_msg_CMD_TAKE_CONTROL:
+    case foresight_msg_CMD_RELEASE_CONTROL:
+    case foresight_msg_CMD_RECOVER:
+      return {};
+  }
+  return bad("unknown kind " + std::to_string(static_cast<unsigned>(c.payload._d)));
+}
+
+control::Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
+  control::Command out;
+  out.session_id = c.session_id;
+  out.command_id = c.command_id;
+  out.sequence_number = c.sequence_number;
+  out.issued_ns = c.issued_ns;
+  out.received_ns = received_ns;
+  out.kind = static_cast<control::CommandKind>(c.payload._d);
+  out.payload = control::NoPayload{};
+  return out;
+}
+
+control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
+  control::Command out = envelope_of(c, received_ns);
+  const auto& u = c.payload._u;
+  switch (c.payload._d) {
+    case foresight_msg_CMD_TRAJECTORY: {
+      control::RunTrajectory p;
+      p.trajectory_id = u.trajectory.trajectory_id;
+      p.content_hash = protocol::get_hash(u.trajectory.content_hash);
+      p.compliant = u.trajectory.compliant;
+      p.start_tolerance_rad = u.trajectory.start_tolerance_rad;
+      out.payload = p;
+      break;
+    }
+    case foresight_msg_CMD_INVOKE_ALGORITHM: {
+      control::InvokeAlgorithm p;
+      p.name = std::string(text(u.algorithm.name));
+      for (const auto& nv : view(u.algorithm.params)) p.params.push_back({std::string(text(nv.name)), nv.value});
+      p.timeout_s = u.algorithm.timeout_s;
+      out.payload = std::move(p);
+      break;
+    }
+    case foresight_msg_CMD_REQUEST:
+      out.payload = control::Request{static_cast<control::RequestWhat>(u.request.what)};
+      break;
+    case foresight_msg_CMD_CAMERA: {
+      control::CameraCommand p;
+      p.camera = std::string(text(u.camera.camera));
+      p.action = static_cast<control::CameraAction>(u.camera.action);
+      p.pan_rad = u.camera.pan_rad;
+      p.tilt_rad = u.camera.tilt_rad;
+      p.focal_px = u.camera.focal_px;
+      out.payload = std::move(p);
+      break;
+    }
+    case foresight_msg_CMD_GOTO_JOINT: {
+      control::GotoJoint p;
+      const auto q = view(u.goto_joint.q_rad);
+      p.q_rad.assign(q.begin(), q.end());
+      p.speed_fraction = u.goto_joint.speed_fraction;
+      out.payload = std::move(p);
+      break;
+    }
+    case foresight_msg_CMD_GOTO_CART: {
+      control::GotoCart p;
+      p.frame = std::string(text(u.goto_cart.frame));
+      const double* o = u.goto_cart.orientation_xyzw;
+      const double* x = u.goto_cart.position_m;
+      p.base_T_frame = Pose::Identity();
+      p.base_T_frame.linear() = Eigen::Quaterniond(o[3], o[0], o[1], o[2]).normalized().toRotationMatrix();
+      p.base_T_frame.translation() = Eigen::Vector3d(x[0], x[1], x[2]);
+      p.speed_fraction = u.goto_cart.speed_fraction;
+      out.payload = std::move(p);
+      break;
+    }
+    case foresight_msg_CMD_ABORT: {
+      control::Abort p;
+      p.target_command_id = u.abort.target_command_id;
+      p.category = static_cast<control::StopCategory>(u.abort.category);
+      p.reason = std::string(text(u.abort.reason));
+      out.payload = std::move(p);
+      break;
+    }
+    default:
+      break;  // no payload
+  }
+  return out;
+}
+
+namespace {
+template <class T>
+const T& payload_as(const control::Payload& payload, control::CommandKind kind) {
+  const T* p = std::get_if<T>(&payload);
+  if (p == nullptr) {
+    throw std::invalid_argument(std::string("command ") + name_of(kind) + ": the payload is of another kind");
+  }
+  return *p;
+}
+}  // namespace
+
+void fill_payload(msg::Command& out, control::CommandKind kind, const control::Payload& payload) {
+  auto& u = out.payload._u;
+  out.payload._d = static_cast<msg::CommandKind>(kind);
+  switch (kind) {
+    case control::CommandKind::Trajectory: {
+      const auto& p = payload_as<control::RunTrajectory>(payload, kind);
+      u.trajectory.trajectory_id = p.trajectory_id;
+      protocol::set_hash(u.trajectory.content_hash, p.content_hash);
+      u.trajectory.compliant = p.compliant;
+      u.trajectory.start_tolerance_rad = p.start_tolerance_rad;
+      return;
+    }
+    case control::CommandKind::InvokeAlgorithm: {
+      const auto& p = payload_as<control::InvokeAlgorithm>(payload, kind);
+      protocol::set_text(u.algorithm.name, p.name, "algorithm name");
+      std::vector<msg::NamedValue> params(p.params.size());
+      for (std::size_t i = 0; i < p.params.size(); ++i) {
+        protocol::set_text(params[i].name, p.params[i].name, "algorithm parameter name");
+        params[i].value = p.params[i].value;
+      }
+      protocol::assign(u.algorithm.params, std::span<const msg::NamedValue>(params), msg::kMaxParams,
+                       "algorithm parameters");
+      u.algorithm.timeout_s = p.timeout_s;
+      return;
+    }
+    case control::CommandKind::Request:
+      u.request.what = static_cast<foresight_msg_RequestWhat>(payload_as<control::Request>(payload, kind).what);
+      return;
+    case control::CommandKind::Camera: {
+      const auto& p = payload_as<control::CameraCommand>(payload, kind);
+      protocol::set_text(u.camera.camera, p.camera, "camera name");
+      u.camera.action = static_cast<foresight_msg_CameraAction>(p.action);
+      u.camera.pan_rad = p.pan_rad;
+      u.camera.tilt_rad = p.tilt_rad;
+      u.camera.focal_px = p.focal_px;
+      return;
+    }
+    case control::CommandKind::GotoJoint: {
+      const auto& p = payload_as<control::GotoJoint>(payload, kind);
+      protocol::assign(u.goto_joint.q_rad, std::span<const double>(p.q_rad), msg::kMaxJoints, "goto joint angles");
+      u.goto_joint.speed_fraction = p.speed_fraction;
+      return;
+    }
+    case control::CommandKind::GotoCart: {
+      const auto& p = payload_as<control::GotoCart>(payload, kind);
+      protocol::set_text(u.goto_cart.frame, p.frame, "goto frame");
+      const Eigen::Quaterniond q(p.base_T_frame.rotation());
+      const Eigen::Vector3d x = p.base_T_frame.translation();
+      for (int i = 0; i < 3; ++i) u.goto_cart.position_m[i] = x[i];
+      u.goto_cart.orientation_xyzw[0] = q.x();
+      u.goto_cart.orientation_xyzw[1] = q.y();
+      u.goto_cart.orientation_xyzw[2] = q.z();
+      u.goto_cart.orientation_xyzw[3] = q.w();
+      u.goto_cart.speed_fraction = p.speed_fraction;
+      return;
+    }
+    case control::CommandKind::Abort: {
+      const auto& p = payload_as<control::Abort>(payload, kind);
+      u.abort.target_command_id = p.target_command_id;
+      u.abort.category = static_cast<msg::StopCategory>(p.category);
+      protocol::set_text_truncated(u.abort.reason, p.reason);
+      return;
+    }
+    case control::CommandKind::TakeControl:
+    case control::CommandKind::ReleaseControl:
+    case control::CommandKind::Recover:
+      (void)payload_as<control::NoPayload>(payload, kind);
+      return;
+  }
+  throw std::invalid_argument("command kind " + std::to_string(static_cast<unsigned>(kind)) + " is unknown");
+}
+
+void to_wire(msg::CommandAck& out, const control::Ack& a) {
+  out.session_id = a.session_id;
+  out.command_id = a.command_id;
+  out.sequence_number = a.sequence_number;
+  out.kind = static_cast<msg::CommandKind>(a.kind);
+  out.state = static_cast<msg::AckState>(a.state);
+  out.code = static_cast<msg::ReasonCode>(a.code);
+  protocol::set_text_truncated(out.reason, a.reason);
+  out.stamp_ns = a.stamp_ns != 0 ? a.stamp_ns : protocol::now_ns();
+  protocol::assign(out.final_q_rad, std::span<const double>(a.final_q_rad), msg::kMaxJoints, "ack final_q_rad");
+}
+
+control::Ack from_wire(const msg::CommandAck& a) {
+  control::Ack out;
+  out.session_id = a.session_id;
+  out.command_id = a.command_id;
+  out.sequence_number = a.sequence_number;
+  out.kind = static_cast<control::CommandKind>(a.kind);
+  out.state = static_cast<control::AckState>(a.state);
+  out.code = static_cast<control::Reason>(a.code);
+  out.reason = std::string(text(a.reason));
+  out.stamp_ns = a.stamp_ns;
+  const auto q = view(a.final_q_rad);
+  out.final_q_rad.assign(q.begin(), q.end());
+  return out;
+}
+
+void to_wire(msg::JointState& out, const control::JointReport& r) {
+  out.stamp_ns = r.stamp_ns;
+  out.cycle = r.cycle;
+  protocol::assign(out.q_rad, std::span<const double>(r.q_rad), msg::kMaxJoints, "joint state q_rad");
+  protocol::assign(out.dq_rad_s, std::span<const double>(r.dq_rad_s), msg::kMaxJoints, "joint state dq_rad_s");
+  protocol::assign(out.torque_nm, std::span<const double>(r.torque_nm), msg::kMaxJoints, "joint state torque_nm");
+}
+
+void to_wire(msg::Wrench& out, const control::WrenchReport& r) noexcept {
+  out.stamp_ns = r.stamp_ns;
+  for (int i = 0; i < 3; ++i) {
+    out.force_tool_n[i] = r.force_tool_n[static_cast<std::size_t>(i)];
+    out.torque_tool_nm[i] = r.torque_tool_nm[static_cast<std::size_t>(i)];
+  }
+  out.saturated = r.saturated;
+}
+
+void to_wire(msg::ToolState& out, const control::ToolReport& r) noexcept {
+  out.stamp_ns = r.stamp_ns;
+  out.latched = r.latched;
+  out.running = r.running;
+  out.direction = static_cast<foresight_msg_ToolDirection>(r.direction);
+  out.turns = r.turns;
+  out.torque_nm = r.torque_nm;
+  out.fault_bits = r.fault_bits;
+}
+
+void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) noexcept {
+  out.stamp_ns = r.stamp_ns;
+  out.mode = static_cast<msg::ControllerMode>(r.mode);
+  out.active_command_id = r.active_command_id;
+  out.active_trajectory_id = r.active_trajectory_id;
+  out.last_sequence = r.last_sequence;
+  out.stop_category = static_cast<msg::StopCategory>(r.stop_category);
+  protocol::set_text_truncated(out.stop_reason, r.stop_reason);
+  out.fault_bits = r.fault_bits;
+  protocol::set_text_truncated(out.fault_text, r.fault_text);
+}
+
+control::JointReport from_wire(const msg::JointState& s) {
+  control::JointReport out;
+  out.stamp_ns = s.stamp_ns;
+  out.cycle = s.cycle;
+  const auto q = view(s.q_rad), dq = view(s.dq_rad_s), t = view(s.torque_nm);
+  out.q_rad.assign(q.begin(), q.end());
+  out.dq_rad_s.assign(dq.begin(), dq.end());
+  out.torque_nm.assign(t.begin(), t.end());
+  return out;
+}
+
+control::WrenchReport from_wire(const msg::Wrench& w) noexcept {
+  control::WrenchReport out;
+  out.stamp_ns = w.stamp_ns;
+  for (std::size_t i = 0; i < 3; ++i) {
+    out.force_tool_n[i] = w.force_tool_n[i];
+    out.torque_tool_nm[i] = w.torque_tool_nm[i];
+  }
+  out.saturated = w.saturated;
+  return out;
+}
+
+control::ToolReport from_wire(const msg::ToolState& t) noexcept {
+  control::ToolReport out;
+  out.stamp_ns = t.stamp_ns;
+  out.latched = t.latched;
+  out.running = t.running;
+  out.direction = static_cast<int>(t.direction);
+  out.turns = t.turns;
+  out.torque_nm = t.torque_nm;
+  out.fault_bits = t.fault_bits;
+  return out;
+}
+
+control::StatusReport from_wire(const msg::ControllerStatus& s) {
+  control::StatusReport out;
+  out.stamp_ns = s.stamp_ns;
+  out.mode = static_cast<control::ControllerMode>(s.mode);
+  out.active_command_id = s.active_command_id;
+  out.active_trajectory_id = s.active_trajectory_id;
+  out.last_sequence = s.last_sequence;
+  out.stop_category = static_cast<control::StopCategory>(s.stop_category);
+  out.stop_reason = std::string(text(s.stop_reason));
+  out.fault_bits = s.fault_bits;
+  out.fault_text = std::string(text(s.fault_text));
+  return out;
+}
+
+bool is_final(control::AckState s) noexcept {
+  return protocol::is_terminal(static_cast<msg::AckState>(s));
+}
+
+const char* name_of(control::CommandKind kind) noexcept {
+  return protocol::to_string(static_cast<msg::CommandKind>(kind));
+}
+const char* name_of(control::AckState state) noexcept {
+  return protocol::to_string(static_cast<msg::AckState>(state));
+}
+const char* name_of(control::Reason code) noexcept {
+  return protocol::to_string(static_cast<msg::ReasonCode>(code));
+}
+
+}  // namespace foresight::remote_link

@@ -1,0 +1,537 @@
+#include "foresight/remote_link/remote_link.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <set>
+#include <stdexcept>
+#include <thread>
+#include <tuple>
+
+#include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+#include "foresight/remote_link/convert.hpp"
+
+namespace foresight::remote_link {
+
+namespace msg = protocol::msg;
+using protocol::Reader;
+using protocol::Sample;
+using protocol::Writer;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// WaitSet tokens.
+enum Token : dds_attach_t { kStop = 1, kCommand, kChunk, kPing, kHeartbeat };
+
+/// Samples taken per reader per wake-up: bounds one pass of the loop so a
+/// flood on one topic cannot starve the heartbeat and the others.
+constexpr int kTakeBatch = 64;
+/// Accepted commands remembered to tell a re-sent command from a replay.
+constexpr std::size_t kRememberedCommands = 256;
+/// Rejected uploads whose verdict the assembler keeps (later chunks of the same id stay rejected).
+constexpr std::size_t kRememberedRejections = 4;
+
+std::chrono::nanoseconds seconds(double s) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
+}
+
+/// A writer with its own lock: Cyclone writers are used from one thread at a time.
+template <class T>
+struct LockedWriter {
+  LockedWriter(const protocol::Participant& p) : writer(p) {}
+  std::mutex mutex;
+  Writer<T> writer;
+  Sample<T> sample;  // reused: its sequence buffers survive between writes
+};
+
+struct UploadRecord {
+  msg::UploadState state{};
+  std::uint32_t chunks_received = 0, chunk_count = 0;
+  TrajectoryHash hash{};
+  msg::ReasonCode code{};
+  std::string reason;
+};
+
+}  // namespace
+
+struct RemoteLink::Impl {
+  Impl(Config c, Handlers h)
+      : config(std::move(c)),
+        handlers(std::move(h)),
+        participant(config.domain),
+        commands(participant),
+        chunks(participant),
+        pings(participant),
+        heartbeats(participant),
+        acks(participant),
+        upload_status(participant),
+        joints(participant),
+        wrenches(participant),
+        tools(participant),
+        status(participant),
+        pongs(participant),
+        heartbeat_out(participant),
+        stop_guard(participant),
+        waitset(participant),
+        assembler(protocol::TrajectoryAssembler::Limits{
+            static_cast<std::uint32_t>(msg::kMaxJoints),
+            static_cast<std::uint32_t>(config.trajectory_limits.max_samples),
+            config.max_pending_uploads + kRememberedRejections}),
+        boot_id(protocol::random_id()) {
+    waitset.attach(stop_guard, kStop);
+    waitset.attach(commands, kCommand);
+    waitset.attach(chunks, kChunk);
+    waitset.attach(pings, kPing);
+    waitset.attach(heartbeats, kHeartbeat);
+    payload_limits.joints = config.trajectory_limits.joints;
+    thread = std::thread([this] { run(); });
+  }
+
+  void run() noexcept;
+  void serve_commands();
+  void serve_chunks();
+  void serve_pings();
+  void serve_heartbeats();
+  void beat_and_watch();
+  void on_chunk(const msg::TrajectoryChunk& chunk);
+  void publish_status(std::uint64_t id, const UploadRecord& record);
+  void emit_upload(const UploadEvent& event);
+  void emit_command(const CommandEvent& event);
+  void emit_link(const LinkEvent& event);
+  template <class T, class R>
+  bool publish(LockedWriter<T>& w, const R& report) noexcept;
+
+  Config config;
+  Handlers handlers;
+  PayloadLimits payload_limits;
+  protocol::Participant participant;
+  Reader<msg::Command> commands;
+  Reader<msg::TrajectoryChunk> chunks;
+  Reader<msg::Ping> pings;
+  Reader<msg::Heartbeat> heartbeats;
+  LockedWriter<msg::CommandAck> acks;
+  LockedWriter<msg::TrajectoryStatus> upload_status;
+  LockedWriter<msg::JointState> joints;
+  LockedWriter<msg::Wrench> wrenches;
+  LockedWriter<msg::ToolState> tools;
+  LockedWriter<msg::ControllerStatus> status;
+  Writer<msg::Pong> pongs;
+  Writer<msg::Heartbeat> heartbeat_out;
+  protocol::GuardCondition stop_guard;
+  protocol::WaitSet waitset;
+
+  // Link thread only.
+  struct Session {
+    protocol::CommandChecker checker;
+    std::uint64_t last_used = 0;
+  };
+  std::map<std::uint64_t, Session> sessions;
+  std::uint64_t session_clock = 0;
+  std::deque<std::tuple<std::uint64_t, std::uint64_t, std::uint64_t>> accepted;  // session, id, sequence
+  protocol::TrajectoryAssembler assembler;
+  std::deque<std::uint64_t> rejected_uploads;
+  Sample<msg::Command> command_in;
+  Sample<msg::TrajectoryChunk> chunk_in;
+  Sample<msg::Ping> ping_in;
+  Sample<msg::Pong> pong_out;
+  Sample<msg::Heartbeat> heartbeat_in;
+  Sample<msg::Heartbeat> heartbeat_sample;
+  Clock::time_point next_beat{};
+  Clock::time_point last_ground_beat{};
+  bool ever_heard = false;
+  std::uint64_t ground_boot_id = 0;
+  Clock::time_point lost_at{};
+
+  // Shared with other threads.
+  mutable std::mutex uploads_mutex;
+  std::map<std::uint64_t, UploadRecord> records;  // every kept upload's last status
+  std::map<std::uint64_t, std::shared_ptr<const Trajectory>> committed;
+  std::deque<std::uint64_t> committed_order;
+
+  std::atomic<bool> stopping{false};
+  std::atomic<bool> link_up{false};
+  std::atomic<std::uint64_t> n_commands{0}, n_rejected{0}, n_acks{0}, n_write_failures{0}, n_pings{0},
+      n_chunks{0}, n_committed{0}, n_upload_rejected{0}, n_handler_exceptions{0};
+  const std::uint64_t boot_id;
+  std::thread thread;
+};
+
+void RemoteLink::Impl::run() noexcept {
+  const auto period = seconds(std::min(config.heartbeat_period_s, config.link_loss_s / 4.0));
+  next_beat = Clock::now();
+  while (!stopping.load()) {
+    try {
+      beat_and_watch();
+      const auto wait = std::max(std::chrono::nanoseconds(0),
+                                 std::min<std::chrono::nanoseconds>(period, next_beat - Clock::now()));
+      waitset.wait(wait);
+      if (stopping.load()) break;
+      serve_pings();  // first: the delay measurement should not wait behind commands
+      serve_heartbeats();
+      serve_commands();
+      serve_chunks();
+    } catch (const std::exception& e) {
+      // A DDS call failed (should not happen with valid entities): keep serving.
+      spdlog::error("remote link: {}", e.what());
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+}
+
+void RemoteLink::Impl::beat_and_watch() {
+  const auto now = Clock::now();
+  if (now >= next_beat) {
+    heartbeat_sample->side = foresight_msg_SIDE_REMOTE;
+    heartbeat_sample->boot_id = boot_id;
+    ++heartbeat_sample->counter;
+    heartbeat_sample->stamp_ns = protocol::now_ns();
+    (void)heartbeat_out.try_write(*heartbeat_sample);
+    next_beat = now + seconds(config.heartbeat_period_s);
+  }
+  if (link_up.load() && now - last_ground_beat > seconds(config.link_loss_s)) {
+    link_up.store(false);
+    lost_at = now;
+    LinkEvent e;
+    e.kind = LinkEvent::Kind::Lost;
+    e.silence_s = std::chrono::duration<double>(now - last_ground_beat).count();
+    e.ground_boot_id = ground_boot_id;
+    spdlog::warn("remote link: link lost (no ground heartbeat for {:.2f} s)", e.silence_s);
+    emit_link(e);
+  }
+}
+
+void RemoteLink::Impl::serve_heartbeats() {
+  for (int i = 0; i < kTakeBatch && heartbeats.take(heartbeat_in); ++i) {
+    if (heartbeat_in->side != foresight_msg_SIDE_GROUND) continue;  // our own, looped back
+    const auto now = Clock::now();
+    last_ground_beat = now;
+    ground_boot_id = heartbeat_in->boot_id;
+    if (!link_up.load()) {
+      link_up.store(true);
+      LinkEvent e;
+      e.kind = LinkEvent::Kind::Regained;
+      e.silence_s = ever_heard ? std::chrono::duration<double>(now - lost_at).count() : 0.0;
+      e.ground_boot_id = ground_boot_id;
+      ever_heard = true;
+      spdlog::info("remote link: link up (ground boot {:016x})", ground_boot_id);
+      emit_link(e);
+    }
+  }
+}
+
+void RemoteLink::Impl::serve_pings() {
+  for (int i = 0; i < kTakeBatch && pings.take(ping_in); ++i) {
+    const std::int64_t t2 = protocol::now_ns();
+    pong_out->ping_id = ping_in->ping_id;
+    pong_out->ground_send_ns = ping_in->ground_send_ns;
+    pong_out->remote_receive_ns = t2;
+    pong_out->remote_send_ns = protocol::now_ns();
+    (void)pongs.try_write(*pong_out);
+    n_pings.fetch_add(1);
+  }
+}
+
+void RemoteLink::Impl::serve_commands() {
+  for (int i = 0; i < kTakeBatch && commands.take(command_in); ++i) {
+    n_commands.fetch_add(1);
+    const msg::Command& c = *command_in;
+    const std::int64_t received = protocol::now_ns();
+    CommandEvent event;
+    // Per-session sequence: a second ground station has its own; the least
+    // recently used session is forgotten beyond max_sessions.
+    auto it = sessions.find(c.session_id);
+    if (it == sessions.end()) {
+      if (sessions.size() >= std::max<std::size_t>(1, config.max_sessions)) {
+        auto oldest = std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
+          return a.second.last_used < b.second.last_used;
+        });
+        sessions.erase(oldest);
+      }
+      it = sessions.emplace(c.session_id, Session{}).first;
+    }
+    it->second.last_used = ++session_clock;
+    const auto verdict = it->second.checker.check(c, received, config.clock_offset_ns);
+    if (!verdict.ok()) {
+      event.command = envelope_of(c, received);
+      event.code = static_cast<control::Reason>(verdict.code);
+      event.reason = verdict.reason;
+      if (verdict.code == foresight_msg_REASON_BAD_SEQUENCE) {
+        const auto key = std::make_tuple(c.session_id, c.command_id, c.sequence_number);
+        event.duplicate = std::find(accepted.begin(), accepted.end(), key) != accepted.end();
+      }
+    } else {
+      const auto payload = check_payload(c, payload_limits);
+      if (!payload.ok()) {
+        event.command = envelope_of(c, received);
+        event.code = payload.code;
+        event.reason = "command " + std::to_string(c.command_id) + ": " + payload.reason;
+      } else {
+        event.command = to_control(c, received);
+        accepted.emplace_back(c.session_id, c.command_id, c.sequence_number);
+        if (accepted.size() > kRememberedCommands) accepted.pop_front();
+      }
+    }
+    if (!event.accepted()) {
+      n_rejected.fetch_add(1);
+      spdlog::warn("remote link: rejected {}", event.reason);
+    }
+    emit_command(event);
+  }
+}
+
+void RemoteLink::Impl::serve_chunks() {
+  for (int i = 0; i < kTakeBatch && chunks.take(chunk_in); ++i) {
+    n_chunks.fetch_add(1);
+    on_chunk(*chunk_in);
+  }
+}
+
+void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
+  const std::uint64_t id = chunk.trajectory_id;
+  {
+    std::lock_guard lock(uploads_mutex);
+    if (committed.count(id) != 0) return;  // a re-sent chunk of a committed upload
+  }
+  const bool already_rejected = std::find(rejected_uploads.begin(), rejected_uploads.end(), id) != rejected_uploads.end();
+  const auto progress = assembler.add(chunk);
+  UploadRecord record;
+  record.state = progress.state;
+  record.chunks_received = progress.chunks_received;
+  record.chunk_count = progress.chunk_count;
+  record.hash = protocol::get_hash(chunk.content_hash);
+  record.code = progress.code;
+  record.reason = progress.reason;
+  UploadEvent event;
+  event.trajectory_id = id;
+  event.session_id = chunk.session_id;
+  std::shared_ptr<const Trajectory> kept;
+  std::optional<std::uint64_t> evicted;
+  if (progress.state == foresight_msg_UPLOAD_REJECTED) {
+    if (already_rejected) return;  // reported once
+    if (progress.code != foresight_msg_REASON_BUSY) {  // a BUSY upload is not remembered by the assembler
+      rejected_uploads.push_back(id);
+      if (rejected_uploads.size() > kRememberedRejections) {
+        assembler.discard(rejected_uploads.front());
+        rejected_uploads.pop_front();
+      }
+    }
+    n_upload_rejected.fetch_add(1);
+  } else if (progress.whole()) {
+    auto assembled = assembler.take(id);
+    if (!assembled) return;  // cannot happen: whole() said so
+    const auto verdict = protocol::verify(*assembled, config.trajectory_limits);
+    record.hash = verdict.computed_hash;
+    if (verdict.ok()) {
+      record.state = foresight_msg_UPLOAD_COMMITTED;
+      record.code = foresight_msg_REASON_NONE;
+      record.reason.clear();
+      kept = std::make_shared<const Trajectory>(std::move(assembled->trajectory));
+      n_committed.fetch_add(1);
+    } else {
+      record.state = foresight_msg_UPLOAD_REJECTED;
+      record.code = verdict.code;
+      record.reason = verdict.reason;
+      n_upload_rejected.fetch_add(1);
+    }
+  }
+  {
+    std::lock_guard lock(uploads_mutex);
+    if (record.state == foresight_msg_UPLOAD_ASSEMBLING || record.state == foresight_msg_UPLOAD_COMMITTED ||
+        record.state == foresight_msg_UPLOAD_REJECTED) {
+      records[id] = record;
+    }
+    if (kept) {
+      committed[id] = kept;
+      committed_order.push_back(id);
+      if (committed_order.size() > std::max<std::size_t>(1, config.max_committed)) {
+        evicted = committed_order.front();
+        committed_order.pop_front();
+        committed.erase(*evicted);
+        records.erase(*evicted);
+      }
+    }
+    // Bound the remembered statuses: assembling and committed ones are
+    // bounded by the assembler and max_committed; drop the oldest rejected.
+    while (records.size() > config.max_committed + config.max_pending_uploads + 2 * kRememberedRejections) {
+      auto victim = std::find_if(records.begin(), records.end(), [](const auto& r) {
+        return r.second.state == foresight_msg_UPLOAD_REJECTED;
+      });
+      if (victim == records.end()) break;
+      records.erase(victim);
+    }
+  }
+  publish_status(id, record);
+  event.state = static_cast<control::UploadState>(record.state);
+  event.chunks_received = record.chunks_received;
+  event.chunk_count = record.chunk_count;
+  event.code = static_cast<control::Reason>(record.code);
+  event.reason = record.reason;
+  event.hash = record.hash;
+  event.trajectory = kept;
+  if (record.state == foresight_msg_UPLOAD_REJECTED) spdlog::warn("remote link: upload rejected: {}", record.reason);
+  emit_upload(event);
+  if (evicted) {
+    UploadRecord gone;
+    gone.state = foresight_msg_UPLOAD_DISCARDED;
+    gone.code = foresight_msg_REASON_NONE;
+    gone.reason = "discarded: more than " + std::to_string(config.max_committed) + " committed uploads";
+    publish_status(*evicted, gone);
+    UploadEvent e;
+    e.trajectory_id = *evicted;
+    e.state = control::UploadState::Discarded;
+    e.reason = gone.reason;
+    emit_upload(e);
+  }
+}
+
+void RemoteLink::Impl::publish_status(std::uint64_t id, const UploadRecord& r) {
+  std::lock_guard lock(upload_status.mutex);
+  msg::TrajectoryStatus& s = *upload_status.sample;
+  s.trajectory_id = id;
+  s.state = r.state;
+  s.chunks_received = r.chunks_received;
+  s.chunk_count = r.chunk_count;
+  protocol::set_hash(s.content_hash, r.hash);
+  s.code = r.code;
+  protocol::set_text_truncated(s.reason, r.reason);
+  s.stamp_ns = protocol::now_ns();
+  if (upload_status.writer.try_write(s) < 0) n_write_failures.fetch_add(1);
+}
+
+void RemoteLink::Impl::emit_command(const CommandEvent& event) {
+  try {
+    handlers.on_command(event);
+  } catch (const std::exception& e) {
+    n_handler_exceptions.fetch_add(1);
+    spdlog::error("remote link: the command handler threw: {}", e.what());
+  } catch (...) {
+    n_handler_exceptions.fetch_add(1);
+    spdlog::error("remote link: the command handler threw");
+  }
+}
+
+void RemoteLink::Impl::emit_upload(const UploadEvent& event) {
+  if (!handlers.on_upload) return;
+  try {
+    handlers.on_upload(event);
+  } catch (const std::exception& e) {
+    n_handler_exceptions.fetch_add(1);
+    spdlog::error("remote link: the upload handler threw: {}", e.what());
+  } catch (...) {
+    n_handler_exceptions.fetch_add(1);
+  }
+}
+
+void RemoteLink::Impl::emit_link(const LinkEvent& event) {
+  if (!handlers.on_link) return;
+  try {
+    handlers.on_link(event);
+  } catch (const std::exception& e) {
+    n_handler_exceptions.fetch_add(1);
+    spdlog::error("remote link: the link handler threw: {}", e.what());
+  } catch (...) {
+    n_handler_exceptions.fetch_add(1);
+  }
+}
+
+template <class T, class R>
+bool RemoteLink::Impl::publish(LockedWriter<T>& w, const R& report) noexcept {
+  try {
+    std::lock_guard lock(w.mutex);
+    to_wire(*w.sample, report);
+    if (w.writer.try_write(*w.sample) < 0) {
+      n_write_failures.fetch_add(1);
+      return false;
+    }
+    return true;
+  } catch (const std::exception& e) {
+    n_write_failures.fetch_add(1);
+    return false;
+  }
+}
+
+RemoteLink::RemoteLink(Config config, Handlers handlers) {
+  if (!handlers.on_command) throw std::invalid_argument("RemoteLink: no command handler");
+  if (!(config.heartbeat_period_s > 0.0)) {
+    throw std::invalid_argument("RemoteLink: heartbeat_period_s must be positive");
+  }
+  if (!(config.link_loss_s > config.heartbeat_period_s)) {
+    throw std::invalid_argument("RemoteLink: link_loss_s must exceed heartbeat_period_s");
+  }
+  if (config.trajectory_limits.joints < 1 ||
+      config.trajectory_limits.joint_limits.size() != static_cast<std::size_t>(config.trajectory_limits.joints)) {
+    throw std::invalid_argument("RemoteLink: trajectory_limits has no joints (use TrajectoryLimits::from_model)");
+  }
+  impl_ = std::make_unique<Impl>(std::move(config), std::move(handlers));
+}
+
+RemoteLink::~RemoteLink() { stop(); }
+
+void RemoteLink::stop() noexcept {
+  if (!impl_) return;
+  impl_->stopping.store(true);
+  try {
+    impl_->stop_guard.trigger();
+  } catch (...) {
+    // The thread still sees `stopping` within one wake-up period.
+  }
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+bool RemoteLink::ack(const control::Ack& ack) noexcept {
+  const bool ok = impl_->publish(impl_->acks, ack);
+  if (ok) impl_->n_acks.fetch_add(1);
+  return ok;
+}
+
+bool RemoteLink::publish(const control::JointReport& r) noexcept { return impl_->publish(impl_->joints, r); }
+bool RemoteLink::publish(const control::WrenchReport& r) noexcept { return impl_->publish(impl_->wrenches, r); }
+bool RemoteLink::publish(const control::ToolReport& r) noexcept { return impl_->publish(impl_->tools, r); }
+bool RemoteLink::publish(const control::StatusReport& r) noexcept { return impl_->publish(impl_->status, r); }
+
+void RemoteLink::republish_uploads() noexcept {
+  try {
+    std::map<std::uint64_t, UploadRecord> copy;
+    {
+      std::lock_guard lock(impl_->uploads_mutex);
+      copy = impl_->records;
+    }
+    for (const auto& [id, record] : copy) impl_->publish_status(id, record);
+  } catch (...) {
+    impl_->n_write_failures.fetch_add(1);
+  }
+}
+
+std::shared_ptr<const Trajectory> RemoteLink::committed(std::uint64_t id) const noexcept {
+  std::lock_guard lock(impl_->uploads_mutex);
+  const auto it = impl_->committed.find(id);
+  return it == impl_->committed.end() ? nullptr : it->second;
+}
+
+LinkStats RemoteLink::stats() const noexcept {
+  LinkStats s;
+  s.commands = impl_->n_commands.load();
+  s.rejected = impl_->n_rejected.load();
+  s.acks_written = impl_->n_acks.load();
+  s.write_failures = impl_->n_write_failures.load();
+  s.pings = impl_->n_pings.load();
+  s.chunks = impl_->n_chunks.load();
+  s.uploads_committed = impl_->n_committed.load();
+  s.uploads_rejected = impl_->n_upload_rejected.load();
+  s.handler_exceptions = impl_->n_handler_exceptions.load();
+  s.link_up = impl_->link_up.load();
+  return s;
+}
+
+std::uint64_t RemoteLink::boot_id() const noexcept { return impl_->boot_id; }
+
+}  // namespace foresight::remote_link
