@@ -103,6 +103,16 @@ void CanSimulator::joint_positions_rad(std::span<double> out) const {
   }
 }
 
+void CanSimulator::joint_velocities_rad_s(std::span<double> out) const {
+  if (out.size() < drives_.size()) throw std::logic_error("joint_velocities_rad_s: output span too short");
+  for (std::size_t i = 0; i < drives_.size(); ++i) {
+    const DriveEntry& d = drives_[i];
+    if (!d.has_scaling) throw std::logic_error("joint_velocities_rad_s: drive added without a DriveConfig");
+    out[i] = d.node->velocity_counts_s() * 2.0 * std::numbers::pi /
+             (d.scaling.direction * d.scaling.counts_per_rev * d.scaling.gear_ratio);
+  }
+}
+
 void CanSimulator::power_on() {
   if (powered_) return;
   powered_ = true;

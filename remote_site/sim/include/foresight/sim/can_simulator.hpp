@@ -68,6 +68,9 @@ class CanSimulator {
   /// model: FK of these gives the simulated tool pose). Any thread; not RT.
   /// Throws std::logic_error for drives added without a DriveConfig.
   void joint_positions_rad(std::span<double> out) const;
+  /// Simulated joint velocities (rad/s), same order and scaling as
+  /// joint_positions_rad (the plant's tool twist). Any thread; not RT.
+  void joint_velocities_rad_s(std::span<double> out) const;
   std::size_t drive_count() const { return drives_.size(); }
   SimFtSensor* ft_sensor() { return ft_.get(); }
   std::uint64_t frames_received() const { return frames_in_.load(); }
