@@ -1,0 +1,400 @@
+#include "foresight/journal/journal.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <system_error>
+
+#include "sqlite.hpp"
+
+namespace foresight::journal {
+
+using detail::Connection;
+using detail::Statement;
+namespace fs = std::filesystem;
+
+struct Journal::Db {
+  Connection conn;
+  Statement insert_command, insert_fault, insert_upload, insert_event, insert_telemetry;
+  Statement begin, commit, rollback, sync_full, sync_normal, page_count;
+  std::int64_t page_size = 4096;
+};
+
+namespace {
+
+bool valid_state(const std::string& s) {
+  return std::any_of(kCommandStates.begin(), kCommandStates.end(), [&](const char* k) { return s == k; });
+}
+
+/// "[a,b,c]" with the shortest round-trip form of each double; writes into
+/// `buf` (large enough for 16 doubles), returns the text.
+std::string_view json_array(const double* v, std::size_t n, char* buf, std::size_t cap) {
+  char* p = buf;
+  char* const end = buf + cap;
+  *p++ = '[';
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) *p++ = ',';
+    if (std::isfinite(v[i])) {
+      p = std::to_chars(p, end - 1, v[i]).ptr;
+    } else {
+      // JSON has no NaN/inf: null keeps the array's length and index meaning.
+      for (const char c : std::string_view("null")) *p++ = c;
+    }
+  }
+  *p++ = ']';
+  return {buf, static_cast<std::size_t>(p - buf)};
+}
+
+std::string rotated_name(const std::string& path, int i) { return path + "." + std::to_string(i); }
+
+void remove_db_files(const std::string& path) {
+  std::error_code ec;
+  fs::remove(path, ec);
+  fs::remove(path + "-wal", ec);
+  fs::remove(path + "-shm", ec);
+}
+
+}  // namespace
+
+std::int64_t Journal::now_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+Journal::Journal(JournalOptions options) : options_(std::move(options)), ring_(options_.telemetry_queue) {
+  if (options_.path.empty()) throw std::invalid_argument("journal: path is empty");
+  // An empty journal (schema, indexes) is ~13 pages (53 KB): a smaller bound
+  // would rotate after every transaction.
+  if (options_.max_bytes < JournalOptions::kMinMaxBytes) throw std::invalid_argument("journal: max_bytes must be at least 131072");
+  if (options_.keep_files < 0) throw std::invalid_argument("journal: keep_files must be >= 0");
+  if (options_.telemetry_batch == 0) throw std::invalid_argument("journal: telemetry_batch must be positive");
+  if (options_.flush_interval.count() <= 0) throw std::invalid_argument("journal: flush_interval must be positive");
+  if (!(options_.telemetry_rate_hz >= 0.0) || !std::isfinite(options_.telemetry_rate_hz))
+    throw std::invalid_argument("journal: telemetry_rate_hz must be finite and >= 0");
+  period_ns_ = options_.telemetry_rate_hz > 0.0 ? static_cast<std::int64_t>(1e9 / options_.telemetry_rate_hz) : 0;
+  batch_.resize(options_.telemetry_batch);
+
+  {
+    std::lock_guard lk(db_mu_);
+    open_db();
+    maybe_rotate();
+  }
+  writer_ = std::thread([this] { writer_loop(); });
+}
+
+Journal::~Journal() {
+  try {
+    close();
+  } catch (...) {
+    // A destructor must not throw; the rows already committed stay on disk.
+  }
+}
+
+void Journal::open_db() {
+  auto db = std::make_unique<Db>();
+  const bool existed = fs::exists(options_.path);
+  db->conn = Connection(options_.path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX);
+  Connection& c = db->conn;
+  sqlite3_busy_timeout(c.get(), 5000);  // an engineer's sqlite3 shell may hold a lock briefly
+
+  // The first real read: fails here with "file is not a database" on garbage.
+  const std::int64_t app_id = [&] {
+    try {
+      return detail::query_int(c, "PRAGMA application_id");
+    } catch (const JournalError& e) {
+      throw JournalError(std::string(e.what()) + " (not a journal database)");
+    }
+  }();
+  const std::int64_t tables = detail::query_int(c, "SELECT count(*) FROM sqlite_master");
+  if (app_id != detail::kApplicationId && (app_id != 0 || tables != 0))
+    throw JournalError(options_.path + ": not a Foresight journal (application_id " + std::to_string(app_id) + ")");
+
+  {
+    Statement wal(c, "PRAGMA journal_mode=WAL");
+    if (!wal.step() || wal.text(0) != "wal") throw JournalError(options_.path + ": cannot switch to WAL mode");
+  }
+  c.exec("PRAGMA synchronous=FULL");
+  // Keep the -wal file from staying large after checkpoints (the size bound).
+  c.exec("PRAGMA journal_size_limit=1048576");
+  c.exec("BEGIN IMMEDIATE");
+  try {
+    c.exec(detail::kSchema);
+    c.exec(("PRAGMA application_id=" + std::to_string(detail::kApplicationId)).c_str());
+    c.exec(("PRAGMA user_version=" + std::to_string(detail::kSchemaVersion)).c_str());
+    {
+      Statement q(c, "SELECT value FROM meta WHERE key='clean_shutdown'");
+      if (existed && q.step() && q.text(0) == "0") previous_clean_ = false;
+    }
+    Statement up(c, "INSERT INTO meta(key, value) VALUES(?1, ?2) ON CONFLICT(key) DO UPDATE SET value=excluded.value");
+    up.bind(1, std::string_view("clean_shutdown")).bind(2, std::string_view("0")).run();
+    const std::string now = std::to_string(now_ns());
+    Statement ins(c, "INSERT OR IGNORE INTO meta(key, value) VALUES('created_ns', ?1)");
+    ins.bind(1, std::string_view(now)).run();
+    c.exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(c.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+
+  db->page_size = detail::query_int(c, "PRAGMA page_size");
+  db->insert_command = Statement(c,
+      "INSERT INTO commands(stamp_ns, session_id, command_id, sequence_number, kind, state, code, reason, detail)"
+      " VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
+  db->insert_fault = Statement(c,
+      "INSERT INTO faults(stamp_ns, cycle, category, cause, text, evidence) VALUES(?1, ?2, ?3, ?4, ?5, ?6)");
+  db->insert_upload = Statement(c,
+      "INSERT INTO uploads(stamp_ns, trajectory_id, state, code, reason, hash_hex, samples, joints)"
+      " VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+  db->insert_event = Statement(c, "INSERT INTO events(stamp_ns, kind, text, detail) VALUES(?1, ?2, ?3, ?4)");
+  db->insert_telemetry = Statement(c,
+      "INSERT INTO telemetry(stamp_ns, cycle, mode, joint_count, q, q_cmd, wrench)"
+      " VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+  db->begin = Statement(c, "BEGIN");
+  db->commit = Statement(c, "COMMIT");
+  db->rollback = Statement(c, "ROLLBACK");
+  db->sync_full = Statement(c, "PRAGMA synchronous=FULL");
+  db->sync_normal = Statement(c, "PRAGMA synchronous=NORMAL");
+  db->page_count = Statement(c, "PRAGMA page_count");
+  db_ = std::move(db);
+}
+
+void Journal::close_db(bool clean) {
+  if (!db_) return;
+  if (clean) {
+    Statement up(db_->conn, "UPDATE meta SET value='1' WHERE key='clean_shutdown'");
+    up.run();
+  }
+  db_.reset();  // the last connection closing checkpoints and removes the -wal file
+}
+
+void Journal::require_open() const {
+  if (!db_) throw JournalError(options_.path + ": journal is closed");
+}
+
+void Journal::maybe_rotate() {
+  Statement& pc = db_->page_count;
+  const std::int64_t pages = pc.step() ? pc.int64(0) : 0;
+  pc.reset();
+  if (static_cast<std::uint64_t>(pages * db_->page_size) > options_.max_bytes) rotate();
+}
+
+void Journal::rotate() {
+  // Everything into the main file first: a rotated file must stand alone
+  // without its -wal. A reader holding an old snapshot can keep the
+  // checkpoint from completing; then try again after the next transaction.
+  int log_frames = 0, checkpointed = 0;
+  const int rc = sqlite3_wal_checkpoint_v2(db_->conn.get(), nullptr, SQLITE_CHECKPOINT_TRUNCATE, &log_frames,
+                                           &checkpointed);
+  if (rc != SQLITE_OK || log_frames != checkpointed) return;
+  close_db(true);
+
+  const std::string& p = options_.path;
+  std::error_code ec;
+  if (options_.keep_files == 0) {
+    remove_db_files(p);
+  } else {
+    remove_db_files(rotated_name(p, options_.keep_files));
+    for (int i = options_.keep_files - 1; i >= 1; --i) {
+      if (fs::exists(rotated_name(p, i))) fs::rename(rotated_name(p, i), rotated_name(p, i + 1), ec);
+    }
+    fs::rename(p, rotated_name(p, 1), ec);
+    if (ec) throw JournalError(p + ": cannot rotate to " + rotated_name(p, 1) + ": " + ec.message());
+    fs::remove(p + "-wal", ec);
+    fs::remove(p + "-shm", ec);
+  }
+  ++stats_.rotations;
+  open_db();
+}
+
+void Journal::record_command(const CommandRow& r) {
+  if (!valid_state(r.state))
+    throw JournalError(options_.path + ": unknown command state '" + r.state +
+                       "' (expected RECEIVED, REJECTED, QUEUED, EXECUTING, COMPLETED, FAILED or CANCELED)");
+  std::lock_guard lk(db_mu_);
+  require_open();
+  db_->insert_command.bind(1, r.stamp_ns != 0 ? r.stamp_ns : now_ns())
+      .bind_u64(2, r.session_id)
+      .bind_u64(3, r.command_id)
+      .bind_u64(4, r.sequence_number)
+      .bind(5, std::string_view(r.kind))
+      .bind(6, std::string_view(r.state))
+      .bind(7, std::string_view(r.code))
+      .bind(8, std::string_view(r.reason))
+      .bind(9, std::string_view(r.detail))
+      .run();  // autocommit: one transaction, WAL fsync'ed (synchronous=FULL)
+  ++stats_.commands;
+  maybe_rotate();
+}
+
+void Journal::record_fault(const FaultRow& r) {
+  if (r.category < 0 || r.category > 2)
+    throw JournalError(options_.path + ": fault category must be 0, 1 or 2, got " + std::to_string(r.category));
+  std::lock_guard lk(db_mu_);
+  require_open();
+  db_->insert_fault.bind(1, r.stamp_ns != 0 ? r.stamp_ns : now_ns())
+      .bind_u64(2, r.cycle)
+      .bind(3, static_cast<std::int64_t>(r.category))
+      .bind(4, std::string_view(r.cause))
+      .bind(5, std::string_view(r.text))
+      .bind(6, std::string_view(r.evidence))
+      .run();
+  ++stats_.faults;
+  maybe_rotate();
+}
+
+void Journal::record_upload(const UploadRow& r) {
+  std::lock_guard lk(db_mu_);
+  require_open();
+  db_->insert_upload.bind(1, r.stamp_ns != 0 ? r.stamp_ns : now_ns())
+      .bind_u64(2, r.trajectory_id)
+      .bind(3, std::string_view(r.state))
+      .bind(4, std::string_view(r.code))
+      .bind(5, std::string_view(r.reason))
+      .bind(6, std::string_view(r.hash_hex))
+      .bind(7, static_cast<std::int64_t>(r.samples))
+      .bind(8, static_cast<std::int64_t>(r.joints))
+      .run();
+  ++stats_.uploads;
+  maybe_rotate();
+}
+
+void Journal::record_event(const EventRow& r) {
+  std::lock_guard lk(db_mu_);
+  require_open();
+  db_->insert_event.bind(1, r.stamp_ns != 0 ? r.stamp_ns : now_ns())
+      .bind(2, std::string_view(r.kind))
+      .bind(3, std::string_view(r.text))
+      .bind(4, std::string_view(r.detail))
+      .run();
+  ++stats_.events;
+  maybe_rotate();
+}
+
+PushResult Journal::push_telemetry(const TelemetryRow& row) noexcept {
+  if (period_ns_ > 0 && row.stamp_ns != 0) {
+    if (any_accepted_ && row.stamp_ns - last_accepted_ns_ < period_ns_) {
+      decimated_.fetch_add(1, std::memory_order_relaxed);
+      return PushResult::Decimated;
+    }
+  }
+  if (!ring_.try_push(row)) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return PushResult::Dropped;
+  }
+  if (row.stamp_ns != 0) {
+    last_accepted_ns_ = row.stamp_ns;
+    any_accepted_ = true;
+  }
+  accepted_.fetch_add(1, std::memory_order_relaxed);
+  return PushResult::Accepted;
+}
+
+bool Journal::flush(std::chrono::milliseconds timeout) {
+  std::unique_lock lk(wake_mu_);
+  if (!writer_.joinable() || stop_) return true;
+  const std::uint64_t ticket = ++flush_requested_;
+  wake_cv_.notify_one();
+  return done_cv_.wait_for(lk, timeout, [&] { return flush_done_ >= ticket; });
+}
+
+void Journal::writer_loop() {
+  for (;;) {
+    bool stopping = false;
+    std::uint64_t ticket = 0;
+    {
+      std::unique_lock lk(wake_mu_);
+      wake_cv_.wait_for(lk, options_.flush_interval, [&] { return stop_ || flush_requested_ != flush_done_; });
+      stopping = stop_;
+      ticket = flush_requested_;
+    }
+    drain();
+    {
+      std::lock_guard lk(wake_mu_);
+      flush_done_ = ticket;
+    }
+    done_cv_.notify_all();
+    if (stopping) return;
+  }
+}
+
+void Journal::drain() {
+  // Bounded: at most what is in the ring now plus what arrives meanwhile,
+  // capped at a few ring capacities so a fast producer cannot hold us here.
+  const std::size_t max_rounds = ring_.capacity() / batch_.size() + 4;
+  for (std::size_t round = 0; round < max_rounds; ++round) {
+    std::size_t n = 0;
+    while (n < batch_.size() && ring_.try_pop(batch_[n])) ++n;
+    if (n == 0) return;
+    write_batch(n);
+    if (n < batch_.size()) return;
+  }
+}
+
+void Journal::write_batch(std::size_t n) {
+  std::lock_guard lk(db_mu_);
+  if (!db_) {
+    stats_.write_errors += 1;
+    stats_.last_error = options_.path + ": journal is closed; " + std::to_string(n) + " telemetry rows lost";
+    return;
+  }
+  Db& d = *db_;
+  char q[16 * 32 + 4], qc[16 * 32 + 4], w[6 * 32 + 4];
+  try {
+    d.sync_normal.run();  // a batch may roll back on power loss, never on a crash
+    d.begin.run();
+    try {
+      for (std::size_t i = 0; i < n; ++i) {
+        const TelemetryRow& r = batch_[i];
+        const std::size_t nj = std::min<std::size_t>(r.joint_count, TelemetryRow::kMaxJoints);
+        d.insert_telemetry.bind(1, r.stamp_ns != 0 ? r.stamp_ns : now_ns())
+            .bind_u64(2, r.cycle)
+            .bind(3, static_cast<std::int64_t>(r.mode))
+            .bind(4, static_cast<std::int64_t>(nj))
+            .bind(5, json_array(r.q_rad.data(), nj, q, sizeof q))
+            .bind(6, json_array(r.q_cmd_rad.data(), nj, qc, sizeof qc))
+            .bind(7, json_array(r.wrench.data(), 6, w, sizeof w))
+            .run();
+      }
+      d.commit.run();
+    } catch (...) {
+      d.rollback.reset();
+      sqlite3_exec(d.conn.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+      d.sync_full.run();
+      throw;
+    }
+    d.sync_full.run();
+    stats_.telemetry_written += n;
+    ++stats_.telemetry_batches;
+    maybe_rotate();
+  } catch (const std::exception& e) {
+    stats_.write_errors += 1;
+    stats_.last_error = e.what();
+  }
+}
+
+void Journal::close() {
+  {
+    std::lock_guard lk(wake_mu_);
+    if (closed_) return;
+    closed_ = true;
+    stop_ = true;
+  }
+  wake_cv_.notify_one();
+  if (writer_.joinable()) writer_.join();
+  std::lock_guard lk(db_mu_);
+  close_db(true);
+}
+
+JournalStats Journal::stats() const {
+  std::lock_guard lk(db_mu_);
+  JournalStats s = stats_;
+  s.telemetry_accepted = accepted_.load(std::memory_order_relaxed);
+  s.telemetry_decimated = decimated_.load(std::memory_order_relaxed);
+  s.telemetry_dropped = dropped_.load(std::memory_order_relaxed);
+  return s;
+}
+
+}  // namespace foresight::journal
