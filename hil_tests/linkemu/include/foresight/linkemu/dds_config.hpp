@@ -1,0 +1,17 @@
+#pragma once
+// A Cyclone DDS configuration for one end of the emulated link. The TUN
+// interface is point-to-point without multicast routing, so discovery is
+// unicast to the far end's address; participant indices are automatic so
+// several participants per namespace find each other's ports. Set-up code.
+
+#include <string>
+
+namespace foresight::linkemu {
+
+/// The XML for CYCLONEDDS_URI: only `interface`, no multicast, unicast peer
+/// `peer_address`, SPDP re-announced every `spdp_interval_s` (a lost
+/// announcement on a lossy link is repeated soon, not after Cyclone's 30 s).
+std::string cyclone_config_xml(const std::string& interface, const std::string& peer_address,
+                               double spdp_interval_s = 2.0);
+
+}  // namespace foresight::linkemu
