@@ -93,7 +93,6 @@ struct RemoteLink::Impl {
     waitset.attach(pings, kPing);
     waitset.attach(heartbeats, kHeartbeat);
     payload_limits.joints = config.trajectory_limits.joints;
-    thread = std::thread([this] { run(); });
   }
 
   void run() noexcept;
@@ -475,6 +474,11 @@ RemoteLink::RemoteLink(Config config, Handlers handlers) {
 }
 
 RemoteLink::~RemoteLink() { stop(); }
+
+void RemoteLink::start() {
+  if (impl_->thread.joinable() || impl_->stopping.load()) return;
+  impl_->thread = std::thread([impl = impl_.get()] { impl->run(); });
+}
 
 void RemoteLink::stop() noexcept {
   if (!impl_) return;

@@ -104,10 +104,14 @@ struct LinkStats {
 
 class RemoteLink {
  public:
-  /// Set-up: creates the participant, readers, writers and starts the link
-  /// thread. Throws protocol::ProtocolError (DDS) or std::invalid_argument
-  /// (no on_command handler, a non-positive period).
+  /// Set-up: creates the participant, readers and writers. Throws
+  /// protocol::ProtocolError (DDS) or std::invalid_argument (no on_command
+  /// handler, a non-positive period, no joints in the limits). No handler
+  /// runs before start(): commands arriving meanwhile wait in DDS (reliable,
+  /// keep-all), so the handlers may use this object.
   RemoteLink(Config config, Handlers handlers);
+  /// Starts the link thread (idempotent).
+  void start();
   /// Stops and joins the link thread, then deletes the entities.
   ~RemoteLink();
   RemoteLink(const RemoteLink&) = delete;

@@ -1,0 +1,229 @@
+// The wire <-> plain type conversions and the hostile-payload checks, without
+// a network: every kind survives fill_payload -> to_control unchanged, and
+// every hostile value is refused with its exact reason.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "foresight/protocol/commands.hpp"
+#include "foresight/remote_link/convert.hpp"
+
+namespace rl = foresight::remote_link;
+namespace control = foresight::control;
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
+
+namespace {
+
+fp::Sample<msg::Command> make(control::CommandKind kind, const control::Payload& payload) {
+  fp::CommandSequencer seq(5);
+  auto c = seq.next(static_cast<msg::CommandKind>(kind));
+  rl::fill_payload(*c, kind, payload);
+  return c;
+}
+
+control::Command round_trip(control::CommandKind kind, const control::Payload& payload) {
+  const auto c = make(kind, payload);
+  const auto verdict = rl::check_payload(*c, rl::PayloadLimits{7});
+  EXPECT_TRUE(verdict.ok()) << verdict.reason;
+  return rl::to_control(*c, 123);
+}
+
+rl::PayloadVerdict verdict_of(const fp::Sample<msg::Command>& c) { return rl::check_payload(*c, rl::PayloadLimits{7}); }
+
+const double kNan = std::numeric_limits<double>::quiet_NaN();
+
+}  // namespace
+
+TEST(LinkConvert, EveryKindRoundTripsThroughTheWireType) {
+  control::RunTrajectory run;
+  run.trajectory_id = 42;
+  run.content_hash[0] = 0xab;
+  run.content_hash[31] = 0xcd;
+  run.compliant = true;
+  run.start_tolerance_rad = 0.01;
+  auto c = round_trip(control::CommandKind::Trajectory, run);
+  EXPECT_EQ(c.kind, control::CommandKind::Trajectory);
+  EXPECT_EQ(c.received_ns, 123);
+  EXPECT_EQ(c.session_id, 5u);
+  const auto& r = std::get<control::RunTrajectory>(c.payload);
+  EXPECT_EQ(r.trajectory_id, 42u);
+  EXPECT_EQ(r.content_hash, run.content_hash);
+  EXPECT_TRUE(r.compliant);
+  EXPECT_DOUBLE_EQ(r.start_tolerance_rad, 0.01);
+
+  control::InvokeAlgorithm alg{"guarded_insert", {{"depth_m", 0.05}, {"force_n", 20.0}}, 30.0};
+  const auto a = std::get<control::InvokeAlgorithm>(round_trip(control::CommandKind::InvokeAlgorithm, alg).payload);
+  EXPECT_EQ(a.name, "guarded_insert");
+  ASSERT_EQ(a.params.size(), 2u);
+  EXPECT_EQ(a.params[1].name, "force_n");
+  EXPECT_DOUBLE_EQ(a.params[1].value, 20.0);
+  EXPECT_DOUBLE_EQ(a.timeout_s, 30.0);
+
+  const auto q = std::get<control::Request>(
+      round_trip(control::CommandKind::Request, control::Request{control::RequestWhat::Wrench}).payload);
+  EXPECT_EQ(q.what, control::RequestWhat::Wrench);
+
+  control::CameraCommand cam{"oblique", control::CameraAction::Point, 0.1, -0.2, 800.0};
+  const auto cc = std::get<control::CameraCommand>(round_trip(control::CommandKind::Camera, cam).payload);
+  EXPECT_EQ(cc.camera, "oblique");
+  EXPECT_EQ(cc.action, control::CameraAction::Point);
+  EXPECT_DOUBLE_EQ(cc.tilt_rad, -0.2);
+  EXPECT_DOUBLE_EQ(cc.focal_px, 800.0);
+
+  control::GotoJoint go{{0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7}, 0.25};
+  const auto g = std::get<control::GotoJoint>(round_trip(control::CommandKind::GotoJoint, go).payload);
+  EXPECT_EQ(g.q_rad, go.q_rad);
+  EXPECT_DOUBLE_EQ(g.speed_fraction, 0.25);
+
+  control::GotoCart cart;
+  cart.frame = "lst_tip";
+  cart.base_T_frame = foresight::make_pose(Eigen::Vector3d(0.5, -0.2, 0.8), Eigen::Vector3d(0.1, 0.2, 0.3));
+  cart.speed_fraction = 0.5;
+  const auto gc = std::get<control::GotoCart>(round_trip(control::CommandKind::GotoCart, cart).payload);
+  EXPECT_EQ(gc.frame, "lst_tip");
+  EXPECT_LT((gc.base_T_frame.matrix() - cart.base_T_frame.matrix()).norm(), 1e-12);
+
+  control::Abort ab{7, control::StopCategory::Cat1, "operator"};
+  const auto b = std::get<control::Abort>(round_trip(control::CommandKind::Abort, ab).payload);
+  EXPECT_EQ(b.target_command_id, 7u);
+  EXPECT_EQ(b.category, control::StopCategory::Cat1);
+  EXPECT_EQ(b.reason, "operator");
+
+  for (auto kind : {control::CommandKind::TakeControl, control::CommandKind::ReleaseControl,
+                    control::CommandKind::Recover}) {
+    const auto none = round_trip(kind, control::NoPayload{});
+    EXPECT_EQ(none.kind, kind);
+    EXPECT_TRUE(std::holds_alternative<control::NoPayload>(none.payload));
+  }
+}
+
+TEST(LinkConvert, FillPayloadRefusesAPayloadOfAnotherKindAndOversizedValues) {
+  fp::Sample<msg::Command> c;
+  try {
+    rl::fill_payload(*c, control::CommandKind::GotoJoint, control::Abort{});
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "command CMD_GOTO_JOINT: the payload is of another kind");
+  }
+  try {
+    rl::fill_payload(*c, control::CommandKind::Camera, control::CameraCommand{std::string(64, 'x')});
+    FAIL() << "no throw";
+  } catch (const std::length_error& e) {
+    EXPECT_STREQ(e.what(), "camera name: 64 characters exceed the protocol bound of 63");
+  }
+  try {
+    rl::fill_payload(*c, control::CommandKind::GotoJoint, control::GotoJoint{std::vector<double>(17, 0.0), 0.5});
+    FAIL() << "no throw";
+  } catch (const std::length_error& e) {
+    EXPECT_STREQ(e.what(), "goto joint angles: 17 elements exceed the protocol bound of 16");
+  }
+}
+
+TEST(LinkConvert, HostilePayloadsAreRefusedWithTheirReason) {
+  struct Case {
+    control::CommandKind kind;
+    control::Payload payload;
+    control::Reason code;
+    const char* reason;
+  };
+  const std::vector<double> q7{0, 0, 0, 0, 0, 0, 0};
+  std::vector<double> q_nan = q7;
+  q_nan[2] = kNan;
+  control::GotoCart bad_quat;
+  bad_quat.frame = "lst_tip";
+  const std::vector<Case> cases = {
+      {control::CommandKind::GotoJoint, control::GotoJoint{q_nan, 0.5}, control::Reason::BadArgument,
+       "goto_joint.q_rad[2] is not finite"},
+      {control::CommandKind::GotoJoint, control::GotoJoint{{0.0, 0.0}, 0.5}, control::Reason::JointCount,
+       "goto_joint.q_rad has 2 angles; the arm has 7 joints"},
+      {control::CommandKind::GotoJoint, control::GotoJoint{q7, 0.0}, control::Reason::BadArgument,
+       "goto_joint.speed_fraction 0.000000 is not in (0, 1]"},
+      {control::CommandKind::GotoJoint, control::GotoJoint{q7, kNan}, control::Reason::BadArgument,
+       "goto_joint.speed_fraction is not finite"},
+      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"", {}, 1.0}, control::Reason::BadArgument,
+       "algorithm.name is empty"},
+      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"ins\x01rt", {}, 1.0},
+       control::Reason::BadArgument, "algorithm.name has a non-printable character"},
+      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"insert", {{"depth_m", kNan}}, 1.0},
+       control::Reason::BadArgument, "algorithm.params[0].value is not finite"},
+      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"insert", {}, -1.0},
+       control::Reason::BadArgument, "algorithm.timeout_s -1.000000 is negative"},
+      {control::CommandKind::Trajectory, control::RunTrajectory{}, control::Reason::UnknownTrajectory,
+       "trajectory.trajectory_id is 0"},
+      {control::CommandKind::Camera, control::CameraCommand{"side", control::CameraAction::Point, kNan, 0, 0},
+       control::Reason::BadArgument, "camera.pan_rad is not finite"},
+      {control::CommandKind::Camera, control::CameraCommand{}, control::Reason::BadArgument, "camera.camera is empty"},
+      {control::CommandKind::Abort, control::Abort{0, control::StopCategory::Cat2, "a\nb"}, control::Reason::BadArgument,
+       "abort.reason has a non-printable character"},
+  };
+  for (const auto& k : cases) {
+    const auto v = verdict_of(make(k.kind, k.payload));
+    EXPECT_EQ(v.code, k.code) << k.reason;
+    EXPECT_EQ(v.reason, k.reason);
+  }
+  // Raw wire values no control type can express.
+  auto c = make(control::CommandKind::GotoCart, [] {
+    control::GotoCart g;
+    g.frame = "lst_tip";
+    return g;
+  }());
+  c->payload._u.goto_cart.orientation_xyzw[3] = 2.0;
+  EXPECT_EQ(verdict_of(c).reason, "goto_cart.orientation_xyzw has norm 2.000000, not a unit quaternion");
+  c->payload._u.goto_cart.position_m[1] = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(verdict_of(c).reason, "goto_cart.position_m[1] is not finite");
+  auto r = make(control::CommandKind::Request, control::Request{});
+  r->payload._u.request.what = static_cast<foresight_msg_RequestWhat>(9);
+  EXPECT_EQ(verdict_of(r).reason, "request.what 9 is unknown");
+  auto ab = make(control::CommandKind::Abort, control::Abort{});
+  ab->payload._u.abort.category = static_cast<msg::StopCategory>(7);
+  EXPECT_EQ(verdict_of(ab).reason, "abort.category 7 is unknown");
+  auto unknown = make(control::CommandKind::Recover, control::NoPayload{});
+  unknown->payload._d = static_cast<msg::CommandKind>(42);
+  EXPECT_EQ(verdict_of(unknown).reason, "unknown kind 42");
+}
+
+TEST(LinkConvert, AcksAndReportsRoundTrip) {
+  control::Ack a;
+  a.session_id = 1;
+  a.command_id = 2;
+  a.sequence_number = 3;
+  a.kind = control::CommandKind::GotoJoint;
+  a.state = control::AckState::Completed;
+  a.code = control::Reason::NotInControl;
+  a.reason = "held by session 9";
+  a.stamp_ns = 99;
+  a.final_q_rad = {0.5, -0.5};
+  fp::Sample<msg::CommandAck> wire;
+  rl::to_wire(*wire, a);
+  EXPECT_EQ(wire->code, foresight_msg_REASON_NOT_IN_CONTROL);
+  const auto back = rl::from_wire(*wire);
+  EXPECT_EQ(back.command_id, 2u);
+  EXPECT_EQ(back.state, control::AckState::Completed);
+  EXPECT_EQ(back.code, control::Reason::NotInControl);
+  EXPECT_EQ(back.reason, "held by session 9");
+  EXPECT_EQ(back.stamp_ns, 99);
+  EXPECT_EQ(back.final_q_rad, a.final_q_rad);
+  EXPECT_TRUE(rl::is_final(back.state));
+  EXPECT_FALSE(rl::is_final(control::AckState::Executing));
+  EXPECT_STREQ(rl::name_of(control::Reason::NotInControl), "REASON_NOT_IN_CONTROL");
+
+  control::JointReport j{5, 6, {1, 2}, {3, 4}, {5, 6}};
+  fp::Sample<msg::JointState> js;
+  rl::to_wire(*js, j);
+  const auto jb = rl::from_wire(*js);
+  EXPECT_EQ(jb.cycle, 6u);
+  EXPECT_EQ(jb.torque_nm, j.torque_nm);
+  control::StatusReport s;
+  s.mode = control::ControllerMode::Stopped;
+  s.stop_category = control::StopCategory::Cat1;
+  s.stop_reason = "link lost";
+  fp::Sample<msg::ControllerStatus> cs;
+  rl::to_wire(*cs, s);
+  const auto sb = rl::from_wire(*cs);
+  EXPECT_EQ(sb.mode, control::ControllerMode::Stopped);
+  EXPECT_EQ(sb.stop_category, control::StopCategory::Cat1);
+  EXPECT_EQ(sb.stop_reason, "link lost");
+}
