@@ -150,6 +150,8 @@ class ControlLoop {
   hw::JointTargets targets_{};
   CycleInputs in_{};
   CycleOutputs out_{};
+  int telemetry_counter_ = 0;
+  bool shutdown_issued_ = false;
 };
 
 }  // namespace foresight::control

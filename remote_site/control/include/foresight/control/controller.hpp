@@ -145,7 +145,10 @@ class Controller {
   void hold_here() noexcept;
   bool check_safety(const CycleInputs& in) noexcept;
   void controlled_stop_step() noexcept;
-  void compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointVector& q_seed, bool tracking) noexcept;
+  /// Admittance step on the shaped wrench, then joints: tracking = one DLS
+  /// step from the previous command towards reference + offset; otherwise
+  /// q_seed (the reference joints) + DLS(J(q_seed)) x offset.
+  void compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointArray& q_seed, bool tracking) noexcept;
   void record_evidence(const CycleInputs& in) noexcept;
 
   const RobotModel& model_;
@@ -171,10 +174,17 @@ class Controller {
   int sensor_bad_cycles_ = 0;
   int tare_request_ = 0;
   int tare_wait_cycles_ = 0;
+  std::uint64_t tare_id_ = 0;
+  bool tare_seen_ = false;
+  bool estop_ = false;
+  bool quick_stop_now_ = false;
+  bool drive_request_issued_ = false;
 
   const PreparedTrajectory* traj_ = nullptr;
   double traj_t_ = 0.0;
   std::size_t traj_hint_ = 0;
+  JointArray traj_offset_{};  // command - first sample at the start, faded out
+  double traj_fade_s_ = 1.0;
 
   JointArray q_{}, q_prev_{}, dq_{}, q_cmd_{}, q_cmd_prev_{}, q_hold_{}, v_cmd_{};
   bool have_q_ = false;
@@ -198,6 +208,7 @@ class Controller {
   std::uint64_t cycle_ = 0;
   std::int64_t stamp_ns_ = 0;
   Wrench6 wrench_tool_{};
+  Wrench6 shaped_{};
 };
 
 }  // namespace foresight::control

@@ -1,0 +1,275 @@
+// The real-time thread around Controller::step() (control_loop.hpp).
+#include "foresight/control/control_loop.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <stdexcept>
+#include <thread>
+
+namespace foresight::control {
+
+namespace {
+
+std::int64_t now_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
+timespec to_timespec(std::int64_t ns) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(ns / 1000000000LL);
+  ts.tv_nsec = static_cast<long>(ns % 1000000000LL);
+  return ts;
+}
+
+std::size_t bin_of(double us) noexcept {
+  if (!(us >= 0.0)) return 0;
+  const double b = us / LoopStats::kBinWidthUs;
+  return b >= static_cast<double>(LoopStats::kBins - 1) ? LoopStats::kBins - 1 : static_cast<std::size_t>(b);
+}
+
+bool is_sensor_fault(hw::HwFault f) noexcept {
+  return f == hw::HwFault::FtMissing || f == hw::HwFault::FtSaturated || f == hw::HwFault::FtSensorFault;
+}
+
+}  // namespace
+
+double LoopStats::percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept {
+  std::uint64_t total = 0;
+  for (auto c : hist) total += c;
+  if (total == 0) return 0.0;
+  const double target = p * static_cast<double>(total);
+  std::uint64_t cum = 0;
+  for (std::size_t i = 0; i < kBins; ++i) {
+    cum += hist[i];
+    if (static_cast<double>(cum) >= target) return kBinWidthUs * static_cast<double>(i + 1);
+  }
+  return kBinWidthUs * static_cast<double>(kBins);
+}
+
+ControlLoop::ControlLoop(hw::DriveSystem& drives, const RobotModel& model, const ControllerConfig& config,
+                         LoopOptions options)
+    : drives_(drives), options_(options) {
+  if (drives.joint_count() != static_cast<std::size_t>(model.dof()))
+    throw std::invalid_argument("control loop: the drive system has " + std::to_string(drives.joint_count()) +
+                                " joints, the robot model " + std::to_string(model.dof()));
+  if (options_.telemetry_decimation < 1) throw std::invalid_argument("telemetry_decimation must be >= 1");
+  if (options_.rt_priority < 1 || options_.rt_priority > 99) throw std::invalid_argument("rt_priority must be 1..99");
+  if (!(config.cycle_rate_hz > 0.0)) throw std::invalid_argument("cycle_rate_hz must be > 0");
+  controller_ = std::make_unique<Controller>(model, config);
+  dof_ = static_cast<std::size_t>(model.dof());
+}
+
+ControlLoop::~ControlLoop() { stop(); }
+
+void ControlLoop::start() {
+  if (thread_.joinable()) throw std::runtime_error("control loop: already started");
+  quit_.store(false);
+  shutdown_requested_.store(false);
+  setup_done_.store(false);
+  thread_ = std::thread([this] { run(); });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (!setup_done_.load(std::memory_order_acquire) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+}
+
+void ControlLoop::stop() {
+  if (!thread_.joinable()) return;
+  shutdown_requested_.store(true, std::memory_order_release);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (running_.load(std::memory_order_acquire) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  quit_.store(true, std::memory_order_release);
+  thread_.join();
+}
+
+std::vector<std::string> ControlLoop::warnings() const {
+  if (!setup_done_.load(std::memory_order_acquire)) return {};
+  return warnings_;
+}
+
+LoopStats ControlLoop::stats() const noexcept {
+  LoopStats s;
+  s.cycles = cycles_.load(std::memory_order_relaxed);
+  s.overruns = overruns_.load(std::memory_order_relaxed);
+  s.events_dropped = events_dropped_.load(std::memory_order_relaxed);
+  s.telemetry_dropped = telemetry_dropped_.load(std::memory_order_relaxed);
+  s.compute_us_max = compute_max_.load(std::memory_order_relaxed);
+  s.wakeup_latency_us_max = latency_max_.load(std::memory_order_relaxed);
+  const double n = s.cycles > 0 ? static_cast<double>(s.cycles) : 1.0;
+  s.compute_us_mean = compute_sum_.load(std::memory_order_relaxed) / n;
+  s.wakeup_latency_us_mean = latency_sum_.load(std::memory_order_relaxed) / n;
+  for (std::size_t i = 0; i < LoopStats::kBins; ++i) {
+    s.compute_hist[i] = compute_hist_[i].load(std::memory_order_relaxed);
+    s.latency_hist[i] = latency_hist_[i].load(std::memory_order_relaxed);
+  }
+  s.realtime = realtime_.load(std::memory_order_relaxed);
+  return s;
+}
+
+void ControlLoop::setup_thread() noexcept {
+  try {
+    sched_param sp{};
+    sp.sched_priority = options_.rt_priority;
+    const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    if (rc == 0)
+      realtime_.store(true);
+    else
+      warnings_.push_back(std::string("SCHED_FIFO not permitted (") + std::strerror(rc) +
+                          "): running as a normal thread");
+    if (options_.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
+      warnings_.push_back(std::string("mlockall not permitted (") + std::strerror(errno) + ")");
+    if (options_.cpu >= 0) {
+      cpu_set_t set;
+      CPU_ZERO(&set);
+      CPU_SET(options_.cpu, &set);
+      const int arc = pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+      if (arc != 0)
+        warnings_.push_back("CPU affinity " + std::to_string(options_.cpu) + " not permitted (" +
+                            std::strerror(arc) + ")");
+    }
+  } catch (...) {  // a failed push_back: go on without the warning
+  }
+  setup_done_.store(true, std::memory_order_release);
+}
+
+void ControlLoop::perform(DriveRequest request) noexcept {
+  // Non-real-time phase: enable()/disable() run their own cycles (heartbeat
+  // and SYNC continue) and may throw.
+  bool ok = true;
+  char text[96] = "";
+  try {
+    if (request == DriveRequest::Enable)
+      drives_.enable();
+    else if (request == DriveRequest::Disable)
+      drives_.disable();
+  } catch (const std::exception& e) {
+    ok = false;
+    std::snprintf(text, sizeof text, "%s", e.what());
+  } catch (...) {
+    ok = false;
+    std::snprintf(text, sizeof text, "unknown error");
+  }
+  drives_.held_targets(targets_);
+  JointArray held{};
+  for (std::size_t j = 0; j < dof_; ++j) held[j] = targets_.position_rad[j];
+  controller_->drive_request_done(request, ok, text, held);
+}
+
+void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
+  const hw::CycleStatus status = drives_.cycle_read(fb_, ft_);
+  in_.cycle = status.cycle;
+  in_.stamp_ns = stamp_ns;
+  in_.joints = fb_.count;
+  bool enabled = fb_.count > 0;
+  for (std::size_t j = 0; j < fb_.count && j < kMaxJoints; ++j) {
+    in_.q[j] = fb_.joints[j].position_rad;
+    in_.torque[j] = fb_.joints[j].torque_nm;
+    enabled = enabled && fb_.joints[j].state == hw::canopen::PowerState::OperationEnabled;
+  }
+  in_.drives_enabled = enabled;
+  in_.wrench_ft = ft_.wrench_ft;
+  in_.ft_fresh = ft_.fresh;
+  in_.ft_saturated_mask = ft_.saturated_mask;
+  in_.ft_fault = ft_.sensor_fault;
+  in_.ft_tare_in_progress = ft_.tare_in_progress;
+  in_.hw_stop_required = status.stop_required;
+  in_.hw_drive_fault = status.stop_required;
+  in_.hw_fault = 0;
+  in_.hw_node = 0;
+  in_.hw_joint = -1;
+  in_.hw_code = 0;
+  for (std::size_t i = 0; i < status.event_count; ++i) {
+    const hw::HwEvent& e = status.events[i];
+    if (!hw::requires_stop(e.fault)) continue;
+    in_.hw_fault = static_cast<std::uint8_t>(e.fault);
+    in_.hw_node = e.node;
+    in_.hw_joint = e.joint;
+    in_.hw_code = e.code;
+    in_.hw_drive_fault = !is_sensor_fault(e.fault);
+    break;
+  }
+  in_.estop = estop_.load(std::memory_order_acquire);
+  in_.link_lost = link_lost_.load(std::memory_order_acquire);
+
+  MotionCommand cmd;
+  for (std::size_t i = 0; i < kCommandCapacity && commands_.try_pop(cmd); ++i) controller_->command(cmd);
+  if (shutdown_requested_.load(std::memory_order_acquire) && !shutdown_issued_) {
+    shutdown_issued_ = true;
+    MotionCommand stop_cmd;
+    stop_cmd.kind = MotionCommandKind::Stop;
+    stop_cmd.category = StopCategory::Cat1;
+    controller_->command(stop_cmd);
+  }
+
+  controller_->step(in_, out_);
+
+  if (out_.quick_stop) drives_.request_quick_stop();
+  if (out_.tare_samples > 0) drives_.request_tare(out_.tare_samples);
+  for (std::size_t j = 0; j < dof_; ++j) targets_.position_rad[j] = out_.q_cmd[j];
+  drives_.cycle_write(targets_);
+
+  for (std::size_t i = 0; i < out_.event_count; ++i)
+    if (!events_.try_push(out_.events[i])) events_dropped_.fetch_add(1, std::memory_order_relaxed);
+  if (out_.stop != nullptr && !stops_.try_push(*out_.stop)) events_dropped_.fetch_add(1, std::memory_order_relaxed);
+  if (++telemetry_counter_ >= options_.telemetry_decimation) {
+    telemetry_counter_ = 0;
+    if (!telemetry_.try_push(out_.telemetry)) telemetry_dropped_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+void ControlLoop::run() noexcept {
+  setup_thread();
+  running_.store(true, std::memory_order_release);
+  const double rate = controller_->config().cycle_rate_hz;
+  const auto period_ns = static_cast<std::int64_t>(1e9 / rate + 0.5);
+  std::int64_t next = now_ns();
+  shutdown_issued_ = false;
+  while (!quit_.load(std::memory_order_acquire)) {
+    next += period_ns;
+    const timespec ts = to_timespec(next);
+    for (int i = 0; i < 100 && clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR; ++i) {
+    }
+    const std::int64_t wake = now_ns();
+    cycle(wake);
+    const std::int64_t end = now_ns();
+
+    const double latency_us = static_cast<double>(wake - next) * 1e-3;
+    const double compute_us = static_cast<double>(end - wake) * 1e-3;
+    cycles_.fetch_add(1, std::memory_order_relaxed);
+    compute_sum_.store(compute_sum_.load(std::memory_order_relaxed) + compute_us, std::memory_order_relaxed);
+    latency_sum_.store(latency_sum_.load(std::memory_order_relaxed) + latency_us, std::memory_order_relaxed);
+    if (compute_us > compute_max_.load(std::memory_order_relaxed))
+      compute_max_.store(compute_us, std::memory_order_relaxed);
+    if (latency_us > latency_max_.load(std::memory_order_relaxed))
+      latency_max_.store(latency_us, std::memory_order_relaxed);
+    compute_hist_[bin_of(compute_us)].fetch_add(1, std::memory_order_relaxed);
+    latency_hist_[bin_of(latency_us)].fetch_add(1, std::memory_order_relaxed);
+    if (end > next + period_ns) {  // missed at least one deadline: skip to the grid
+      overruns_.fetch_add(1, std::memory_order_relaxed);
+      const std::int64_t behind = (end - next) / period_ns;
+      next += behind * period_ns;
+    }
+
+    if (out_.drive_request != DriveRequest::None) {
+      perform(out_.drive_request);
+      next = now_ns();  // restart the grid after the non-real-time phase
+    }
+    if (shutdown_issued_) {
+      const ControllerMode m = controller_->mode();
+      if ((m == ControllerMode::Disabled || m == ControllerMode::Fault) && out_.drive_request == DriveRequest::None &&
+          !in_.drives_enabled)
+        break;
+    }
+  }
+  running_.store(false, std::memory_order_release);
+}
+
+}  // namespace foresight::control

@@ -1,0 +1,686 @@
+// The per-cycle control logic (controller.hpp).
+#include "foresight/control/controller.hpp"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+
+namespace foresight::control {
+
+namespace {
+
+int severity(StopCategory c) {
+  switch (c) {
+    case StopCategory::Cat0: return 3;
+    case StopCategory::Cat1: return 2;
+    case StopCategory::Cat2: return 1;
+    case StopCategory::None: return 0;
+  }
+  return 0;
+}
+
+bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
+
+}  // namespace
+
+Controller::Controller(const RobotModel& model, const ControllerConfig& config)
+    : model_(model),
+      config_(config),
+      ws_(model),
+      comp_(config.tool, config.filter, config.cycle_rate_hz, model.gravity()),
+      adm_(config.admittance, config.cycle_rate_hz),
+      algo_(config.admittance) {
+  if (model.dof() < 1 || static_cast<std::size_t>(model.dof()) > kMaxJoints)
+    throw std::invalid_argument("controller: " + std::to_string(model.dof()) + " joints (at most " +
+                                std::to_string(kMaxJoints) + ")");
+  dof_ = static_cast<std::size_t>(model.dof());
+  ft_link_ = model.link_index("ft_sensor");
+  if (ft_link_ < 0) throw std::invalid_argument("controller: the robot model has no link 'ft_sensor'");
+  tip_link_ = model.tip_index();
+  if (!finite_pos(config.start_tolerance_rad)) throw std::invalid_argument("start_tolerance_rad must be > 0");
+  if (!(config.position_margin_rad >= 0.0)) throw std::invalid_argument("position_margin_rad must be >= 0");
+  if (!finite_pos(config.velocity_limit_fraction) || config.velocity_limit_fraction > 1.0)
+    throw std::invalid_argument("velocity_limit_fraction must be in (0, 1]");
+  if (!finite_pos(config.following_error_rad)) throw std::invalid_argument("following_error_rad must be > 0");
+  if (!finite_pos(config.force_limit_n)) throw std::invalid_argument("force_limit_n must be > 0");
+  if (!finite_pos(config.torque_limit_nm)) throw std::invalid_argument("torque_limit_nm must be > 0");
+  if (!finite_pos(config.stop_decel_fraction)) throw std::invalid_argument("stop_decel_fraction must be > 0");
+  if (config.estop_category == StopCategory::None) throw std::invalid_argument("estop_category must be 0, 1 or 2");
+  if (config.sensor_fault_cycles < 1) throw std::invalid_argument("sensor_fault_cycles must be >= 1");
+  if (!finite_pos(config.velocity_filter_hz)) throw std::invalid_argument("velocity_filter_hz must be > 0");
+  dt_ = 1.0 / config.cycle_rate_hz;
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const JointLimits& l = model.limits()[j];
+    lower_[j] = l.lower_rad + config.position_margin_rad;
+    upper_[j] = l.upper_rad - config.position_margin_rad;
+    vmax_[j] = l.velocity_rad_s * config.velocity_limit_fraction;
+    amax_[j] = l.acceleration_rad_s2 * config.stop_decel_fraction;
+  }
+  qv_.resize(static_cast<Eigen::Index>(dof_));
+  qv2_.resize(static_cast<Eigen::Index>(dof_));
+  dqv_.resize(static_cast<Eigen::Index>(dof_));
+  J_.resize(6, static_cast<Eigen::Index>(dof_));
+  qv_.setZero();
+  qv2_.setZero();
+  dqv_.setZero();
+  J_.setZero();
+}
+
+// ---- events ------------------------------------------------------------------------------
+
+void Controller::emit(std::uint64_t id, MotionCommandKind cmd, MotionEventKind kind, Reason code,
+                      const char* text) noexcept {
+  if (pending_event_count_ >= pending_events_.size()) return;
+  MotionEvent& e = pending_events_[pending_event_count_++];
+  e = MotionEvent{};
+  e.command_id = id;
+  e.command = cmd;
+  e.kind = kind;
+  e.code = code;
+  e.cycle = cycle_;
+  e.stamp_ns = stamp_ns_;
+  e.joints = dof_;
+  e.final_q = q_;
+  if (cmd == MotionCommandKind::RunAlgorithm) {
+    e.distance_m = algo_.distance_m();
+    e.peak_force_n = algo_.peak_force_n();
+    e.spiral_radius_m = algo_.spiral_radius_m();
+  }
+  set_text(e.text, text);
+}
+
+void Controller::finish_active(MotionEventKind kind, Reason code, const char* text) noexcept {
+  if (active_ == Active::Trajectory || active_ == Active::Algorithm) {
+    emit(active_id_, active_cmd_, kind, code, text);
+    if (active_ == Active::Algorithm) algo_.cancel();
+    traj_ = nullptr;
+    active_ = Active::None;
+    active_id_ = 0;
+  }
+}
+
+// ---- commands -------------------------------------------------------------------------------
+
+void Controller::command(const MotionCommand& cmd) noexcept {
+  const auto reject = [&](Reason code, const char* text) {
+    emit(cmd.command_id, cmd.kind, MotionEventKind::Rejected, code, text);
+  };
+  const bool stopped = mode_ == ControllerMode::Stopped || mode_ == ControllerMode::Fault ||
+                       mode_ == ControllerMode::Stopping;
+  const bool moving = active_ == Active::Trajectory || active_ == Active::Algorithm;
+  char buf[96];
+  switch (cmd.kind) {
+    case MotionCommandKind::RunTrajectory:
+    case MotionCommandKind::RunAlgorithm: {
+      if (stopped) return reject(Reason::Faulted, "stopped: send Recover first");
+      if (mode_ == ControllerMode::Disabled) return reject(Reason::Faulted, "drives disabled: send Enable first");
+      if (drive_request_pending_) return reject(Reason::Busy, "drive power change in progress");
+      if (link_lost_) return reject(Reason::NotInControl, "link lost: no new motion");
+      if (moving) return reject(Reason::Busy, "a motion is running: send Hold first");
+      if (!have_q_) return reject(Reason::Internal, "no joint feedback yet");
+      if (cmd.kind == MotionCommandKind::RunTrajectory) {
+        const PreparedTrajectory* t = cmd.trajectory;
+        if (t == nullptr) return reject(Reason::UnknownTrajectory, "no trajectory");
+        if (t->joints() != dof_) {
+          std::snprintf(buf, sizeof buf, "trajectory has %zu joints, the arm %zu", t->joints(), dof_);
+          return reject(Reason::JointCount, buf);
+        }
+        const double tol = cmd.start_tolerance_rad > 0.0 ? cmd.start_tolerance_rad : config_.start_tolerance_rad;
+        int joint = -1;
+        const double err = t->start_error(q_cmd_, &joint);
+        if (!(err <= tol)) {
+          std::snprintf(buf, sizeof buf, "start: joint %d is %.4f rad from the first sample (tolerance %.4f)",
+                        joint + 1, err, tol);
+          return reject(Reason::StartMismatch, buf);
+        }
+        traj_ = t;
+        traj_t_ = 0.0;
+        traj_hint_ = 0;
+        for (std::size_t j = 0; j < dof_; ++j) traj_offset_[j] = q_cmd_[j] - t->start()[j];
+        traj_fade_s_ = std::min(1.0, std::max(t->duration_s(), dt_));
+        traj_compliant_ = cmd.compliant;
+        if (traj_compliant_) {
+          adm_.configure(config_.admittance);
+          adm_.reset();
+        }
+        active_ = Active::Trajectory;
+        mode_ = ControllerMode::Trajectory;
+      } else {
+        Reason code = Reason::None;
+        std::array<char, 96> text{};
+        if (!algo_.start(cmd.algorithm, base_T_tip_cmd_, config_.cycle_rate_hz, code, text))
+          return reject(code, text.data());
+        adm_.configure(algo_.last().admittance);
+        adm_.reset();
+        base_T_hold_ = base_T_tip_cmd_;
+        active_ = Active::Algorithm;
+        mode_ = ControllerMode::Algorithm;
+      }
+      active_id_ = cmd.command_id;
+      active_cmd_ = cmd.kind;
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Started, Reason::None, "");
+      return;
+    }
+    case MotionCommandKind::Hold: {
+      if (mode_ == ControllerMode::Disabled) return reject(Reason::Faulted, "drives disabled");
+      if (stopped) return reject(Reason::Faulted, "stopped: send Recover first");
+      finish_active(MotionEventKind::Canceled, Reason::Aborted, "canceled by hold");
+      hold_here();
+      hold_compliant_ = cmd.compliant;
+      if (hold_compliant_) {
+        adm_.configure(config_.admittance);
+        adm_.reset();
+      }
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, "holding");
+      return;
+    }
+    case MotionCommandKind::Stop: {
+      StopCategory cat = cmd.category == StopCategory::None ? StopCategory::Cat2 : cmd.category;
+      if (mode_ == ControllerMode::Disabled || mode_ == ControllerMode::Fault) {
+        emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, "already stopped");
+        return;
+      }
+      std::snprintf(buf, sizeof buf, "stop commanded (%s)", to_string(cat));
+      begin_stop(StopCause::Command, cat, -1, 0.0, 0.0, buf);
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, buf);
+      return;
+    }
+    case MotionCommandKind::Recover:
+    case MotionCommandKind::Enable: {
+      if (drive_request_pending_) return reject(Reason::Busy, "drive power change in progress");
+      if (mode_ == ControllerMode::Stopping || moving) return reject(Reason::Busy, "motion or stop in progress");
+      if (cmd.kind == MotionCommandKind::Enable && mode_ == ControllerMode::Fault)
+        return reject(Reason::Faulted, "stopped: send Recover");
+      if (mode_ == ControllerMode::Idle) {
+        emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, "already enabled");
+        return;
+      }
+      if (mode_ == ControllerMode::Stopped) {  // Cat2: powered, just leave the stop
+        stop_.category = StopCategory::None;
+        stop_.cause = StopCause::None;
+        hold_here();
+        emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, "recovered: holding");
+        return;
+      }
+      // Disabled or Fault: power up.
+      drive_request_pending_ = true;
+      pending_request_ = DriveRequest::Enable;
+      active_ = cmd.kind == MotionCommandKind::Enable ? Active::Enable : Active::Recover;
+      active_id_ = cmd.command_id;
+      active_cmd_ = cmd.kind;
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Started, Reason::None, "enabling drives");
+      return;
+    }
+    case MotionCommandKind::Disable: {
+      if (mode_ == ControllerMode::Disabled || (mode_ == ControllerMode::Fault && !drives_enabled_)) {
+        emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, "already disabled");
+        return;
+      }
+      if (drive_request_pending_) return reject(Reason::Busy, "drive power change in progress");
+      if (moving || mode_ == ControllerMode::Stopping) return reject(Reason::Busy, "motion or stop in progress");
+      drive_request_pending_ = true;
+      pending_request_ = DriveRequest::Disable;
+      active_ = Active::Disable;
+      active_id_ = cmd.command_id;
+      active_cmd_ = cmd.kind;
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Started, Reason::None, "disabling drives");
+      return;
+    }
+    case MotionCommandKind::Tare: {
+      if (moving || mode_ == ControllerMode::Stopping) return reject(Reason::Busy, "tare needs the arm still");
+      if (tare_id_ != 0) return reject(Reason::Busy, "tare in progress");
+      if (cmd.tare_samples < 1 || cmd.tare_samples > 10000) return reject(Reason::BadArgument, "tare_samples must be 1..10000");
+      tare_id_ = cmd.command_id;
+      tare_request_ = cmd.tare_samples;
+      tare_wait_cycles_ = 0;
+      tare_seen_ = false;
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Started, Reason::None, "taring");
+      return;
+    }
+  }
+  reject(Reason::BadArgument, "unknown command kind");
+}
+
+void Controller::hold_here() noexcept {
+  q_hold_ = q_cmd_;
+  base_T_hold_ = base_T_tip_cmd_;
+  hold_compliant_ = false;
+  adm_.reset();
+  mode_ = ControllerMode::Idle;
+}
+
+void Controller::drive_request_done(DriveRequest request, bool ok, const char* text,
+                                    const JointArray& held) noexcept {
+  if (!drive_request_pending_ || request != pending_request_) return;
+  drive_request_pending_ = false;
+  pending_request_ = DriveRequest::None;
+  const bool command_owned = active_ == Active::Enable || active_ == Active::Recover || active_ == Active::Disable;
+  if (request == DriveRequest::Enable) {
+    if (ok) {
+      drives_enabled_ = true;
+      q_cmd_ = held;
+      q_cmd_prev_ = held;
+      v_cmd_ = JointArray{};
+      for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = held[j];
+      base_T_tip_cmd_ = forward_kinematics(model_, ws_, qv_, tip_link_);
+      stop_.category = StopCategory::None;
+      stop_.cause = StopCause::None;
+      sensor_bad_cycles_ = 0;
+      hold_here();
+    }
+  } else {  // Disable
+    if (ok) drives_enabled_ = false;
+    if (active_ == Active::Disable) {
+      mode_ = ok ? ControllerMode::Disabled : ControllerMode::Fault;
+    } else {
+      mode_ = ControllerMode::Fault;  // the end of a Cat0/Cat1 stop
+    }
+  }
+  if (command_owned) {
+    emit(active_id_, active_cmd_, ok ? MotionEventKind::Completed : MotionEventKind::Failed,
+         ok ? Reason::None : Reason::Faulted, ok ? (request == DriveRequest::Enable ? "enabled: holding" : "disabled")
+                                                 : text);
+    active_ = Active::None;
+    active_id_ = 0;
+  }
+}
+
+// ---- stops ----------------------------------------------------------------------------------
+
+void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double value, double limit,
+                            const char* text) noexcept {
+  const bool already = mode_ == ControllerMode::Stopping || mode_ == ControllerMode::Stopped ||
+                       mode_ == ControllerMode::Fault;
+  if (already && severity(cat) <= severity(pending_stop_category_)) return;  // nothing more severe
+  const Reason code = cause == StopCause::Command ? Reason::Aborted : Reason::Faulted;
+  const std::uint64_t running_id =
+      (active_ == Active::Trajectory || active_ == Active::Algorithm) ? active_id_ : 0;
+  finish_active(MotionEventKind::Canceled, code, text);
+  if (active_ == Active::Disable || active_ == Active::Enable || active_ == Active::Recover) {
+    // a power change in progress keeps its own outcome
+  }
+  stop_ = StopEvent{};
+  stop_.cause = cause;
+  stop_.category = cat;
+  stop_.cycle = cycle_;
+  stop_.stamp_ns = stamp_ns_;
+  stop_.command_id = running_id;
+  stop_.joint = static_cast<std::int8_t>(joint);
+  stop_.value = value;
+  stop_.limit = limit;
+  stop_.joints = dof_;
+  const std::size_t n = evidence_count_;
+  stop_.evidence_count = n;
+  for (std::size_t i = 0; i < n; ++i)
+    stop_.evidence[i] = evidence_[(evidence_head_ + StopEvent::kEvidence - n + i) % StopEvent::kEvidence];
+  set_text(stop_.text, text);
+  stop_new_ = true;
+  pending_stop_category_ = cat;
+  hold_compliant_ = false;
+  if (cat == StopCategory::Cat0) {
+    quick_stop_now_ = true;
+    q_cmd_ = q_;  // the drives ramp down by themselves; targets follow the arm
+    v_cmd_ = JointArray{};
+    mode_ = ControllerMode::Fault;
+    if (drives_enabled_ && !drive_request_pending_) {
+      drive_request_pending_ = true;
+      pending_request_ = DriveRequest::Disable;
+    }
+  } else {
+    mode_ = ControllerMode::Stopping;
+  }
+}
+
+void Controller::controlled_stop_step() noexcept {
+  bool rest = true;
+  for (std::size_t j = 0; j < dof_; ++j) {
+    double v = v_cmd_[j];
+    const double dv = amax_[j] * dt_;
+    if (std::abs(v) <= dv)
+      v = 0.0;
+    else
+      v -= v > 0.0 ? dv : -dv;
+    v_cmd_[j] = v;
+    q_cmd_[j] = q_cmd_prev_[j] + v * dt_;
+    if (v != 0.0) rest = false;
+  }
+  if (rest) {
+    if (pending_stop_category_ == StopCategory::Cat1) {
+      mode_ = ControllerMode::Fault;
+      if (drives_enabled_ && !drive_request_pending_) {
+        drive_request_pending_ = true;
+        pending_request_ = DriveRequest::Disable;
+      }
+    } else {
+      mode_ = ControllerMode::Stopped;
+    }
+    q_hold_ = q_cmd_;
+  }
+}
+
+void Controller::record_evidence(const CycleInputs& in) noexcept {
+  EvidenceSample& s = evidence_[evidence_head_];
+  s.cycle = in.cycle;
+  s.q = q_;
+  s.q_cmd = q_cmd_;
+  s.wrench_tool = wrench_tool_;
+  evidence_head_ = (evidence_head_ + 1) % StopEvent::kEvidence;
+  if (evidence_count_ < StopEvent::kEvidence) ++evidence_count_;
+}
+
+void Controller::compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointArray& q_seed,
+                                            bool tracking) noexcept {
+  const Eigen::Matrix3d R_ref = base_T_ref_tip.linear();
+  const Eigen::Matrix3d R_frame = adm_.params().frame == TaskFrame::Tool ? R_ref : Eigen::Matrix3d::Identity();
+  // Wrench into the admittance frame (from the measured tip frame).
+  const Eigen::Matrix3d R_meas = base_T_tip_.linear();
+  const Eigen::Vector3d f_base = R_meas * Eigen::Vector3d(shaped_[0], shaped_[1], shaped_[2]);
+  const Eigen::Vector3d t_base = R_meas * Eigen::Vector3d(shaped_[3], shaped_[4], shaped_[5]);
+  Vector6 w;
+  w.head<3>() = R_frame.transpose() * f_base;
+  w.tail<3>() = R_frame.transpose() * t_base;
+  adm_.step(w);
+  const Vector6& x = adm_.offset();
+  Vector6 e;
+  e.head<3>() = R_frame * x.head<3>();
+  e.tail<3>() = R_frame * x.tail<3>();
+  if (tracking) {
+    Pose target = base_T_ref_tip;
+    target.translation() += e.head<3>();
+    const double angle = e.tail<3>().norm();
+    if (angle > 1e-12)
+      target.linear() = Eigen::AngleAxisd(angle, e.tail<3>() / angle).toRotationMatrix() * R_ref;
+    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_cmd_prev_[j];
+    const Pose cur = forward_kinematics(model_, ws_, qv2_, tip_link_);
+    jacobian(model_, ws_, qv2_, J_, tip_link_);
+    const Vector6 err = pose_error(cur, target);
+    dls_step(J_, err, dqv_);
+    for (std::size_t j = 0; j < dof_; ++j) q_cmd_[j] = q_cmd_prev_[j] + dqv_(static_cast<Eigen::Index>(j));
+  } else {
+    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_seed[j];
+    jacobian(model_, ws_, qv2_, J_, tip_link_);
+    dls_step(J_, e, dqv_);
+    for (std::size_t j = 0; j < dof_; ++j) q_cmd_[j] = q_seed[j] + dqv_(static_cast<Eigen::Index>(j));
+  }
+}
+
+bool Controller::check_safety(const CycleInputs& in) noexcept {
+  char buf[96];
+  // Hardware first: the drives (or the F/T sensor) said stop.
+  if (in.hw_stop_required) {
+    std::snprintf(buf, sizeof buf, "hw: fault %u node %u joint %d code 0x%04x", static_cast<unsigned>(in.hw_fault),
+                  static_cast<unsigned>(in.hw_node), static_cast<int>(in.hw_joint), static_cast<unsigned>(in.hw_code));
+    const StopCause cause = in.hw_drive_fault ? StopCause::DriveFault : StopCause::SensorFault;
+    begin_stop(cause, in.hw_drive_fault ? StopCategory::Cat0 : StopCategory::Cat1, in.hw_joint,
+               static_cast<double>(in.hw_code), 0.0, buf);
+    stop_.hw_fault = in.hw_fault;
+    stop_.hw_node = in.hw_node;
+    stop_.hw_code = in.hw_code;
+    return false;
+  }
+  if (!in.drives_enabled && !drive_request_pending_) {
+    begin_stop(StopCause::DriveFault, StopCategory::Cat0, -1, 0.0, 0.0, "hw: a drive left operation enabled");
+    return false;
+  }
+  if (in.estop) {
+    begin_stop(StopCause::EStop, config_.estop_category, -1, 1.0, 0.0, "E-stop pressed");
+    return false;
+  }
+  if (in.ft_fault || in.ft_saturated_mask != 0) {
+    if (++sensor_bad_cycles_ >= config_.sensor_fault_cycles) {
+      std::snprintf(buf, sizeof buf, "F/T sensor %s (mask 0x%02x) for %d cycles", in.ft_fault ? "fault" : "saturated",
+                    static_cast<unsigned>(in.ft_saturated_mask), sensor_bad_cycles_);
+      begin_stop(StopCause::SensorFault, StopCategory::Cat1, -1, static_cast<double>(in.ft_saturated_mask), 0.0, buf);
+      return false;
+    }
+  } else {
+    sensor_bad_cycles_ = 0;
+  }
+  if (in.link_lost && !link_lost_ && config_.link_loss == LinkLossPolicy::Stop) {
+    link_lost_ = true;
+    begin_stop(StopCause::LinkLoss, StopCategory::Cat2, -1, 0.0, 0.0, "link lost (policy: stop)");
+    return false;
+  }
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const double fe = std::abs(q_cmd_prev_[j] - q_[j]);
+    if (!(fe <= config_.following_error_rad)) {
+      std::snprintf(buf, sizeof buf, "following error joint %zu: %.4f rad > %.4f rad", j + 1, fe,
+                    config_.following_error_rad);
+      begin_stop(StopCause::FollowingError, StopCategory::Cat1, static_cast<int>(j), fe, config_.following_error_rad,
+                 buf);
+      return false;
+    }
+  }
+  const double f = std::sqrt(wrench_tool_[0] * wrench_tool_[0] + wrench_tool_[1] * wrench_tool_[1] +
+                             wrench_tool_[2] * wrench_tool_[2]);
+  if (!(f <= config_.force_limit_n)) {
+    std::snprintf(buf, sizeof buf, "contact force %.1f N > %.1f N", f, config_.force_limit_n);
+    begin_stop(StopCause::ForceLimit, StopCategory::Cat2, -1, f, config_.force_limit_n, buf);
+    return false;
+  }
+  const double t = std::sqrt(wrench_tool_[3] * wrench_tool_[3] + wrench_tool_[4] * wrench_tool_[4] +
+                             wrench_tool_[5] * wrench_tool_[5]);
+  if (!(t <= config_.torque_limit_nm)) {
+    std::snprintf(buf, sizeof buf, "contact torque %.2f N m > %.2f N m", t, config_.torque_limit_nm);
+    begin_stop(StopCause::TorqueLimit, StopCategory::Cat2, -1, t, config_.torque_limit_nm, buf);
+    return false;
+  }
+  // The new command itself.
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const double q = q_cmd_[j];
+    if (!(q >= lower_[j] && q <= upper_[j])) {
+      std::snprintf(buf, sizeof buf, "joint %zu command %.4f rad outside [%.4f, %.4f]", j + 1, q, lower_[j], upper_[j]);
+      const double bad = q;
+      q_cmd_ = q_cmd_prev_;  // drop the command
+      v_cmd_ = JointArray{};
+      begin_stop(StopCause::JointPositionLimit, StopCategory::Cat2, static_cast<int>(j), bad,
+                 q < lower_[j] ? lower_[j] : upper_[j], buf);
+      return false;
+    }
+    const double v = (q - q_cmd_prev_[j]) / dt_;
+    if (!(std::abs(v) <= vmax_[j] * (1.0 + 1e-9))) {
+      std::snprintf(buf, sizeof buf, "joint %zu command speed %.3f rad/s > %.3f rad/s", j + 1, std::abs(v), vmax_[j]);
+      q_cmd_ = q_cmd_prev_;
+      begin_stop(StopCause::JointVelocityLimit, StopCategory::Cat2, static_cast<int>(j), std::abs(v), vmax_[j], buf);
+      return false;
+    }
+  }
+  return true;
+}
+
+// ---- the cycle ------------------------------------------------------------------------------
+
+void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
+  cycle_ = in.cycle;
+  stamp_ns_ = in.stamp_ns;
+  estop_ = in.estop;
+  out.quick_stop = false;
+  out.tare_samples = 0;
+  out.drive_request = DriveRequest::None;
+  out.stop = nullptr;
+
+  // Measured state.
+  const bool joints_ok = in.joints == dof_;
+  q_prev_ = q_;
+  for (std::size_t j = 0; j < dof_; ++j) q_[j] = joints_ok ? in.q[j] : q_cmd_prev_[j];
+  if (!have_q_) {
+    q_prev_ = q_;
+    q_cmd_ = q_;
+    q_cmd_prev_ = q_;
+  }
+  const double a = 1.0 - std::exp(-6.283185307179586 * config_.velocity_filter_hz * dt_);
+  for (std::size_t j = 0; j < dof_; ++j) dq_[j] += a * ((q_[j] - q_prev_[j]) / dt_ - dq_[j]);
+  for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = q_[j];
+  base_T_tip_ = forward_kinematics(model_, ws_, qv_, tip_link_);
+  const Pose base_T_sensor = forward_kinematics(model_, ws_, qv_, ft_link_);
+  if (!have_q_) {
+    base_T_tip_cmd_ = base_T_tip_;
+    comp_.set_tare_orientation(base_T_sensor.linear());
+    have_q_ = true;
+  }
+
+  // No power-up while the E-stop is pressed.
+  if (in.estop && drive_request_pending_ && pending_request_ == DriveRequest::Enable && !drive_request_issued_) {
+    drive_request_pending_ = false;
+    pending_request_ = DriveRequest::None;
+    emit(active_id_, active_cmd_, MotionEventKind::Rejected, Reason::Faulted, "E-stop pressed");
+    active_ = Active::None;
+    active_id_ = 0;
+  }
+
+  // Tare: ask, then wait for the decoder to finish.
+  if (tare_id_ != 0) {
+    if (tare_request_ > 0) {
+      out.tare_samples = tare_request_;
+      tare_request_ = 0;
+      comp_.set_tare_orientation(base_T_sensor.linear());
+    } else {
+      ++tare_wait_cycles_;
+      if (in.ft_tare_in_progress) tare_seen_ = true;
+      if ((tare_seen_ || tare_wait_cycles_ > 3) && !in.ft_tare_in_progress) {
+        comp_.reset();
+        emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Completed, Reason::None, "tared");
+        tare_id_ = 0;
+      } else if (tare_wait_cycles_ > 20000) {
+        emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Failed, Reason::Timeout, "tare did not finish");
+        tare_id_ = 0;
+      }
+    }
+  }
+
+  const WrenchCompensator::Output& w = comp_.update(in.wrench_ft, base_T_sensor.linear(), in.ft_fresh);
+  wrench_tool_ = w.filtered_tool;
+  shaped_ = w.shaped_tool;
+  if (in.link_lost != link_lost_ && !(in.link_lost && config_.link_loss == LinkLossPolicy::Stop))
+    link_lost_ = in.link_lost;
+
+  // Motion generation.
+  const bool powered = mode_ != ControllerMode::Disabled && mode_ != ControllerMode::Fault;
+  if (!joints_ok && powered) {
+    begin_stop(StopCause::DriveFault, StopCategory::Cat0, -1, static_cast<double>(in.joints),
+               static_cast<double>(dof_), "joint feedback count differs from the model");
+  }
+  switch (mode_) {
+    case ControllerMode::Disabled:
+    case ControllerMode::Fault:
+      q_cmd_ = q_;  // follow the arm: nothing jumps at enable
+      v_cmd_ = JointArray{};
+      break;
+    case ControllerMode::Idle:
+    case ControllerMode::Goto:
+      if (hold_compliant_)
+        compliant_offset_to_joints(base_T_hold_, q_hold_, true);
+      else
+        q_cmd_ = q_hold_;
+      break;
+    case ControllerMode::Trajectory: {
+      traj_t_ += dt_;
+      JointArray q_ref{}, dq_ref{};
+      traj_->evaluate(traj_t_, traj_hint_, q_ref, dq_ref);
+      if (traj_t_ < traj_fade_s_) {  // fade out the start offset (smoothstep): C1, no jump
+        const double u = traj_t_ / traj_fade_s_;
+        const double keep = 1.0 - u * u * (3.0 - 2.0 * u);
+        for (std::size_t j = 0; j < dof_; ++j) q_ref[j] += keep * traj_offset_[j];
+      }
+      if (traj_compliant_) {
+        for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_ref[j];
+        const Pose ref = forward_kinematics(model_, ws_, qv2_, tip_link_);
+        compliant_offset_to_joints(ref, q_ref, false);
+      } else {
+        q_cmd_ = q_ref;
+      }
+      if (traj_t_ >= traj_->duration_s()) {
+        const bool compliant = traj_compliant_;
+        const JointArray end = traj_->end();
+        finish_active(MotionEventKind::Completed, Reason::None, "trajectory done");
+        hold_here();
+        q_hold_ = compliant ? q_cmd_ : end;
+        hold_compliant_ = false;
+      }
+      break;
+    }
+    case ControllerMode::Algorithm: {
+      const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
+      if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
+        if (s.admittance.stiffness != adm_.params().stiffness) adm_.configure(s.admittance);
+        compliant_offset_to_joints(s.base_T_ref, q_cmd_prev_, true);
+      }
+      if (s.status == AlgorithmStatus::Succeeded) {
+        finish_active(MotionEventKind::Completed, Reason::None, s.text.data());
+        q_hold_ = q_cmd_;
+        base_T_hold_ = s.base_T_ref;
+        mode_ = ControllerMode::Idle;
+        hold_compliant_ = true;  // keep the algorithm's compliance while the tool works
+      } else if (s.status == AlgorithmStatus::Failed) {
+        const Reason code = s.code;
+        std::array<char, 96> text = s.text;
+        finish_active(MotionEventKind::Failed, code, text.data());
+        // Hold compliantly where the tip is (a failed push must not keep pushing).
+        mode_ = ControllerMode::Idle;
+        base_T_hold_ = base_T_tip_;
+        hold_compliant_ = true;
+        adm_.reset();
+        compliant_offset_to_joints(base_T_hold_, q_cmd_prev_, true);
+        q_hold_ = q_cmd_;
+      }
+      break;
+    }
+    case ControllerMode::Stopping: controlled_stop_step(); break;
+    case ControllerMode::Stopped: q_cmd_ = q_hold_; break;
+  }
+
+  record_evidence(in);
+  if (powered && mode_ != ControllerMode::Fault && mode_ != ControllerMode::Disabled) check_safety(in);
+
+  // Outputs.
+  if (quick_stop_now_) {
+    out.quick_stop = true;
+    quick_stop_now_ = false;
+  }
+  if (drive_request_pending_ && !drive_request_issued_) {
+    out.drive_request = pending_request_;
+    drive_request_issued_ = true;
+  }
+  if (!drive_request_pending_) drive_request_issued_ = false;
+  for (std::size_t j = 0; j < dof_; ++j) {
+    if (mode_ != ControllerMode::Stopping) v_cmd_[j] = (q_cmd_[j] - q_cmd_prev_[j]) / dt_;
+  }
+  if (mode_ != ControllerMode::Stopping)
+    for (std::size_t j = 0; j < dof_; ++j)
+      if (std::abs(v_cmd_[j]) > vmax_[j]) v_cmd_[j] = v_cmd_[j] > 0 ? vmax_[j] : -vmax_[j];
+  q_cmd_prev_ = q_cmd_;
+  if (mode_ != ControllerMode::Disabled && mode_ != ControllerMode::Fault) {
+    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_cmd_[j];
+    base_T_tip_cmd_ = forward_kinematics(model_, ws_, qv2_, tip_link_);
+  } else {
+    base_T_tip_cmd_ = base_T_tip_;
+  }
+  out.q_cmd = q_cmd_;
+  if (stop_new_) out.stop = &stop_;
+  stop_new_ = false;
+
+  TelemetrySample& t = out.telemetry;
+  t.stamp_ns = in.stamp_ns;
+  t.cycle = in.cycle;
+  t.joints = dof_;
+  t.q = q_;
+  t.dq = dq_;
+  t.torque = in.torque;
+  t.q_cmd = q_cmd_;
+  t.wrench_tool = wrench_tool_;
+  t.ft_saturated = in.ft_saturated_mask != 0;
+  t.drives_enabled = in.drives_enabled;
+  t.mode = mode_;
+  t.active_command_id = active_id_;
+  t.algorithm = active_ == Active::Algorithm ? algo_.kind() : AlgorithmKind::None;
+  t.stop_category = stop_.category;
+  t.stop_cause = stop_.cause;
+
+  out.event_count = pending_event_count_;
+  for (std::size_t i = 0; i < pending_event_count_; ++i) out.events[i] = pending_events_[i];
+  pending_event_count_ = 0;
+}
+
+}  // namespace foresight::control

@@ -1,0 +1,689 @@
+// The control core without threads or CAN: ring, interpolation, compliance,
+// the Controller's modes and every safety stop with its category and evidence.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "control_fixture.hpp"
+#include "foresight/control/spsc_ring.hpp"
+#include "foresight/control/trajectory_executor.hpp"
+
+namespace foresight::control::test {
+namespace {
+
+// ---- SpscRing ----------------------------------------------------------------------------
+
+TEST(SpscRing, FifoAndFull) {
+  SpscRing<int, 4> r;
+  int v = 0;
+  EXPECT_FALSE(r.try_pop(v));
+  for (int i = 0; i < 4; ++i) EXPECT_TRUE(r.try_push(i));
+  EXPECT_FALSE(r.try_push(99));
+  EXPECT_EQ(r.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_TRUE(r.try_pop(v));
+    EXPECT_EQ(v, i);
+  }
+  EXPECT_TRUE(r.empty());
+}
+
+TEST(SpscRing, TwoThreadsDeliverEverythingInOrder) {
+  auto ring = std::make_unique<SpscRing<std::uint64_t, 64>>();
+  constexpr std::uint64_t kN = 50000;
+  std::thread producer([&] {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    for (std::uint64_t i = 1; i <= kN && std::chrono::steady_clock::now() < deadline;)
+      if (ring->try_push(i)) ++i;
+  });
+  std::uint64_t expected = 1, v = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (expected <= kN && std::chrono::steady_clock::now() < deadline)
+    if (ring->try_pop(v)) {
+      ASSERT_EQ(v, expected);
+      ++expected;
+    }
+  producer.join();
+  EXPECT_EQ(expected, kN + 1);
+}
+
+// ---- PreparedTrajectory ---------------------------------------------------------------------
+
+Trajectory sine_trajectory(double rate_hz, double duration_s, int joints) {
+  Trajectory t;
+  const int n = static_cast<int>(duration_s * rate_hz) + 1;
+  t.positions_rad.resize(n, joints);
+  for (int i = 0; i < n; ++i) {
+    const double ts = i / rate_hz;
+    t.time_s.push_back(ts);
+    for (int j = 0; j < joints; ++j) t.positions_rad(i, j) = 0.3 * std::sin(1.5 * ts + j) * std::pow(std::sin(M_PI * ts / duration_s), 2);
+  }
+  return t;
+}
+
+TEST(PreparedTrajectory, HitsTheSamplesAndIsC1At500HzFrom100HzSamples) {
+  const Trajectory t = sine_trajectory(100.0, 4.0, 7);
+  const PreparedTrajectory p(t, 7);
+  EXPECT_EQ(p.joints(), 7u);
+  EXPECT_EQ(p.id(), 7u);
+  EXPECT_NEAR(p.duration_s(), 4.0, 1e-12);
+  std::size_t hint = 0;
+  JointArray q{}, dq{}, q_prev{}, dq_prev{};
+  // Exactly on every sample.
+  for (int i = 0; i < t.samples(); ++i) {
+    p.evaluate(t.time_s[static_cast<std::size_t>(i)], hint, q, dq);
+    for (int j = 0; j < 7; ++j) ASSERT_NEAR(q[static_cast<std::size_t>(j)], t.positions_rad(i, j), 1e-12);
+  }
+  // Velocity continuous across every sample: left and right limits agree.
+  for (int i = 1; i + 1 < t.samples(); ++i) {
+    const double ti = t.time_s[static_cast<std::size_t>(i)];
+    JointArray ql{}, dql{}, qr{}, dqr{};
+    std::size_t h = 0;
+    p.evaluate(ti - 1e-9, h, ql, dql);
+    p.evaluate(ti + 1e-9, h, qr, dqr);
+    for (std::size_t j = 0; j < 7; ++j) {
+      ASSERT_NEAR(ql[j], qr[j], 1e-8);
+      ASSERT_NEAR(dql[j], dqr[j], 1e-6) << "sample " << i << " joint " << j;
+    }
+  }
+  // At the 500 Hz cycle: position steps match the velocity (numerically C1),
+  // second differences stay bounded (no velocity jump), and it follows the
+  // underlying smooth curve.
+  hint = 0;
+  double max_jump = 0.0, max_err = 0.0;
+  const double dt = 0.002;
+  p.evaluate(0.0, hint, q_prev, dq_prev);
+  for (int k = 1; k <= 2000; ++k) {
+    const double ts = k * dt;
+    p.evaluate(ts, hint, q, dq);
+    for (std::size_t j = 0; j < 7; ++j) {
+      const double fd = (q[j] - q_prev[j]) / dt;
+      max_jump = std::max(max_jump, std::abs(fd - 0.5 * (dq[j] + dq_prev[j])));
+      const double truth = 0.3 * std::sin(1.5 * ts + static_cast<double>(j)) * std::pow(std::sin(M_PI * ts / 4.0), 2);
+      max_err = std::max(max_err, std::abs(q[j] - truth));
+    }
+    q_prev = q;
+    dq_prev = dq;
+  }
+  EXPECT_LT(max_jump, 1e-3);  // rad/s: finite differences agree with the derivative
+  EXPECT_LT(max_err, 2e-4);   // rad from the curve the samples came from (ends at rest)
+  // Holds before the start and after the end, at rest.
+  p.evaluate(-1.0, hint, q, dq);
+  EXPECT_EQ(q[0], t.positions_rad(0, 0));
+  EXPECT_EQ(dq[0], 0.0);
+  p.evaluate(99.0, hint, q, dq);
+  EXPECT_EQ(q[3], t.positions_rad(t.samples() - 1, 3));
+  EXPECT_EQ(dq[3], 0.0);
+}
+
+TEST(PreparedTrajectory, StartErrorNamesTheJoint) {
+  const PreparedTrajectory p(sine_trajectory(100.0, 1.0, 7));
+  JointArray q = p.start();
+  q[4] += 0.02;
+  int joint = -1;
+  EXPECT_NEAR(p.start_error(q, &joint), 0.02, 1e-12);
+  EXPECT_EQ(joint, 4);
+}
+
+TEST(PreparedTrajectory, BadInputsNameTheProblem) {
+  Trajectory t;
+  t.time_s = {0.0};
+  t.positions_rad = Eigen::MatrixXd::Zero(1, 7);
+  try {
+    PreparedTrajectory p(t);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "trajectory: 1 samples (need at least 2)");
+  }
+  t.time_s = {0.0, 0.0};
+  t.positions_rad = Eigen::MatrixXd::Zero(2, 7);
+  try {
+    PreparedTrajectory p(t);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "trajectory: time not increasing at row 2");
+  }
+  t.time_s = {0.0, 0.01};
+  t.positions_rad(1, 2) = NAN;
+  try {
+    PreparedTrajectory p(t);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "trajectory: non-finite value at row 2");
+  }
+  t.positions_rad = Eigen::MatrixXd::Zero(2, 9);
+  try {
+    PreparedTrajectory p(t);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "trajectory: 9 joints (at most 8)");
+  }
+}
+
+// ---- compliance ---------------------------------------------------------------------------------
+
+double msd_step(double m, double d, double k, double F, double t) {
+  if (k == 0.0) return F / d * (t - m / d * (1.0 - std::exp(-d / m * t)));
+  const double wn = std::sqrt(k / m), z = d / (2.0 * std::sqrt(k * m));
+  if (z < 1.0) {
+    const double wd = wn * std::sqrt(1.0 - z * z);
+    return F / k * (1.0 - std::exp(-z * wn * t) * (std::cos(wd * t) + z / std::sqrt(1.0 - z * z) * std::sin(wd * t)));
+  }
+  if (z == 1.0) return F / k * (1.0 - std::exp(-wn * t) * (1.0 + wn * t));
+  const double s1 = -wn * (z - std::sqrt(z * z - 1.0)), s2 = -wn * (z + std::sqrt(z * z - 1.0));
+  return F / k * (1.0 + (s2 * std::exp(s1 * t) - s1 * std::exp(s2 * t)) / (s1 - s2));
+}
+
+TEST(Admittance, StepResponseEqualsTheAnalyticMassSpringDamper) {
+  AdmittanceParams p;
+  // x: underdamped, y: critically damped, z: overdamped, rx: mass-damper (k = 0),
+  // ry/rz: the defaults.
+  p.mass = {2.0, 1.0, 4.0, 0.1, 0.05, 0.05};
+  p.damping = {20.0, 40.0, 3000.0, 2.0, 10.0, 10.0};
+  p.stiffness = {200.0, 400.0, 2000.0, 0.0, 20.0, 20.0};
+  p.max_offset = {1.0, 1.0, 1.0, 100.0, 1.0, 1.0};
+  Admittance a(p, 500.0);
+  Vector6 F;
+  F << 10.0, -5.0, 20.0, 0.3, 0.2, -0.1;
+  double worst = 0.0;
+  for (int k = 1; k <= 1500; ++k) {
+    a.step(F);
+    const double t = k * 0.002;
+    for (int i = 0; i < 6; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const double x = msd_step(p.mass[u], p.damping[u], p.stiffness[u], F(i), t);
+      worst = std::max(worst, std::abs(a.offset()(i) - x) / (std::abs(F(i)) / std::max(p.stiffness[u], 1.0)));
+    }
+  }
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_NEAR(a.offset()(0), 10.0 / 200.0, 1e-6);  // settled: F / k
+  // Overshoot of the underdamped axis (zeta 0.5): 16.3%.
+  Admittance b(p, 500.0);
+  double peak = 0.0;
+  for (int k = 0; k < 500; ++k) {
+    b.step(F);
+    peak = std::max(peak, b.offset()(0));
+  }
+  EXPECT_NEAR(peak / 0.05, 1.0 + std::exp(-M_PI * 0.5 / std::sqrt(0.75)), 2e-3);
+}
+
+TEST(Admittance, ClampsTheOffsetAndRejectsBadParameters) {
+  AdmittanceParams p;
+  p.max_offset = {0.001, 0.02, 0.02, 0.1, 0.1, 0.1};
+  Admittance a(p, 500.0);
+  Vector6 F = Vector6::Zero();
+  F(0) = 100.0;
+  for (int k = 0; k < 2000; ++k) a.step(F);
+  EXPECT_DOUBLE_EQ(a.offset()(0), 0.001);
+  p.mass[4] = 0.0;
+  try {
+    Admittance bad(p, 500.0);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "admittance ry: mass must be > 0");
+  }
+  EXPECT_FALSE(a.configure(p));
+}
+
+TEST(WrenchCompensator, RemovesToolWeightAndMovesTheWrenchToTheTip) {
+  const RobotModel& m = robot();
+  ToolParams tool;
+  WrenchFilterParams f;
+  f.cutoff_hz = 0.0;
+  f.force_deadband_n = 0.0;
+  f.torque_deadband_nm = 0.0;
+  WrenchCompensator c(tool, f, 500.0, m.gravity());
+  const Eigen::Matrix3d R0 = rotation_from_rpy({0.3, -0.2, 0.1});
+  c.set_tare_orientation(R0);
+  // Contact: 12 N along the tip's -z plus 3 N along x, applied at the tip.
+  const Eigen::Vector3d f_tip(3.0, 0.0, -12.0);
+  const Eigen::Vector3d p_tip = tool.sensor_T_tip.translation();
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Matrix3d R = rotation_from_rpy({0.2 * trial, -0.1 * trial, 0.05 * trial});
+    const Wrench6 g = c.tool_gravity_ft(R), g0 = c.tool_gravity_ft(R0);
+    const Eigen::Vector3d torque_sensor = p_tip.cross(f_tip);
+    Wrench6 reading{};
+    for (int i = 0; i < 3; ++i) {
+      reading[static_cast<std::size_t>(i)] = f_tip(i) + g[static_cast<std::size_t>(i)] - g0[static_cast<std::size_t>(i)];
+      reading[static_cast<std::size_t>(i + 3)] =
+          torque_sensor(i) + g[static_cast<std::size_t>(i + 3)] - g0[static_cast<std::size_t>(i + 3)];
+    }
+    const auto& out = c.update(reading, R, true);
+    EXPECT_NEAR(out.raw_tool[0], 3.0, 1e-9);
+    EXPECT_NEAR(out.raw_tool[1], 0.0, 1e-9);
+    EXPECT_NEAR(out.raw_tool[2], -12.0, 1e-9);
+    for (std::size_t i = 3; i < 6; ++i) EXPECT_NEAR(out.raw_tool[i], 0.0, 1e-9);  // applied at the tip
+  }
+  // The weight as the sensor sees it: 2.6 kg x 9.81 with the sensor z up.
+  const Wrench6 gz = c.tool_gravity_ft(Eigen::Matrix3d::Identity());
+  EXPECT_NEAR(gz[2], -2.6 * 9.81, 1e-9);
+  EXPECT_NEAR(gz[4], 0.015 * 2.6 * 9.81, 1e-9);  // (c x F)_y = -c_x F_z
+}
+
+TEST(WrenchCompensator, FilterDeadbandClamp) {
+  WrenchFilterParams f;
+  f.cutoff_hz = 10.0;
+  f.force_deadband_n = 1.0;
+  f.force_clamp_n = 5.0;
+  ToolParams tool;
+  tool.mass_kg = 0.0;
+  WrenchCompensator c(tool, f, 500.0, Eigen::Vector3d(0, 0, -9.81));
+  c.reset();
+  Wrench6 w{};
+  w[0] = 10.0;
+  w[1] = 0.5;
+  const double alpha = 1.0 - std::exp(-2.0 * M_PI * 10.0 * 0.002);
+  const auto& o1 = c.update(w, Eigen::Matrix3d::Identity(), true);
+  EXPECT_NEAR(o1.filtered_tool[0], alpha * 10.0, 1e-12);
+  for (int k = 0; k < 2000; ++k) c.update(w, Eigen::Matrix3d::Identity(), true);
+  EXPECT_NEAR(c.output().filtered_tool[0], 10.0, 1e-9);
+  EXPECT_NEAR(c.output().shaped_tool[0], 5.0, 1e-12);  // 10 - 1 deadband, clamped at 5
+  EXPECT_NEAR(c.output().shaped_tool[1], 0.0, 1e-12);  // inside the deadband
+  try {
+    WrenchFilterParams bad;
+    bad.force_clamp_n = 0.0;
+    WrenchCompensator x(tool, bad, 500.0, Eigen::Vector3d::Zero());
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "filter.force_clamp_n must be > 0");
+  }
+}
+
+TEST(Dls, SolvesSmallPoseErrors) {
+  KinematicsWorkspace ws(robot());
+  const JointArray q0 = home_q();
+  Eigen::VectorXd q(7);
+  for (int j = 0; j < 7; ++j) q(j) = q0[static_cast<std::size_t>(j)];
+  Jacobian J(6, 7);
+  jacobian(robot(), ws, q, J);
+  Vector6 e;
+  e << 1e-3, -2e-3, 0.5e-3, 1e-3, 0.0, -2e-3;
+  JointVector dq;
+  dls_step(J, e, dq);
+  const Vector6 achieved = J * dq;
+  EXPECT_LT((achieved - e).norm(), 1e-6);
+}
+
+// ---- Controller -----------------------------------------------------------------------------------
+
+Trajectory line_trajectory(const JointArray& from, const JointArray& to, double duration_s, double rate_hz = 100.0) {
+  Trajectory t;
+  const int n = static_cast<int>(duration_s * rate_hz) + 1;
+  t.positions_rad.resize(n, 7);
+  for (int i = 0; i < n; ++i) {
+    const double s = static_cast<double>(i) / (n - 1);
+    const double b = s * s * (3.0 - 2.0 * s);
+    t.time_s.push_back(i / rate_hz);
+    for (int j = 0; j < 7; ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      t.positions_rad(i, j) = from[u] + b * (to[u] - from[u]);
+    }
+  }
+  return t;
+}
+
+TEST(Controller, DisabledFollowsThenEnablesHoldsAndRunsATrajectory) {
+  Bench b(home_q());
+  b.step();
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Disabled);
+  EXPECT_EQ(b.out.q_cmd[1], home_q()[1]);
+  b.enable();
+  JointArray to = home_q();
+  to[0] += 0.3;
+  to[3] -= 0.2;
+  const PreparedTrajectory traj(line_trajectory(home_q(), to, 2.0));
+  MotionCommand c;
+  c.kind = MotionCommandKind::RunTrajectory;
+  c.trajectory = &traj;
+  const auto id = b.send(c);
+  const MotionEvent e = b.run_until_final(id, 2000);
+  ASSERT_EQ(e.kind, MotionEventKind::Completed) << e.text.data();
+  EXPECT_NEAR(e.final_q[0], to[0], 1e-3);
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+  for (int k = 0; k < 100; ++k) b.step();
+  EXPECT_NEAR(b.out.q_cmd[0], to[0], 1e-12);
+  EXPECT_NEAR(b.out.q_cmd[3], to[3], 1e-12);
+  EXPECT_TRUE(b.stops.empty());
+}
+
+TEST(Controller, RejectsWhatCannotRun) {
+  Bench b(home_q());
+  b.step();
+  JointArray to = home_q();
+  to[0] += 0.1;
+  const PreparedTrajectory traj(line_trajectory(home_q(), to, 1.0));
+  MotionCommand c;
+  c.kind = MotionCommandKind::RunTrajectory;
+  c.trajectory = &traj;
+  b.send(c);
+  b.step();
+  ASSERT_FALSE(b.events.empty());
+  EXPECT_EQ(b.events.back().kind, MotionEventKind::Rejected);
+  EXPECT_EQ(b.events.back().code, Reason::Faulted);
+  EXPECT_STREQ(b.events.back().text.data(), "drives disabled: send Enable first");
+  b.enable();
+  JointArray off = home_q();
+  off[2] += 0.05;
+  const PreparedTrajectory far(line_trajectory(off, to, 1.0));
+  c.trajectory = &far;
+  b.send(c);
+  b.step();
+  EXPECT_EQ(b.events.back().kind, MotionEventKind::Rejected);
+  EXPECT_EQ(b.events.back().code, Reason::StartMismatch);
+  EXPECT_STREQ(b.events.back().text.data(), "start: joint 3 is 0.0500 rad from the first sample (tolerance 0.0100)");
+  MotionCommand a;
+  a.kind = MotionCommandKind::RunAlgorithm;
+  a.algorithm.kind = AlgorithmKind::Insert;
+  a.algorithm.insert.depth_m = -1.0;
+  b.send(a);
+  b.step();
+  EXPECT_EQ(b.events.back().code, Reason::BadArgument);
+  EXPECT_STREQ(b.events.back().text.data(), "insert: depth_m must be > 0");
+  a.algorithm.kind = AlgorithmKind::None;
+  b.send(a);
+  b.step();
+  EXPECT_EQ(b.events.back().code, Reason::UnknownAlgorithm);
+  c.trajectory = &traj;
+  const auto id = b.send(c);
+  b.step();
+  b.send(c);
+  b.step();
+  EXPECT_EQ(b.events.back().code, Reason::Busy);
+  MotionCommand h;
+  h.kind = MotionCommandKind::Hold;
+  b.send(h);
+  b.step();
+  bool canceled = false;
+  for (const auto& e : b.events) canceled = canceled || (e.command_id == id && e.kind == MotionEventKind::Canceled);
+  EXPECT_TRUE(canceled);
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+}
+
+// Every fault: its category, cause and evidence; recovery only on command.
+struct FaultCase {
+  const char* name;
+  StopCause cause;
+  StopCategory category;
+};
+
+class ControllerFaults : public ::testing::Test {
+ protected:
+  void start_motion(Bench& b, double dq0 = 0.4) {
+    b.enable();
+    JointArray to = home_q();
+    to[0] += dq0;
+    traj_ = std::make_unique<PreparedTrajectory>(line_trajectory(home_q(), to, 3.0));
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunTrajectory;
+    c.trajectory = traj_.get();
+    id_ = b.send(c);
+    for (int k = 0; k < 200; ++k) b.step();
+    ASSERT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
+  }
+  static void expect_stop(Bench& b, StopCause cause, StopCategory cat) {
+    ASSERT_EQ(b.stops.size(), 1u);
+    const StopEvent& s = b.stops[0];
+    EXPECT_EQ(s.cause, cause) << to_string(s.cause);
+    EXPECT_EQ(s.category, cat);
+    EXPECT_GE(s.evidence_count, 20u);
+    EXPECT_EQ(s.evidence[s.evidence_count - 1].cycle, s.cycle);
+    EXPECT_GT(std::strlen(s.text.data()), 5u);
+  }
+  /// Runs until the arm is at rest; checks the mode after the stop and that
+  /// a new motion is refused until Recover.
+  static void expect_after(Bench& b, StopCategory cat) {
+    for (int k = 0; k < 1000; ++k) b.step();
+    if (cat == StopCategory::Cat2) {
+      EXPECT_EQ(b.ctl->mode(), ControllerMode::Stopped);
+      EXPECT_TRUE(b.in.drives_enabled);
+    } else {
+      EXPECT_EQ(b.ctl->mode(), ControllerMode::Fault);
+      EXPECT_FALSE(b.in.drives_enabled);
+    }
+    const JointArray still = b.out.q_cmd;
+    b.step();
+    EXPECT_EQ(b.out.q_cmd[0], still[0]);
+    MotionCommand h;
+    h.kind = MotionCommandKind::Hold;
+    b.send(h);
+    b.step();
+    EXPECT_EQ(b.events.back().kind, MotionEventKind::Rejected);
+    EXPECT_EQ(b.events.back().code, Reason::Faulted);
+  }
+  std::unique_ptr<PreparedTrajectory> traj_;
+  std::uint64_t id_ = 0;
+};
+
+TEST_F(ControllerFaults, EStopIsCat0AndRecoverNeedsItReleased) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.estop = true;
+  b.step();
+  EXPECT_TRUE(b.out.quick_stop);
+  expect_stop(b, StopCause::EStop, StopCategory::Cat0);
+  EXPECT_EQ(b.stops[0].command_id, id_);
+  bool canceled = false;
+  for (const auto& e : b.events) canceled = canceled || (e.command_id == id_ && e.kind == MotionEventKind::Canceled);
+  EXPECT_TRUE(canceled);
+  expect_after(b, StopCategory::Cat0);
+  MotionCommand r;
+  r.kind = MotionCommandKind::Recover;
+  b.send(r);
+  b.step();
+  EXPECT_EQ(b.events.back().kind, MotionEventKind::Rejected);
+  EXPECT_STREQ(b.events.back().text.data(), "E-stop pressed");
+  b.in.estop = false;
+  const auto id = b.send(r);
+  const MotionEvent e = b.run_until_final(id, 10);
+  EXPECT_EQ(e.kind, MotionEventKind::Completed);
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+}
+
+TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.hw_stop_required = true;
+  b.in.hw_drive_fault = true;
+  b.in.hw_fault = 4;
+  b.in.hw_node = 3;
+  b.in.hw_joint = 2;
+  b.in.hw_code = 0x8611;
+  b.step();
+  EXPECT_TRUE(b.out.quick_stop);
+  expect_stop(b, StopCause::DriveFault, StopCategory::Cat0);
+  EXPECT_EQ(b.stops[0].hw_code, 0x8611u);
+  EXPECT_EQ(b.stops[0].joint, 2);
+  b.in.hw_stop_required = false;
+  expect_after(b, StopCategory::Cat0);
+}
+
+TEST_F(ControllerFaults, FollowingErrorIsCat1) {
+  Bench b(home_q());
+  start_motion(b);
+  b.follow = false;  // the arm stops moving (a blocked joint)
+  for (int k = 0; k < 200 && b.stops.empty(); ++k) b.step();
+  expect_stop(b, StopCause::FollowingError, StopCategory::Cat1);
+  EXPECT_EQ(b.stops[0].joint, 0);
+  EXPECT_GT(b.stops[0].value, 0.05);
+  EXPECT_DOUBLE_EQ(b.stops[0].limit, 0.05);
+  b.follow = true;
+  expect_after(b, StopCategory::Cat1);
+}
+
+TEST_F(ControllerFaults, ForceAndTorqueLimitsAreCat2) {
+  {
+    Bench b(home_q());
+    start_motion(b);
+    b.extra_ft = {0.0, 0.0, 200.0, 0.0, 0.0, 0.0};
+    for (int k = 0; k < 50 && b.stops.empty(); ++k) b.step();
+    expect_stop(b, StopCause::ForceLimit, StopCategory::Cat2);
+    EXPECT_GT(b.stops[0].value, 150.0);
+    b.extra_ft = {};
+    expect_after(b, StopCategory::Cat2);
+    MotionCommand r;
+    r.kind = MotionCommandKind::Recover;
+    const auto id = b.send(r);
+    EXPECT_EQ(b.run_until_final(id, 5).kind, MotionEventKind::Completed);
+    EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+  }
+  {
+    Bench b(home_q());
+    start_motion(b);
+    b.extra_ft = {0.0, 0.0, 0.0, 20.0, 0.0, 0.0};
+    for (int k = 0; k < 50 && b.stops.empty(); ++k) b.step();
+    expect_stop(b, StopCause::TorqueLimit, StopCategory::Cat2);
+  }
+}
+
+TEST_F(ControllerFaults, SensorFaultIsCat1) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.ft_fault = true;
+  for (int k = 0; k < 4; ++k) b.step();
+  EXPECT_TRUE(b.stops.empty());  // a few bad samples are tolerated
+  b.step();
+  expect_stop(b, StopCause::SensorFault, StopCategory::Cat1);
+  b.in.ft_fault = false;
+  expect_after(b, StopCategory::Cat1);
+}
+
+TEST_F(ControllerFaults, CommandedPositionAndVelocityLimitsAreCat2) {
+  {
+    Bench b(home_q());
+    b.enable();
+    JointArray to = home_q();
+    to[5] = 2.3;  // beyond joint6's 2.18 rad
+    const PreparedTrajectory t(line_trajectory(home_q(), to, 4.0));
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunTrajectory;
+    c.trajectory = &t;
+    b.send(c);
+    for (int k = 0; k < 3000 && b.stops.empty(); ++k) b.step();
+    expect_stop(b, StopCause::JointPositionLimit, StopCategory::Cat2);
+    EXPECT_EQ(b.stops[0].joint, 5);
+    EXPECT_NEAR(b.stops[0].limit, 2.181662, 1e-6);
+    for (int k = 0; k < 2000; ++k) b.step();
+    for (int k = 0; k < 7; ++k) EXPECT_LE(b.out.q_cmd[5], 2.181662);
+  }
+  {
+    Bench b(home_q());
+    b.enable();
+    JointArray to = home_q();
+    to[0] += 1.0;  // 1 rad in 0.5 s: peak 3 rad/s > 0.9 rad/s
+    const PreparedTrajectory t(line_trajectory(home_q(), to, 0.5));
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunTrajectory;
+    c.trajectory = &t;
+    b.send(c);
+    for (int k = 0; k < 300 && b.stops.empty(); ++k) b.step();
+    expect_stop(b, StopCause::JointVelocityLimit, StopCategory::Cat2);
+    EXPECT_EQ(b.stops[0].joint, 0);
+    EXPECT_NEAR(b.stops[0].limit, 0.9, 1e-12);
+    expect_after(b, StopCategory::Cat2);
+  }
+}
+
+TEST_F(ControllerFaults, ControlledStopDeceleratesWithinTheLimits) {
+  Bench b(home_q());
+  start_motion(b, 0.8);
+  for (int k = 0; k < 400; ++k) b.step();  // mid-motion, moving
+  MotionCommand s;
+  s.kind = MotionCommandKind::Stop;
+  s.category = StopCategory::Cat2;
+  b.send(s);
+  double prev_v = (b.out.q_cmd[0] - b.q_arm[0]);
+  JointArray prev = b.out.q_cmd;
+  double v_prev = 0.0;
+  b.step();
+  v_prev = (b.out.q_cmd[0] - prev[0]) / 0.002;
+  (void)prev_v;
+  int cycles = 0;
+  while (b.ctl->mode() == ControllerMode::Stopping && cycles < 2000) {
+    prev = b.out.q_cmd;
+    b.step();
+    const double v = (b.out.q_cmd[0] - prev[0]) / 0.002;
+    EXPECT_LE(std::abs(v - v_prev) / 0.002, 2.0 + 1e-6);  // joint1 acceleration limit
+    v_prev = v;
+    ++cycles;
+  }
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Stopped);
+  expect_stop(b, StopCause::Command, StopCategory::Cat2);
+}
+
+TEST_F(ControllerFaults, LinkLossPolicies) {
+  {  // finish then hold: the trajectory completes; new motion is refused
+    Bench b(home_q());
+    start_motion(b);
+    b.in.link_lost = true;
+    const MotionEvent e = b.run_until_final(id_, 2000);
+    EXPECT_EQ(e.kind, MotionEventKind::Completed);
+    EXPECT_TRUE(b.stops.empty());
+    EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunTrajectory;
+    c.trajectory = traj_.get();
+    b.send(c);
+    b.step();
+    EXPECT_EQ(b.events.back().code, Reason::NotInControl);
+  }
+  {  // stop: Cat2
+    ControllerConfig cfg;
+    cfg.link_loss = LinkLossPolicy::Stop;
+    Bench b(home_q(), cfg);
+    start_motion(b);
+    b.in.link_lost = true;
+    b.step();
+    expect_stop(b, StopCause::LinkLoss, StopCategory::Cat2);
+    expect_after(b, StopCategory::Cat2);
+  }
+}
+
+TEST(Controller, CompliantHoldYieldsToAPushLikeTheAdmittance) {
+  ControllerConfig cfg;
+  cfg.filter.cutoff_hz = 0.0;
+  cfg.filter.force_deadband_n = 0.0;
+  Bench b(home_q(), cfg);
+  b.enable();
+  MotionCommand h;
+  h.kind = MotionCommandKind::Hold;
+  h.compliant = true;
+  b.send(h);
+  b.step();
+  const Pose start = b.tip(b.q_arm);
+  // 10 N along the tool's x (sensor x = tip x): settles at 10 / 2000 = 5 mm.
+  b.extra_ft = {10.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  // Torque about the tip is zero: the sensor sees p_tip x F.
+  const Eigen::Vector3d t = Eigen::Vector3d(0, 0, 0.295).cross(Eigen::Vector3d(10.0, 0, 0));
+  b.extra_ft[3] = t(0);
+  b.extra_ft[4] = t(1);
+  b.extra_ft[5] = t(2);
+  for (int k = 0; k < 5000; ++k) b.step();
+  const Pose now = b.tip(b.q_arm);
+  const Eigen::Vector3d d_tool = start.linear().transpose() * (now.translation() - start.translation());
+  EXPECT_NEAR(d_tool.x(), 0.005, 2e-4);
+  EXPECT_NEAR(d_tool.y(), 0.0, 2e-4);
+  EXPECT_NEAR(d_tool.z(), 0.0, 2e-4);
+  EXPECT_LT(rotation_distance(start.linear(), now.linear()), 2e-3);
+}
+
+TEST(Controller, TareCompletesWhenTheDecoderIsDone) {
+  Bench b(home_q());
+  b.enable();
+  MotionCommand t;
+  t.kind = MotionCommandKind::Tare;
+  t.tare_samples = 10;
+  const auto id = b.send(t);
+  b.step();
+  EXPECT_EQ(b.out.tare_samples, 10);
+  b.in.ft_tare_in_progress = true;
+  for (int k = 0; k < 10; ++k) b.step();
+  b.in.ft_tare_in_progress = false;
+  const MotionEvent e = b.run_until_final(id, 5);
+  EXPECT_EQ(e.kind, MotionEventKind::Completed);
+}
+
+}  // namespace
+}  // namespace foresight::control::test
