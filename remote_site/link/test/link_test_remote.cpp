@@ -10,7 +10,8 @@
 //   rejected by the link -> RECEIVED, REJECTED with the link's code and
 //               reason; a duplicate -> the command's last ack again.
 // Telemetry (joint state, wrench, tool, status) at 50 Hz; on link loss the
-// status says mode STOPPED, stop_reason "link lost"; on regain IDLE again.
+// status says mode DISABLED until the first ground heartbeat, IDLE from then;
+// on link loss STOPPED with stop_reason "link lost"; on regain IDLE again.
 //
 // Usage: link_test_remote --domain N [--link-loss-s S] [--max-committed N] [--lifetime-s S]
 // Exits on SIGTERM/SIGINT, when its parent dies, or after --lifetime-s.
@@ -42,7 +43,7 @@ namespace {
 struct Stub {
   std::mutex mutex;
   std::vector<double> q = std::vector<double>(7, 0.0);
-  control::ControllerMode mode = control::ControllerMode::Idle;
+  control::ControllerMode mode = control::ControllerMode::Disabled;  // until the first ground heartbeat
   std::string stop_reason;
   std::map<std::uint64_t, control::Ack> last_ack;  // by command id
   rl::RemoteLink* link = nullptr;

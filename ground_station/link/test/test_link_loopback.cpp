@@ -1,0 +1,443 @@
+// The DDS link end to end, two real processes on loopback: this test drives a
+// GroundLink; link_test_remote (built beside it) runs a RemoteLink with a stub
+// daemon that acks every command through its lifecycle. Every command kind
+// round-trips with the right ack sequence; the link's envelope and
+// hostile-value rejections arrive with their codes and reasons; a 1,800 x 7
+// upload commits with the remote's hash equal to ours and then runs; a
+// corrupted one and one that breaks the URDF's limits are rejected; delay
+// statistics and telemetry ages are sane; the remote sees the ground's
+// heartbeat stop (link loss) and come back.
+//
+// Each TEST runs in its own process (gtest_discover_tests) with its own DDS
+// domain (from the pid) and its own remote, killed in TearDown. Waits are
+// bounded polls of a condition, never fixed sleeps.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <thread>
+
+#include "foresight/common/robot_model.hpp"
+#include "foresight/ground_link/delay_monitor.hpp"
+#include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
+#include "foresight/remote_link/convert.hpp"
+
+extern char** environ;
+
+namespace gl = foresight::ground_link;
+namespace control = foresight::control;
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using control::AckState;
+
+namespace {
+
+constexpr auto kConnectTimeout = 20s;
+constexpr auto kAckTimeout = 15s;
+
+/// link_test_remote in its own process; SIGTERM (then SIGKILL) on destruction.
+class RemoteProcess {
+ public:
+  RemoteProcess(dds_domainid_t domain, double link_loss_s) {
+    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/link_test_remote";
+    const std::string d = std::to_string(domain), loss = std::to_string(link_loss_s);
+    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--link-loss-s", loss.c_str(), "--lifetime-s", "110",
+                          nullptr};
+    const int rc = posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ);
+    if (rc != 0) throw std::runtime_error("cannot start " + path + ": " + std::strerror(rc));
+  }
+  ~RemoteProcess() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    int status = 0;
+    const auto deadline = Clock::now() + 5s;
+    while (Clock::now() < deadline) {
+      if (waitpid(pid_, &status, WNOHANG) == pid_) return;
+      std::this_thread::sleep_for(5ms);
+    }
+    kill(pid_, SIGKILL);
+    waitpid(pid_, &status, 0);
+  }
+  bool running() {
+    int status = 0;
+    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
+  }
+  RemoteProcess(const RemoteProcess&) = delete;
+  RemoteProcess& operator=(const RemoteProcess&) = delete;
+
+ private:
+  pid_t pid_ = -1;
+};
+
+/// Polls `condition` until it holds or `timeout` passes.
+template <class F>
+bool eventually(F condition, std::chrono::nanoseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return condition();
+}
+
+std::vector<AckState> states(const gl::CommandResult& r) {
+  std::vector<AckState> s;
+  for (const auto& a : r.acks) s.push_back(a.state);
+  return s;
+}
+
+const std::vector<AckState> kLifecycle = {AckState::Received, AckState::Queued, AckState::Executing,
+                                          AckState::Completed};
+const std::vector<AckState> kRejected = {AckState::Received, AckState::Rejected};
+
+foresight::TrajectoryLimits robot_limits() {
+  return foresight::TrajectoryLimits::from_model(
+      foresight::RobotModel::from_file(std::string(FORESIGHT_CONFIG_DIR) + "/robot.urdf"));
+}
+
+/// 1,800 samples x 7 joints at 100 Hz, a slow sine well inside the URDF limits.
+foresight::Trajectory slow_sine(int samples = 1800) {
+  foresight::Trajectory t;
+  t.positions_rad.resize(samples, 7);
+  for (int i = 0; i < samples; ++i) {
+    const double time = 0.01 * i;
+    t.time_s.push_back(time);
+    for (int j = 0; j < 7; ++j) t.positions_rad(i, j) = 0.2 * std::sin(0.3 * time + 0.1 * j);
+  }
+  return t;
+}
+
+class LinkLoopback : public ::testing::Test {
+ protected:
+  void start(double link_loss_s = 1.0) {
+    fp::use_loopback_if_unconfigured();
+    domain_ = fp::unique_test_domain();
+    remote_ = std::make_unique<RemoteProcess>(domain_, link_loss_s);
+    gl::Config config;
+    config.domain = domain_;
+    config.heartbeat_period_s = 0.1;
+    config.delay.rate_hz = 50.0;
+    ground_ = std::make_unique<gl::GroundLink>(config);
+    ASSERT_TRUE(ground_->wait_for_remote(kConnectTimeout)) << "the remote did not appear";
+  }
+  void SetUp() override { start(); }
+  void TearDown() override {
+    if (remote_) {
+      EXPECT_TRUE(remote_->running()) << "the remote exited early (see its stderr)";
+    }
+    ground_.reset();
+    remote_.reset();
+  }
+
+  gl::CommandResult run(control::CommandKind kind, const control::Payload& payload = control::NoPayload{}) {
+    const auto id = ground_->send(kind, payload);
+    return ground_->wait_final(id, kAckTimeout);
+  }
+
+  dds_domainid_t domain_ = 0;
+  std::unique_ptr<RemoteProcess> remote_;
+  std::unique_ptr<gl::GroundLink> ground_;
+};
+
+/// A second, raw commander in the test's participant: writes hand-made
+/// command samples and collects the acks of its own session.
+class RawCommander {
+ public:
+  explicit RawCommander(const fp::Participant& p) : sequencer(0x5eed), writer(p), acks(p) {
+    EXPECT_TRUE(writer.wait_for_readers(1, kConnectTimeout));
+    EXPECT_TRUE(acks.wait_for_writers(1, kConnectTimeout));
+  }
+  /// All acks of `command_id` until a terminal one (bounded).
+  std::vector<control::Ack> acks_of(std::uint64_t command_id, std::size_t at_least_final = 1) {
+    std::vector<control::Ack> out;
+    std::size_t finals = 0;
+    const auto deadline = Clock::now() + kAckTimeout;
+    fp::Sample<msg::CommandAck> a;
+    while (finals < at_least_final && Clock::now() < deadline) {
+      for (auto it = pending.begin(); it != pending.end();) {
+        if (it->command_id == command_id) {
+          if (foresight::remote_link::is_final(it->state)) ++finals;
+          out.push_back(*it);
+          it = pending.erase(it);
+        } else {
+          ++it;
+        }
+      }
+      if (finals >= at_least_final) break;
+      if (!acks.wait_take(a, 100ms)) continue;
+      if (a->session_id != sequencer.session_id()) continue;
+      pending.push_back(foresight::remote_link::from_wire(*a));
+    }
+    return out;
+  }
+  fp::CommandSequencer sequencer;
+  fp::Writer<msg::Command> writer;
+  fp::Reader<msg::CommandAck> acks;
+  std::vector<control::Ack> pending;
+};
+
+}  // namespace
+
+TEST_F(LinkLoopback, EveryCommandKindRoundTripsWithItsAckSequence) {
+  const std::vector<double> target{0.1, -0.2, 0.3, -0.4, 0.5, -0.6, 0.7};
+  struct Case {
+    control::CommandKind kind;
+    control::Payload payload;
+  };
+  control::GotoCart cart;
+  cart.frame = "lst_tip";
+  const std::vector<Case> cases = {
+      {control::CommandKind::TakeControl, control::NoPayload{}},
+      {control::CommandKind::Request, control::Request{control::RequestWhat::JointState}},
+      {control::CommandKind::Camera, control::CameraCommand{"oblique", control::CameraAction::Select, 0, 0, 0}},
+      {control::CommandKind::GotoJoint, control::GotoJoint{target, 0.5}},
+      {control::CommandKind::GotoCart, cart},
+      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"guarded_insert", {{"depth_m", 0.05}}, 10}},
+      {control::CommandKind::Abort, control::Abort{0, control::StopCategory::Cat2, "operator"}},
+      {control::CommandKind::Recover, control::NoPayload{}},
+      {control::CommandKind::ReleaseControl, control::NoPayload{}},
+  };
+  for (const auto& c : cases) {
+    const auto r = run(c.kind, c.payload);
+    SCOPED_TRACE(foresight::remote_link::name_of(c.kind));
+    ASSERT_TRUE(r.finished);
+    EXPECT_EQ(states(r), kLifecycle);
+    EXPECT_TRUE(r.succeeded());
+    for (const auto& a : r.acks) {
+      EXPECT_EQ(a.kind, c.kind);
+      EXPECT_EQ(a.session_id, ground_->session_id());
+      EXPECT_EQ(a.command_id, r.command_id);
+    }
+    ASSERT_EQ(r.final_q_rad.size(), 7u);
+    if (c.kind == control::CommandKind::GotoJoint) {
+      EXPECT_EQ(r.final_q_rad, target);
+    }
+  }
+  // FAILED carries its reason and where the arm stopped.
+  const auto failed = run(control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"fail_me", {}, 1.0});
+  EXPECT_EQ(states(failed), (std::vector<AckState>{AckState::Received, AckState::Queued, AckState::Executing,
+                                                   AckState::Failed}));
+  EXPECT_EQ(failed.code, control::Reason::ForceLimit);
+  EXPECT_EQ(failed.reason, "force limit: 61 N > 60 N");
+  EXPECT_EQ(failed.final_q_rad, target);
+  EXPECT_FALSE(failed.succeeded());
+  // execute(): the timeout derives from the measured delay.
+  const auto timeout = ground_->timeout_for(2.0);
+  const auto p99 = ground_->delay().stats().p99_s;
+  EXPECT_NEAR(std::chrono::duration<double>(timeout).count(), 2.0 + 3.0 * p99 + 2.0, 1e-6);
+  const auto done = ground_->execute(control::CommandKind::Request, control::Request{}, 0.0);
+  EXPECT_TRUE(done.succeeded());
+  EXPECT_GT(done.elapsed_s, 0.0);
+}
+
+TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
+  RawCommander raw(ground_->participant());
+  auto expect_rejected = [&](fp::Sample<msg::Command>& c, control::Reason code, const std::string& reason) {
+    raw.writer.write(c);
+    const auto acks = raw.acks_of(c->command_id);
+    ASSERT_EQ(acks.size(), 2u) << reason;
+    EXPECT_EQ(acks[0].state, AckState::Received);
+    EXPECT_EQ(acks[1].state, AckState::Rejected);
+    EXPECT_EQ(acks[1].code, code) << foresight::remote_link::name_of(acks[1].code);
+    EXPECT_EQ(acks[1].reason, reason);
+  };
+  // Version.
+  auto v = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  v->protocol_version = 1;
+  expect_rejected(v, control::Reason::VersionMismatch,
+                  "command " + std::to_string(v->command_id) + ": protocol version 1, this remote speaks 2");
+  // An accepted command, then an older sequence number (a replay or reorder).
+  auto ok = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  auto older = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  auto newer = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  raw.writer.write(newer);
+  EXPECT_EQ(raw.acks_of(newer->command_id).back().state, AckState::Completed);
+  expect_rejected(older, control::Reason::BadSequence,
+                  "command " + std::to_string(older->command_id) + ": sequence " +
+                      std::to_string(older->sequence_number) + " is not after " +
+                      std::to_string(newer->sequence_number) + " (replayed or reordered)");
+  (void)ok;
+  // The same command again is idempotent: its last ack is repeated, it does not run twice.
+  raw.writer.write(newer);
+  const auto again = raw.acks_of(newer->command_id);
+  ASSERT_EQ(again.size(), 1u);
+  EXPECT_EQ(again[0].state, AckState::Completed);
+  // Expired on the ground's clock.
+  auto expired = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  expired->expires_ns = expired->issued_ns - 1'000'000'000;
+  raw.writer.write(expired);
+  const auto e = raw.acks_of(expired->command_id);
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_EQ(e[1].code, control::Reason::Expired);
+  EXPECT_EQ(e[1].reason.rfind("command " + std::to_string(expired->command_id) + ": expired 1.", 0), 0u)
+      << e[1].reason;
+  // Hostile values.
+  auto nan = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
+  foresight::remote_link::fill_payload(*nan, control::CommandKind::GotoJoint,
+                                       control::GotoJoint{{0, 0, std::nan(""), 0, 0, 0, 0}, 0.5});
+  expect_rejected(nan, control::Reason::BadArgument,
+                  "command " + std::to_string(nan->command_id) + ": goto_joint.q_rad[2] is not finite");
+  auto count = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
+  foresight::remote_link::fill_payload(*count, control::CommandKind::GotoJoint, control::GotoJoint{{0, 0, 0}, 0.5});
+  expect_rejected(count, control::Reason::JointCount,
+                  "command " + std::to_string(count->command_id) + ": goto_joint.q_rad has 3 angles; the arm has 7 joints");
+  auto name = raw.sequencer.next(foresight_msg_CMD_INVOKE_ALGORITHM);
+  foresight::remote_link::fill_payload(*name, control::CommandKind::InvokeAlgorithm,
+                                       control::InvokeAlgorithm{"in\x1bsert", {}, 1.0});
+  expect_rejected(name, control::Reason::BadArgument,
+                  "command " + std::to_string(name->command_id) + ": algorithm.name has a non-printable character");
+  // An unknown kind: Cyclone refuses to serialize a discriminator with no
+  // case (so it cannot come from a Cyclone peer); the link's own check
+  // (test_link_convert) covers other vendors' writers.
+  auto kind = raw.sequencer.next(foresight_msg_CMD_RECOVER);
+  kind->payload._d = static_cast<msg::CommandKind>(42);
+  try {
+    raw.writer.write(kind);
+    ADD_FAILURE() << "Cyclone wrote an unknown union discriminator";
+  } catch (const fp::ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "write on foresight/command: Bad Parameter");
+  }
+  // The link stays up and keeps serving the well-behaved ground.
+  EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
+}
+
+TEST_F(LinkLoopback, AnUploadCommitsWholeWithTheSameHashAndThenRuns) {
+  const auto trajectory = slow_sine();
+  ASSERT_TRUE(foresight::validate(trajectory, robot_limits()).empty());
+  const auto up = ground_->upload(trajectory, 30s);
+  ASSERT_EQ(up.state, control::UploadState::Committed) << up.reason;
+  EXPECT_EQ(up.remote_hash, up.local_hash);
+  EXPECT_EQ(up.local_hash, foresight::trajectory_hash(trajectory));
+  EXPECT_TRUE(up.committed());
+  EXPECT_EQ(up.chunk_count, 2u);  // 1,800 samples of 8 doubles, 1,024 per chunk
+  control::RunTrajectory runp;
+  runp.trajectory_id = up.trajectory_id;
+  runp.content_hash = up.remote_hash;
+  const auto r = run(control::CommandKind::Trajectory, runp);
+  EXPECT_EQ(states(r), kLifecycle);
+  ASSERT_EQ(r.final_q_rad.size(), 7u);
+  for (int j = 0; j < 7; ++j) EXPECT_EQ(r.final_q_rad[static_cast<std::size_t>(j)], trajectory.positions_rad(1799, j));
+  // Running with another hash, or an id never uploaded, is refused.
+  runp.content_hash[0] ^= 1;
+  const auto wrong = run(control::CommandKind::Trajectory, runp);
+  EXPECT_EQ(states(wrong), kRejected);
+  EXPECT_EQ(wrong.code, control::Reason::HashMismatch);
+  runp.trajectory_id = 12345;
+  const auto unknown = run(control::CommandKind::Trajectory, runp);
+  EXPECT_EQ(unknown.code, control::Reason::UnknownTrajectory);
+  EXPECT_EQ(unknown.reason, "trajectory 12345 is not committed");
+}
+
+TEST_F(LinkLoopback, CorruptedAndOverLimitUploadsAreRejected) {
+  // Chunks that declare another hash than their content's.
+  const auto trajectory = slow_sine(300);
+  auto declared = foresight::trajectory_hash(trajectory);
+  declared[5] ^= 0xff;
+  fp::Writer<msg::TrajectoryChunk> chunks(ground_->participant());
+  fp::Reader<msg::TrajectoryStatus> status(ground_->participant());
+  ASSERT_TRUE(chunks.wait_for_readers(1, kConnectTimeout));
+  ASSERT_TRUE(status.wait_for_writers(1, kConnectTimeout));
+  const std::uint64_t id = 777;
+  for (const auto& c : fp::make_chunks(trajectory, id, 1, declared, 100)) chunks.write(c);
+  fp::Sample<msg::TrajectoryStatus> s;
+  const auto deadline = Clock::now() + kAckTimeout;
+  bool rejected = false;
+  while (!rejected && Clock::now() < deadline) {
+    if (!status.wait_take(s, 100ms)) continue;
+    if (s->trajectory_id != id) continue;
+    if (s->state == foresight_msg_UPLOAD_ASSEMBLING) continue;
+    rejected = true;
+    EXPECT_EQ(s->state, foresight_msg_UPLOAD_REJECTED);
+    EXPECT_EQ(s->code, foresight_msg_REASON_HASH_MISMATCH);
+    EXPECT_EQ(fp::get_hash(s->content_hash), foresight::trajectory_hash(trajectory));  // the remote's own
+  }
+  EXPECT_TRUE(rejected);
+  // Over the URDF's velocity limit: 1 rad in 0.01 s on joint 1.
+  auto fast = slow_sine(200);
+  fast.positions_rad(100, 0) += 1.0;
+  const auto up = ground_->upload(fast, 30s);
+  EXPECT_EQ(up.state, control::UploadState::Rejected);
+  EXPECT_EQ(up.code, control::Reason::ValidationFailed);
+  EXPECT_NE(up.reason.find("velocity"), std::string::npos) << up.reason;
+  EXPECT_FALSE(up.committed());
+}
+
+TEST_F(LinkLoopback, DelayStatisticsAndTelemetryAgesAreSane) {
+  ASSERT_TRUE(ground_->delay().wait_samples(30, 20s));
+  const auto d = ground_->delay().stats();
+  EXPECT_GE(d.count, 30u);
+  EXPECT_GT(d.min_s, 0.0);
+  EXPECT_LE(d.min_s, d.median_s);
+  EXPECT_LE(d.median_s, d.p95_s);
+  EXPECT_LE(d.p95_s, d.p99_s);
+  EXPECT_LE(d.p99_s, d.max_s);
+  EXPECT_LT(d.median_s, 0.05);  // loopback: tens of microseconds idle, a few ms loaded
+  EXPECT_EQ(d.share_over_4s, 0.0);
+  EXPECT_LT(std::abs(d.clock_offset_s), 0.005);  // one clock: the estimate is within the round trip
+  EXPECT_GE(d.sent, d.received);
+  ASSERT_TRUE(eventually([&] { return ground_->joint_state() && ground_->wrench() && ground_->tool() && ground_->status(); },
+                         10s));
+  const auto j = ground_->joint_state();
+  EXPECT_EQ(j->value.q_rad.size(), 7u);
+  EXPECT_EQ(j->value.torque_nm, std::vector<double>(7, 1.5));
+  EXPECT_GT(j->age_s, -0.005);
+  EXPECT_LT(j->age_s, 1.0);
+  EXPECT_EQ(ground_->wrench()->value.force_tool_n[2], 3.0);
+  EXPECT_EQ(ground_->tool()->value.turns, 2.5);
+  EXPECT_TRUE(eventually([&] { return ground_->status()->value.mode == control::ControllerMode::Idle; }, 10s));
+  EXPECT_TRUE(ground_->remote_alive());
+  EXPECT_NE(ground_->remote_boot_id(), 0u);
+}
+
+TEST_F(LinkLoopback, TheRemoteDetectsLinkLossAndRegain) {
+  // IDLE: the remote has heard our heartbeat (the link is up).
+  ASSERT_TRUE(eventually([&] {
+    const auto s = ground_->status();
+    return s && s->value.mode == control::ControllerMode::Idle;
+  }, 10s));
+  ground_->pause_heartbeat();
+  EXPECT_TRUE(eventually([&] {
+    const auto s = ground_->status();
+    return s && s->value.mode == control::ControllerMode::Stopped && s->value.stop_reason == "link lost";
+  }, 15s));
+  ground_->resume_heartbeat();
+  EXPECT_TRUE(eventually([&] {
+    const auto s = ground_->status();
+    return s && s->value.mode == control::ControllerMode::Idle && s->value.stop_reason.empty();
+  }, 15s));
+}
+
+TEST(DelayStats, PercentilesSharesAndOffsetFromKnownSamples) {
+  std::vector<fp::DelaySample> samples;
+  for (int i = 1; i <= 100; ++i) {
+    fp::DelaySample d;
+    d.rtt_ns = i * 10'000'000LL;  // 10 ms .. 1 s
+    d.offset_ns = i == 1 ? 7'000 : 1'000'000;
+    samples.push_back(d);
+  }
+  samples[99].rtt_ns = 5'000'000'000;  // one 5 s outlier
+  const auto s = gl::compute_delay_stats(samples);
+  EXPECT_EQ(s.count, 100u);
+  EXPECT_DOUBLE_EQ(s.median_s, 0.50);
+  EXPECT_DOUBLE_EQ(s.p95_s, 0.95);
+  EXPECT_DOUBLE_EQ(s.p99_s, 0.99);
+  EXPECT_DOUBLE_EQ(s.max_s, 5.0);
+  EXPECT_DOUBLE_EQ(s.min_s, 0.01);
+  EXPECT_DOUBLE_EQ(s.share_over_0_5s, 0.50);  // 0.51 s .. 0.99 s and the 5 s one
+  EXPECT_DOUBLE_EQ(s.share_over_4s, 0.01);
+  EXPECT_DOUBLE_EQ(s.clock_offset_s, 7e-6);  // from the smallest round trip
+  EXPECT_DOUBLE_EQ(s.last_rtt_s, 5.0);
+  EXPECT_EQ(gl::compute_delay_stats({}).count, 0u);
+}
