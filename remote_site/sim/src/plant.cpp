@@ -304,7 +304,7 @@ PlantStep Plant::step(std::span<const double> q, std::span<const double> qd, con
   switch (state_) {
     case OruState::Fastened:
       if (gripped_ && screw_free) {
-        state_ = OruState::Carried;
+        state_ = OruState::Seated;  // loose in its slot, held by the tool: it comes out with it
         start_following();
       }
       break;

@@ -9,6 +9,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
+#include <functional>
+#include <thread>
 #include <cmath>
 #include <memory>
 #include <numbers>
@@ -18,7 +21,9 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/hw/lst_tool.hpp"
 #include "foresight/sim/contact_model.hpp"
+#include "foresight/sim/lst_server.hpp"
 #include "foresight/sim/plant.hpp"
 #include "sim_fixture.hpp"
 
@@ -222,14 +227,19 @@ TEST(Plant, OruStateMachineInTheRightOrderOnly) {
   EXPECT_NEAR(f_base.dot(w.base_T_oru.linear().col(2)), 100.0, 1.0);
   EXPECT_LT((plant.truth().base_T_oru.translation() - w.base_T_oru.translation()).norm(), 1e-12);
 
-  // Screw free and gripped: carried. No contact with the tool any more; the
-  // ORU's weight joins the tool's.
+  // Screw free and gripped: loose in the slot (seated), held by the tool;
+  // pulled out it is carried. No contact with the tool any more; the ORU's
+  // weight joins the tool's.
   r = step(plant, q_in, tool(true, 0.0));
-  EXPECT_EQ(r.state, OruState::Carried);
-  EXPECT_FALSE(r.socket_engaged);  // the loose screw spins with the socket
+  EXPECT_EQ(r.state, OruState::Seated);
+  EXPECT_TRUE(r.socket_engaged);
+  r = step(plant, w.q_at(along_axis(0.055)), tool(true, 0.0));  // 5 mm: still seated
+  EXPECT_EQ(r.state, OruState::Seated);
   const Eigen::VectorXd q_out = w.q_at(along_axis(-0.09));  // 15 cm back: clear of the slot
   r = step(plant, q_out, tool(true, 0.0));
   EXPECT_EQ(r.state, OruState::Carried);
+  EXPECT_FALSE(r.socket_engaged);  // the loose screw spins with the socket
+  EXPECT_EQ(step(plant, q_out, tool(true, 2.0)).state, OruState::Carried);  // carried: the screw fastens nothing
   const sim::PlantTruth t = plant.truth();
   const Pose home_T_now = w.base_T_oru.inverse() * t.base_T_oru;
   EXPECT_NEAR(home_T_now.translation().z(), -0.15, 1e-6);
@@ -266,8 +276,8 @@ TEST(Plant, UnlatchingACarriedOruDropsIt) {
   sim::Plant plant(w.robot, w.oru, w.base_T_oru, w.params);
   const Eigen::VectorXd q_in = w.q_at(along_axis(0.06));
   step(plant, q_in, tool(true, 8.0));
-  EXPECT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Carried);
-  step(plant, w.q_at(along_axis(-0.09)), tool(true, 0.0));
+  EXPECT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Seated);
+  EXPECT_EQ(step(plant, w.q_at(along_axis(-0.09)), tool(true, 0.0)).state, OruState::Carried);
   EXPECT_EQ(step(plant, w.q_at(along_axis(-0.09)), tool(false, 0.0)).state, OruState::Dropped);
   const Pose where = plant.truth().base_T_oru;
   EXPECT_EQ(step(plant, w.q_at(along_axis(0.06)), tool(true, 0.0)).state, OruState::Dropped);
@@ -284,7 +294,7 @@ TEST(Plant, CarriedOruFollowsTheToolAndItsSlotIsAContact) {
   sim::Plant plant(w.robot, w.oru, w.base_T_oru, w.params);
   const Eigen::VectorXd q_in = w.q_at(along_axis(0.06));
   step(plant, q_in, tool(true, 8.0));
-  ASSERT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Carried);
+  ASSERT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Seated);
   const Pose tip_T_oru = w.tip(q_in).inverse() * w.base_T_oru;
 
   // Rotations and translations of the tool well clear of the slot: the
@@ -319,4 +329,65 @@ TEST(Plant, CarriedOruFollowsTheToolAndItsSlotIsAContact) {
   // The same force reaches the sensor (slot_ft is in the sensor frame).
   const Pose base_T_s = w.tip(w.seed) * plant.params().contact.tip_T_sensor;
   EXPECT_LT((base_T_s.linear() * r.slot_ft.force_n - f).norm(), 1e-6);
+}
+
+// The whole simulated site: drives holding the tool 6 cm deep in the hole,
+// the plant as the F/T node's wrench source, the LST over Modbus TCP. The
+// real LST client latches and loosens; the plant engages the socket on the
+// bolt (the screw model turns it loose) and the ORU comes free, following
+// the tool.
+TEST(Plant, LatchAndLoosenThroughTheLstFreeTheOru) {
+  auto w = std::make_shared<World>();
+  const hw::RemoteConfig config = project_config();
+  const Eigen::VectorXd q_in = w->q_at(along_axis(0.06));
+  auto plant = std::make_shared<sim::Plant>(w->robot, w->oru, w->base_T_oru, w->params);
+  sim::LstServerOptions lo;
+  lo.mechanism = sim::load_lst_mechanism_params(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  sim::LstServer server(lo);
+  SimRig rig(config, hw::joint_limits_by_name(w->robot), [&](sim::CanSimulator& s) {
+    for (std::size_t j = 0; j < config.drives.size(); ++j) {
+      std::int32_t counts = 0;
+      ASSERT_TRUE(config.drives[j].to_counts(q_in[static_cast<Eigen::Index>(j)], counts));
+      s.drive(j).set_position_counts(counts);
+    }
+    plant->attach(s, &server);
+  });
+  rig.bring_up();
+  // The master cycles on its own thread while this one talks to the tool.
+  std::atomic<bool> run{true};
+  std::atomic<bool> cycles_ok{true};
+  std::thread cycler([&] {
+    while (run) {
+      if (!rig.cycle().ok()) cycles_ok = false;
+    }
+  });
+  auto wait_for = [&](const std::function<bool(const sim::PlantTruth&)>& pred, double timeout_s) {
+    const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
+    while (Clock::now() < deadline) {
+      if (pred(plant->truth())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return pred(plant->truth());
+  };
+  EXPECT_TRUE(wait_for([](const sim::PlantTruth& t) { return t.steps > 5 && t.socket_engaged; }, 5.0));
+
+  hw::LstToolConfig tc;
+  tc.port = server.port();
+  tc.response_timeout_s = 1.0;
+  hw::LstTool lst(tc);
+  ASSERT_FALSE(lst.latch()) << lst.last_error_message();
+  hw::LstStatus st;
+  ASSERT_FALSE(lst.wait_for([](const hw::LstStatus& s) { return s.latched(); }, 5.0, st)) << lst.last_error_message();
+  EXPECT_TRUE(wait_for([](const sim::PlantTruth& t) { return t.gripped; }, 5.0));
+  EXPECT_EQ(plant->oru_state(), OruState::Fastened);
+
+  hw::LstTool::RunResult rr;
+  ASSERT_FALSE(lst.loosen(8.5, 40.0, 20.0, 10.0, rr)) << lst.last_error_message();
+  EXPECT_TRUE(server.state().screw_free());
+  EXPECT_TRUE(wait_for([](const sim::PlantTruth& t) { return t.state == OruState::Seated; }, 5.0));
+  run = false;
+  cycler.join();
+  EXPECT_TRUE(cycles_ok);
+  EXPECT_TRUE(plant->truth().gripped);
+  plant->detach();
 }

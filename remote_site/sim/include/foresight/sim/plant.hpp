@@ -21,11 +21,13 @@
 //
 // The ORU is a carried object. Its states (OruState):
 //
-//   Fastened --(gripped AND screw free)--> Carried --(back in the slot to
-//   depth)--> Seated --(screw tightened to seating)--> Fastened
-//   Carried --(latch opened)--> Dropped (the ORU falls: terminal)
-//   Seated --(pulled back out, screw still free)--> Carried
+//   Fastened --(gripped AND screw free)--> Seated (loose in its slot, held
+//   by the tool) --(pulled out > 5 mm, screw still free)--> Carried --(back
+//   in the slot to depth)--> Seated --(screw tightened to seating)--> Fastened
+//   Carried --(latch opened)--> Dropped (the ORU falls: terminal until reset)
 //
+// (A loosened ORU still in its slot is Seated, so re-tightening it in place
+// without pulling it out fastens it again.)
 // "Gripped": the LST latch closed while the tool tip was in the hole to at
 // least grasp_depth_m (a latch closed outside the hole grips nothing; opening
 // the latch releases). "Screw free": the screw model's engaged turns are 0
