@@ -67,13 +67,14 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   c.line = line_of(s);
   static constexpr std::array kTop{"start_tolerance_rad", "link",          "reports",
                                    "journal",             "estop_file",    "tool_poll_hz",
-                                   "default_algorithm_timeout_s"};
+                                   "default_algorithm_timeout_s", "control_lease_s"};
   r.check_keys(s, "controller", kTop);
   c.start_tolerance_rad = r.positive(s, "start_tolerance_rad", c.start_tolerance_rad, "controller");
   c.estop_file = r.text(s, "estop_file", c.estop_file, "controller");
   c.tool_poll_hz = r.positive(s, "tool_poll_hz", c.tool_poll_hz, "controller");
   c.default_algorithm_timeout_s =
       r.positive(s, "default_algorithm_timeout_s", c.default_algorithm_timeout_s, "controller");
+  c.control_lease_s = r.positive(s, "control_lease_s", c.control_lease_s, "controller");
 
   if (const YAML::Node link = s["link"]) {
     static constexpr std::array kLink{"loss_timeout_s", "loss_policy"};

@@ -46,7 +46,8 @@ TEST(DaemonConfig, EveryKeyIsRead) {
       "  journal: {path: j.db, max_mb: 8, keep_files: 2, telemetry_hz: 4}\n"
       "  estop_file: /tmp/estop\n"
       "  tool_poll_hz: 3\n"
-      "  default_algorithm_timeout_s: 30\n",
+      "  default_algorithm_timeout_s: 30\n"
+      "  control_lease_s: 4\n",
       "r.yaml");
   EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.02);
   EXPECT_DOUBLE_EQ(c.link_loss_timeout_s, 7.5);
@@ -62,12 +63,13 @@ TEST(DaemonConfig, EveryKeyIsRead) {
   EXPECT_EQ(c.estop_file, "/tmp/estop");
   EXPECT_DOUBLE_EQ(c.tool_poll_hz, 3);
   EXPECT_DOUBLE_EQ(c.default_algorithm_timeout_s, 30);
+  EXPECT_DOUBLE_EQ(c.control_lease_s, 4);
 }
 
 TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller: unknown key 'speed' (expected one of: start_tolerance_rad, link, reports, journal, "
-            "estop_file, tool_poll_hz, default_algorithm_timeout_s)");
+            "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s)");
   EXPECT_EQ(error_of("controller:\n  link:\n    loss_policy: panic\n"),
             "r.yaml:3: controller.link.loss_policy: 'panic' is not a policy (expected finish_and_hold or stop)");
   EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: -5\n"),

@@ -40,6 +40,10 @@ struct DaemonConfig {
   std::string estop_file;                 ///< E-stop (category 0) while this file exists; "" = no such input
   double tool_poll_hz = 5.0;              ///< LST status reads when the tool is idle
   double default_algorithm_timeout_s = 60.0;
+  /// A ground session holding control that has sent nothing for this long,
+  /// with nothing of its own running, may be superseded by another's
+  /// TAKE_CONTROL (a commander that crashed does not lock the robot).
+  double control_lease_s = 10.0;
 };
 
 /// Reads the optional `controller:` section (defaults when absent). Unknown

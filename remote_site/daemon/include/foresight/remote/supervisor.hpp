@@ -1,0 +1,193 @@
+#pragma once
+// The daemon's supervisor: everything between the link and the real-time
+// loop, on one non-real-time thread.
+//
+//   link thread --submit()/upload()/link_event()--> inbox (mutex, non-RT)
+//   supervisor thread (run_once, every ~2 ms):
+//     commands: journal (durable) -> ack RECEIVED -> checks (control holder,
+//       controller state, payload against the robot) -> REJECTED, or
+//       QUEUED -> started when the arm is free -> EXECUTING -> COMPLETED |
+//       FAILED | CANCELED with the actual final joints. Every state is
+//       journaled durably before it is acknowledged.
+//     motions: TRAJECTORY (a committed upload, hash equal, prepared for the
+//       loop), GOTO_JOINT / GOTO_CART (planned here with the planner the
+//       ground previews with, foresight::plan_motion: min-jerk joint move /
+//       straight line of the tool tip), the RT algorithms (guarded_move,
+//       insert, pull_out) -> the loop's command ring; the tool steps (latch,
+//       unlatch, loosen, tighten) -> the tool thread while the arm holds
+//       compliantly; CAMERA -> the video switch; RECOVER -> enable / recover.
+//     the loop's rings: events -> acks; stops -> fault rows (with evidence)
+//       and a status report; telemetry -> reports at the configured rates and
+//       journal rows.
+//     inputs: the E-stop file, the link-loss events (the controller applies
+//       the configured policy).
+//   Control: one ground session holds control (TAKE_CONTROL / RELEASE_CONTROL);
+//   every motion, tool, camera and recover command of another session is
+//   REJECTED NotInControl; any session may ABORT and REQUEST. A holder that
+//   has sent nothing for control_lease_s with nothing of its own running may
+//   be superseded.
+//
+// Threads: submit, upload, link_event are thread-safe (the link thread);
+// everything else runs on the supervisor thread. Not real-time.
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "foresight/common/robot_model.hpp"
+#include "foresight/control/control_loop.hpp"
+#include "foresight/control/trajectory_executor.hpp"
+#include "foresight/hw/lst_tool.hpp"
+#include "foresight/hw/video_switch.hpp"
+#include "foresight/journal/journal.hpp"
+#include "foresight/remote/daemon_config.hpp"
+#include "foresight/remote/tool_worker.hpp"
+#include "foresight/remote_link/remote_link.hpp"
+
+namespace foresight::remote {
+
+/// Where acks and reports go (the DDS link in the daemon; a recorder in tests).
+struct Outbox {
+  std::function<void(const control::Ack&)> ack;
+  std::function<void(const control::JointReport&)> joints;
+  std::function<void(const control::WrenchReport&)> wrench;
+  std::function<void(const control::ToolReport&)> tool;
+  std::function<void(const control::StatusReport&)> status;
+  std::function<void()> republish_uploads;
+};
+
+struct SupervisorParts {
+  const RobotModel* model = nullptr;
+  DaemonConfig config;
+  control::ControlLoop* loop = nullptr;
+  journal::Journal* journal = nullptr;
+  ToolWorker* tool = nullptr;                  ///< may be null: tool steps are then refused
+  hw::VideoSwitch* video = nullptr;            ///< may be null: CAMERA is then refused
+  std::vector<std::string> camera_names;       ///< video switch index = position
+  Outbox outbox;
+};
+
+class Supervisor {
+ public:
+  explicit Supervisor(SupervisorParts parts);
+  ~Supervisor();
+  Supervisor(const Supervisor&) = delete;
+  Supervisor& operator=(const Supervisor&) = delete;
+
+  // ---- link thread -------------------------------------------------------------
+  void submit(const remote_link::CommandEvent& event);
+  void upload(const remote_link::UploadEvent& event);
+  void link_event(const remote_link::LinkEvent& event);
+
+  // ---- supervisor thread ---------------------------------------------------------
+  /// One pass: inbox, loop rings, tool results, reports, inputs.
+  void run_once();
+  /// run_once until `quit`, waking on the inbox or every 2 ms.
+  void run(const std::atomic<bool>& quit);
+  /// Refuse new commands, cancel what is queued and the tool step, stop the
+  /// loop (category 1 and drives off), ack what ran, journal it.
+  void shutdown(const std::string& why);
+
+  /// Latest telemetry from the loop (stamp is CLOCK_MONOTONIC).
+  const control::TelemetrySample& latest() const noexcept { return latest_; }
+  control::ControllerMode mode() const noexcept { return latest_.mode; }
+  std::uint64_t commander() const noexcept { return commander_; }
+
+ private:
+  enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover };
+  struct Job {
+    control::Command command;
+    JobKind kind = JobKind::Trajectory;
+    std::shared_ptr<const Trajectory> trajectory;           ///< Trajectory, or the planned Goto
+    std::unique_ptr<control::PreparedTrajectory> prepared;  ///< alive until the final event
+    control::AlgorithmParams algorithm{};
+    ToolStep tool_step;
+    bool compliant = false;
+    double start_tolerance_rad = 0.0;
+    bool executing = false;
+  };
+  using Clock = std::chrono::steady_clock;
+  using Inbox = std::variant<remote_link::CommandEvent, remote_link::UploadEvent, remote_link::LinkEvent>;
+
+  void handle(const remote_link::CommandEvent& event);
+  void handle(const remote_link::UploadEvent& event);
+  void handle(const remote_link::LinkEvent& event);
+  void dispatch(const control::Command& command);
+
+  /// Journal durably, then acknowledge; remembers the last ack of the command.
+  void ack(const control::Command& command, control::AckState state, control::Reason code = control::Reason::None,
+           const std::string& reason = {}, std::vector<double> final_q = {});
+  void reject(const control::Command& command, control::Reason code, const std::string& reason);
+
+  // Checks; "" when fine, else the reason (code in *code).
+  std::string check_commander(const control::Command& command, control::Reason* code) const;
+  std::string check_can_move(control::Reason* code) const;
+
+  std::unique_ptr<Job> make_job(const control::Command& command, control::Reason* code, std::string* reason);
+  bool plan_goto(Job& job, control::Reason* code, std::string* reason);
+  void enqueue(std::unique_ptr<Job> job);
+  void start_next();
+  void finish_running(control::AckState state, control::Reason code, const std::string& reason,
+                      std::vector<double> final_q);
+  void cancel_queued(const std::string& why);
+
+  void do_abort(const control::Command& command);
+  void do_request(const control::Command& command);
+  void do_camera(const control::Command& command);
+
+  void poll_loop();
+  void poll_tool();
+  void publish_reports(bool force_status);
+  void check_inputs();
+  std::uint64_t internal_id() noexcept { return (1ull << 63) | ++internal_counter_; }
+  std::vector<double> current_q() const;
+  std::int64_t to_wall_ns(std::int64_t mono_ns) const noexcept;
+  control::StatusReport status_report() const;
+  void journal_event(const std::string& kind, const std::string& text, const std::string& detail = {});
+
+  SupervisorParts p_;
+  const RobotModel& model_;
+
+  std::mutex inbox_mu_;
+  std::condition_variable inbox_cv_;
+  std::deque<Inbox> inbox_;
+
+  std::map<std::uint64_t, std::shared_ptr<const Trajectory>> uploads_;  ///< committed, by id
+  std::map<std::uint64_t, TrajectoryHash> upload_hash_;
+  std::deque<std::uint64_t> upload_order_;
+  std::map<std::uint64_t, control::Ack> last_ack_;  ///< by command id (bounded)
+  std::deque<std::uint64_t> last_ack_order_;
+  std::map<std::uint64_t, control::Command> aborts_;  ///< Stop sent for these ABORT commands
+
+  std::deque<std::unique_ptr<Job>> queue_;
+  std::unique_ptr<Job> running_;
+
+  std::uint64_t commander_ = 0;
+  Clock::time_point commander_active_{};
+  std::uint64_t last_sequence_ = 0;
+
+  control::TelemetrySample latest_{};
+  bool have_telemetry_ = false;
+  control::StopEvent last_stop_{};
+  bool have_stop_ = false;
+  control::ControllerMode reported_mode_ = control::ControllerMode::Disabled;
+  bool estop_ = false;
+  bool link_lost_ = false;
+  bool shutting_down_ = false;
+  std::uint64_t internal_counter_ = 0;
+  std::string fault_text_;
+
+  Clock::time_point next_joints_{}, next_wrench_{}, next_tool_{}, next_status_{}, next_input_check_{};
+};
+
+}  // namespace foresight::remote

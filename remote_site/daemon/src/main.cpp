@@ -1,0 +1,205 @@
+// foresight-remote: the robot-cabinet daemon.
+//
+//   foresight-remote [--config config/remote.yaml] [--sim] [--journal FILE]
+//                    [--domain N] [--estop-file F]
+//   foresight-remote journal [--db FILE] [--since T] [--json]
+//
+// Exit status: 0 after a clean shutdown (SIGINT/SIGTERM: controlled stop,
+// category 1, journal flushed, drives disabled); 2 on a bad configuration
+// (the message names the file, line and key); 1 when the hardware cannot be
+// brought up or the daemon fails.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+
+#include "foresight/common/error.hpp"
+#include "foresight/control/control_loop.hpp"
+#include "foresight/journal/journal.hpp"
+#include "foresight/journal/reader.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/remote/daemon_config.hpp"
+#include "foresight/remote/site.hpp"
+#include "foresight/remote/supervisor.hpp"
+#include "foresight/remote/tool_worker.hpp"
+#include "foresight/remote_link/remote_link.hpp"
+#include "foresight/sim/plant.hpp"
+
+namespace {
+
+std::atomic<bool> g_quit{false};
+std::atomic<int> g_signal{0};
+
+extern "C" void on_signal(int sig) {
+  g_signal.store(sig);
+  g_quit.store(true);
+}
+
+std::string default_config() {
+  if (const char* dir = std::getenv("FORESIGHT_CONFIG_DIR")) return std::string(dir) + "/remote.yaml";
+  return FORESIGHT_DEFAULT_CONFIG_DIR "/remote.yaml";
+}
+
+int default_domain() {
+  if (const char* d = std::getenv("FORESIGHT_DDS_DOMAIN")) return std::atoi(d);
+  return 0;
+}
+
+struct Options {
+  std::string config = default_config();
+  bool sim = false;
+  std::string journal;
+  int domain = default_domain();
+  std::string estop_file;
+};
+
+int run_daemon(const Options& o) {
+  using namespace foresight;
+  // ---- configuration (exit 2 on any error) -----------------------------------------
+  remote::DaemonConfig config = remote::load_daemon_config(o.config);
+  if (!o.journal.empty()) config.journal.path = o.journal;
+  if (!o.estop_file.empty()) config.estop_file = o.estop_file;
+  remote::SiteOptions site_options;
+  site_options.remote_yaml = o.config;
+  site_options.sim = o.sim;
+  remote::Site site = remote::build_site(site_options);
+  const RobotModel& model = *site.model;
+
+  journal::JournalOptions jo;
+  jo.path = config.journal.path;
+  jo.max_bytes = static_cast<std::uint64_t>(config.journal.max_mb * 1024.0 * 1024.0);
+  jo.keep_files = config.journal.keep_files;
+  jo.telemetry_rate_hz = config.journal.telemetry_hz;
+  journal::Journal journal(jo);
+  if (!journal.previous_shutdown_clean())
+    spdlog::warn("journal {}: the previous run did not shut down cleanly; coming up holding, drives disabled",
+                 journal.path());
+
+  // ---- hardware: configured, NOT enabled (nothing moves until the ground says so)
+  spdlog::info("configuring {} drives on {} bus(es) at {} Hz", site.hw_config.drives.size(),
+               site.hw_config.buses.size(), site.hw_config.cycle_rate_hz);
+  for (const auto& load : site.drives->bus_loads()) spdlog::info("{}", load.describe());
+  site.drives->configure();
+
+  control::ControllerConfig cc;
+  cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
+  cc.start_tolerance_rad = config.start_tolerance_rad;
+  cc.link_loss = config.link_loss_policy == remote::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
+                                                                         : control::LinkLossPolicy::FinishThenHold;
+  if (site.simulated && site.simulated->plant) {
+    // The simulated tool's mass properties (from the URDF); on a cabinet they
+    // come from the tool's own calibration in the URDF the same way.
+    const auto& plant = *site.simulated->plant;
+    cc.tool.mass_kg = plant.tool_mass_kg();
+    for (int i = 0; i < 3; ++i) cc.tool.com_sensor_m[static_cast<std::size_t>(i)] = plant.tool_com_sensor_m()[i];
+    cc.tool.sensor_T_tip = plant.sensor_T_tip();
+  }
+  control::ControlLoop loop(*site.drives, model, cc);
+  loop.start();
+  for (const auto& w : loop.warnings()) spdlog::warn("control loop: {}", w);
+
+  remote::ToolWorker tool(site.tool_config, config.tool_poll_hz);
+  std::unique_ptr<hw::VideoSwitch> video;
+  if (!site.camera_names.empty()) video = std::make_unique<hw::VideoSwitch>(site.video_config);
+
+  remote_link::RemoteLink* link_ptr = nullptr;
+  remote::SupervisorParts parts;
+  parts.model = &model;
+  parts.config = config;
+  parts.loop = &loop;
+  parts.journal = &journal;
+  parts.tool = &tool;
+  parts.video = video.get();
+  parts.camera_names = site.camera_names;
+  parts.outbox.ack = [&](const control::Ack& a) { if (link_ptr) link_ptr->ack(a); };
+  parts.outbox.joints = [&](const control::JointReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.wrench = [&](const control::WrenchReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.tool = [&](const control::ToolReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.status = [&](const control::StatusReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.republish_uploads = [&] { if (link_ptr) link_ptr->republish_uploads(); };
+  remote::Supervisor supervisor(std::move(parts));
+
+  if (o.sim) protocol::use_loopback_if_unconfigured();
+  remote_link::Config lc;
+  lc.domain = o.domain;
+  lc.link_loss_s = config.link_loss_timeout_s;
+  lc.trajectory_limits = TrajectoryLimits::from_model(model);
+  remote_link::Handlers handlers;
+  handlers.on_command = [&](const remote_link::CommandEvent& e) { supervisor.submit(e); };
+  handlers.on_upload = [&](const remote_link::UploadEvent& e) { supervisor.upload(e); };
+  handlers.on_link = [&](const remote_link::LinkEvent& e) { supervisor.link_event(e); };
+  remote_link::RemoteLink link(lc, handlers);
+  link_ptr = &link;
+
+  {
+    journal::EventRow start;
+    start.kind = "start";
+    start.text = std::string("foresight-remote started") + (o.sim ? " (--sim)" : "") + ", config " + o.config +
+                 ", DDS domain " + std::to_string(o.domain);
+    journal.record_event(start);
+  }
+  spdlog::info("foresight-remote ready: DDS domain {}, journal {}, drives disabled until RECOVER", o.domain,
+               journal.path());
+  std::cout << "foresight-remote: ready" << std::endl;  // tests and scripts wait for this line
+
+  supervisor.run(g_quit);
+
+  const int sig = g_signal.load();
+  const std::string why = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "stop requested";
+  spdlog::info("{}: controlled stop (category 1), drives off", why);
+  supervisor.shutdown(why);
+  link_ptr = nullptr;
+  link.stop();
+  if (!journal.flush()) spdlog::warn("journal: telemetry not flushed within the timeout");
+  journal.close();
+  spdlog::info("foresight-remote stopped");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+  CLI::App app{"foresight-remote: the Foresight robot-cabinet daemon (real-time control, DDS link, journal)"};
+  Options o;
+  app.add_option("--config", o.config, "remote configuration (config/remote.yaml)");
+  app.add_flag("--sim", o.sim, "embedded simulated robot: mock CAN buses with simulated drives and F/T sensor, the "
+                               "simulated LST and video switch on 127.0.0.1");
+  app.add_option("--journal", o.journal, "journal database (overrides controller.journal.path)");
+  app.add_option("--domain", o.domain, "DDS domain id (default $FORESIGHT_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--estop-file", o.estop_file, "E-stop (category 0) while this file exists (HIL tests, --sim)");
+
+  foresight::journal::JournalQuery q;
+  CLI::App* jcmd = app.add_subcommand("journal", "print the journal: commands, faults, uploads, events");
+  jcmd->add_option("--db", q.db, "journal database");
+  jcmd->add_option("--since", q.since, "only rows at or after T (ns since the epoch, or ISO-8601 UTC)");
+  jcmd->add_flag("--json", q.json, "one JSON object");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+  if (jcmd->parsed()) return foresight::journal::run_journal_command(q, std::cout, std::cerr);
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+  try {
+    return run_daemon(o);
+  } catch (const foresight::InputError& e) {
+    std::cerr << "foresight-remote: error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "foresight-remote: error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,1006 @@
+#include "foresight/remote/supervisor.hpp"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+
+#include "foresight/common/plan.hpp"
+#include "foresight/remote/algorithm_params.hpp"
+
+namespace foresight::remote {
+
+using control::AckState;
+using control::CommandKind;
+using control::ControllerMode;
+using control::MotionCommand;
+using control::MotionCommandKind;
+using control::MotionEvent;
+using control::MotionEventKind;
+using control::Reason;
+
+namespace {
+
+constexpr std::size_t kAckMemory = 1024;      // commands whose last ack is kept (duplicates)
+constexpr std::size_t kUploadsKept = 8;
+
+std::string upper(const char* s) {
+  std::string out(s);
+  for (auto& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return out;
+}
+
+std::int64_t mono_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
+std::int64_t wall_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
+std::string fmt(const char* f, double a, double b = 0.0) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, f, a, b);
+  return buf;
+}
+
+/// The payload as JSON, for the RECEIVED row.
+nlohmann::json payload_json(const control::Command& c) {
+  nlohmann::json j = nlohmann::json::object();
+  std::visit(
+      [&](const auto& p) {
+        using P = std::decay_t<decltype(p)>;
+        if constexpr (std::is_same_v<P, control::RunTrajectory>) {
+          j["trajectory_id"] = p.trajectory_id;
+          j["hash"] = to_hex(p.content_hash);
+          j["compliant"] = p.compliant;
+          j["start_tolerance_rad"] = p.start_tolerance_rad;
+        } else if constexpr (std::is_same_v<P, control::InvokeAlgorithm>) {
+          j["name"] = p.name;
+          nlohmann::json params = nlohmann::json::object();
+          for (const auto& nv : p.params) params[nv.name] = nv.value;
+          j["params"] = params;
+          j["timeout_s"] = p.timeout_s;
+        } else if constexpr (std::is_same_v<P, control::Request>) {
+          j["what"] = static_cast<int>(p.what);
+        } else if constexpr (std::is_same_v<P, control::CameraCommand>) {
+          j["camera"] = p.camera;
+          j["action"] = static_cast<int>(p.action);
+          j["pan_rad"] = p.pan_rad;
+          j["tilt_rad"] = p.tilt_rad;
+          j["focal_px"] = p.focal_px;
+        } else if constexpr (std::is_same_v<P, control::GotoJoint>) {
+          j["q_rad"] = p.q_rad;
+          j["speed_fraction"] = p.speed_fraction;
+        } else if constexpr (std::is_same_v<P, control::GotoCart>) {
+          j["frame"] = p.frame;
+          const Eigen::Vector3d t = p.base_T_frame.translation();
+          j["position_m"] = {t.x(), t.y(), t.z()};
+          const Eigen::Quaterniond q(p.base_T_frame.linear());
+          j["orientation_xyzw"] = {q.x(), q.y(), q.z(), q.w()};
+          j["speed_fraction"] = p.speed_fraction;
+        } else if constexpr (std::is_same_v<P, control::Abort>) {
+          j["target_command_id"] = p.target_command_id;
+          j["category"] = static_cast<int>(p.category);
+          j["reason"] = p.reason;
+        }
+      },
+      c.payload);
+  return j;
+}
+
+}  // namespace
+
+Supervisor::Supervisor(SupervisorParts parts) : p_(std::move(parts)), model_(*p_.model) {
+  if (p_.loop == nullptr || p_.journal == nullptr || p_.model == nullptr)
+    throw std::invalid_argument("Supervisor: the loop, the journal and the model are required");
+  latest_.joints = static_cast<std::size_t>(model_.dof());
+  const auto now = Clock::now();
+  next_joints_ = next_wrench_ = next_tool_ = next_status_ = next_input_check_ = now;
+}
+
+Supervisor::~Supervisor() = default;
+
+// ---- link thread --------------------------------------------------------------------
+
+void Supervisor::submit(const remote_link::CommandEvent& event) {
+  {
+    std::lock_guard lock(inbox_mu_);
+    inbox_.emplace_back(event);
+  }
+  inbox_cv_.notify_one();
+}
+
+void Supervisor::upload(const remote_link::UploadEvent& event) {
+  {
+    std::lock_guard lock(inbox_mu_);
+    inbox_.emplace_back(event);
+  }
+  inbox_cv_.notify_one();
+}
+
+void Supervisor::link_event(const remote_link::LinkEvent& event) {
+  {
+    std::lock_guard lock(inbox_mu_);
+    inbox_.emplace_back(event);
+  }
+  inbox_cv_.notify_one();
+}
+
+// ---- supervisor thread ------------------------------------------------------------
+
+void Supervisor::run(const std::atomic<bool>& quit) {
+  while (!quit.load(std::memory_order_acquire)) {
+    run_once();
+    std::unique_lock lock(inbox_mu_);
+    inbox_cv_.wait_for(lock, std::chrono::milliseconds(2), [this] { return !inbox_.empty(); });
+  }
+}
+
+void Supervisor::run_once() {
+  poll_loop();
+  std::deque<Inbox> batch;
+  {
+    std::lock_guard lock(inbox_mu_);
+    batch.swap(inbox_);
+  }
+  for (const auto& item : batch) std::visit([this](const auto& e) { handle(e); }, item);
+  poll_tool();
+  poll_loop();
+  check_inputs();
+  publish_reports(false);
+}
+
+void Supervisor::journal_event(const std::string& kind, const std::string& text, const std::string& detail) {
+  try {
+    journal::EventRow row;
+    row.stamp_ns = wall_now_ns();
+    row.kind = kind;
+    row.text = text;
+    row.detail = detail;
+    p_.journal->record_event(row);
+  } catch (const std::exception& e) {
+    spdlog::error("journal: {}", e.what());
+  }
+}
+
+void Supervisor::ack(const control::Command& command, AckState state, Reason code, const std::string& reason,
+                     std::vector<double> final_q) {
+  control::Ack a;
+  a.session_id = command.session_id;
+  a.command_id = command.command_id;
+  a.sequence_number = command.sequence_number;
+  a.kind = command.kind;
+  a.state = state;
+  a.code = code;
+  a.reason = reason;
+  a.stamp_ns = wall_now_ns();
+  a.final_q_rad = std::move(final_q);
+
+  journal::CommandRow row;
+  row.stamp_ns = a.stamp_ns;
+  row.session_id = a.session_id;
+  row.command_id = a.command_id;
+  row.sequence_number = a.sequence_number;
+  row.kind = upper(control::to_string(a.kind));
+  row.state = upper(control::to_string(state));
+  row.code = upper(control::to_string(code));
+  row.reason = reason;
+  nlohmann::json detail = state == AckState::Received ? payload_json(command) : nlohmann::json::object();
+  if (!a.final_q_rad.empty()) detail["final_q_rad"] = a.final_q_rad;
+  row.detail = detail.dump();
+  try {
+    p_.journal->record_command(row);  // durable before the ack leaves
+  } catch (const std::exception& e) {
+    spdlog::error("journal: {} (command {} {})", e.what(), a.command_id, row.state);
+  }
+  if (p_.outbox.ack) p_.outbox.ack(a);
+  if (!last_ack_.count(a.command_id)) {
+    last_ack_order_.push_back(a.command_id);
+    if (last_ack_order_.size() > kAckMemory) {
+      last_ack_.erase(last_ack_order_.front());
+      last_ack_order_.pop_front();
+    }
+  }
+  last_ack_[a.command_id] = std::move(a);
+}
+
+void Supervisor::reject(const control::Command& command, Reason code, const std::string& reason) {
+  spdlog::warn("command {} ({}) rejected: {}: {}", command.command_id, control::to_string(command.kind),
+               control::to_string(code), reason);
+  ack(command, AckState::Rejected, code, reason);
+}
+
+void Supervisor::handle(const remote_link::CommandEvent& event) {
+  const control::Command& c = event.command;
+  if (event.duplicate) {
+    // A re-sent command: answer with its last state, never run it twice.
+    if (auto it = last_ack_.find(c.command_id); it != last_ack_.end()) {
+      if (p_.outbox.ack) p_.outbox.ack(it->second);
+      return;
+    }
+  }
+  ack(c, AckState::Received);
+  if (!event.accepted()) {
+    reject(c, event.code, event.reason);
+    return;
+  }
+  if (shutting_down_) {
+    reject(c, Reason::Busy, "the controller is shutting down");
+    return;
+  }
+  if (c.session_id == commander_) commander_active_ = Clock::now();
+  last_sequence_ = std::max(last_sequence_, c.sequence_number);
+  dispatch(c);
+}
+
+std::string Supervisor::check_commander(const control::Command& c, Reason* code) const {
+  if (commander_ == c.session_id) return {};
+  *code = Reason::NotInControl;
+  if (commander_ == 0)
+    return std::string("no ground station holds control: send TAKE_CONTROL first");
+  char buf[120];
+  std::snprintf(buf, sizeof buf, "ground session %016llx holds control",
+                static_cast<unsigned long long>(commander_));
+  return buf;
+}
+
+std::string Supervisor::check_can_move(Reason* code) const {
+  if (link_lost_) {
+    *code = Reason::NotInControl;
+    return "the link to the ground is lost: no new motion";
+  }
+  switch (latest_.mode) {
+    case ControllerMode::Idle:
+    case ControllerMode::Trajectory:
+    case ControllerMode::Goto:
+    case ControllerMode::Algorithm:
+      return {};
+    case ControllerMode::Disabled:
+      *code = Reason::Faulted;
+      return "the drives are not enabled: send RECOVER first";
+    case ControllerMode::Stopping:
+    case ControllerMode::Stopped:
+    case ControllerMode::Fault: {
+      *code = Reason::Faulted;
+      std::string why = std::string("the controller is ") + control::to_string(latest_.mode);
+      if (have_stop_)
+        why += std::string(" (") + control::to_string(last_stop_.category) + ": " + last_stop_.text.data() + ")";
+      return why + ": send RECOVER first";
+    }
+  }
+  return {};
+}
+
+void Supervisor::dispatch(const control::Command& c) {
+  Reason code = Reason::None;
+  switch (c.kind) {
+    case CommandKind::TakeControl: {
+      const bool lease_over = commander_ != 0 && !running_ && queue_.empty() &&
+                              Clock::now() - commander_active_ >
+                                  std::chrono::duration<double>(p_.config.control_lease_s);
+      if (commander_ != 0 && commander_ != c.session_id && !lease_over) {
+        std::string why = check_commander(c, &code);
+        reject(c, Reason::NotInControl, why + " (it may RELEASE_CONTROL, or its lease ends after " +
+                                            fmt("%.0f s", p_.config.control_lease_s) + " of silence)");
+        return;
+      }
+      if (lease_over && commander_ != c.session_id)
+        journal_event("control", "control lease of a silent session ended; taken over");
+      commander_ = c.session_id;
+      commander_active_ = Clock::now();
+      ack(c, AckState::Completed, Reason::None, "control taken", current_q());
+      publish_reports(true);
+      return;
+    }
+    case CommandKind::ReleaseControl: {
+      if (commander_ != c.session_id) {
+        const std::string why = check_commander(c, &code);
+        reject(c, code, why);
+        return;
+      }
+      commander_ = 0;
+      ack(c, AckState::Completed, Reason::None, "control released", current_q());
+      return;
+    }
+    case CommandKind::Abort:
+      do_abort(c);
+      return;
+    case CommandKind::Request:
+      do_request(c);
+      return;
+    default:
+      break;
+  }
+  if (std::string why = check_commander(c, &code); !why.empty()) {
+    reject(c, code, why);
+    return;
+  }
+  if (c.kind == CommandKind::Camera) {
+    do_camera(c);
+    return;
+  }
+  if (c.kind != CommandKind::Recover) {
+    if (std::string why = check_can_move(&code); !why.empty()) {
+      reject(c, code, why);
+      return;
+    }
+  }
+  std::string reason;
+  auto job = make_job(c, &code, &reason);
+  if (!job) {
+    reject(c, code, reason);
+    return;
+  }
+  // Plan and check the start now when the arm is free, so that an
+  // unreachable goal or a trajectory that does not start at the arm is
+  // REJECTED before anything is queued.
+  if (!running_ && queue_.empty()) {
+    if (job->kind == JobKind::Goto && !plan_goto(*job, &code, &reason)) {
+      reject(c, code, reason);
+      return;
+    }
+    if (job->prepared && have_telemetry_) {
+      const double tol = job->start_tolerance_rad > 0.0 ? job->start_tolerance_rad : p_.config.start_tolerance_rad;
+      int joint = -1;
+      const double err = job->prepared->start_error(latest_.q_cmd, &joint);
+      if (err > tol) {
+        reject(c, Reason::StartMismatch,
+               "the trajectory starts " + fmt("%.4f rad from the arm at joint ", err) + std::to_string(joint + 1) +
+                   fmt(" (tolerance %.4f rad)", tol));
+        return;
+      }
+    }
+  }
+  enqueue(std::move(job));
+}
+
+std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c, Reason* code, std::string* reason) {
+  auto job = std::make_unique<Job>();
+  job->command = c;
+  const std::size_t dof = static_cast<std::size_t>(model_.dof());
+  switch (c.kind) {
+    case CommandKind::Trajectory: {
+      const auto& p = std::get<control::RunTrajectory>(c.payload);
+      const auto it = uploads_.find(p.trajectory_id);
+      if (it == uploads_.end()) {
+        *code = Reason::UnknownTrajectory;
+        *reason = "no committed upload with id " + std::to_string(p.trajectory_id);
+        return nullptr;
+      }
+      if (upload_hash_[p.trajectory_id] != p.content_hash) {
+        *code = Reason::HashMismatch;
+        *reason = "trajectory " + std::to_string(p.trajectory_id) + ": the command's hash " + to_hex(p.content_hash) +
+                  " differs from the committed upload's " + to_hex(upload_hash_[p.trajectory_id]);
+        return nullptr;
+      }
+      if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) || p.start_tolerance_rad > 0.5) {
+        *code = Reason::BadArgument;
+        *reason = fmt("start_tolerance_rad %g out of range [0, 0.5]", p.start_tolerance_rad);
+        return nullptr;
+      }
+      job->kind = JobKind::Trajectory;
+      job->trajectory = it->second;
+      job->compliant = p.compliant;
+      job->start_tolerance_rad = p.start_tolerance_rad;
+      try {
+        job->prepared = std::make_unique<control::PreparedTrajectory>(*it->second, p.trajectory_id);
+      } catch (const std::exception& e) {
+        *code = Reason::ValidationFailed;
+        *reason = e.what();
+        return nullptr;
+      }
+      return job;
+    }
+    case CommandKind::GotoJoint: {
+      const auto& p = std::get<control::GotoJoint>(c.payload);
+      if (p.q_rad.size() != dof) {
+        *code = Reason::JointCount;
+        *reason = std::to_string(p.q_rad.size()) + " joint values for a " + std::to_string(dof) + "-joint arm";
+        return nullptr;
+      }
+      for (std::size_t j = 0; j < dof; ++j) {
+        const auto& lim = model_.limits()[j];
+        if (!std::isfinite(p.q_rad[j]) || p.q_rad[j] < lim.lower_rad || p.q_rad[j] > lim.upper_rad) {
+          *code = Reason::BadArgument;
+          *reason = "joint " + std::to_string(j + 1) + fmt(": %.4f rad outside its limits", p.q_rad[j]) +
+                    fmt(" [%.4f, %.4f]", lim.lower_rad, lim.upper_rad);
+          return nullptr;
+        }
+      }
+      if (!(p.speed_fraction > 0.0 && p.speed_fraction <= 1.0)) {
+        *code = Reason::BadArgument;
+        *reason = fmt("speed_fraction %g out of range (0, 1]", p.speed_fraction);
+        return nullptr;
+      }
+      job->kind = JobKind::Goto;
+      return job;
+    }
+    case CommandKind::GotoCart: {
+      const auto& p = std::get<control::GotoCart>(c.payload);
+      const std::string tip = model_.links()[static_cast<std::size_t>(model_.tip_index())].name;
+      if (p.frame != tip) {
+        *code = Reason::BadArgument;
+        *reason = "unknown frame '" + p.frame + "' (GOTO_CART moves the tool tip '" + tip + "')";
+        return nullptr;
+      }
+      if (!(p.speed_fraction > 0.0 && p.speed_fraction <= 1.0)) {
+        *code = Reason::BadArgument;
+        *reason = fmt("speed_fraction %g out of range (0, 1]", p.speed_fraction);
+        return nullptr;
+      }
+      if (!p.base_T_frame.matrix().allFinite()) {
+        *code = Reason::BadArgument;
+        *reason = "the target pose is not finite";
+        return nullptr;
+      }
+      job->kind = JobKind::Goto;
+      return job;
+    }
+    case CommandKind::InvokeAlgorithm: {
+      const auto& p = std::get<control::InvokeAlgorithm>(c.payload);
+      if (const auto step = tool_step_from_name(p.name)) {
+        if (p_.tool == nullptr) {
+          *code = Reason::ToolFault;
+          *reason = p.name + ": no tool configured";
+          return nullptr;
+        }
+        const std::string why = parse_tool_step(p, *step, p_.tool->config(), job->tool_step);
+        if (!why.empty()) {
+          *code = Reason::BadArgument;
+          *reason = why;
+          return nullptr;
+        }
+        job->tool_step.command_id = c.command_id;
+        job->kind = JobKind::ToolStep;
+        return job;
+      }
+      const std::string why = parse_algorithm(p, job->algorithm);
+      if (!why.empty()) {
+        *code = job->algorithm.kind == control::AlgorithmKind::None ? Reason::UnknownAlgorithm : Reason::BadArgument;
+        *reason = job->algorithm.kind == control::AlgorithmKind::None
+                      ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten)"
+                      : why;
+        return nullptr;
+      }
+      job->kind = JobKind::Algorithm;
+      return job;
+    }
+    case CommandKind::Recover:
+      job->kind = JobKind::Recover;
+      return job;
+    default:
+      *code = Reason::Internal;
+      *reason = std::string("no handler for ") + control::to_string(c.kind);
+      return nullptr;
+  }
+}
+
+bool Supervisor::plan_goto(Job& job, Reason* code, std::string* reason) {
+  const std::size_t dof = static_cast<std::size_t>(model_.dof());
+  Eigen::VectorXd q0(static_cast<Eigen::Index>(dof));
+  for (std::size_t j = 0; j < dof; ++j) q0[static_cast<Eigen::Index>(j)] = latest_.q_cmd[j];
+  Goal goal;
+  PlanOptions options;
+  if (const auto* gj = std::get_if<control::GotoJoint>(&job.command.payload)) {
+    goal.name = "goto_joint";
+    goal.kind = SegmentKind::Joint;
+    goal.is_pose = false;
+    goal.q = Eigen::Map<const Eigen::VectorXd>(gj->q_rad.data(), static_cast<Eigen::Index>(dof));
+    options.limit_fraction = gj->speed_fraction;
+  } else {
+    const auto& gc = std::get<control::GotoCart>(job.command.payload);
+    goal.name = "goto_cart";
+    goal.kind = SegmentKind::Linear;
+    goal.is_pose = true;
+    goal.base_T_tip = gc.base_T_frame;
+    options.limit_fraction = gc.speed_fraction;
+    options.tool_speed_m_s = 0.1 * gc.speed_fraction;
+  }
+  try {
+    const Plan plan = plan_motion(model_, q0, {goal}, options);
+    job.trajectory = std::make_shared<const Trajectory>(plan.trajectory);
+    job.prepared = std::make_unique<control::PreparedTrajectory>(plan.trajectory, 0);
+  } catch (const std::exception& e) {
+    *code = Reason::Unreachable;
+    *reason = e.what();
+    return false;
+  }
+  return true;
+}
+
+void Supervisor::enqueue(std::unique_ptr<Job> job) {
+  ack(job->command, AckState::Queued);
+  queue_.push_back(std::move(job));
+  start_next();
+}
+
+void Supervisor::start_next() {
+  while (!running_ && !queue_.empty()) {
+    std::unique_ptr<Job> job = std::move(queue_.front());
+    queue_.pop_front();
+    Reason code = Reason::None;
+    std::string reason;
+    if (job->kind != JobKind::Recover) {
+      if (std::string why = check_can_move(&code); !why.empty()) {
+        ack(job->command, AckState::Failed, code, why, current_q());
+        continue;
+      }
+    }
+    if (job->kind == JobKind::Goto && !job->prepared && !plan_goto(*job, &code, &reason)) {
+      ack(job->command, AckState::Failed, code, reason, current_q());
+      continue;
+    }
+    MotionCommand mc;
+    mc.command_id = job->command.command_id;
+    switch (job->kind) {
+      case JobKind::Trajectory:
+      case JobKind::Goto:
+        mc.kind = MotionCommandKind::RunTrajectory;
+        mc.trajectory = job->prepared.get();
+        mc.compliant = job->compliant;
+        mc.start_tolerance_rad = job->start_tolerance_rad;
+        break;
+      case JobKind::Algorithm:
+        mc.kind = MotionCommandKind::RunAlgorithm;
+        mc.algorithm = job->algorithm;
+        break;
+      case JobKind::Recover:
+        mc.kind = latest_.mode == ControllerMode::Disabled ? MotionCommandKind::Enable : MotionCommandKind::Recover;
+        break;
+      case JobKind::ToolStep: {
+        // The arm holds compliantly while the tool turns or latches.
+        MotionCommand hold;
+        hold.command_id = internal_id();
+        hold.kind = MotionCommandKind::Hold;
+        hold.compliant = true;
+        (void)p_.loop->send(hold);
+        if (!p_.tool->start_step(job->tool_step)) {
+          ack(job->command, AckState::Failed, Reason::Busy, "the tool is busy", current_q());
+          continue;
+        }
+        job->executing = true;
+        ack(job->command, AckState::Executing);
+        running_ = std::move(job);
+        return;
+      }
+    }
+    if (!p_.loop->send(mc)) {
+      ack(job->command, AckState::Failed, Reason::Busy, "the control loop's command ring is full", current_q());
+      continue;
+    }
+    running_ = std::move(job);
+  }
+}
+
+void Supervisor::finish_running(AckState state, Reason code, const std::string& reason, std::vector<double> final_q) {
+  if (!running_) return;
+  ack(running_->command, state, code, reason, std::move(final_q));
+  running_.reset();
+  start_next();
+}
+
+void Supervisor::cancel_queued(const std::string& why) {
+  while (!queue_.empty()) {
+    ack(queue_.front()->command, AckState::Canceled, Reason::Aborted, why, current_q());
+    queue_.pop_front();
+  }
+}
+
+void Supervisor::do_abort(const control::Command& c) {
+  const auto& a = std::get<control::Abort>(c.payload);
+  if (a.category != control::StopCategory::Cat1 && a.category != control::StopCategory::Cat2) {
+    reject(c, Reason::BadArgument, "ABORT category must be 1 or 2");
+    return;
+  }
+  const std::string why = "aborted by command " + std::to_string(c.command_id) + (a.reason.empty() ? "" : ": " + a.reason);
+  if (a.target_command_id != 0) {
+    for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+      if ((*it)->command.command_id == a.target_command_id) {
+        ack((*it)->command, AckState::Canceled, Reason::Aborted, why, current_q());
+        queue_.erase(it);
+        ack(c, AckState::Completed, Reason::None, "canceled the queued command", current_q());
+        return;
+      }
+    }
+    if (!running_ || running_->command.command_id != a.target_command_id) {
+      reject(c, Reason::BadArgument,
+             "command " + std::to_string(a.target_command_id) + " is neither running nor queued");
+      return;
+    }
+  } else {
+    cancel_queued(why);
+  }
+  if (running_ && running_->kind == JobKind::ToolStep) {
+    p_.tool->cancel(running_->command.command_id);
+    if (a.target_command_id != 0) {
+      ack(c, AckState::Completed, Reason::None, "tool step canceled", current_q());
+      return;
+    }
+  }
+  // Stop the arm with the requested category; the loop cancels what runs.
+  MotionCommand stop;
+  stop.command_id = c.command_id;
+  stop.kind = MotionCommandKind::Stop;
+  stop.category = a.category;
+  if (!p_.loop->send(stop)) {
+    ack(c, AckState::Failed, Reason::Internal, "the control loop's command ring is full", current_q());
+    return;
+  }
+  aborts_[c.command_id] = c;
+  ack(c, AckState::Executing);
+}
+
+void Supervisor::do_request(const control::Command& c) {
+  const auto& r = std::get<control::Request>(c.payload);
+  switch (r.what) {
+    case control::RequestWhat::Status:
+      if (p_.outbox.status) p_.outbox.status(status_report());
+      break;
+    case control::RequestWhat::JointState:
+    case control::RequestWhat::Wrench:
+      next_joints_ = next_wrench_ = Clock::time_point{};  // publish both now
+      publish_reports(false);
+      break;
+    case control::RequestWhat::ToolState:
+      next_tool_ = Clock::time_point{};
+      publish_reports(false);
+      break;
+    case control::RequestWhat::Trajectories:
+      if (p_.outbox.republish_uploads) p_.outbox.republish_uploads();
+      break;
+  }
+  ack(c, AckState::Completed, Reason::None, "", current_q());
+}
+
+void Supervisor::do_camera(const control::Command& c) {
+  const auto& cam = std::get<control::CameraCommand>(c.payload);
+  if (p_.video == nullptr) {
+    reject(c, Reason::BadArgument, "no video switch configured");
+    return;
+  }
+  const auto it = std::find(p_.camera_names.begin(), p_.camera_names.end(), cam.camera);
+  if (it == p_.camera_names.end()) {
+    std::string list;
+    for (const auto& n : p_.camera_names) list += (list.empty() ? "" : ", ") + n;
+    reject(c, Reason::BadArgument, "unknown camera '" + cam.camera + "' (expected one of: " + list + ")");
+    return;
+  }
+  const int index = static_cast<int>(it - p_.camera_names.begin());
+  ack(c, AckState::Queued);
+  ack(c, AckState::Executing);
+  std::error_code ec;
+  switch (cam.action) {
+    case control::CameraAction::Select: ec = p_.video->select(index); break;
+    case control::CameraAction::Point: {
+      hw::CameraView v;
+      v.camera = index;
+      v.pan_rad = cam.pan_rad;
+      v.tilt_rad = cam.tilt_rad;
+      v.focal_px = cam.focal_px;
+      if (cam.focal_px <= 0.0) {
+        hw::CameraView now;
+        if (!p_.video->read_view(now)) v.focal_px = now.focal_px;
+      }
+      ec = p_.video->set_view(v);
+      break;
+    }
+    case control::CameraAction::Grab:
+      if (!(ec = p_.video->select(index))) ec = p_.video->grab();
+      break;
+  }
+  if (ec) {
+    ack(c, AckState::Failed, ec.value() == 3 ? Reason::BadArgument : Reason::Internal,
+        "video switch: " + p_.video->last_error_message(), current_q());
+    return;
+  }
+  ack(c, AckState::Completed, Reason::None, "camera " + cam.camera, current_q());
+}
+
+void Supervisor::handle(const remote_link::UploadEvent& e) {
+  journal::UploadRow row;
+  row.stamp_ns = wall_now_ns();
+  row.trajectory_id = e.trajectory_id;
+  static constexpr const char* kStates[] = {"ASSEMBLING", "COMMITTED", "REJECTED", "DISCARDED"};
+  row.state = kStates[static_cast<int>(e.state)];
+  row.code = upper(control::to_string(e.code));
+  row.reason = e.reason;
+  row.hash_hex = to_hex(e.hash);
+  if (e.trajectory) {
+    row.samples = static_cast<std::uint32_t>(e.trajectory->samples());
+    row.joints = static_cast<std::uint32_t>(e.trajectory->joints());
+  }
+  if (e.state != control::UploadState::Assembling) {
+    try {
+      p_.journal->record_upload(row);
+    } catch (const std::exception& ex) {
+      spdlog::error("journal: {}", ex.what());
+    }
+  }
+  if (e.state == control::UploadState::Committed && e.trajectory) {
+    if (!uploads_.count(e.trajectory_id)) upload_order_.push_back(e.trajectory_id);
+    uploads_[e.trajectory_id] = e.trajectory;
+    upload_hash_[e.trajectory_id] = e.hash;
+    while (upload_order_.size() > kUploadsKept) {
+      const std::uint64_t old = upload_order_.front();
+      upload_order_.pop_front();
+      if (running_ && running_->kind == JobKind::Trajectory &&
+          std::get<control::RunTrajectory>(running_->command.payload).trajectory_id == old) {
+        upload_order_.push_back(old);  // still running: keep it
+        break;
+      }
+      uploads_.erase(old);
+      upload_hash_.erase(old);
+    }
+    spdlog::info("upload {} committed: {} samples x {} joints, {:.2f} s, hash {}", e.trajectory_id,
+                 e.trajectory->samples(), e.trajectory->joints(), e.trajectory->duration_s(), row.hash_hex);
+  } else if (e.state == control::UploadState::Rejected) {
+    spdlog::warn("upload {} rejected: {}", e.trajectory_id, e.reason);
+  } else if (e.state == control::UploadState::Discarded) {
+    uploads_.erase(e.trajectory_id);
+    upload_hash_.erase(e.trajectory_id);
+  }
+}
+
+void Supervisor::handle(const remote_link::LinkEvent& e) {
+  link_lost_ = e.kind == remote_link::LinkEvent::Kind::Lost;
+  p_.loop->set_link_lost(link_lost_);
+  const std::string text = link_lost_ ? fmt("link lost: no ground heartbeat for %.2f s", e.silence_s) + " (policy " +
+                                            to_string(p_.config.link_loss_policy) + ")"
+                                      : fmt("link regained after %.2f s", e.silence_s);
+  if (link_lost_) {
+    spdlog::warn("{}", text);
+  } else {
+    spdlog::info("{}", text);
+  }
+  journal_event(link_lost_ ? "link_lost" : "link_regained", text);
+  publish_reports(true);
+}
+
+// ---- the loop's rings ------------------------------------------------------------------
+
+std::vector<double> Supervisor::current_q() const {
+  const std::size_t n = std::min<std::size_t>(latest_.joints, control::kMaxJoints);
+  return std::vector<double>(latest_.q.begin(), latest_.q.begin() + static_cast<std::ptrdiff_t>(n));
+}
+
+std::int64_t Supervisor::to_wall_ns(std::int64_t mono_ns) const noexcept {
+  return wall_now_ns() - (mono_now_ns() - mono_ns);
+}
+
+void Supervisor::poll_loop() {
+  control::TelemetrySample t;
+  while (p_.loop->poll_telemetry(t)) {
+    latest_ = t;
+    have_telemetry_ = true;
+    journal::TelemetryRow row;
+    row.stamp_ns = to_wall_ns(t.stamp_ns);
+    row.cycle = t.cycle;
+    row.mode = static_cast<std::uint8_t>(t.mode);
+    row.joint_count = static_cast<std::uint8_t>(std::min<std::size_t>(t.joints, journal::TelemetryRow::kMaxJoints));
+    for (std::size_t j = 0; j < row.joint_count && j < control::kMaxJoints; ++j) {
+      row.q_rad[j] = t.q[j];
+      row.q_cmd_rad[j] = t.q_cmd[j];
+    }
+    for (std::size_t i = 0; i < 6; ++i) row.wrench[i] = t.wrench_tool[i];
+    (void)p_.journal->push_telemetry(row);
+  }
+  control::StopEvent s;
+  while (p_.loop->poll_stop(s)) {
+    last_stop_ = s;
+    have_stop_ = true;
+    fault_text_ = s.text.data();
+    journal::FaultRow row;
+    row.stamp_ns = to_wall_ns(s.stamp_ns);
+    row.cycle = s.cycle;
+    row.category = s.category == control::StopCategory::Cat0 ? 0 : s.category == control::StopCategory::Cat1 ? 1 : 2;
+    row.cause = control::to_string(s.cause);
+    row.text = s.text.data();
+    nlohmann::json ev;
+    ev["command_id"] = s.command_id;
+    ev["joint"] = s.joint;
+    ev["value"] = s.value;
+    ev["limit"] = s.limit;
+    ev["hw_fault"] = s.hw_fault;
+    ev["hw_node"] = s.hw_node;
+    ev["hw_code"] = s.hw_code;
+    nlohmann::json samples = nlohmann::json::array();
+    for (std::size_t i = 0; i < s.evidence_count && i < s.evidence.size(); ++i) {
+      const auto& e = s.evidence[i];
+      std::vector<double> q(e.q.begin(), e.q.begin() + static_cast<std::ptrdiff_t>(s.joints));
+      std::vector<double> qc(e.q_cmd.begin(), e.q_cmd.begin() + static_cast<std::ptrdiff_t>(s.joints));
+      samples.push_back({{"cycle", e.cycle}, {"q", q}, {"q_cmd", qc}, {"wrench_tool", e.wrench_tool}});
+    }
+    ev["samples"] = samples;
+    row.evidence = ev.dump();
+    try {
+      p_.journal->record_fault(row);
+    } catch (const std::exception& ex) {
+      spdlog::error("journal: {}", ex.what());
+    }
+    spdlog::warn("stop {} ({}): {} at cycle {}", control::to_string(s.category), control::to_string(s.cause),
+                 s.text.data(), s.cycle);
+    cancel_queued(std::string("the controller stopped: ") + s.text.data());
+    if (running_ && running_->kind == JobKind::ToolStep) p_.tool->cancel(running_->command.command_id);
+    publish_reports(true);
+  }
+  MotionEvent e;
+  while (p_.loop->poll_event(e)) {
+    std::vector<double> fq(e.final_q.begin(), e.final_q.begin() + static_cast<std::ptrdiff_t>(
+                                                                     std::min(e.joints, control::kMaxJoints)));
+    if (auto it = aborts_.find(e.command_id); it != aborts_.end()) {
+      if (control::is_final(e.kind)) {
+        const bool ok = e.kind == MotionEventKind::Completed;
+        ack(it->second, ok ? AckState::Completed : AckState::Failed, ok ? Reason::None : e.code, e.text.data(), fq);
+        aborts_.erase(it);
+      }
+      continue;
+    }
+    if (!running_ || running_->command.command_id != e.command_id) continue;  // internal (holds) or stale
+    if (running_->kind == JobKind::ToolStep) continue;  // the hold under a tool step
+    switch (e.kind) {
+      case MotionEventKind::Started:
+        if (!running_->executing) {
+          running_->executing = true;
+          ack(running_->command, AckState::Executing);
+        }
+        break;
+      case MotionEventKind::Completed: {
+        std::string text = e.text.data();
+        if (running_->kind == JobKind::Algorithm && text.empty())
+          text = fmt("distance %.4f m, peak force %.1f N", e.distance_m, e.peak_force_n);
+        finish_running(AckState::Completed, Reason::None, text, fq);
+        break;
+      }
+      case MotionEventKind::Failed:
+        finish_running(AckState::Failed, e.code == Reason::None ? Reason::Internal : e.code, e.text.data(), fq);
+        break;
+      case MotionEventKind::Canceled:
+        finish_running(AckState::Canceled, e.code == Reason::None ? Reason::Aborted : e.code, e.text.data(), fq);
+        break;
+      case MotionEventKind::Rejected:
+        // Refused by the loop after it was queued (e.g. the arm moved since):
+        // nothing moved.
+        finish_running(AckState::Failed, e.code == Reason::None ? Reason::Internal : e.code, e.text.data(), fq);
+        break;
+    }
+  }
+  if (latest_.mode != reported_mode_) publish_reports(true);
+}
+
+void Supervisor::poll_tool() {
+  if (p_.tool == nullptr) return;
+  if (auto r = p_.tool->poll_result()) {
+    if (running_ && running_->kind == JobKind::ToolStep && running_->command.command_id == r->command_id) {
+      if (r->ok) {
+        finish_running(AckState::Completed, Reason::None, r->text, current_q());
+      } else {
+        finish_running(r->code == Reason::Aborted ? AckState::Canceled : AckState::Failed, r->code, r->text,
+                       current_q());
+      }
+    }
+  }
+}
+
+control::StatusReport Supervisor::status_report() const {
+  control::StatusReport s;
+  s.stamp_ns = wall_now_ns();
+  s.mode = latest_.mode;
+  s.active_command_id = running_ ? running_->command.command_id : 0;
+  if (running_ && running_->kind == JobKind::Trajectory)
+    s.active_trajectory_id = std::get<control::RunTrajectory>(running_->command.payload).trajectory_id;
+  s.last_sequence = last_sequence_;
+  s.stop_category = latest_.stop_category;
+  if (have_stop_ && latest_.stop_category != control::StopCategory::None) s.stop_reason = last_stop_.text.data();
+  std::uint32_t bits = 0;
+  std::string text;
+  if (estop_) {
+    bits |= 1u;
+    text += "E-stop pressed; ";
+  }
+  if (link_lost_) {
+    bits |= 2u;
+    text += "link lost; ";
+  }
+  if (latest_.mode == ControllerMode::Fault || latest_.mode == ControllerMode::Stopped) {
+    bits |= 4u;
+    text += fault_text_ + "; ";
+  }
+  if (!text.empty()) text.resize(text.size() - 2);
+  s.fault_bits = bits;
+  s.fault_text = text;
+  return s;
+}
+
+void Supervisor::publish_reports(bool force_status) {
+  const auto now = Clock::now();
+  auto period = [](double hz) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / hz)); };
+  const std::size_t n = std::min<std::size_t>(latest_.joints, control::kMaxJoints);
+  if (have_telemetry_ && now >= next_joints_ && p_.outbox.joints) {
+    next_joints_ = now + period(p_.config.reports.joint_state_hz);
+    control::JointReport r;
+    r.stamp_ns = to_wall_ns(latest_.stamp_ns);
+    r.cycle = latest_.cycle;
+    r.q_rad.assign(latest_.q.begin(), latest_.q.begin() + static_cast<std::ptrdiff_t>(n));
+    r.dq_rad_s.assign(latest_.dq.begin(), latest_.dq.begin() + static_cast<std::ptrdiff_t>(n));
+    r.torque_nm.assign(latest_.torque.begin(), latest_.torque.begin() + static_cast<std::ptrdiff_t>(n));
+    p_.outbox.joints(r);
+  }
+  if (have_telemetry_ && now >= next_wrench_ && p_.outbox.wrench) {
+    next_wrench_ = now + period(p_.config.reports.wrench_hz);
+    control::WrenchReport w;
+    w.stamp_ns = to_wall_ns(latest_.stamp_ns);
+    for (int i = 0; i < 3; ++i) {
+      w.force_tool_n[i] = latest_.wrench_tool[i];
+      w.torque_tool_nm[i] = latest_.wrench_tool[i + 3];
+    }
+    w.saturated = latest_.ft_saturated;
+    p_.outbox.wrench(w);
+  }
+  if (p_.tool != nullptr && now >= next_tool_ && p_.outbox.tool) {
+    next_tool_ = now + period(p_.config.reports.tool_hz);
+    const auto t = p_.tool->latest();
+    control::ToolReport r;
+    r.stamp_ns = t.stamp_ns;
+    r.latched = t.status.latched();
+    r.running = t.status.running();
+    r.direction = !t.status.running() ? 0 : t.status.speed_rad_s >= 0.0 ? 1 : 2;
+    r.turns = t.status.turns;
+    r.torque_nm = t.status.torque_nm;
+    r.fault_bits = t.link_ok ? t.status.fault_bits : 0x8000u;  // 0x8000: the tool does not answer
+    p_.outbox.tool(r);
+  }
+  if ((force_status || now >= next_status_) && p_.outbox.status) {
+    next_status_ = now + period(p_.config.reports.status_hz);
+    reported_mode_ = latest_.mode;
+    p_.outbox.status(status_report());
+  }
+}
+
+void Supervisor::check_inputs() {
+  if (p_.config.estop_file.empty()) return;
+  const auto now = Clock::now();
+  if (now < next_input_check_) return;
+  next_input_check_ = now + std::chrono::milliseconds(10);
+  std::error_code ec;
+  const bool pressed = std::filesystem::exists(p_.config.estop_file, ec);
+  if (pressed != estop_) {
+    estop_ = pressed;
+    p_.loop->set_estop(pressed);
+    const std::string text = pressed ? "E-stop pressed (" + p_.config.estop_file + " exists)" : "E-stop released";
+    if (pressed) {
+      spdlog::error("{}", text);
+    } else {
+      spdlog::info("{}", text);
+    }
+    journal_event(pressed ? "estop_pressed" : "estop_released", text);
+    publish_reports(true);
+  }
+}
+
+void Supervisor::shutdown(const std::string& why) {
+  if (shutting_down_) return;
+  shutting_down_ = true;
+  journal_event("shutdown", why);
+  cancel_queued("the controller is shutting down: " + why);
+  if (p_.tool != nullptr && running_ && running_->kind == JobKind::ToolStep) p_.tool->cancel();
+  p_.loop->stop();  // category 1: controlled stop, then the drives off
+  poll_loop();
+  poll_tool();
+  if (running_)
+    finish_running(AckState::Canceled, Reason::Aborted, "the controller shut down: " + why, current_q());
+  for (auto& [id, c] : aborts_) ack(c, AckState::Completed, Reason::None, "shut down", current_q());
+  aborts_.clear();
+  publish_reports(true);
+}
+
+}  // namespace foresight::remote
