@@ -173,8 +173,8 @@ int run(const RunOptions& o) {
   le::NamedNetns ground(le::netns_name(o.prefix, pid, "ground"));
   le::NamedNetns remote(le::netns_name(o.prefix, pid, "remote"));
   const std::string net = "10.200." + std::to_string(static_cast<int>(o.subnet)) + ".";
-  le::TunConfig gcfg{kInterface, net + "1", net + "2", 30, static_cast<int>(o.mtu)};
-  le::TunConfig rcfg{kInterface, net + "2", net + "1", 30, static_cast<int>(o.mtu)};
+  le::TunConfig gcfg{kInterface, net + "1", net + "2", 30, static_cast<int>(o.mtu), 4096};
+  le::TunConfig rcfg{kInterface, net + "2", net + "1", 30, static_cast<int>(o.mtu), 4096};
   struct CloseFd {
     int fd;
     ~CloseFd() {

@@ -260,6 +260,12 @@ int create_tun(const std::string& netns, const TunConfig& config) {
   set_ifreq_name(ifr, config.ifname);
   ifr.ifr_mtu = config.mtu;
   if (ioctl(sock.fd, SIOCSIFMTU, &ifr) != 0) fail("set MTU " + std::to_string(config.mtu) + " on " + config.ifname, errno);
+  // A longer transmit queue than TUN's 500 packets: a burst from DDS (a
+  // trajectory upload) waits for the emulator instead of being dropped
+  // before it, where the emulator's statistics cannot see it.
+  set_ifreq_name(ifr, config.ifname);
+  ifr.ifr_qlen = config.txqueuelen;
+  if (ioctl(sock.fd, SIOCSIFTXQLEN, &ifr) != 0) fail("set txqueuelen on " + config.ifname, errno);
   set_ifreq_name(ifr, config.ifname);
   set_ifreq_addr(ifr, config.address, "address");
   if (ioctl(sock.fd, SIOCSIFADDR, &ifr) != 0) fail("set address " + config.address + " on " + config.ifname, errno);

@@ -91,6 +91,7 @@ struct TunConfig {
   std::string peer;     ///< the far side, e.g. 10.200.0.2
   int prefix_len = 30;
   int mtu = 1500;
+  int txqueuelen = 4096;  ///< packets the kernel holds for the emulator to read
 };
 
 /// Creates a TUN device (IFF_TUN | IFF_NO_PI) inside namespace `netns`,
