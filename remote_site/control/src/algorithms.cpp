@@ -137,13 +137,11 @@ void AlgorithmRunner::step_guarded(const Pose& tip, const Eigen::Vector3d& f_tas
   if (f_task.norm() > 4.0 * p.force_threshold_n) {
     std::snprintf(buf, sizeof buf, "guarded_move: force %.1f N > %.1f N (hard contact)", f_task.norm(),
                   4.0 * p.force_threshold_n);
-    s_ref_ = distance_m_;
-    out_.base_T_ref.translation() = base_T_start_.translation() + base_R_task_ * (dir_task_ * s_ref_);
     return finish(AlgorithmStatus::Failed, Reason::ForceLimit, buf);
   }
   if (f_against >= p.force_threshold_n) {
-    s_ref_ = distance_m_;  // hold where the contact is, lightly
-    out_.base_T_ref.translation() = base_T_start_.translation() + base_R_task_ * (dir_task_ * s_ref_);
+    // The reference stays where it is: the hold keeps the contact at about
+    // the threshold force (moving it back to the measured pose would jump).
     std::snprintf(buf, sizeof buf, "guarded_move: contact %.1f N after %.1f mm", f_against, 1e3 * distance_m_);
     return finish(AlgorithmStatus::Succeeded, Reason::None, buf);
   }
@@ -174,9 +172,6 @@ void AlgorithmRunner::step_insert(const Pose& tip, const Eigen::Vector3d& f_task
   if (depth >= p.depth_m) {
     std::snprintf(buf, sizeof buf, "insert: depth %.1f mm reached (search radius %.1f mm)", 1e3 * depth,
                   1e3 * spiral_r_);
-    s_ref_ = depth;
-    out_.base_T_ref.translation() = base_T_start_.translation() +
-                                    base_R_task_ * Eigen::Vector3d(lateral_ref_.x(), lateral_ref_.y(), s_ref_);
     return finish(AlgorithmStatus::Succeeded, Reason::None, buf);
   }
   if (t_ > p.timeout_s) {

@@ -397,7 +397,15 @@ void Controller::compliant_offset_to_joints(const Pose& base_T_ref_tip, const Jo
     jacobian(model_, ws_, qv2_, J_, tip_link_);
     const Vector6 err = pose_error(cur, target);
     dls_step(J_, err, dqv_);
-    for (std::size_t j = 0; j < dof_; ++j) q_cmd_[j] = q_cmd_prev_[j] + dqv_(static_cast<Eigen::Index>(j));
+    // Cartesian tracking never asks for more than 90% of a joint's speed
+    // limit: a large correction becomes a fast motion, not a safety stop.
+    double scale = 1.0;
+    for (std::size_t j = 0; j < dof_; ++j) {
+      const double step = std::abs(dqv_(static_cast<Eigen::Index>(j)));
+      const double cap = 0.9 * vmax_[j] * dt_;
+      if (step > cap && step * scale > cap) scale = cap / step;
+    }
+    for (std::size_t j = 0; j < dof_; ++j) q_cmd_[j] = q_cmd_prev_[j] + scale * dqv_(static_cast<Eigen::Index>(j));
   } else {
     for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_seed[j];
     jacobian(model_, ws_, qv2_, J_, tip_link_);
