@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Runs a remote command and a ground command in the two network namespaces of
 # a fresh foresight-linkemu link, then removes everything (also on Ctrl-C,
-# SIGTERM, or a failed command; if this script is SIGKILLed, the emulator
-# gets SIGTERM from the kernel (--exit-with-parent) and still cleans up).
+# SIGTERM, or a failed command; if this script is SIGKILLed, the emulator and
+# both commands get SIGTERM from the kernel (--exit-with-parent), and the
+# emulator still removes its namespaces).
 #
 #   scripts/linkemu_session.sh [EMULATOR OPTIONS...] --remote 'CMD' --ground 'CMD'
 #
@@ -117,10 +118,10 @@ export LINKEMU_GROUND_NS LINKEMU_REMOTE_NS
 echo "linkemu_session: link up: ground $LINKEMU_GROUND_NS ($(field ground_address)), remote $LINKEMU_REMOTE_NS ($(field remote_address)); emulator options: ${emu_opts[*]:-none}" >&2
 
 if [ -n "$remote_cmd" ]; then
-  setsid "$emu" exec "$LINKEMU_REMOTE_NS" -- /bin/sh -c "$remote_cmd" &
+  setsid "$emu" exec "$LINKEMU_REMOTE_NS" --exit-with-parent -- /bin/sh -c "$remote_cmd" &
   remote_pid=$!
 fi
-setsid "$emu" exec "$LINKEMU_GROUND_NS" -- /bin/sh -c "$ground_cmd" &
+setsid "$emu" exec "$LINKEMU_GROUND_NS" --exit-with-parent -- /bin/sh -c "$ground_cmd" &
 ground_pid=$!
 wait "$ground_pid"
 status=$?

@@ -8,8 +8,11 @@
 //       prints one JSON line {"event":"ready",...} and forwards until
 //       SIGINT/SIGTERM/SIGHUP (or --lifetime-s); then prints one JSON line
 //       {"event":"stats",...}, removes both namespaces and exits 0.
-//   foresight-linkemu exec NAME [--keep-dds-env] -- CMD [ARGS...]
-//       runs CMD inside namespace NAME with CYCLONEDDS_URI set for the link.
+//   foresight-linkemu exec NAME [--keep-dds-env] [--exit-with-parent] -- CMD [ARGS...]
+//       runs CMD inside namespace NAME with CYCLONEDDS_URI set for the link
+//       (unless --keep-dds-env). --exit-with-parent: CMD runs as a child in its
+//       own process group, which gets SIGTERM when the caller dies (or when
+//       this process is signalled).
 //   foresight-linkemu dds-config NAME     prints that side's Cyclone XML.
 //   foresight-linkemu cleanup [--prefix P] removes namespaces of dead owners.
 //   foresight-linkemu check               exit 0 if permitted, 77 if not.
@@ -19,6 +22,7 @@
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/signalfd.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -48,7 +52,7 @@ constexpr const char* kUsage =
     "                         [--rate-kbit R] [--burst-bytes B] [--queue-bytes Q] [--queue-packets N]\n"
     "                         [--mtu M] [--subnet N] [--prefix NAME] [--seed S] [--lifetime-s T]\n"
     "                         [--exit-with-parent] [--]\n"
-    "       foresight-linkemu exec NAMESPACE [--keep-dds-env] -- COMMAND [ARGS...]\n"
+    "       foresight-linkemu exec NAMESPACE [--keep-dds-env] [--exit-with-parent] -- COMMAND [ARGS...]\n"
     "       foresight-linkemu dds-config NAMESPACE\n"
     "       foresight-linkemu cleanup [--prefix NAME]\n"
     "       foresight-linkemu check\n"
@@ -248,13 +252,60 @@ int run(const RunOptions& o) {
   return err == 0 ? 0 : 1;
 }
 
+/// Runs the command as a child in its own process group and stays beside it:
+/// SIGTERM/SIGINT/SIGHUP (also the SIGTERM the kernel sends when our parent
+/// dies) go to the whole group, so a shell's children stop too. Returns the
+/// command's exit status (128 + signal when it was killed).
+int supervise(std::vector<char*>& argv, pid_t parent) {
+  sigset_t mask;
+  sigemptyset(&mask);
+  sigaddset(&mask, SIGTERM);
+  sigaddset(&mask, SIGINT);
+  sigaddset(&mask, SIGHUP);
+  sigaddset(&mask, SIGCHLD);
+  sigset_t old_mask;
+  sigprocmask(SIG_BLOCK, &mask, &old_mask);
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() != parent) return 143;  // the parent died before we asked
+  const pid_t child = fork();
+  if (child < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+  if (child == 0) {
+    setpgid(0, 0);
+    sigprocmask(SIG_SETMASK, &old_mask, nullptr);
+    execvp(argv[0], argv.data());
+    std::fprintf(stderr, "foresight-linkemu: exec %s: %s\n", argv[0], std::strerror(errno));
+    _exit(127);
+  }
+  setpgid(child, child);  // also here: no window where a signal misses the group
+  const timespec tick{0, 200'000'000};
+  int kill_ticks = -1;  // after a forwarded signal: ticks until SIGKILL
+  for (;;) {
+    int status = 0;
+    const pid_t done = waitpid(child, &status, WNOHANG);
+    if (done == child) {
+      if (WIFEXITED(status)) return WEXITSTATUS(status);
+      return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    }
+    siginfo_t info{};
+    const int sig = sigtimedwait(&mask, &info, &tick);
+    if (sig == SIGTERM || sig == SIGINT || sig == SIGHUP) {
+      kill(-child, sig);
+      if (kill_ticks < 0) kill_ticks = 25;  // 5 s to stop
+    }
+    if (kill_ticks > 0 && --kill_ticks == 0) kill(-child, SIGKILL);
+  }
+}
+
 int exec_in(const std::vector<std::string>& args) {
   if (args.empty()) throw UsageError("exec wants a namespace name");
   const std::string name = args[0];
   bool keep_env = false;
+  bool exit_with_parent = false;
+  const pid_t parent = getppid();
   std::size_t i = 1;
   for (; i < args.size() && args[i] != "--"; ++i) {
     if (args[i] == "--keep-dds-env") keep_env = true;
+    else if (args[i] == "--exit-with-parent") exit_with_parent = true;
     else throw UsageError("unknown exec option " + args[i]);
   }
   if (i + 1 >= args.size()) throw UsageError("exec wants '-- COMMAND [ARGS...]'");
@@ -268,9 +319,12 @@ int exec_in(const std::vector<std::string>& args) {
   std::vector<char*> argv;
   for (std::size_t k = i + 1; k < args.size(); ++k) argv.push_back(const_cast<char*>(args[k].c_str()));
   argv.push_back(nullptr);
-  execvp(argv[0], argv.data());
-  std::fprintf(stderr, "foresight-linkemu: exec %s: %s\n", argv[0], std::strerror(errno));
-  return 127;
+  if (!exit_with_parent) {
+    execvp(argv[0], argv.data());
+    std::fprintf(stderr, "foresight-linkemu: exec %s: %s\n", argv[0], std::strerror(errno));
+    return 127;
+  }
+  return supervise(argv, parent);
 }
 
 }  // namespace

@@ -539,6 +539,44 @@ TEST(LinkEmu, DdsPingPongRoundTripWithinFivePercentOf400ms) {
   EXPECT_GE(result.at("rtt_ms").at("min").get<double>(), 399.0);
 }
 
+// ---------------------------------------------------------- session script
+
+const std::string kSession = std::string(FORESIGHT_SOURCE_DIR) + "/scripts/linkemu_session.sh";
+
+TEST(LinkEmuSession, RunsBothCommandsInTheirNamespacesAndCleansUp) {
+  setenv("FORESIGHT_BIN_DIR", kBin.c_str(), 1);
+  const std::string prefix = "fsltest_s" + std::to_string(getpid());
+  // The ground command sees the TUN device, its namespace's name and the DDS
+  // configuration for the link, then exits 3: the script's status.
+  const std::string ground = "grep -q fsl0: /proc/net/dev || exit 1; case \"$LINKEMU_GROUND_NS\" in " + prefix +
+                             "-*-ground) ;; *) exit 1;; esac; case \"$CYCLONEDDS_URI\" in *'<Peer address=\"10.200.0.2\"/>'*) "
+                             "exit 3;; esac; exit 1";
+  Child c = Child::spawn(
+      {"/bin/bash", kSession, "--prefix", prefix, "--delay-ms", "5", "--remote", "sleep 60", "--ground", ground});
+  const int rc = c.finish(60s);
+  if (rc == le::kExitNotPermitted) GTEST_SKIP() << c.err_buf;
+  EXPECT_EQ(rc, 3) << c.err_buf;
+  EXPECT_NE(c.err_buf.find("linkemu_session: link up: ground " + prefix + "-"), std::string::npos) << c.err_buf;
+  EXPECT_NE(c.err_buf.find("\"event\":\"stats\""), std::string::npos) << c.err_buf;
+  EXPECT_TRUE(le::list_netns(prefix).empty());
+}
+
+TEST(LinkEmuSession, InterruptedSessionRemovesEverything) {
+  setenv("FORESIGHT_BIN_DIR", kBin.c_str(), 1);
+  const std::string prefix = "fsltest_i" + std::to_string(getpid());
+  Child c = Child::spawn({"/bin/bash", kSession, "--prefix", prefix, "--remote", "sleep 60; true", "--ground",
+                          "echo started; sleep 60; true"});
+  // Wait (bounded) until the ground command runs.
+  const auto deadline = Clock::now() + 30s;
+  while (c.out_buf.find("started") == std::string::npos && !c.exited() && Clock::now() < deadline) c.pump(50ms);
+  if (c.exited() && c.exit_code() == le::kExitNotPermitted) GTEST_SKIP() << c.err_buf;
+  ASSERT_NE(c.out_buf.find("started"), std::string::npos) << c.err_buf;
+  EXPECT_EQ(le::list_netns(prefix).size(), 2u);
+  kill(c.pid, SIGTERM);
+  EXPECT_EQ(c.finish(30s), 143) << c.err_buf;
+  EXPECT_TRUE(le::list_netns(prefix).empty());
+}
+
 // -------------------------------------------------------------- bad input
 
 TEST(LinkEmu, BadOptionsExit2WithTheReason) {
