@@ -1,4 +1,4 @@
-#include "foresight/preview/plan.hpp"
+#include "foresight/common/plan.hpp"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -7,7 +7,7 @@
 
 #include "foresight/common/kinematics.hpp"
 
-namespace foresight::preview {
+namespace foresight {
 
 namespace {
 
@@ -200,4 +200,4 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
   return plan;
 }
 
-}  // namespace foresight::preview
+}  // namespace foresight

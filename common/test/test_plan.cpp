@@ -8,11 +8,10 @@
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
+#include "foresight/common/plan.hpp"
 #include "foresight/common/scene.hpp"
-#include "foresight/preview/plan.hpp"
 
 using namespace foresight;
-using namespace foresight::preview;
 
 namespace {
 

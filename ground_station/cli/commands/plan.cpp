@@ -17,7 +17,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
-#include "foresight/preview/plan.hpp"
+#include "foresight/common/plan.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "json_util.hpp"
 
@@ -29,29 +29,29 @@ struct Args {
   std::string from, from_deg;
   std::string to;
   std::string out;
-  preview::PlanOptions plan;
+  PlanOptions plan;
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
   bool json = false;
 };
 
-std::vector<preview::Goal> parse_goals(const std::string& text, const ObjectModel& object, const Pose& base_T_object,
+std::vector<Goal> parse_goals(const std::string& text, const ObjectModel& object, const Pose& base_T_object,
                                        const Eigen::VectorXd& q_start) {
-  std::vector<preview::Goal> goals;
+  std::vector<Goal> goals;
   for (const std::string_view field : split_commas(text)) {
     std::string item(field);
-    preview::Goal g;
+    Goal g;
     const std::size_t colon = item.find(':');
     if (colon != std::string::npos) {
       const std::string kind = item.substr(colon + 1);
       if (kind != "linear" && kind != "joint")
         throw std::invalid_argument("--to: '" + item + "': the move kind after ':' must be linear or joint");
-      g.kind = kind == "linear" ? preview::SegmentKind::Linear : preview::SegmentKind::Joint;
+      g.kind = kind == "linear" ? SegmentKind::Linear : SegmentKind::Joint;
       item = item.substr(0, colon);
     }
     g.name = item;
     if (item == "start") {
-      if (g.kind == preview::SegmentKind::Linear)
+      if (g.kind == SegmentKind::Linear)
         throw std::invalid_argument("--to: 'start' is a joint-space goal; it cannot be linear");
       g.is_pose = false;
       g.q = q_start;
@@ -78,10 +78,10 @@ int run(const Args& a) {
   const Pose base_T_object = render::read_object_pose_json(a.object_pose);
   const auto goals = parse_goals(a.to, object, base_T_object, q0);
 
-  preview::Plan plan;
+  Plan plan;
   try {
-    plan = preview::plan_motion(robot, q0, goals, a.plan);
-  } catch (const preview::PlanError& e) {
+    plan = plan_motion(robot, q0, goals, a.plan);
+  } catch (const PlanError& e) {
     std::cerr << "foresight plan: " << e.what() << "\n";
     return kExitFailure;
   }
@@ -98,7 +98,7 @@ int run(const Args& a) {
     nlohmann::json segs = nlohmann::json::array();
     for (const auto& s : plan.segments)
       segs.push_back({{"goal", s.goal},
-                      {"kind", preview::to_string(s.kind)},
+                      {"kind", to_string(s.kind)},
                       {"start_s", s.start_s},
                       {"duration_s", s.duration_s},
                       {"q_end_rad", vec_json(s.q_end)},
@@ -119,7 +119,7 @@ int run(const Args& a) {
   std::printf("  %-16s %-6s %8s %8s %10s %9s %8s\n", "goal", "kind", "start s", "dur s", "err mm", "err deg",
               "peak v");
   for (const auto& s : plan.segments)
-    std::printf("  %-16s %-6s %8.2f %8.2f %10.4f %9.4f %7.0f%%\n", s.goal.c_str(), preview::to_string(s.kind),
+    std::printf("  %-16s %-6s %8.2f %8.2f %10.4f %9.4f %7.0f%%\n", s.goal.c_str(), to_string(s.kind),
                 s.start_s, s.duration_s, s.position_error_m * 1e3, s.rotation_error_rad * 180.0 / M_PI,
                 100.0 * s.peak_velocity_fraction);
   std::printf("  wrote %s (sha256 %s); within every joint limit\n", a.out.c_str(), hash.c_str());

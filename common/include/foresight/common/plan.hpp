@@ -1,8 +1,10 @@
 #pragma once
 // Trajectory generation for the operator: from the arm's joint angles through
 // a list of goals (task-object tag frames for the tool tip, or joint vectors)
-// to one time-stamped trajectory (common/trajectory) that the preview shows
-// and the remote runs once it has arrived whole.
+// to one time-stamped trajectory (common/trajectory) that the ground previews
+// and the remote runs once it has arrived whole. In foresight_common (no GL,
+// no OpenCV) so the remote's GOTO_CART / GOTO_JOINT plan exactly the path the
+// ground previews.
 //
 // Segments are minimum-jerk (quintic, zero velocity and acceleration at both
 // ends) either in joint space, or along a straight line of the tool tip with
@@ -21,7 +23,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 
-namespace foresight::preview {
+namespace foresight {
 
 /// A goal cannot be planned (IK fails, a linear move leaves the workspace or
 /// flips the arm's configuration, bad options). The message names the goal.
@@ -81,4 +83,4 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
 /// max ds/dtau = 1.875, max d2s/dtau2 = 10 / sqrt(3).
 double min_jerk(double tau);
 
-}  // namespace foresight::preview
+}  // namespace foresight
