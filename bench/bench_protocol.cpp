@@ -17,6 +17,15 @@
 //                              already joined -> matched with the peer's reader
 //   BM_ColdDiscovery           first participant of a domain (domain start-up,
 //                              participant and endpoint discovery) -> matched
+//   BM_PingPongVsDdsperf       alternating rounds in one run: our ping/pong
+//                              against the protocol peer and against the remote
+//                              link (link_test_remote: RemoteLink, pings served
+//                              first), and Cyclone's own `ddsperf ping`/`pong`
+//                              in two processes, reliable + listener and best
+//                              effort + waitset. ddsperf prints HALF the round
+//                              trip: doubled here. Counters: medians and p99s
+//                              in us, and our/ddsperf ratios. ddsperf comes
+//                              from cyclonedds-tools ($FORESIGHT_DDSPERF or PATH).
 
 #include <benchmark/benchmark.h>
 #include <signal.h>
@@ -24,10 +33,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <fcntl.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
@@ -49,22 +63,36 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::string peer_path() {
-  if (const char* p = std::getenv("FORESIGHT_PROTOCOL_PEER"); p != nullptr && *p != '\0') return p;
-  return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / ".." / "bin" / "foresight_protocol_peer")
+std::string bin_path(const char* name) {
+  return (std::filesystem::read_symlink("/proc/self/exe").parent_path() / ".." / "bin" / name)
       .lexically_normal()
       .string();
 }
 
-/// A peer process in `domain`, killed (SIGTERM, then SIGKILL) on destruction.
+std::string peer_path() {
+  if (const char* p = std::getenv("FORESIGHT_PROTOCOL_PEER"); p != nullptr && *p != '\0') return p;
+  return bin_path("foresight_protocol_peer");
+}
+
+/// A child process (`argv[0]` is the path), killed (SIGTERM, then SIGKILL) on destruction.
 struct Peer {
   explicit Peer(dds_domainid_t domain) {
     const std::string path = peer_path();
     const std::string d = std::to_string(domain);
-    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--lifetime-s", "600", nullptr};
-    if (posix_spawn(&pid, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ) != 0) {
-      throw std::runtime_error("cannot start " + path);
-    }
+    spawn({path, "--domain", d, "--lifetime-s", "600"});
+  }
+  /// `quiet`: stdout to /dev/null (ddsperf pong's chatter).
+  Peer(const std::vector<std::string>& argv, bool quiet) { spawn(argv, quiet); }
+  void spawn(const std::vector<std::string>& args, bool quiet = false) {
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    if (quiet) posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    const int rc = posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) throw std::runtime_error("cannot start " + args[0]);
   }
   ~Peer() {
     kill(pid, SIGTERM);
@@ -248,6 +276,222 @@ void BM_ColdDiscovery(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ColdDiscovery)->Unit(benchmark::kMillisecond)->Iterations(10)->UseRealTime();
+
+/// Ping/pong round trips (us, wall clock at this end) for `duration`, one
+/// ping in flight at a time, as ddsperf's ping does.
+std::vector<double> ping_pong_for(fp::Writer<msg::Ping>& ping, fp::Reader<msg::Pong>& pong,
+                                  std::chrono::nanoseconds duration, std::uint64_t& id) {
+  std::vector<double> rtt_us;
+  fp::Sample<msg::Pong> got;
+  const auto end = Clock::now() + duration;
+  while (Clock::now() < end) {
+    msg::Ping p{};
+    p.ping_id = ++id;
+    p.ground_send_ns = fp::now_ns();
+    const auto t0 = Clock::now();
+    ping.write(p);
+    while (pong.wait_take(got, 200ms)) {
+      if (got->ping_id == id) {
+        rtt_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+        break;
+      }
+    }
+  }
+  return rtt_us;
+}
+
+/// As ddsperf's "ping listener": the pong listener (Cyclone's receive
+/// thread) stamps the round trip and writes the next ping itself, so no
+/// application thread wakes up in the loop. Runs for `duration`.
+struct ListenerPinger {
+  fp::Writer<msg::Ping>* ping = nullptr;
+  std::uint64_t id = 0;
+  Clock::time_point sent{}, end{};
+  std::vector<double> rtt_us;
+  fp::Sample<msg::Pong> got;
+  std::atomic<bool> done{false};
+
+  void send() noexcept {
+    msg::Ping p{};
+    p.ping_id = ++id;
+    p.ground_send_ns = fp::now_ns();
+    sent = Clock::now();
+    (void)ping->try_write(p);
+  }
+  static void on_pong(dds_entity_t reader, void* arg) noexcept {
+    auto* self = static_cast<ListenerPinger*>(arg);
+    for (;;) {
+      void* buffers[1] = {self->got.get()};
+      dds_sample_info_t info;
+      if (dds_take(reader, buffers, &info, 1, 1) <= 0) return;
+      if (!info.valid_data || self->got->ping_id != self->id || self->done.load()) continue;
+      const auto now = Clock::now();
+      if (self->rtt_us.size() < self->rtt_us.capacity()) {
+        self->rtt_us.push_back(std::chrono::duration<double, std::micro>(now - self->sent).count());
+      }
+      if (now >= self->end) {
+        self->done.store(true);
+        return;
+      }
+      self->send();
+    }
+  }
+};
+
+std::vector<double> ping_pong_listener_for(fp::Writer<msg::Ping>& ping, fp::Reader<msg::Pong>& pong,
+                                           std::chrono::nanoseconds duration, std::uint64_t& id) {
+  ListenerPinger pinger;
+  pinger.ping = &ping;
+  pinger.id = id;
+  pinger.rtt_us.reserve(1'000'000);
+  pinger.end = Clock::now() + duration;
+  dds_listener_t* listener = dds_create_listener(&pinger);
+  dds_lset_data_available(listener, &ListenerPinger::on_pong);
+  fp::check(dds_set_listener(pong.get(), listener), "set pong listener");
+  dds_delete_listener(listener);
+  pinger.send();
+  // A lost ping (best effort) stalls the chain: re-send after 200 ms of silence.
+  const auto hard_end = pinger.end + 2s;
+  std::size_t seen = 0;
+  auto last_progress = Clock::now();
+  while (!pinger.done.load() && Clock::now() < hard_end) {
+    std::this_thread::sleep_for(20ms);
+    const std::size_t n = pinger.rtt_us.size();
+    if (n != seen) {
+      seen = n;
+      last_progress = Clock::now();
+    } else if (Clock::now() - last_progress > 200ms) {
+      pinger.send();
+      last_progress = Clock::now();
+    }
+  }
+  fp::check(dds_set_listener(pong.get(), nullptr), "clear pong listener");  // waits for a running callback
+  id = pinger.id;
+  return std::move(pinger.rtt_us);
+}
+
+std::string ddsperf_path() {
+  if (const char* p = std::getenv("FORESIGHT_DDSPERF"); p != nullptr && *p != '\0') return p;
+  return "ddsperf";
+}
+
+/// One ddsperf ping/pong pair in `domain` for `seconds`: the per-second
+/// lines' 50% and 99% values, doubled (ddsperf prints (t_now - t_sent) / 2).
+/// The first line (discovery, warm-up) is dropped. Empty when ddsperf is
+/// missing or printed nothing.
+struct DdsperfRun {
+  std::vector<double> median_rtt_us, p99_rtt_us;
+};
+DdsperfRun run_ddsperf(dds_domainid_t domain, int seconds, bool reliable, bool listener) {
+  DdsperfRun out;
+  const std::string d = std::to_string(domain);
+  const std::string mode = listener ? "listener" : "waitset";
+  std::vector<std::string> pong_args = {ddsperf_path(), "-i", d, "-D", std::to_string(seconds + 3)};
+  if (!reliable) pong_args.push_back("-u");
+  pong_args.insert(pong_args.end(), {"pong", mode});
+  std::unique_ptr<Peer> pong;
+  try {
+    pong = std::make_unique<Peer>(pong_args, true);
+  } catch (const std::exception&) {
+    return out;
+  }
+  std::string cmd = ddsperf_path() + " -i " + d + " -D " + std::to_string(seconds + 1) + (reliable ? "" : " -u") +
+                    " ping " + mode + " 2>&1";
+  FILE* f = popen(cmd.c_str(), "r");
+  if (f == nullptr) return out;
+  char line[1024];
+  int n = 0;
+  while (std::fgets(line, sizeof line, f) != nullptr) {
+    const char* m = std::strstr(line, " 50% ");
+    const char* q = std::strstr(line, " 99% ");
+    if (m == nullptr || q == nullptr) continue;
+    if (n++ == 0) continue;  // warm-up second
+    out.median_rtt_us.push_back(2.0 * std::strtod(m + 5, nullptr));
+    out.p99_rtt_us.push_back(2.0 * std::strtod(q + 5, nullptr));
+  }
+  pclose(f);
+  return out;
+}
+
+double median_of(std::vector<double> v) { return percentile(std::move(v), 0.5); }
+
+void BM_PingPongVsDdsperf(benchmark::State& state) {
+  const int rounds = 3;
+  const int seconds = 2;
+  // Our pings against the protocol peer (the shared set-up).
+  fp::Writer<msg::Ping> ping(*setup().participant);
+  fp::Reader<msg::Pong> pong(*setup().participant);
+  // Our pings against the remote link, in a domain of its own.
+  const dds_domainid_t link_domain = 1 + (setup().domain - 1 + 57) % 230;
+  const dds_domainid_t perf_domain = 1 + (setup().domain - 1 + 173) % 230;
+  const std::string link_remote = bin_path("link_test_remote");
+  std::unique_ptr<Peer> remote;
+  std::unique_ptr<fp::Participant> link_participant;
+  std::unique_ptr<fp::Writer<msg::Ping>> link_ping;
+  std::unique_ptr<fp::Reader<msg::Pong>> link_pong;
+  if (std::filesystem::exists(link_remote)) {
+    remote = std::make_unique<Peer>(std::vector<std::string>{link_remote, "--domain", std::to_string(link_domain),
+                                                             "--lifetime-s", "600"},
+                                    true);
+    link_participant = std::make_unique<fp::Participant>(link_domain);
+    link_ping = std::make_unique<fp::Writer<msg::Ping>>(*link_participant);
+    link_pong = std::make_unique<fp::Reader<msg::Pong>>(*link_participant);
+  }
+  if (!ping.wait_for_readers(2, 10s) || !pong.wait_for_writers(1, 10s) ||
+      (link_ping && (!link_ping->wait_for_readers(1, 10s) || !link_pong->wait_for_writers(1, 10s)))) {
+    state.SkipWithError("peer or link remote not discovered");
+    return;
+  }
+  std::uint64_t id = 0;
+  std::vector<double> peer_rtt, link_rtt, link_listener_rtt, rel_listener_med, rel_listener_p99, be_waitset_med, be_waitset_p99;
+  for (auto _ : state) {
+    for (int round = 0; round < rounds; ++round) {
+      auto a = ping_pong_for(ping, pong, std::chrono::seconds(seconds), id);
+      peer_rtt.insert(peer_rtt.end(), a.begin(), a.end());
+      if (link_ping) {
+        auto b = ping_pong_for(*link_ping, *link_pong, std::chrono::seconds(seconds), id);
+        link_rtt.insert(link_rtt.end(), b.begin(), b.end());
+        auto c = ping_pong_listener_for(*link_ping, *link_pong, std::chrono::seconds(seconds), id);
+        link_listener_rtt.insert(link_listener_rtt.end(), c.begin(), c.end());
+      }
+      auto rl = run_ddsperf(perf_domain, seconds, true, true);
+      rel_listener_med.insert(rel_listener_med.end(), rl.median_rtt_us.begin(), rl.median_rtt_us.end());
+      rel_listener_p99.insert(rel_listener_p99.end(), rl.p99_rtt_us.begin(), rl.p99_rtt_us.end());
+      auto bw = run_ddsperf(perf_domain, seconds, false, false);
+      be_waitset_med.insert(be_waitset_med.end(), bw.median_rtt_us.begin(), bw.median_rtt_us.end());
+      be_waitset_p99.insert(be_waitset_p99.end(), bw.p99_rtt_us.begin(), bw.p99_rtt_us.end());
+    }
+  }
+  const double ours = percentile(peer_rtt, 0.5);
+  state.counters["peer_median_us"] = ours;
+  state.counters["peer_p99_us"] = percentile(peer_rtt, 0.99);
+  state.counters["peer_roundtrips"] = static_cast<double>(peer_rtt.size());
+  if (!link_rtt.empty()) {
+    state.counters["link_median_us"] = percentile(link_rtt, 0.5);
+    state.counters["link_p99_us"] = percentile(link_rtt, 0.99);
+    state.counters["link_listener_median_us"] = percentile(link_listener_rtt, 0.5);
+    state.counters["link_listener_p99_us"] = percentile(link_listener_rtt, 0.99);
+  }
+  if (rel_listener_med.empty()) {
+    state.SetLabel("ddsperf not found or printed nothing: our numbers only");
+    return;
+  }
+  const double rel = median_of(rel_listener_med);
+  state.counters["ddsperf_rel_listener_median_us"] = rel;
+  state.counters["ddsperf_rel_listener_p99_us"] = median_of(rel_listener_p99);
+  state.counters["peer_over_rel_listener"] = ours / rel;
+  if (!link_rtt.empty()) {
+    state.counters["link_over_rel_listener"] = percentile(link_rtt, 0.5) / rel;
+    state.counters["link_listener_over_rel_listener"] = percentile(link_listener_rtt, 0.5) / rel;
+  }
+  if (!be_waitset_med.empty()) {
+    const double be = median_of(be_waitset_med);
+    state.counters["ddsperf_be_waitset_median_us"] = be;
+    state.counters["ddsperf_be_waitset_p99_us"] = median_of(be_waitset_p99);
+    state.counters["peer_over_be_waitset"] = ours / be;
+  }
+}
+BENCHMARK(BM_PingPongVsDdsperf)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

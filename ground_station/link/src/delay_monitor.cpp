@@ -72,8 +72,46 @@ struct DelayMonitor::Impl {
     if (!(config.rate_hz > 0.0)) throw std::invalid_argument("DelayMonitor: rate_hz must be positive");
     if (config.window == 0) throw std::invalid_argument("DelayMonitor: window must be at least 1");
     waitset.attach(stop_guard, 1);
-    waitset.attach(pongs, 2);
+    if (config.pong_in_listener) {
+      dds_listener_t* listener = dds_create_listener(this);
+      dds_lset_data_available(listener, &Impl::on_pong_data);
+      const dds_return_t rc = dds_set_listener(pongs.get(), listener);
+      dds_delete_listener(listener);
+      protocol::check(rc, "set the pong listener");
+    } else {
+      waitset.attach(pongs, 2);
+    }
     thread = std::thread([this] { run(); });
+  }
+
+  /// Stamps t4 on Cyclone's receive thread, as the pong arrives: the round
+  /// trip then excludes this process's thread wake-up. A take, a short lock
+  /// and a notify; nothing there throws (bad_alloc in the deque aside).
+  static void on_pong_data(dds_entity_t reader, void* arg) noexcept {
+    auto* self = static_cast<Impl*>(arg);
+    for (int i = 0; i < 64; ++i) {
+      void* buffers[1] = {self->listener_pong.get()};
+      dds_sample_info_t info;
+      if (dds_take(reader, buffers, &info, 1, 1) <= 0) break;
+      if (info.valid_data) self->record(*self->listener_pong, protocol::now_ns());
+    }
+  }
+
+  void record(const msg::Pong& pong, std::int64_t t4) noexcept {
+    const auto d = protocol::delay_from_pong(pong, t4);
+    {
+      std::lock_guard lock(mutex);
+      // Only our own pings count (other ground stations ping too; ids
+      // start at a random base and t1 must match), each once.
+      const auto it = outstanding.find(pong.ping_id);
+      if (it == outstanding.end() || it->second.second != pong.ground_send_ns) return;
+      outstanding.erase(it);
+      samples.push_back(d);
+      if (samples.size() > config.window) samples.pop_front();
+      latest = d;
+      ++received;
+    }
+    changed.notify_all();
   }
 
   void run() noexcept {
@@ -103,22 +141,8 @@ struct DelayMonitor::Impl {
           if (next_ping < now) next_ping = now + period;  // fell behind (descheduled): do not burst
         }
         waitset.wait(std::max(Clock::duration::zero(), next_ping - Clock::now()));
-        for (int i = 0; i < 64 && pongs.take(pong); ++i) {
-          const std::int64_t t4 = protocol::now_ns();
-          const auto d = protocol::delay_from_pong(*pong, t4);
-          {
-            std::lock_guard lock(mutex);
-            // Only our own pings count (other ground stations ping too; ids
-            // start at a random base and t1 must match), each once.
-            const auto it = outstanding.find(pong->ping_id);
-            if (it == outstanding.end() || it->second.second != pong->ground_send_ns) continue;
-            outstanding.erase(it);
-            samples.push_back(d);
-            if (samples.size() > config.window) samples.pop_front();
-            latest = d;
-            ++received;
-          }
-          changed.notify_all();
+        if (!config.pong_in_listener) {
+          for (int i = 0; i < 64 && pongs.take(pong); ++i) record(*pong, protocol::now_ns());
         }
       } catch (const std::exception& e) {
         spdlog::error("delay monitor: {}", e.what());
@@ -142,6 +166,7 @@ struct DelayMonitor::Impl {
   std::deque<protocol::DelaySample> samples;
   std::optional<protocol::DelaySample> latest;
   std::uint64_t received = 0;
+  protocol::Sample<msg::Pong> listener_pong;  // Cyclone's receive thread only
   std::thread thread;
 };
 
@@ -153,6 +178,8 @@ DelayMonitor::~DelayMonitor() { stop(); }
 void DelayMonitor::stop() noexcept {
   if (!impl_) return;
   impl_->stopping.store(true);
+  // Cyclone waits for a running listener callback before this returns.
+  if (impl_->config.pong_in_listener) (void)dds_set_listener(impl_->pongs.get(), nullptr);
   try {
     impl_->stop_guard.trigger();
   } catch (...) {

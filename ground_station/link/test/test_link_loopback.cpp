@@ -401,6 +401,27 @@ TEST_F(LinkLoopback, DelayStatisticsAndTelemetryAgesAreSane) {
   EXPECT_NE(ground_->remote_boot_id(), 0u);
 }
 
+TEST_F(LinkLoopback, ADelayMonitorAloneMeasuresOnlyItsOwnPings) {
+  // A second monitor in its own participant, pongs taken on its thread: it
+  // and the link's monitor both ping; each counts only its own pongs.
+  fp::Participant p(domain_);
+  gl::DelayMonitor::Config config;
+  config.rate_hz = 100.0;
+  config.window = 10;
+  config.pong_in_listener = false;
+  gl::DelayMonitor alone(p, config);
+  ASSERT_TRUE(alone.wait_samples(25, 20s));
+  const auto s = alone.stats();
+  EXPECT_EQ(s.count, 10u);  // the window
+  EXPECT_GE(s.received, 25u);
+  EXPECT_LE(s.received, s.sent);
+  EXPECT_EQ(alone.window().size(), 10u);
+  EXPECT_GT(s.median_s, 0.0);
+  alone.clear();
+  EXPECT_EQ(alone.stats().count, 0u);
+  EXPECT_TRUE(alone.last().has_value());
+}
+
 TEST_F(LinkLoopback, TheRemoteDetectsLinkLossAndRegain) {
   // IDLE: the remote has heard our heartbeat (the link is up).
   ASSERT_TRUE(eventually([&] {

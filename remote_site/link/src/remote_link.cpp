@@ -90,9 +90,30 @@ struct RemoteLink::Impl {
     waitset.attach(stop_guard, kStop);
     waitset.attach(commands, kCommand);
     waitset.attach(chunks, kChunk);
-    waitset.attach(pings, kPing);
     waitset.attach(heartbeats, kHeartbeat);
     payload_limits.joints = config.trajectory_limits.joints;
+    if (!config.pong_in_listener) waitset.attach(pings, kPing);
+  }
+
+  /// Answers pings on Cyclone's receive thread (set in start()): no thread
+  /// switch between a ping's arrival and its pong. Only a take and a write
+  /// happen there (no entity creation, no lock, nothing that throws).
+  static void on_ping_data(dds_entity_t reader, void* arg) noexcept {
+    auto* self = static_cast<Impl*>(arg);
+    for (int i = 0; i < kTakeBatch; ++i) {
+      void* buffers[1] = {self->listener_ping.get()};
+      dds_sample_info_t info;
+      if (dds_take(reader, buffers, &info, 1, 1) <= 0) break;
+      if (info.valid_data) self->answer(*self->listener_ping, self->listener_pong);
+    }
+  }
+  void answer(const msg::Ping& ping, Sample<msg::Pong>& pong) noexcept {
+    pong->remote_receive_ns = protocol::now_ns();
+    pong->ping_id = ping.ping_id;
+    pong->ground_send_ns = ping.ground_send_ns;
+    pong->remote_send_ns = protocol::now_ns();
+    (void)pongs.try_write(*pong);
+    n_pings.fetch_add(1);
   }
 
   void run() noexcept;
@@ -142,6 +163,8 @@ struct RemoteLink::Impl {
   Sample<msg::TrajectoryChunk> chunk_in;
   Sample<msg::Ping> ping_in;
   Sample<msg::Pong> pong_out;
+  Sample<msg::Ping> listener_ping;  // Cyclone's receive thread only
+  Sample<msg::Pong> listener_pong;
   Sample<msg::Heartbeat> heartbeat_in;
   Sample<msg::Heartbeat> heartbeat_sample;
   Clock::time_point next_beat{};
@@ -228,15 +251,8 @@ void RemoteLink::Impl::serve_heartbeats() {
 }
 
 void RemoteLink::Impl::serve_pings() {
-  for (int i = 0; i < kTakeBatch && pings.take(ping_in); ++i) {
-    const std::int64_t t2 = protocol::now_ns();
-    pong_out->ping_id = ping_in->ping_id;
-    pong_out->ground_send_ns = ping_in->ground_send_ns;
-    pong_out->remote_receive_ns = t2;
-    pong_out->remote_send_ns = protocol::now_ns();
-    (void)pongs.try_write(*pong_out);
-    n_pings.fetch_add(1);
-  }
+  if (config.pong_in_listener) return;
+  for (int i = 0; i < kTakeBatch && pings.take(ping_in); ++i) answer(*ping_in, pong_out);
 }
 
 void RemoteLink::Impl::serve_commands() {
@@ -477,12 +493,21 @@ RemoteLink::~RemoteLink() { stop(); }
 
 void RemoteLink::start() {
   if (impl_->thread.joinable() || impl_->stopping.load()) return;
+  if (impl_->config.pong_in_listener) {
+    dds_listener_t* listener = dds_create_listener(impl_.get());
+    dds_lset_data_available(listener, &Impl::on_ping_data);
+    const dds_return_t rc = dds_set_listener(impl_->pings.get(), listener);
+    dds_delete_listener(listener);
+    protocol::check(rc, "set the ping listener");
+  }
   impl_->thread = std::thread([impl = impl_.get()] { impl->run(); });
 }
 
 void RemoteLink::stop() noexcept {
   if (!impl_) return;
   impl_->stopping.store(true);
+  // Cyclone waits for a running listener callback before this returns.
+  if (impl_->config.pong_in_listener) (void)dds_set_listener(impl_->pings.get(), nullptr);
   try {
     impl_->stop_guard.trigger();
   } catch (...) {

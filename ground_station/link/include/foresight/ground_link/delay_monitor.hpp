@@ -45,6 +45,10 @@ class DelayMonitor {
     std::size_t window = 600;    ///< latest round trips kept for the statistics
     /// A pong later than this after its ping is counted lost (still used if it comes).
     double pong_timeout_s = 30.0;
+    /// Take pongs and stamp t4 in a Cyclone listener (its receive thread) so
+    /// the round trip excludes this process's thread wake-up; false: on the
+    /// monitor's own thread.
+    bool pong_in_listener = true;
   };
 
   /// Creates its own Ping writer and Pong reader in `participant` (which must

@@ -12,7 +12,8 @@
 //               REJECTED with the reason, DISCARDED when evicted) and
 //               Handlers::on_upload. At most Config::max_committed committed
 //               uploads are kept (the oldest is discarded).
-//   Ping     -> Pong at once (t2 on arrival, t3 just before the write).
+//   Ping     -> Pong at once (t2 on arrival, t3 just before the write), by
+//               default from a Cyclone listener (Config::pong_in_listener).
 //   Heartbeat: the remote's own every heartbeat_period_s; no ground heartbeat
 //               for link_loss_s -> Handlers::on_link(Lost); the next one ->
 //               on_link(Regained). The daemon applies the link-loss policy.
@@ -46,6 +47,11 @@ struct Config {
   /// The remote's clock minus the ground's, for the expiry check (expires_ns
   /// is on the ground's clock). 0: both synchronized (NTP/PTP).
   std::int64_t clock_offset_ns = 0;
+  /// Answer pings in a Cyclone listener (on its receive thread: a take and
+  /// a write, nothing else) instead of on the link thread: no thread switch
+  /// in the measured round trip. false: the link thread answers, first thing
+  /// after every wake-up.
+  bool pong_in_listener = true;
 };
 
 /// A command as received: accepted (code None; `command` complete) or
