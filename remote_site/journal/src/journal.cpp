@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 struct Journal::Db {
   Connection conn;
   Statement insert_command, insert_fault, insert_upload, insert_event, insert_telemetry;
-  Statement begin, commit, rollback, sync_full, sync_normal, page_count;
+  Statement begin, commit, page_count;
   std::int64_t page_size = 4096;
 };
 
@@ -154,9 +154,9 @@ void Journal::open_db() {
       " VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)");
   db->begin = Statement(c, "BEGIN");
   db->commit = Statement(c, "COMMIT");
-  db->rollback = Statement(c, "ROLLBACK");
-  db->sync_full = Statement(c, "PRAGMA synchronous=FULL");
-  db->sync_normal = Statement(c, "PRAGMA synchronous=NORMAL");
+  // Never prepare "PRAGMA synchronous=...": SQLite applies it when the
+  // statement is *compiled*, so a prepared NORMAL would silently turn the
+  // connection's durable commits into non-fsync'ed ones. write_batch execs them.
   db->page_count = Statement(c, "PRAGMA page_count");
   db_ = std::move(db);
 }
@@ -343,7 +343,7 @@ void Journal::write_batch(std::size_t n) {
   Db& d = *db_;
   char q[16 * 32 + 4], qc[16 * 32 + 4], w[6 * 32 + 4];
   try {
-    d.sync_normal.run();  // a batch may roll back on power loss, never on a crash
+    d.conn.exec("PRAGMA synchronous=NORMAL");  // a batch may roll back on power loss, never on a crash
     d.begin.run();
     try {
       for (std::size_t i = 0; i < n; ++i) {
@@ -360,12 +360,11 @@ void Journal::write_batch(std::size_t n) {
       }
       d.commit.run();
     } catch (...) {
-      d.rollback.reset();
       sqlite3_exec(d.conn.get(), "ROLLBACK", nullptr, nullptr, nullptr);
-      d.sync_full.run();
+      d.conn.exec("PRAGMA synchronous=FULL");
       throw;
     }
-    d.sync_full.run();
+    d.conn.exec("PRAGMA synchronous=FULL");
     stats_.telemetry_written += n;
     ++stats_.telemetry_batches;
     maybe_rotate();
@@ -386,6 +385,12 @@ void Journal::close() {
   if (writer_.joinable()) writer_.join();
   std::lock_guard lk(db_mu_);
   close_db(true);
+}
+
+int Journal::synchronous_level() const {
+  std::lock_guard lk(db_mu_);
+  require_open();
+  return static_cast<int>(detail::query_int(db_->conn, "PRAGMA synchronous"));
 }
 
 JournalStats Journal::stats() const {

@@ -115,6 +115,9 @@ class Journal {
   void close();
 
   JournalStats stats() const;
+  /// Diagnostics: the connection's PRAGMA synchronous between transactions
+  /// (2 = FULL, what record_* commit with). Throws JournalError when closed.
+  int synchronous_level() const;
   /// False when the file existed and its last writer did not close it (crash).
   bool previous_shutdown_clean() const noexcept { return previous_clean_; }
   const std::string& path() const noexcept { return options_.path; }
