@@ -274,6 +274,10 @@ void Journal::record_event(const EventRow& r) {
 }
 
 PushResult Journal::push_telemetry(const TelemetryRow& row) noexcept {
+  if (closing_.load(std::memory_order_relaxed)) {  // nobody would write it
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return PushResult::Dropped;
+  }
   if (period_ns_ > 0 && row.stamp_ns != 0) {
     if (any_accepted_ && row.stamp_ns - last_accepted_ns_ < period_ns_) {
       decimated_.fetch_add(1, std::memory_order_relaxed);
@@ -301,16 +305,21 @@ bool Journal::flush(std::chrono::milliseconds timeout) {
 }
 
 void Journal::writer_loop() {
+  bool backlog = false;
   for (;;) {
     bool stopping = false;
     std::uint64_t ticket = 0;
     {
       std::unique_lock lk(wake_mu_);
-      wake_cv_.wait_for(lk, options_.flush_interval, [&] { return stop_ || flush_requested_ != flush_done_; });
+      // With a backlog (the producer outpaced one drain) go on at once.
+      if (!backlog)
+        wake_cv_.wait_for(lk, options_.flush_interval, [&] { return stop_ || flush_requested_ != flush_done_; });
       stopping = stop_;
       ticket = flush_requested_;
     }
-    drain();
+    // Every row pushed before `ticket` was taken is in the ring now, and drain()
+    // pops at least a ring's worth in FIFO order: those rows are all written.
+    backlog = drain();
     {
       std::lock_guard lk(wake_mu_);
       flush_done_ = ticket;
@@ -320,17 +329,17 @@ void Journal::writer_loop() {
   }
 }
 
-void Journal::drain() {
-  // Bounded: at most what is in the ring now plus what arrives meanwhile,
-  // capped at a few ring capacities so a fast producer cannot hold us here.
+bool Journal::drain() {
+  // Bounded: at least one ring's worth (so a flush is complete), at most a few
+  // batches more, so a fast producer cannot hold the writer here for ever.
   const std::size_t max_rounds = ring_.capacity() / batch_.size() + 4;
   for (std::size_t round = 0; round < max_rounds; ++round) {
     std::size_t n = 0;
     while (n < batch_.size() && ring_.try_pop(batch_[n])) ++n;
-    if (n == 0) return;
-    write_batch(n);
-    if (n < batch_.size()) return;
+    if (n > 0) write_batch(n);
+    if (n < batch_.size()) return false;
   }
+  return true;
 }
 
 void Journal::write_batch(std::size_t n) {
@@ -381,6 +390,7 @@ void Journal::close() {
     closed_ = true;
     stop_ = true;
   }
+  closing_.store(true, std::memory_order_relaxed);
   wake_cv_.notify_one();
   if (writer_.joinable()) writer_.join();
   std::lock_guard lk(db_mu_);

@@ -272,6 +272,70 @@ TEST(Journal, CommandsDurableBeforeReturnAcrossSigkill) {
   EXPECT_TRUE(again.previous_shutdown_clean());
 }
 
+// Killed while its writer thread is busy: telemetry pushed between the
+// commands, drained every 2 ms. All commands are there, the file passes
+// integrity_check, and the telemetry is a gap-free prefix (a batch is one
+// transaction: all of it or none).
+TEST(Journal, SigkillWhileTheWriterThreadIsBusy) {
+  ScratchDir dir;
+  JournalOptions o = test_options(dir);
+  o.flush_interval = std::chrono::milliseconds(2);
+  o.telemetry_batch = 16;
+  constexpr int kCommands = 40;
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    try {
+      Journal j(o);
+      std::uint64_t cycle = 0;
+      for (int i = 1; i <= kCommands; ++i) {
+        for (int k = 0; k < 50; ++k, ++cycle) j.push_telemetry(telemetry(1'000 + static_cast<std::int64_t>(cycle), cycle));
+        j.record_command(command(static_cast<std::uint64_t>(i)));
+        if (i == kCommands / 2) {  // the writer has committed at least one batch (bounded wait)
+          const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+          while (j.stats().telemetry_batches == 0 && std::chrono::steady_clock::now() < deadline)
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+        if (i == kCommands) raise(SIGKILL);
+      }
+    } catch (...) {
+      _exit(4);
+    }
+    _exit(5);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "child exited with " << WEXITSTATUS(status);
+  EXPECT_EQ(sqlite_int(o.path, "select count(*) from commands"), kCommands);
+  EXPECT_EQ(sqlite_int(o.path, "select count(distinct command_id) from commands"), kCommands);
+  const long long rows = sqlite_int(o.path, "select count(*) from telemetry");
+  EXPECT_GT(rows, 0);
+  EXPECT_LE(rows, 50LL * kCommands);
+  EXPECT_EQ(sqlite_int(o.path, "select coalesce(max(cycle) + 1, 0) from telemetry"), rows);  // no holes
+  EXPECT_EQ(sqlite_int(o.path, "select count(*) from pragma_integrity_check where integrity_check = 'ok'"), 1);
+}
+
+TEST(Journal, MissingDirectoryNamed) {
+  ScratchDir dir;
+  JournalOptions o = test_options(dir);
+  o.path = dir.file("no/such/dir/journal.sqlite3");
+  try {
+    Journal j(o);
+    FAIL() << "no throw";
+  } catch (const JournalError& e) {
+    EXPECT_EQ(std::string(e.what()), o.path + ": cannot open journal: unable to open database file");
+  }
+}
+
+TEST(Journal, PushAfterCloseIsDropped) {
+  ScratchDir dir;
+  Journal j(test_options(dir));
+  j.close();
+  EXPECT_EQ(j.push_telemetry(telemetry(1, 1)), PushResult::Dropped);
+  EXPECT_EQ(j.stats().telemetry_dropped, 1u);
+  EXPECT_TRUE(j.flush());  // nothing to wait for
+}
+
 TEST(Journal, ReopenAppends) {
   ScratchDir dir;
   const JournalOptions o = test_options(dir);

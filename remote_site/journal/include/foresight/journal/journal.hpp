@@ -102,7 +102,7 @@ class Journal {
 
   /// One producer thread only. noexcept, allocation-free, never blocks.
   /// Throttled to telemetry_rate_hz by the row's stamp_ns (a row with
-  /// stamp_ns == 0 is never decimated).
+  /// stamp_ns == 0 is never decimated). After close() every push is Dropped.
   PushResult push_telemetry(const TelemetryRow& row) noexcept;
 
   /// Blocks until every telemetry row pushed before the call is committed
@@ -132,7 +132,7 @@ class Journal {
   void maybe_rotate();
   void rotate();
   void writer_loop();
-  void drain();
+  bool drain();  ///< true when rows may remain (round limit reached)
   void write_batch(std::size_t n);
   void require_open() const;
 
@@ -149,6 +149,7 @@ class Journal {
   std::int64_t last_accepted_ns_ = 0;
   bool any_accepted_ = false;
   std::atomic<std::uint64_t> accepted_{0}, decimated_{0}, dropped_{0};
+  std::atomic<bool> closing_{false};  ///< close() began: pushes are dropped
 
   // Telemetry: consumer side (writer thread).
   std::vector<TelemetryRow> batch_;
