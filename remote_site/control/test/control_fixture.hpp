@@ -46,6 +46,7 @@ struct Bench {
   std::vector<StopEvent> stops;
   double peak_contact_n = 0.0;
   Pose last_tip = Pose::Identity();
+  void (*arm)(bool) = nullptr;  ///< allocation counting around the controller's calls only
 
   explicit Bench(const JointArray& q0, ControllerConfig c = {}) : config(c) {
     ctl = std::make_unique<Controller>(robot(), config);
@@ -90,22 +91,30 @@ struct Bench {
     }
     in.wrench_ft = w;
     in.ft_fresh = true;
+    if (arm) arm(true);
     ctl->step(in, out);
+    if (arm) arm(false);
     for (std::size_t i = 0; i < out.event_count; ++i) events.push_back(out.events[i]);
     if (out.stop != nullptr) stops.push_back(*out.stop);
     if (out.drive_request == DriveRequest::Enable) {
       in.drives_enabled = true;
+      if (arm) arm(true);
       ctl->drive_request_done(DriveRequest::Enable, true, "", q_arm);
+      if (arm) arm(false);
     } else if (out.drive_request == DriveRequest::Disable) {
       in.drives_enabled = false;
+      if (arm) arm(true);
       ctl->drive_request_done(DriveRequest::Disable, true, "", q_arm);
+      if (arm) arm(false);
     }
     if (follow && (in.drives_enabled || out.drive_request != DriveRequest::None)) q_arm = out.q_cmd;
   }
 
   std::uint64_t send(MotionCommand c) {
     c.command_id = next_id++;
+    if (arm) arm(true);
     ctl->command(c);
+    if (arm) arm(false);
     return c.command_id;
   }
 

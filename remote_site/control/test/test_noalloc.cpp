@@ -1,0 +1,252 @@
+// The control cycle never touches the heap: 10,000 cycles of every mode
+// (disabled, stiff and compliant hold, trajectory, compliant trajectory,
+// guarded_move, insert with spiral search, pull_out, controlled stop,
+// stopped, fault) and the commands that start and end them, counted with a
+// replaced operator new AND an interposed malloc (Eigen and KDL allocate
+// through malloc). The counter is armed only around Controller::step() and
+// Controller::command(); the test's plant and bookkeeping run unarmed.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdlib>
+#include <new>
+
+#include "control_fixture.hpp"
+
+
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+void __libc_free(void*);
+}
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+inline void count() {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
+}
+void* checked(void* p) {
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+
+// ---- the C allocator ----
+extern "C" {
+void* malloc(std::size_t n) {
+  count();
+  return __libc_malloc(n);
+}
+void* calloc(std::size_t n, std::size_t size) {
+  count();
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t n) {
+  count();
+  return __libc_realloc(p, n);
+}
+void* memalign(std::size_t a, std::size_t n) {
+  count();
+  return __libc_memalign(a, n);
+}
+void* aligned_alloc(std::size_t a, std::size_t n) {
+  count();
+  return __libc_memalign(a, n);
+}
+int posix_memalign(void** out, std::size_t a, std::size_t n) {
+  count();
+  void* p = __libc_memalign(a, n);
+  if (p == nullptr) return ENOMEM;
+  *out = p;
+  return 0;
+}
+void free(void* p) { __libc_free(p); }
+}
+
+// ---- C++ operator new/delete ----
+void* operator new(std::size_t n) {
+  count();
+  return checked(__libc_malloc(n == 0 ? 1 : n));
+}
+void* operator new[](std::size_t n) {
+  count();
+  return checked(__libc_malloc(n == 0 ? 1 : n));
+}
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  count();
+  return __libc_malloc(n == 0 ? 1 : n);
+}
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
+  count();
+  return __libc_malloc(n == 0 ? 1 : n);
+}
+void* operator new(std::size_t n, std::align_val_t a) {
+  count();
+  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
+}
+void* operator new[](std::size_t n, std::align_val_t a) {
+  count();
+  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
+}
+void operator delete(void* p) noexcept { __libc_free(p); }
+void operator delete[](void* p) noexcept { __libc_free(p); }
+void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+
+
+namespace foresight::control::test {
+namespace {
+
+void arm(bool on) { g_counting.store(on, std::memory_order_relaxed); }
+
+Trajectory long_trajectory(const JointArray& from, double duration_s) {
+  Trajectory t;
+  const int n = static_cast<int>(duration_s * 100.0) + 1;
+  t.positions_rad.resize(n, 7);
+  for (int i = 0; i < n; ++i) {
+    const double ts = i / 100.0;
+    t.time_s.push_back(ts);
+    for (int j = 0; j < 7; ++j)
+      t.positions_rad(i, j) = from[static_cast<std::size_t>(j)] + 0.05 * std::pow(std::sin(M_PI * ts / duration_s), 2);
+  }
+  return t;
+}
+
+JointArray ik(const Pose& target) {
+  KinematicsWorkspace ws(robot());
+  const IkResult r = inverse_kinematics(robot(), ws, target, robot().mid_configuration());
+  EXPECT_TRUE(r.success);
+  JointArray q{};
+  for (int j = 0; j < 7; ++j) q[static_cast<std::size_t>(j)] = r.q(j);
+  return q;
+}
+
+TEST(ControlNoAlloc, CounterSeesAllocations) {
+  g_allocations = 0;
+  arm(true);
+  auto* v = new std::vector<double>(100);
+  Eigen::VectorXd x(50);
+  x.setZero();
+  arm(false);
+  delete v;
+  EXPECT_EQ(g_allocations.load(), 3);
+}
+
+TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  const sim::ContactModel contact(oru, sim::load_contact_params(FORESIGHT_CONFIG_DIR "/scene.yaml"));
+  const Pose base_T_oru = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml").base_T_object;
+  const JointArray q_face = ik(base_T_oru * Eigen::Translation3d(0.0045, 0.0, -0.01) *
+                               Eigen::AngleAxisd(M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  const JointArray q_far = ik(base_T_oru * Eigen::Translation3d(0.0, 0.0, -0.3));
+  const PreparedTrajectory traj(long_trajectory(q_far, 21.0));
+
+  Bench b(q_far);
+  b.contact = &contact;
+  b.base_T_oru = base_T_oru;
+  b.last_tip = b.tip(b.q_arm);
+  b.arm = arm;
+  g_allocations = 0;
+  const auto run = [&](const char* what, int cycles) {
+    const long before = g_allocations.load();
+    for (int k = 0; k < cycles; ++k) b.step();
+    EXPECT_EQ(g_allocations.load() - before, 0) << what;
+  };
+  const auto command = [&](MotionCommandKind kind, auto&& fill) {
+    MotionCommand c;
+    c.kind = kind;
+    fill(c);
+    return b.send(c);
+  };
+  const auto none = [](MotionCommand&) {};
+
+  run("disabled", 10000);
+  b.enable();
+  run("hold", 10000);
+  command(MotionCommandKind::Hold, [](MotionCommand& c) { c.compliant = true; });
+  run("compliant hold", 10000);
+  command(MotionCommandKind::Hold, none);
+  command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) { c.trajectory = &traj; });
+  run("trajectory", 10000);
+  command(MotionCommandKind::Hold, none);  // cancels
+  run("hold back at the face", 10);
+  // Return along the same trajectory's end half is not needed: start a new
+  // compliant run from where the arm is by re-preparing (outside the count).
+  {
+    Trajectory t2 = long_trajectory(b.out.q_cmd, 21.0);
+    const PreparedTrajectory traj2(t2);
+    command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) {
+      c.trajectory = &traj2;
+      c.compliant = true;
+    });
+    run("compliant trajectory", 10000);
+    command(MotionCommandKind::Hold, none);
+    run("hold", 10);
+  }
+  // Back to the face for the contact algorithms (a plain trajectory).
+  {
+    Trajectory back;
+    back.time_s = {0.0, 4.0};
+    back.positions_rad.resize(2, 7);
+    for (int j = 0; j < 7; ++j) {
+      back.positions_rad(0, j) = b.out.q_cmd[static_cast<std::size_t>(j)];
+      back.positions_rad(1, j) = q_face[static_cast<std::size_t>(j)];
+    }
+    const PreparedTrajectory tb(back);
+    command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) { c.trajectory = &tb; });
+    run("trajectory back", 2500);
+  }
+  const auto insert_id = command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {
+    c.algorithm.kind = AlgorithmKind::Insert;
+    c.algorithm.insert.depth_m = 0.06;
+  });
+  run("insert (spiral search, entry, depth) then compliant hold", 10000);
+  bool inserted = false;
+  for (const auto& e : b.events) inserted = inserted || (e.command_id == insert_id && e.kind == MotionEventKind::Completed);
+  EXPECT_TRUE(inserted);
+  command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {
+    c.algorithm.kind = AlgorithmKind::PullOut;
+    c.algorithm.pull_out.distance_m = 0.07;
+  });
+  run("pull_out then hold", 10000);
+  command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {
+    c.algorithm.kind = AlgorithmKind::GuardedMove;
+    c.algorithm.guarded_move.force_threshold_n = 8.0;
+    c.algorithm.guarded_move.max_distance_m = 0.05;
+  });
+  run("guarded_move then hold", 10000);
+  // Rejections format text (snprintf) in the cycle thread too.
+  command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) { c.trajectory = &traj; });
+  command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) { c.algorithm.insert.depth_m = -1; c.algorithm.kind = AlgorithmKind::Insert; });
+  command(MotionCommandKind::Tare, [](MotionCommand& c) { c.tare_samples = 10; });
+  run("tare", 100);
+  command(MotionCommandKind::Stop, [](MotionCommand& c) { c.category = StopCategory::Cat2; });
+  run("stopping, stopped", 10000);
+  command(MotionCommandKind::Recover, none);
+  run("recovered", 10);
+  b.in.estop = true;
+  run("E-stop: Cat0, fault", 10000);
+  b.in.estop = false;
+  command(MotionCommandKind::Recover, none);
+  run("recovered", 100);
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+  EXPECT_EQ(b.stops.size(), 2u);
+  if (HasFailure()) {
+    for (const auto& s : b.stops) std::printf("stop %s %s at %llu\n", to_string(s.cause), s.text.data(), static_cast<unsigned long long>(s.cycle));
+    for (const auto& e : b.events)
+      std::printf("event %llu %s %s %s at %llu\n", static_cast<unsigned long long>(e.command_id), to_string(e.command),
+                  to_string(e.kind), e.text.data(), static_cast<unsigned long long>(e.cycle));
+  }
+}
+
+}  // namespace
+}  // namespace foresight::control::test
