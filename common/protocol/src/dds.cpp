@@ -9,6 +9,11 @@ Participant::Participant(dds_domainid_t domain)
               "create participant in domain " + std::to_string(domain)),
       domain_(domain) {}
 
+Participant::Participant(dds_domainid_t domain, const Qos& qos)
+    : entity_(dds_create_participant(domain, qos.get(), nullptr),
+              "create participant in domain " + std::to_string(domain)),
+      domain_(domain) {}
+
 GuardCondition::GuardCondition(const Participant& participant)
     : entity_(dds_create_guardcondition(participant.get()), "create guard condition") {}
 

@@ -13,6 +13,7 @@
 
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 #include "foresight/remote_link/convert.hpp"
 
@@ -29,6 +30,11 @@ namespace {
 enum Token : dds_attach_t { kStop = 1, kAck, kUpload, kJoint, kWrench, kTool, kStatus, kHeartbeat };
 constexpr int kTakeBatch = 64;
 constexpr std::size_t kUploadHistory = 64;
+
+protocol::Participant make_participant(const Config& config) {
+  if (config.security_dir.empty()) return protocol::Participant(config.domain);
+  return protocol::Participant(config.domain, protocol::security_qos(config.security_dir, config.security_identity));
+}
 
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
@@ -48,7 +54,7 @@ struct UploadSeen {
 struct GroundLink::Impl {
   explicit Impl(Config c)
       : config(std::move(c)),
-        participant(config.domain),
+        participant(make_participant(config)),
         commands(participant),
         chunks(participant),
         heartbeat_out(participant),

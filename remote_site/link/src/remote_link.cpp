@@ -16,6 +16,7 @@
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 #include "foresight/remote_link/convert.hpp"
 
@@ -39,6 +40,11 @@ constexpr int kTakeBatch = 64;
 constexpr std::size_t kRememberedCommands = 256;
 /// Rejected uploads whose verdict the assembler keeps (later chunks of the same id stay rejected).
 constexpr std::size_t kRememberedRejections = 4;
+
+protocol::Participant make_participant(const Config& config) {
+  if (config.security_dir.empty()) return protocol::Participant(config.domain);
+  return protocol::Participant(config.domain, protocol::security_qos(config.security_dir, config.security_identity));
+}
 
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
@@ -67,7 +73,7 @@ struct RemoteLink::Impl {
   Impl(Config c, Handlers h)
       : config(std::move(c)),
         handlers(std::move(h)),
-        participant(config.domain),
+        participant(make_participant(config)),
         commands(participant),
         chunks(participant),
         pings(participant),

@@ -14,6 +14,7 @@
 // on link loss STOPPED with stop_reason "link lost"; on regain IDLE again.
 //
 // Usage: link_test_remote --domain N [--link-loss-s S] [--max-committed N] [--lifetime-s S]
+//                         [--security DIR (scripts/make_dds_security.sh; identity "remote")]
 // Exits on SIGTERM/SIGINT, when its parent dies, or after --lifetime-s.
 
 #include <signal.h>
@@ -173,12 +174,14 @@ int main(int argc, char** argv) {
   int domain = -1;
   double link_loss_s = 1.0, lifetime_s = 120.0;
   std::size_t max_committed = 8;
+  std::string security_dir;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--domain") domain = std::atoi(argv[i + 1]);
     else if (key == "--link-loss-s") link_loss_s = std::atof(argv[i + 1]);
     else if (key == "--max-committed") max_committed = static_cast<std::size_t>(std::atoi(argv[i + 1]));
     else if (key == "--lifetime-s") lifetime_s = std::atof(argv[i + 1]);
+    else if (key == "--security") security_dir = argv[i + 1];
     else {
       std::fprintf(stderr, "link_test_remote: unknown option %s\n", argv[i]);
       return 2;
@@ -203,6 +206,7 @@ int main(int argc, char** argv) {
     config.link_loss_s = link_loss_s;
     config.trajectory_limits = foresight::TrajectoryLimits::from_model(model);
     config.max_committed = max_committed;
+    config.security_dir = security_dir;
     Stub stub;
     rl::Handlers handlers;
     handlers.on_command = [&](const rl::CommandEvent& e) { stub.on_command(e); };

@@ -71,6 +71,8 @@ class Entity {
 class Participant {
  public:
   explicit Participant(dds_domainid_t domain = DDS_DOMAIN_DEFAULT);
+  /// With a participant QoS, e.g. security_qos() (security.hpp).
+  Participant(dds_domainid_t domain, const Qos& qos);
   dds_entity_t get() const noexcept { return entity_.get(); }
   dds_domainid_t domain() const noexcept { return domain_; }
 

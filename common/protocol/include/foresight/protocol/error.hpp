@@ -8,14 +8,17 @@
 #include <stdexcept>
 #include <string>
 
+#include "foresight/common/error.hpp"
+
 namespace foresight::protocol {
 
-class ProtocolError : public std::runtime_error {
+/// A ComputationError (foresight/common/error.hpp): the CLI exits 1.
+class ProtocolError : public ComputationError {
  public:
   /// `what` describes the failed call, e.g. "create writer on foresight/command".
   ProtocolError(const std::string& what, dds_return_t code)
-      : std::runtime_error(what + ": " + dds_strretcode(code)), code_(code) {}
-  explicit ProtocolError(const std::string& what) : std::runtime_error(what), code_(DDS_RETCODE_ERROR) {}
+      : ComputationError(what + ": " + dds_strretcode(code)), code_(code) {}
+  explicit ProtocolError(const std::string& what) : ComputationError(what), code_(DDS_RETCODE_ERROR) {}
 
   /// The Cyclone return code (negative), DDS_RETCODE_ERROR when not from Cyclone.
   dds_return_t code() const noexcept { return code_; }

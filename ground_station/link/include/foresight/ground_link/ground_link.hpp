@@ -42,6 +42,10 @@ struct Config {
   double timeout_margin_s = 2.0;        ///< added to every derived timeout
   /// Round trip assumed before any pong arrived (for derived timeouts).
   double default_rtt_s = 1.0;
+  /// DDS Security: the folder made by scripts/make_dds_security.sh ("" =
+  /// off) and this station's identity in it ("observer": telemetry only).
+  std::string security_dir;
+  std::string security_identity = "ground";
 };
 
 /// Every ack seen for one command, in arrival order.

@@ -52,6 +52,10 @@ struct Config {
   /// in the measured round trip. false: the link thread answers, first thing
   /// after every wake-up.
   bool pong_in_listener = true;
+  /// DDS Security: the folder made by scripts/make_dds_security.sh ("" =
+  /// off) and this side's identity in it. docs/protocol.md, "Security".
+  std::string security_dir;
+  std::string security_identity = "remote";
 };
 
 /// A command as received: accepted (code None; `command` complete) or

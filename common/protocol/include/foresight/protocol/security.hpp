@@ -1,0 +1,30 @@
+#pragma once
+// DDS Security (OMG DDS Security 1.1: authentication, access control,
+// encryption) with Cyclone's builtin plugins, configured per participant
+// through its QoS properties. The material comes from
+// scripts/make_dds_security.sh DIR (never committed):
+//
+//   security_qos(DIR, "ground")   the ground station
+//   security_qos(DIR, "remote")   the robot cabinet
+//   security_qos(DIR, "observer") reads telemetry, cannot command
+//   security_qos(DIR + "/foreign", "intruder")  another CA (tests)
+//
+// Set-up only (allocates, may throw).
+
+#include <string>
+
+#include "foresight/protocol/qos.hpp"
+
+namespace foresight::protocol {
+
+/// Where Cyclone's security plugins were found at build time ("" = let the
+/// dynamic loader search for libdds_security_*.so).
+std::string security_plugin_dir();
+
+/// A participant QoS carrying the dds.sec.* properties for `identity` in
+/// `dir` (dir/ca.pem, dir/governance.p7s, dir/permissions.p7s,
+/// dir/identities/<identity>/{cert,key}.pem). Throws ProtocolError naming
+/// the first file that is missing.
+Qos security_qos(const std::string& dir, const std::string& identity);
+
+}  // namespace foresight::protocol

@@ -1,0 +1,132 @@
+// DDS Security on the link, two real processes on loopback: material from
+// scripts/make_dds_security.sh in a scratch folder; link_test_remote runs
+// with the "remote" identity. The ground identity commands it; a participant
+// whose certificate comes from another CA never matches anything; the
+// observer identity reads telemetry and measures delay but may not create a
+// command or chunk writer. Skips (saying why) without openssl or Cyclone's
+// security plugins.
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/security.hpp"
+
+extern char** environ;
+
+namespace gl = foresight::ground_link;
+namespace control = foresight::control;
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr auto kConnectTimeout = 30s;
+/// How long a participant that must not match is given to (not) match: far
+/// longer than a secure handshake on loopback takes (~50-300 ms).
+constexpr auto kNoMatchWindow = 4s;
+
+class SecureLink : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string plugins = fp::security_plugin_dir();
+    if (plugins.empty() || !fs::exists(fs::path(plugins) / "libdds_security_auth.so")) {
+      GTEST_SKIP() << "Cyclone's DDS Security plugins were not found at build time";
+    }
+    if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "openssl is not installed";
+    char tmpl[] = "/tmp/foresight_sec_XXXXXX";
+    ASSERT_NE(mkdtemp(tmpl), nullptr);
+    dir_ = tmpl;
+    const std::string cmd = "bash " + std::string(FORESIGHT_SOURCE_DIR) + "/scripts/make_dds_security.sh " + dir_ +
+                            " >/dev/null";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    fp::use_loopback_if_unconfigured();
+    domain_ = fp::unique_test_domain();
+    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/link_test_remote";
+    const std::string d = std::to_string(domain_);
+    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--security", dir_.c_str(), "--lifetime-s", "110",
+                          nullptr};
+    ASSERT_EQ(posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ), 0);
+  }
+  void TearDown() override {
+    if (pid_ > 0) {
+      int status = 0;
+      EXPECT_EQ(waitpid(pid_, &status, WNOHANG), 0) << "the remote exited early (see its stderr)";
+      kill(pid_, SIGTERM);
+      const auto deadline = Clock::now() + 5s;
+      while (Clock::now() < deadline && waitpid(pid_, &status, WNOHANG) == 0) std::this_thread::sleep_for(5ms);
+      if (waitpid(pid_, &status, WNOHANG) == 0) {
+        kill(pid_, SIGKILL);
+        waitpid(pid_, &status, 0);
+      }
+    }
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
+
+  std::string dir_;
+  dds_domainid_t domain_ = 0;
+  pid_t pid_ = -1;
+};
+
+}  // namespace
+
+TEST_F(SecureLink, TheGroundIdentityCommandsTheSecureRemote) {
+  gl::Config config;
+  config.domain = domain_;
+  config.security_dir = dir_;
+  config.security_identity = "ground";
+  config.delay.rate_hz = 20.0;
+  gl::GroundLink ground(config);
+  ASSERT_TRUE(ground.wait_for_remote(kConnectTimeout));
+  const auto r = ground.execute(control::CommandKind::GotoJoint, control::GotoJoint{{0.1, 0, 0, 0, 0, 0, 0}, 0.5});
+  EXPECT_TRUE(r.succeeded()) << r.reason;
+  EXPECT_EQ(r.final_q_rad.size(), 7u);
+  const auto deadline = Clock::now() + 10s;
+  while (!ground.joint_state() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  EXPECT_TRUE(ground.joint_state().has_value());
+}
+
+TEST_F(SecureLink, AParticipantOfAnotherCaCannotJoin) {
+  fp::Participant intruder(domain_, fp::security_qos(dir_ + "/foreign", "intruder"));
+  fp::Writer<msg::Command> commands(intruder);
+  fp::Reader<msg::JointState> joints(intruder);
+  EXPECT_FALSE(commands.wait_for_readers(1, kNoMatchWindow)) << "the intruder's command writer matched the remote";
+  EXPECT_EQ(joints.matched_writers(), 0u);
+  fp::Sample<msg::JointState> s;
+  EXPECT_FALSE(joints.take(s)) << "the intruder received telemetry";
+}
+
+TEST_F(SecureLink, AnObserverReadsTelemetryButCannotCommand) {
+  fp::Participant observer(domain_, fp::security_qos(dir_, "observer"));
+  fp::Reader<msg::JointState> joints(observer);
+  fp::Sample<msg::JointState> s;
+  ASSERT_TRUE(joints.wait_take(s, kConnectTimeout)) << "no telemetry for the observer";
+  EXPECT_EQ(s->q_rad._length, 7u);
+  gl::DelayMonitor delay(observer);  // pings are granted to the observer
+  EXPECT_TRUE(delay.wait_samples(3, kConnectTimeout));
+  for (const char* topic : {fp::topics::kCommand, fp::topics::kTrajectoryChunk}) {
+    try {
+      if (std::string(topic) == fp::topics::kCommand) {
+        fp::Writer<msg::Command> w(observer);
+      } else {
+        fp::Writer<msg::TrajectoryChunk> w(observer);
+      }
+      ADD_FAILURE() << "the observer may write " << topic;
+    } catch (const fp::ProtocolError& e) {
+      EXPECT_EQ(e.what(), "create writer on " + std::string(topic) + ": Not Allowed By Security") << e.what();
+    }
+  }
+}
