@@ -75,7 +75,8 @@ struct SplitMix64 {
 
 struct KinematicsWorkspace::Impl {
   explicit Impl(const RobotModel& model)
-      : chain(model.chain()),
+      : model_id(model.id()),
+        chain(model.chain()),
         fk(chain),
         jac(chain),
         dyn(chain, KDL::Vector(model.gravity().x(), model.gravity().y(), model.gravity().z())),
@@ -149,6 +150,7 @@ struct KinematicsWorkspace::Impl {
     }
   }
 
+  std::uint64_t model_id;
   KDL::Chain chain;
   KDL::ChainFkSolverPos_recursive fk;
   KDL::ChainJntToJacSolver jac;
@@ -168,6 +170,9 @@ KinematicsWorkspace::KinematicsWorkspace(const RobotModel& model) : impl_(std::m
 KinematicsWorkspace::~KinematicsWorkspace() = default;
 KinematicsWorkspace::KinematicsWorkspace(KinematicsWorkspace&&) noexcept = default;
 KinematicsWorkspace& KinematicsWorkspace::operator=(KinematicsWorkspace&&) noexcept = default;
+std::uint64_t KinematicsWorkspace::model_id() const noexcept { return impl_ ? impl_->model_id : 0; }
+
+bool check(const RobotModel& model, const KinematicsWorkspace& ws) noexcept { return ws.model_id() == model.id(); }
 
 namespace {
 
@@ -179,7 +184,8 @@ int segments_for(const RobotModel& model, int link) {
 }
 
 bool load_q(const RobotModel& model, KinematicsWorkspace::Impl& w, const Eigen::Ref<const Eigen::VectorXd>& q) {
-  if (q.size() != model.dof() || w.q.rows() != static_cast<unsigned>(model.dof())) return false;
+  if (w.model_id != model.id() || q.size() != model.dof() || w.q.rows() != static_cast<unsigned>(model.dof()))
+    return false;
   w.q.data = q;
   return true;
 }
@@ -332,6 +338,9 @@ Residual centre_joints(KinematicsWorkspace::Impl& w, const Pose& target, int nse
 
 IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, const Pose& base_T_target,
                             const Eigen::Ref<const Eigen::VectorXd>& seed, const IkOptions& options, int link) {
+  if (!check(model, ws))
+    throw std::invalid_argument("inverse_kinematics: the workspace was built for another robot model (" +
+                                model.source() + " is not its model)");
   auto& w = ws.impl();
   const int n = model.dof();
   if (seed.size() != n)

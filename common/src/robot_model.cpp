@@ -11,12 +11,14 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <sstream>
+#include <stdexcept>
 
 #include "foresight/common/error.hpp"
 
@@ -176,6 +178,12 @@ double positive_attribute(const XmlJoint& xj, const std::string& joint, const ch
   return v;
 }
 
+/// Model identities: unique per built model, in any thread.
+std::uint64_t next_model_id() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
 }  // namespace
 
 RobotModel RobotModel::from_file(const std::string& urdf_path, const RobotModelOptions& options) {
@@ -215,6 +223,7 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
   std::reverse(path.begin(), path.end());  // base ... tip
 
   RobotModel m;
+  m.id_ = next_model_id();
   m.source_ = source_name;
   for (std::size_t k = 0; k < path.size(); ++k) {
     const urdf::Link& link = *path[k];
@@ -271,6 +280,28 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
   if (m.joint_names_.empty())
     throw InputError(source_name, "no revolute joint between base link " + quoted(options.base_link) +
                                       " and tip link " + quoted(options.tip_link));
+  return m;
+}
+
+RobotModel RobotModel::with_link_lengths_changed(const std::vector<double>& delta_m) const {
+  const unsigned nseg = chain_.getNrOfSegments();
+  if (delta_m.size() != nseg)
+    throw std::invalid_argument("with_link_lengths_changed: " + std::to_string(delta_m.size()) +
+                                " length changes for " + std::to_string(nseg) + " chain segments");
+  RobotModel m = *this;
+  m.id_ = next_model_id();
+  m.chain_ = KDL::Chain();
+  for (unsigned k = 0; k < nseg; ++k) {
+    const KDL::Segment& seg = chain_.getSegment(k);
+    KDL::Frame parent_T_joint = seg.getFrameToTip();  // at q = 0: the joint origin (RobotModel builds it so)
+    const double length = parent_T_joint.p.Norm();
+    if (length > 1e-12) parent_T_joint.p = parent_T_joint.p * ((length + delta_m[k]) / length);
+    const KDL::Joint& j = seg.getJoint();
+    const KDL::Joint joint = j.getType() == KDL::Joint::None
+                                 ? j
+                                 : KDL::Joint(j.getName(), parent_T_joint.p, j.JointAxis(), KDL::Joint::RotAxis);
+    m.chain_.addSegment(KDL::Segment(seg.getName(), joint, parent_T_joint, seg.getInertia()));
+  }
   return m;
 }
 

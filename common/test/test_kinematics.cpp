@@ -402,3 +402,65 @@ TEST(Kinematics, WorkspaceCanBeMoved) {
   c = std::move(b);
   EXPECT_NEAR(forward_kinematics(m, c, Eigen::VectorXd::Zero(7)).translation().z(), 1.985, 1e-12);
 }
+
+// ---- a workspace belongs to its model (as Pinocchio's model.check(data)) ----
+
+TEST(KinematicsWorkspace, RefusesAnotherModel) {
+  const RobotModel arm = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  // Same joint count, different kinematics: the shoulder link 5 cm longer.
+  std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+  delta[2] = 0.05;
+  const RobotModel longer = arm.with_link_lengths_changed(delta);
+  ASSERT_EQ(longer.dof(), arm.dof());
+  KinematicsWorkspace ws(arm);
+  EXPECT_TRUE(check(arm, ws));
+  const RobotModel copy = arm;  // a copy is the same model
+  EXPECT_TRUE(check(copy, ws));
+  EXPECT_FALSE(check(longer, ws));
+
+  const Eigen::VectorXd q = arm.mid_configuration();
+  // The mismatch used to compute the workspace's model (arm) silently.
+  EXPECT_FALSE(forward_kinematics(longer, ws, q).matrix().allFinite());
+  Eigen::Matrix<double, 6, Eigen::Dynamic> J(6, arm.dof());
+  jacobian(longer, ws, q, J);
+  EXPECT_FALSE(J.allFinite());
+  Eigen::VectorXd tau(arm.dof());
+  gravity_torques(longer, ws, q, tau);
+  EXPECT_FALSE(tau.allFinite());
+  try {
+    inverse_kinematics(longer, ws, forward_kinematics(arm, ws, q), q);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "inverse_kinematics: the workspace was built for another robot model (" +
+                                         std::string(FORESIGHT_CONFIG_DIR "/robot.urdf") + " is not its model)");
+  }
+  // The right workspace still works for both.
+  EXPECT_TRUE(forward_kinematics(arm, ws, q).matrix().allFinite());
+  KinematicsWorkspace ws_longer(longer);
+  EXPECT_TRUE(forward_kinematics(longer, ws_longer, q).matrix().allFinite());
+}
+
+TEST(RobotModel, LinkLengthChangeMovesTheTipByExactlyThatMuch) {
+  // One offset longer by d: the tip moves by d along that offset's direction
+  // (a rigid motion of everything after it), |dp| = d at every q.
+  const RobotModel arm = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  KinematicsWorkspace ws(arm);
+  std::mt19937 rng(9);
+  for (unsigned k = 0; k < arm.chain().getNrOfSegments(); ++k) {
+    if (arm.chain().getSegment(k).getFrameToTip().p.Norm() < 1e-9) continue;
+    std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+    delta[k] = 0.002;
+    const RobotModel changed = arm.with_link_lengths_changed(delta);
+    EXPECT_NE(changed.id(), arm.id());
+    KinematicsWorkspace wc(changed);
+    for (int t = 0; t < 5; ++t) {
+      Eigen::VectorXd q(arm.dof());
+      for (int i = 0; i < arm.dof(); ++i)
+        q[i] = std::uniform_real_distribution<double>(arm.limits()[i].lower_rad, arm.limits()[i].upper_rad)(rng);
+      const Eigen::Vector3d dp =
+          forward_kinematics(changed, wc, q).translation() - forward_kinematics(arm, ws, q).translation();
+      EXPECT_NEAR(dp.norm(), 0.002, 1e-12) << "segment " << k;
+    }
+  }
+  EXPECT_THROW(arm.with_link_lengths_changed({0.1}), std::invalid_argument);
+}

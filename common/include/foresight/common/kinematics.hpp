@@ -7,10 +7,19 @@
 // One workspace per thread; the model may be shared. (Each workspace holds its
 // own copy of the KDL chain: KDL::Joint caches its last pose in mutable
 // members, so the solvers of two threads must never share one chain.)
-// The real-time functions cannot throw: a q of the wrong size or a link index
-// out of range gives NaN outputs.
+// The real-time functions cannot throw: a q of the wrong size, a link index
+// out of range, or a workspace built for another model gives NaN outputs.
+//
+// A workspace is tied to the model it was built from (RobotModel::id(); a
+// copy of the model is the same model). As Pinocchio's model.check(data),
+// check(model, ws) says whether they belong together; call it at set-up
+// (the real-time functions test the same identity, one integer compare, and
+// answer NaN on a mismatch rather than another robot's kinematics).
+// inverse_kinematics, not real-time, throws std::invalid_argument on a
+// mismatch (a programming error, as Pinocchio's argument checks).
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 
 #include "foresight/common/pose.hpp"
@@ -27,12 +36,18 @@ class KinematicsWorkspace {
   KinematicsWorkspace(const KinematicsWorkspace&) = delete;
   KinematicsWorkspace& operator=(const KinematicsWorkspace&) = delete;
 
+  /// RobotModel::id() of the model this workspace was built for.
+  std::uint64_t model_id() const noexcept;
+
   struct Impl;
   Impl& impl() { return *impl_; }
 
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+/// True when `ws` was built for `model` (or a copy of it). RT-safe.
+bool check(const RobotModel& model, const KinematicsWorkspace& ws) noexcept;
 
 /// base_T_link for link index `link` (RobotModel::links(); default the tool
 /// tip). q must have model.dof() entries. RT-safe.
@@ -76,7 +91,8 @@ struct IkResult {
 
 /// Full-pose IK for the tip (or `link`): seeded from `seed`, solution within
 /// joint limits. On failure success=false and q/residuals describe the best
-/// attempt. Not RT-safe.
+/// attempt. Not RT-safe. Throws std::invalid_argument when ws was built for
+/// another model.
 IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, const Pose& base_T_target,
                             const Eigen::Ref<const Eigen::VectorXd>& seed, const IkOptions& options = {},
                             int link = -1);

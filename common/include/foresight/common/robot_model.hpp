@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 #include <kdl/chain.hpp>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -86,8 +87,21 @@ class RobotModel {
 
   const std::string& source() const { return source_; }
 
+  /// Identity of this model, for tying a KinematicsWorkspace to it: unique to
+  /// each model built (from_file, from_xml, with_link_lengths_changed); a copy
+  /// has its original's id (a RobotModel is immutable, so a copy is the same model).
+  std::uint64_t id() const noexcept { return id_; }
+
+  /// This model with the length of every link offset changed: the origin of
+  /// chain segment k (the joint origin in its parent) moves by delta_m[k]
+  /// along its own direction (segments with a zero offset keep it). For
+  /// studies of arm-model error. Throws std::invalid_argument when delta_m
+  /// does not have one value per chain segment (chain().getNrOfSegments()).
+  RobotModel with_link_lengths_changed(const std::vector<double>& delta_m) const;
+
  private:
   RobotModel() = default;
+  std::uint64_t id_ = 0;
   std::string source_;
   KDL::Chain chain_;
   std::vector<std::string> joint_names_;
