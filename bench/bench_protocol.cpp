@@ -26,6 +26,13 @@
 //                              trip: doubled here. Counters: medians and p99s
 //                              in us, and our/ddsperf ratios. ddsperf comes
 //                              from cyclonedds-tools ($FORESIGHT_DDSPERF or PATH).
+//   BM_LinkSecurity/plain, /secure   the remote link (link_test_remote) with and
+//                              without DDS Security (scripts/make_dds_security.sh
+//                              material in a scratch folder; identities
+//                              "remote" and "ground"): time to match, ping/pong
+//                              round trip (listener ends) median/p99, and a
+//                              1,800 x 7 upload -> COMMITTED (RemoteLink
+//                              assembles, SHA-256, URDF limits) median.
 
 #include <benchmark/benchmark.h>
 #include <signal.h>
@@ -52,6 +59,7 @@
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 
 extern char** environ;
@@ -491,6 +499,87 @@ void BM_PingPongVsDdsperf(benchmark::State& state) {
     state.counters["peer_over_be_waitset"] = ours / be;
   }
 }
+void BM_LinkSecurity(benchmark::State& state, bool secure) {
+  const std::string link_remote = bin_path("link_test_remote");
+  if (!std::filesystem::exists(link_remote)) {
+    state.SkipWithError("link_test_remote not built");
+    return;
+  }
+  setup();  // loopback configuration
+  std::string dir;
+  if (secure) {
+    if (foresight::protocol::security_plugin_dir().empty()) {
+      state.SkipWithError("Cyclone's DDS Security plugins not found at build time");
+      return;
+    }
+    char tmpl[] = "/tmp/foresight_bench_sec_XXXXXX";
+    if (mkdtemp(tmpl) == nullptr) {
+      state.SkipWithError("mkdtemp failed");
+      return;
+    }
+    dir = tmpl;
+    const std::string cmd = "bash " + std::string(FORESIGHT_CONFIG_DIR) + "/../scripts/make_dds_security.sh " + dir +
+                            " >/dev/null";
+    if (std::system(cmd.c_str()) != 0) {
+      state.SkipWithError("make_dds_security.sh failed (openssl?)");
+      return;
+    }
+  }
+  const dds_domainid_t domain = 1 + (setup().domain - 1 + (secure ? 91 : 37)) % 230;
+  std::vector<std::string> args{link_remote, "--domain", std::to_string(domain), "--lifetime-s", "600"};
+  if (secure) args.insert(args.end(), {"--security", dir});
+  double match_ms = 0.0;
+  std::vector<double> rtt_us, upload_ms;
+  {
+    Peer remote(args, true);
+    const auto t0 = Clock::now();
+    auto participant = secure ? std::make_unique<fp::Participant>(domain, fp::security_qos(dir, "ground"))
+                              : std::make_unique<fp::Participant>(domain);
+    fp::Writer<msg::Ping> ping(*participant);
+    fp::Reader<msg::Pong> pong(*participant);
+    fp::Writer<msg::TrajectoryChunk> chunks(*participant);
+    fp::Reader<msg::TrajectoryStatus> status(*participant);
+    if (!ping.wait_for_readers(1, 30s) || !pong.wait_for_writers(1, 30s) || !chunks.wait_for_readers(1, 30s) ||
+        !status.wait_for_writers(1, 30s)) {
+      state.SkipWithError("link remote not matched within 30 s");
+      return;
+    }
+    match_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    const foresight::Trajectory t = make_trajectory(1800, 7);
+    const foresight::TrajectoryHash hash = foresight::trajectory_hash(t);
+    std::uint64_t id = 0, upload_id = secure ? (9ull << 40) : (8ull << 40);
+    fp::Sample<msg::TrajectoryStatus> s;
+    for (auto _ : state) {
+      auto r = ping_pong_listener_for(ping, pong, 3s, id);
+      rtt_us.insert(rtt_us.end(), r.begin(), r.end());
+      for (int k = 0; k < 10; ++k) {
+        const auto parts = fp::make_chunks(t, ++upload_id, 1, hash);
+        const auto u0 = Clock::now();
+        for (const auto& c : parts) chunks.write(c);
+        bool committed = false;
+        while (!committed && status.wait_take(s, 10s)) {
+          committed = s->trajectory_id == upload_id && s->state == foresight_msg_UPLOAD_COMMITTED;
+          if (s->trajectory_id == upload_id && s->state == foresight_msg_UPLOAD_REJECTED) break;
+        }
+        if (!committed) {
+          state.SkipWithError("upload not committed within 10 s");
+          return;
+        }
+        upload_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - u0).count());
+      }
+    }
+  }
+  if (!dir.empty()) std::filesystem::remove_all(dir);
+  state.counters["match_ms"] = match_ms;
+  state.counters["rtt_median_us"] = percentile(rtt_us, 0.5);
+  state.counters["rtt_p99_us"] = percentile(rtt_us, 0.99);
+  state.counters["roundtrips"] = static_cast<double>(rtt_us.size());
+  state.counters["upload1800x7_committed_median_ms"] = percentile(upload_ms, 0.5);
+  state.counters["upload1800x7_committed_max_ms"] = percentile(upload_ms, 1.0);
+}
+BENCHMARK_CAPTURE(BM_LinkSecurity, plain, false)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_LinkSecurity, secure, true)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
 BENCHMARK(BM_PingPongVsDdsperf)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
