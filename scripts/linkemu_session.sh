@@ -69,8 +69,9 @@ stop_pid() {
 
 cleanup() {
   trap - EXIT INT TERM HUP
-  stop_pid "$ground_pid" yes 5
-  stop_pid "$remote_pid" yes 5
+  # 8 s: longer than the exec wrapper's own 3 s before it SIGKILLs the command.
+  stop_pid "$ground_pid" yes 8
+  stop_pid "$remote_pid" yes 8
   # The emulator removes its namespaces on SIGTERM; give it time to.
   stop_pid "$emu_pid" no 10
   [ -n "$emu_pid" ] && wait "$emu_pid" 2>/dev/null

@@ -21,7 +21,6 @@ std::string cyclone_config_xml(const std::string& interface, const std::string& 
          "<Peers><Peer address=\"" +
          peer_address +
          "\"/></Peers></Discovery>"
-         "<Tracing><Verbosity>severe</Verbosity></Tracing>"
          "</Domain></CycloneDDS>";
 }
 

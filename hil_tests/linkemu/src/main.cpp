@@ -290,7 +290,7 @@ int supervise(std::vector<char*>& argv, pid_t parent) {
     const int sig = sigtimedwait(&mask, &info, &tick);
     if (sig == SIGTERM || sig == SIGINT || sig == SIGHUP) {
       kill(-child, sig);
-      if (kill_ticks < 0) kill_ticks = 25;  // 5 s to stop
+      if (kill_ticks < 0) kill_ticks = 15;  // 3 s to stop (linkemu_session.sh waits longer)
     }
     if (kill_ticks > 0 && --kill_ticks == 0) kill(-child, SIGKILL);
   }

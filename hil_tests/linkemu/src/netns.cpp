@@ -247,6 +247,12 @@ int create_tun(const std::string& netns, const TunConfig& config) {
   set_ifreq_name(ifr, config.ifname);
   ifr.ifr_flags = IFF_TUN | IFF_NO_PI;
   if (ioctl(tun.fd, TUNSETIFF, &ifr) != 0) fail("TUNSETIFF " + config.ifname + " (needs CAP_NET_ADMIN)", errno);
+  // Persistent: the device (and its address) outlives our fd and goes with
+  // its namespace, when the last process in it exits. A DDS process still in
+  // the namespace when the emulator stops can then shut down: Cyclone wakes
+  // its receive threads with a packet to its own address and, were that
+  // address gone, dds_delete() would wait for them forever (seen).
+  if (ioctl(tun.fd, TUNSETPERSIST, 1) != 0) fail("TUNSETPERSIST " + config.ifname, errno);
 
   // No IPv6 on the link: no router solicitations or DAD in the statistics.
   // /proc/sys/net follows the opening thread's namespace. Best effort.

@@ -577,6 +577,32 @@ TEST(LinkEmuSession, InterruptedSessionRemovesEverything) {
   EXPECT_TRUE(le::list_netns(prefix).empty());
 }
 
+TEST(LinkEmu, DdsProcessLeftInsideCanStillExitAfterTheEmulatorStops) {
+  // Cyclone wakes its receive threads at shutdown with a packet to its own
+  // address; the TUN device is persistent so that address survives the
+  // emulator and dds_delete() does not wait forever.
+  START_EMULATOR(emu);
+  Child peer = Child::spawn(
+      {kEmu, "exec", emu.remote(), "--", kBin + "/foresight_protocol_peer", "--domain", "9", "--lifetime-s", "90"});
+  // Bounded wait until its participant has bound its UDP ports.
+  const std::string udp = "/proc/" + std::to_string(peer.pid) + "/net/udp";
+  const auto deadline = Clock::now() + 30s;
+  auto sockets = [&] {
+    FILE* f = std::fopen(udp.c_str(), "r");
+    if (f == nullptr) return 0;
+    int lines = 0;
+    for (int c = std::fgetc(f); c != EOF; c = std::fgetc(f)) lines += c == '\n';
+    std::fclose(f);
+    return lines - 1;  // header
+  };
+  while (sockets() < 2 && Clock::now() < deadline) peer.pump(50ms);
+  ASSERT_GE(sockets(), 2) << peer.err_buf;
+  emu.stop();
+  EXPECT_FALSE(le::netns_exists(emu.remote()));
+  kill(peer.pid, SIGTERM);
+  EXPECT_EQ(peer.finish(20s), 0) << "the DDS process hung in its shutdown: " << peer.err_buf;
+}
+
 // -------------------------------------------------------------- bad input
 
 TEST(LinkEmu, BadOptionsExit2WithTheReason) {

@@ -11,6 +11,8 @@ namespace foresight::linkemu {
 /// The XML for CYCLONEDDS_URI: only `interface`, no multicast, unicast peer
 /// `peer_address`, SPDP re-announced every `spdp_interval_s` (a lost
 /// announcement on a lossy link is repeated soon, not after Cyclone's 30 s).
+/// No <Tracing>: Cyclone then writes no cyclonedds.log into the working
+/// directory; its errors still go to stderr.
 std::string cyclone_config_xml(const std::string& interface, const std::string& peer_address,
                                double spdp_interval_s = 2.0);
 

@@ -96,7 +96,11 @@ struct TunConfig {
 
 /// Creates a TUN device (IFF_TUN | IFF_NO_PI) inside namespace `netns`,
 /// addresses it point-to-point, brings it and `lo` up, and returns its fd
-/// (non-blocking, close-on-exec). The device lives as long as the fd.
+/// (non-blocking, close-on-exec). The device is persistent: it stays after
+/// the fd is closed (with nobody forwarding) and is destroyed with its
+/// namespace, once the namespace's name is removed and no process is left in
+/// it. So a process still inside when the emulator stops keeps its address
+/// (Cyclone needs it to shut down) instead of seeing the interface vanish.
 /// Throws NotPermitted when /dev/net/tun cannot be opened or TUNSETIFF is
 /// refused, std::runtime_error on other failures.
 int create_tun(const std::string& netns, const TunConfig& config);
