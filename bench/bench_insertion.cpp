@@ -83,8 +83,16 @@ struct Outcome {
   std::array<char, 96> text{};
 };
 
+/// What to insert: the tool into the ORU's hole, or the carried ORU into
+/// its slot (the tool latched in the ORU at q_grip, the screw free).
+struct InsertSpec {
+  double depth_m = 0.07;
+  bool carry_oru = false;
+  Eigen::VectorXd q_grip;
+};
+
 /// One insertion from joints q0. Returns the outcome.
-Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0) {
+Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0, const InsertSpec& spec) {
   Outcome o;
   sim::Plant& plant = *w.plant;
   plant.reset();
@@ -93,9 +101,19 @@ Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0) {
   control::CycleInputs in;
   control::CycleOutputs out;
   in.joints = dof;
-  for (std::size_t j = 0; j < dof; ++j) in.q[j] = q0[static_cast<Eigen::Index>(j)];
   std::vector<double> q(dof), qd(dof, 0.0);
-  const sim::LstToolState tool;  // latch open: the plant is only contact
+  sim::LstToolState tool;  // latch open: the plant is only contact
+  if (spec.carry_oru) {
+    // Grip the fastened ORU, loosen the screw: it follows the tool from here.
+    for (std::size_t j = 0; j < dof; ++j) q[j] = spec.q_grip[static_cast<Eigen::Index>(j)];
+    tool.engaged_turns = 8.0;
+    plant.step(q, qd, tool);
+    tool.latched = true;
+    plant.step(q, qd, tool);
+    tool.engaged_turns = 0.0;
+    plant.step(q, qd, tool);
+  }
+  for (std::size_t j = 0; j < dof; ++j) in.q[j] = q0[static_cast<Eigen::Index>(j)];
   const double dt = 1.0 / 500.0;
 
   // The F/T reading: the plant's, tared at the start pose (no contact there).
@@ -134,7 +152,7 @@ Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0) {
   ins.command_id = 2;
   ins.kind = control::MotionCommandKind::RunAlgorithm;
   ins.algorithm.kind = control::AlgorithmKind::Insert;
-  ins.algorithm.insert.depth_m = 0.07;  // from 1 cm in front to the tool_inserted tag, 6 cm deep
+  ins.algorithm.insert.depth_m = spec.depth_m;
   ctl.command(ins);
   const int max_cycles = static_cast<int>((ins.algorithm.insert.timeout_s + 5.0) * 500.0);
   const std::uint64_t start_cycle = cycle;
@@ -147,8 +165,9 @@ Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0) {
       in.q[j] = qn;  // kinematic plant: measured = commanded
     }
     last = read(false);
-    o.peak_force_n = std::max(o.peak_force_n, last.tool_contact.sensor.force_n.norm());
-    o.touched_face = o.touched_face || last.tool_contact.face_contacts > 0;
+    const sim::ContactResult& c = spec.carry_oru ? last.slot_contact : last.tool_contact;
+    o.peak_force_n = std::max(o.peak_force_n, c.sensor.force_n.norm());
+    o.touched_face = o.touched_face || c.face_contacts > 0;
     step();
     o.searched = o.searched || ctl.algorithm().phase() == 1;
     for (std::size_t e = 0; e < out.event_count; ++e) {
@@ -166,46 +185,63 @@ Outcome insert_once(InsertionWorld& w, const Eigen::VectorXd& q0) {
     }
   }
   o.sim_s = static_cast<double>(cycle - start_cycle) * dt;
-  o.in_hole = last.tool_contact.tip_in_hole() && last.tool_contact.insertion_depth_m >= w.params.grasp_depth_m;
+  if (spec.carry_oru) {
+    o.in_hole = last.state == sim::OruState::Seated;
+    o.peak_force_n = std::max(o.peak_force_n, 0.0);
+  } else {
+    o.in_hole = last.tool_contact.tip_in_hole() && last.tool_contact.insertion_depth_m >= w.params.grasp_depth_m;
+  }
   return o;
 }
 
-void BM_Insertion(benchmark::State& state) {
-  InsertionWorld w;
-  const int starts = static_cast<int>(state.range(0));
-  std::mt19937 rng(20261201u);
+/// Random start errors after the issue: lateral up to 3 mm (uniform over the
+/// disk), tilt up to 1 deg (uniform magnitude, random axis), `standoff_m` in
+/// front of the entrance. Pose of the inserted part's leading frame in the
+/// frame of what it enters.
+std::vector<Pose> random_starts(int n, double standoff_m, unsigned seed) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
-  // Start joints for every start (IK, set-up; outside the timing).
-  std::vector<Eigen::VectorXd> q_starts;
-  q_starts.reserve(static_cast<std::size_t>(starts));
-  IkOptions opt;
-  opt.position_tolerance_m = 1e-6;
-  opt.rotation_tolerance_rad = 1e-6;
-  for (int i = 0; i < starts; ++i) {
+  std::vector<Pose> out;
+  for (int i = 0; i < n; ++i) {
     const double r = 0.003 * std::sqrt(u01(rng));
     const double phi = 2.0 * std::numbers::pi * u01(rng);
     const double tilt = (1.0 * std::numbers::pi / 180.0) * u01(rng);
     const double axis_phi = 2.0 * std::numbers::pi * u01(rng);
-    Pose oru_T_start(Eigen::Translation3d(r * std::cos(phi), r * std::sin(phi), -0.01));
-    oru_T_start.linear() =
+    Pose p(Eigen::Translation3d(r * std::cos(phi), r * std::sin(phi), -standoff_m));
+    p.linear() =
         Eigen::AngleAxisd(tilt, Eigen::Vector3d(std::cos(axis_phi), std::sin(axis_phi), 0.0)).toRotationMatrix();
-    const IkResult ik = inverse_kinematics(w.robot, w.ws, w.base_T_oru * oru_T_start, w.q_nominal, opt);
+    out.push_back(p);
+  }
+  return out;
+}
+
+/// Run the insertion from every start (joints for base_T_tip_starts) and set
+/// the counters.
+void run_insertions(benchmark::State& state, InsertionWorld& w, const std::vector<Pose>& base_T_tip_starts,
+                    const InsertSpec& spec, const char* label) {
+  std::vector<Eigen::VectorXd> q_starts;
+  IkOptions opt;
+  opt.position_tolerance_m = 1e-6;
+  opt.rotation_tolerance_rad = 1e-6;
+  for (const Pose& target : base_T_tip_starts) {
+    const IkResult ik = inverse_kinematics(w.robot, w.ws, target, w.q_nominal, opt);
     if (!ik.success) {
       state.SkipWithError("IK failed for a start pose");
       return;
     }
     q_starts.push_back(ik.q);
   }
-
   int successes = 0, completed_out = 0, runs = 0, printed = 0, touched = 0, searched = 0;
-  double peak = 0.0, peak_sum = 0.0, t_sum = 0.0;
+  double peak = 0.0, peak_sum = 0.0, t_sum = 0.0, align_sum = 0.0, align_max = 0.0;
+  double lateral_max = 0.0, axial_sum = 0.0, tilt_max = 0.0;
   double wall_s = 0.0;
   for (auto _ : state) {
     successes = completed_out = runs = touched = searched = 0;
-    peak = peak_sum = t_sum = 0.0;
+    peak = peak_sum = t_sum = align_sum = align_max = 0.0;
+    lateral_max = axial_sum = tilt_max = 0.0;
     const auto t0 = std::chrono::steady_clock::now();
     for (const Eigen::VectorXd& q0 : q_starts) {
-      const Outcome o = insert_once(w, q0);
+      const Outcome o = insert_once(w, q0, spec);
       ++runs;
       peak = std::max(peak, o.peak_force_n);
       peak_sum += o.peak_force_n;
@@ -214,10 +250,17 @@ void BM_Insertion(benchmark::State& state) {
       if (o.completed && o.in_hole) {
         ++successes;
         t_sum += o.sim_s;
+        const sim::PlantTruth t = w.plant->truth();
+        align_sum += t.alignment_error_m;
+        align_max = std::max(align_max, t.alignment_error_m);
+        const Eigen::Vector3d e = (t.base_T_oru_home.inverse(Eigen::Isometry) * t.base_T_oru).translation();
+        lateral_max = std::max(lateral_max, e.head<2>().norm());
+        axial_sum += std::abs(e.z());
+        tilt_max = std::max(tilt_max, t.alignment_error_rad);
       } else {
         if (o.completed) ++completed_out;
         if (printed++ < 5)
-          std::fprintf(stderr, "BM_Insertion: start %d failed (completed %d, in hole %d): %s\n", runs, o.completed,
+          std::fprintf(stderr, "%s: start %d failed (completed %d, in place %d): %s\n", label, runs, o.completed,
                        o.in_hole, o.text.data());
       }
       benchmark::DoNotOptimize(o);
@@ -233,8 +276,93 @@ void BM_Insertion(benchmark::State& state) {
   state.counters["peak_force_mean_n"] = runs ? peak_sum / runs : 0.0;
   state.counters["seconds_per_insertion"] = successes ? t_sum / successes : 0.0;
   state.counters["compute_ms_per_insertion"] = runs ? 1e3 * wall_s / runs : 0.0;
+  if (spec.carry_oru) {
+    state.counters["oru_alignment_mean_mm"] = successes ? 1e3 * align_sum / successes : 0.0;
+    state.counters["oru_alignment_max_mm"] = 1e3 * align_max;
+    state.counters["oru_lateral_max_mm"] = 1e3 * lateral_max;  // at the ORU's front (hole entrance)
+    state.counters["oru_axial_mean_mm"] = successes ? 1e3 * axial_sum / successes : 0.0;
+    state.counters["oru_tilt_max_deg"] = tilt_max * 180.0 / std::numbers::pi;
+  }
+}
+
+/// The tool into the ORU's hole: 1 cm in front of the entrance to the
+/// tool_inserted depth (6 cm).
+void BM_Insertion(benchmark::State& state) {
+  InsertionWorld w;
+  std::vector<Pose> starts;
+  for (const Pose& oru_T_tip : random_starts(static_cast<int>(state.range(0)), 0.01, 20261201u))
+    starts.push_back(w.base_T_oru * oru_T_tip);
+  InsertSpec spec;
+  spec.depth_m = 0.07;
+  run_insertions(state, w, starts, spec, "BM_Insertion");
+}
+
+/// The carried ORU back into its slot (the bore 1 mm wider than the ORU's
+/// back): its back 1 cm in front of the bore with the same random errors, to
+/// the bottom (11 cm). The reading is tared with the ORU carried (its weight
+/// removed), as the controller would after picking it up. Success: Completed
+/// and the plant reports the ORU Seated (back within 2 mm of the bottom);
+/// oru_alignment_*_mm: its position error against the slot then (at the
+/// ORU frame origin, the front face's hole entrance), split into lateral,
+/// axial (short of the bottom) and tilt.
+void BM_OruInsertion(benchmark::State& state) {
+  InsertionWorld w;
+  const sim::Plant& plant = *w.plant;
+  const Pose oru_T_grip(Eigen::Translation3d(0.0, 0.0, 0.06));
+  const Pose back_T_tip = plant.oru_T_back().inverse(Eigen::Isometry) * oru_T_grip;
+  IkOptions opt;
+  opt.position_tolerance_m = 1e-6;
+  opt.rotation_tolerance_rad = 1e-6;
+  const IkResult grip = inverse_kinematics(w.robot, w.ws, w.base_T_oru * oru_T_grip, w.q_nominal, opt);
+  if (!grip.success) {
+    state.SkipWithError("IK failed for the grip pose");
+    return;
+  }
+  std::vector<Pose> starts;
+  for (const Pose& slot_T_back : random_starts(static_cast<int>(state.range(0)), 0.01, 20261202u))
+    starts.push_back(plant.base_T_slot() * slot_T_back * back_T_tip);
+  InsertSpec spec;
+  spec.depth_m = 0.11;
+  spec.carry_oru = true;
+  spec.q_grip = grip.q;
+  run_insertions(state, w, starts, spec, "BM_OruInsertion");
+}
+
+/// One plant step (what the simulated F/T node costs per SYNC): FK,
+/// Jacobian, the tool/ORU contact (tool 6 cm in the hole, on the wall), or
+/// with arg 1 the carried ORU 5 cm into its slot, 2 mm off axis (1 mm into the wall)
+/// (48 x 64 end-face points + 50 slices on the 0.38 m guide).
+void BM_PlantStep(benchmark::State& state) {
+  InsertionWorld w;
+  const bool carried = state.range(0) != 0;
+  IkOptions opt;
+  const Pose oru_T_grip(Eigen::Translation3d(0.0005, 0.0, 0.06));
+  const IkResult grip = inverse_kinematics(w.robot, w.ws, w.base_T_oru * oru_T_grip, w.q_nominal, opt);
+  const IkResult out = inverse_kinematics(
+      w.robot, w.ws, w.base_T_oru * Pose(Eigen::Translation3d(0.0025, 0.0, 0.01)), w.q_nominal, opt);
+  if (!grip.success || !out.success) {
+    state.SkipWithError("IK failed");
+    return;
+  }
+  std::vector<double> q(grip.q.data(), grip.q.data() + grip.q.size());
+  const std::vector<double> qd(q.size(), 0.01);
+  sim::LstToolState tool;
+  tool.engaged_turns = 8.0;
+  w.plant->step(q, qd, tool);
+  if (carried) {
+    tool.latched = true;
+    w.plant->step(q, qd, tool);
+    tool.engaged_turns = 0.0;
+    w.plant->step(q, qd, tool);
+    q.assign(out.q.data(), out.q.data() + out.q.size());
+    w.plant->step(q, qd, tool);
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(w.plant->step(q, qd, tool));
+  state.counters["slot_wall_contacts"] = w.plant->step(q, qd, tool).slot_contact.wall_contacts;
 }
 
 }  // namespace
 
 BENCHMARK(BM_Insertion)->Arg(200)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK(BM_OruInsertion)->Arg(20)->Iterations(1)->Unit(benchmark::kSecond);
+BENCHMARK(BM_PlantStep)->ArgName("carried")->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);

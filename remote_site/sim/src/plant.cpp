@@ -138,8 +138,10 @@ ContactParams slot_contact_params(const PlantParams& p, const ObjectModel& oru) 
   c.damping_n_s_per_m = 0.0;
   c.friction_coefficient = p.slot.friction_coefficient;
   c.friction_velocity_m_s = p.contact.friction_velocity_m_s;
-  c.face_rings = 4;
-  c.face_ring_points = 24;
+  // The ORU's back is 0.38 m across: rings out to within ~1 mm of its edge
+  // so a back landing on the bore's rim (> 1 mm off) touches the panel face.
+  c.face_rings = 48;
+  c.face_ring_points = 64;
   c.shaft_stations = 50;
   c.tip_T_sensor = Pose::Identity();  // the wrench comes back about the ORU's back; moved to the sensor here
   return c;
