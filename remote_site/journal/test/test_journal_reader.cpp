@@ -177,6 +177,11 @@ TEST(JournalCommand, CorruptDbNamesTheFile) {
                            ": statement failed: file is not a database (not a journal database)\n");
 }
 
+TEST(JournalCommand, DefaultDbIsTheWritersDefault) {
+  EXPECT_EQ(JournalQuery{}.db, JournalOptions{}.path);
+  EXPECT_EQ(JournalQuery{}.db, "foresight-journal.db");
+}
+
 TEST(JournalCommand, EmptyJournal) {
   ScratchDir dir;
   const JournalOptions o = test_options(dir);

@@ -51,7 +51,7 @@ class JournalError : public std::runtime_error {
 
 struct JournalOptions {
   static constexpr std::uint64_t kMinMaxBytes = 128 * 1024;
-  std::string path = "foresight_journal.sqlite3";
+  std::string path = "foresight-journal.db";
   std::uint64_t max_bytes = 64ull << 20;  ///< rotate when the database passes this (>= kMinMaxBytes)
   int keep_files = 4;                     ///< rotated files kept: NAME.1 .. NAME.keep_files
   std::size_t telemetry_queue = 4096;     ///< SPSC ring capacity (rows)

@@ -14,8 +14,9 @@
 
 namespace foresight::journal {
 
-/// The daemon's default journal file (relative to its working directory).
-inline constexpr const char* kDefaultJournalPath = "foresight_journal.sqlite3";
+/// The default journal file, relative to the working directory (the same as
+/// JournalOptions::path and the daemon's controller.journal.path).
+inline constexpr const char* kDefaultJournalPath = "foresight-journal.db";
 
 struct ReadOptions {
   std::int64_t since_ns = std::numeric_limits<std::int64_t>::min();  ///< rows with stamp_ns >= since_ns
