@@ -201,7 +201,13 @@ void Journal::rotate() {
       if (fs::exists(rotated_name(p, i))) fs::rename(rotated_name(p, i), rotated_name(p, i + 1), ec);
     }
     fs::rename(p, rotated_name(p, 1), ec);
-    if (ec) throw JournalError(p + ": cannot rotate to " + rotated_name(p, 1) + ": " + ec.message());
+    if (ec) {
+      // Keep journaling into the same (oversized) file; the next transaction
+      // tries again. The row that triggered this is already committed.
+      stats_.last_error = p + ": cannot rotate to " + rotated_name(p, 1) + ": " + ec.message();
+      open_db();
+      return;
+    }
     fs::remove(p + "-wal", ec);
     fs::remove(p + "-shm", ec);
   }

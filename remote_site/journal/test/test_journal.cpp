@@ -518,6 +518,30 @@ TEST(Journal, OpensAnOversizedJournalIntoANewFile) {
   EXPECT_EQ(sqlite_int(o.path + ".1", "select count(*) from commands"), 50);
 }
 
+// A rotation that cannot rename (NAME.1 is a non-empty directory here) keeps
+// the journal writing into NAME, says why in stats().last_error, and retries.
+TEST(Journal, FailedRotationKeepsJournaling) {
+  ScratchDir dir;
+  JournalOptions o = test_options(dir);
+  o.max_bytes = JournalOptions::kMinMaxBytes;
+  o.keep_files = 1;
+  fs::create_directories(o.path + ".1/occupied");
+  Journal j(o);
+  for (int i = 0; i < 60; ++i) {
+    CommandRow c = command(static_cast<std::uint64_t>(i));
+    c.detail = "{\"pad\":\"" + std::string(4000, 'x') + "\"}";
+    j.record_command(c);
+  }
+  EXPECT_EQ(j.stats().rotations, 0u);
+  EXPECT_NE(j.stats().last_error.find(o.path + ": cannot rotate to " + o.path + ".1: "), std::string::npos)
+      << j.stats().last_error;
+  EXPECT_EQ(sqlite_int(o.path, "select count(*) from commands"), 60);
+  fs::remove_all(o.path + ".1");  // the obstacle gone: the next transaction rotates
+  j.record_command(command(60));
+  EXPECT_EQ(j.stats().rotations, 1u);
+  EXPECT_EQ(sqlite_int(o.path + ".1", "select count(*) from commands"), 61);
+}
+
 TEST(Journal, CorruptFileNamed) {
   ScratchDir dir;
   const JournalOptions o = test_options(dir);
