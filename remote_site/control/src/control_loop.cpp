@@ -54,6 +54,40 @@ double LoopStats::percentile_us(const std::array<std::uint64_t, kBins>& hist, do
   return kBinWidthUs * static_cast<double>(kBins);
 }
 
+void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& fb, const hw::FtReading& ft,
+                       CycleInputs& in) noexcept {
+  in.cycle = status.cycle;
+  in.joints = fb.count;
+  bool enabled = fb.count > 0;
+  for (std::size_t j = 0; j < fb.count && j < kMaxJoints; ++j) {
+    in.q[j] = fb.joints[j].position_rad;
+    in.torque[j] = fb.joints[j].torque_nm;
+    enabled = enabled && fb.joints[j].state == hw::canopen::PowerState::OperationEnabled;
+  }
+  in.drives_enabled = enabled;
+  in.wrench_ft = ft.wrench_ft;
+  in.ft_fresh = ft.fresh;
+  in.ft_saturated_mask = ft.saturated_mask;
+  in.ft_fault = ft.sensor_fault;
+  in.ft_tare_in_progress = ft.tare_in_progress;
+  in.hw_stop_required = status.stop_required;
+  in.hw_drive_fault = status.stop_required;
+  in.hw_fault = 0;
+  in.hw_node = 0;
+  in.hw_joint = -1;
+  in.hw_code = 0;
+  for (std::size_t i = 0; i < status.event_count; ++i) {
+    const hw::HwEvent& e = status.events[i];
+    if (!hw::requires_stop(e.fault)) continue;
+    in.hw_fault = static_cast<std::uint8_t>(e.fault);
+    in.hw_node = e.node;
+    in.hw_joint = e.joint;
+    in.hw_code = e.code;
+    in.hw_drive_fault = !is_sensor_fault(e.fault);
+    break;
+  }
+}
+
 ControlLoop::ControlLoop(hw::DriveSystem& drives, const RobotModel& model, const ControllerConfig& config,
                          LoopOptions options)
     : drives_(drives), options_(options) {
@@ -165,37 +199,8 @@ void ControlLoop::perform(DriveRequest request) noexcept {
 
 void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
   const hw::CycleStatus status = drives_.cycle_read(fb_, ft_);
-  in_.cycle = status.cycle;
+  fill_cycle_inputs(status, fb_, ft_, in_);
   in_.stamp_ns = stamp_ns;
-  in_.joints = fb_.count;
-  bool enabled = fb_.count > 0;
-  for (std::size_t j = 0; j < fb_.count && j < kMaxJoints; ++j) {
-    in_.q[j] = fb_.joints[j].position_rad;
-    in_.torque[j] = fb_.joints[j].torque_nm;
-    enabled = enabled && fb_.joints[j].state == hw::canopen::PowerState::OperationEnabled;
-  }
-  in_.drives_enabled = enabled;
-  in_.wrench_ft = ft_.wrench_ft;
-  in_.ft_fresh = ft_.fresh;
-  in_.ft_saturated_mask = ft_.saturated_mask;
-  in_.ft_fault = ft_.sensor_fault;
-  in_.ft_tare_in_progress = ft_.tare_in_progress;
-  in_.hw_stop_required = status.stop_required;
-  in_.hw_drive_fault = status.stop_required;
-  in_.hw_fault = 0;
-  in_.hw_node = 0;
-  in_.hw_joint = -1;
-  in_.hw_code = 0;
-  for (std::size_t i = 0; i < status.event_count; ++i) {
-    const hw::HwEvent& e = status.events[i];
-    if (!hw::requires_stop(e.fault)) continue;
-    in_.hw_fault = static_cast<std::uint8_t>(e.fault);
-    in_.hw_node = e.node;
-    in_.hw_joint = e.joint;
-    in_.hw_code = e.code;
-    in_.hw_drive_fault = !is_sensor_fault(e.fault);
-    break;
-  }
   in_.estop = estop_.load(std::memory_order_acquire);
   in_.link_lost = link_lost_.load(std::memory_order_acquire);
 

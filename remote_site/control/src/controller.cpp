@@ -64,6 +64,11 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   J_.resize(6, static_cast<Eigen::Index>(dof_));
   qv_.setZero();
   qv2_.setZero();
+  {
+    const Eigen::VectorXd mid = model.mid_configuration();
+    KinematicsWorkspace ws(model);
+    sensor_T_tip_ = forward_kinematics(model, ws, mid, ft_link_).inverse() * forward_kinematics(model, ws, mid, tip_link_);
+  }
   dqv_.setZero();
   J_.setZero();
 }
@@ -150,11 +155,11 @@ void Controller::command(const MotionCommand& cmd) noexcept {
       } else {
         Reason code = Reason::None;
         std::array<char, 96> text{};
-        if (!algo_.start(cmd.algorithm, base_T_tip_cmd_, config_.cycle_rate_hz, code, text))
+        if (!algo_.start(cmd.algorithm, commanded_tip_now(), config_.cycle_rate_hz, code, text))
           return reject(code, text.data());
         adm_.configure(algo_.last().admittance);
         adm_.reset();
-        base_T_hold_ = base_T_tip_cmd_;
+        base_T_hold_ = commanded_tip_now();
         active_ = Active::Algorithm;
         mode_ = ControllerMode::Algorithm;
       }
@@ -243,9 +248,19 @@ void Controller::command(const MotionCommand& cmd) noexcept {
   reject(Reason::BadArgument, "unknown command kind");
 }
 
+const Pose& Controller::commanded_tip_now() noexcept {
+  if (!tip_cmd_valid_) {
+    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_cmd_[j];
+    base_T_tip_cmd_ = forward_kinematics(model_, ws_, qv2_, tip_link_);
+    tip_cmd_valid_ = true;
+  }
+  return base_T_tip_cmd_;
+}
+
 void Controller::hold_here() noexcept {
   q_hold_ = q_cmd_;
-  base_T_hold_ = base_T_tip_cmd_;
+  tip_cmd_valid_ = false;
+  base_T_hold_ = commanded_tip_now();
   hold_compliant_ = false;
   adm_.reset();
   mode_ = ControllerMode::Idle;
@@ -264,7 +279,7 @@ void Controller::drive_request_done(DriveRequest request, bool ok, const char* t
       q_cmd_prev_ = held;
       v_cmd_ = JointArray{};
       for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = held[j];
-      base_T_tip_cmd_ = forward_kinematics(model_, ws_, qv_, tip_link_);
+      tip_cmd_valid_ = false;
       stop_.category = StopCategory::None;
       stop_.cause = StopCause::None;
       sensor_bad_cycles_ = 0;
@@ -521,10 +536,9 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   const double a = 1.0 - std::exp(-6.283185307179586 * config_.velocity_filter_hz * dt_);
   for (std::size_t j = 0; j < dof_; ++j) dq_[j] += a * ((q_[j] - q_prev_[j]) / dt_ - dq_[j]);
   for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = q_[j];
-  base_T_tip_ = forward_kinematics(model_, ws_, qv_, tip_link_);
   const Pose base_T_sensor = forward_kinematics(model_, ws_, qv_, ft_link_);
+  base_T_tip_ = base_T_sensor * sensor_T_tip_;  // fixed joints: one FK for both
   if (!have_q_) {
-    base_T_tip_cmd_ = base_T_tip_;
     comp_.set_tare_orientation(base_T_sensor.linear());
     have_q_ = true;
   }
@@ -659,12 +673,7 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     for (std::size_t j = 0; j < dof_; ++j)
       if (std::abs(v_cmd_[j]) > vmax_[j]) v_cmd_[j] = v_cmd_[j] > 0 ? vmax_[j] : -vmax_[j];
   q_cmd_prev_ = q_cmd_;
-  if (mode_ != ControllerMode::Disabled && mode_ != ControllerMode::Fault) {
-    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_cmd_[j];
-    base_T_tip_cmd_ = forward_kinematics(model_, ws_, qv2_, tip_link_);
-  } else {
-    base_T_tip_cmd_ = base_T_tip_;
-  }
+  tip_cmd_valid_ = false;  // computed on demand (commanded_tip_now)
   out.q_cmd = q_cmd_;
   if (stop_new_) out.stop = &stop_;
   stop_new_ = false;

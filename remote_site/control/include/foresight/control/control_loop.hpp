@@ -43,6 +43,12 @@
 
 namespace foresight::control {
 
+/// The Controller's inputs from one DriveSystem::cycle_read (joints, F/T,
+/// the first stop-requiring hardware event). estop/link_lost, cycle stamp are
+/// left to the caller. Real-time: noexcept, no allocation.
+void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& joints, const hw::FtReading& ft,
+                       CycleInputs& in) noexcept;
+
 struct LoopOptions {
   int rt_priority = 80;            ///< SCHED_FIFO priority (1-99)
   int cpu = -1;                    ///< pin the loop to this CPU; -1: do not pin

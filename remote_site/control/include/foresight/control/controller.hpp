@@ -128,8 +128,8 @@ class Controller {
   const ControllerConfig& config() const noexcept { return config_; }
   const RobotModel& model() const noexcept { return model_; }
   std::size_t joints() const noexcept { return dof_; }
-  /// Commanded tip pose of the last cycle (base frame).
-  const Pose& commanded_tip() const noexcept { return base_T_tip_cmd_; }
+  /// Commanded tip pose (base frame): FK of the last command, computed on demand. RT-safe.
+  const Pose& commanded_tip_now() noexcept;
   /// Measured tip pose of the last cycle (base frame).
   const Pose& measured_tip() const noexcept { return base_T_tip_; }
   const AlgorithmRunner& algorithm() const noexcept { return algo_; }
@@ -190,6 +190,8 @@ class Controller {
   bool have_q_ = false;
   Pose base_T_tip_ = Pose::Identity();
   Pose base_T_tip_cmd_ = Pose::Identity();
+  bool tip_cmd_valid_ = false;
+  Pose sensor_T_tip_ = Pose::Identity();  // from the model (fixed joints)
   Pose base_T_hold_ = Pose::Identity();  // reference tip pose of a compliant hold
   JointVector qv_, qv2_, dqv_;
   Jacobian J_;
