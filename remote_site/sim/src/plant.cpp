@@ -105,9 +105,15 @@ PlantParams load_plant_params(const std::string& path) {
   try {
     validate(p);
   } catch (const std::invalid_argument& e) {
+    // "<section>.<key> ...": the key's line when the file has it, else the section's.
     const std::string msg = e.what();
-    const YAML::Node where = msg.rfind("slot.", 0) == 0 ? root["slot"] : plant_node;
-    throw InputError(path, where ? line_of(where) : 0, msg);
+    const bool in_slot = msg.rfind("slot.", 0) == 0;
+    const YAML::Node sec = in_slot ? root["slot"] : plant_node;
+    const std::size_t dot = msg.find('.');
+    const std::string key = msg.substr(dot + 1, msg.find(' ') - dot - 1);
+    int line = sec ? line_of(sec) : 0;
+    if (sec && sec.IsMap() && sec[key]) line = line_of(sec[key]);
+    throw InputError(path, line, msg);
   }
   return p;
 }
@@ -305,7 +311,7 @@ PlantStep Plant::step(std::span<const double> q, std::span<const double> qd, con
   };
   switch (state_) {
     case OruState::Fastened:
-      if (gripped_ && screw_free) {
+      if (gripped_ && screw_free && !oru_stuck_.load(std::memory_order_relaxed)) {
         state_ = OruState::Seated;  // loose in its slot, held by the tool: it comes out with it
         start_following();
       }

@@ -13,6 +13,8 @@
 #include <functional>
 #include <thread>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <memory>
 #include <numbers>
 #include <vector>
@@ -390,4 +392,91 @@ TEST(Plant, LatchAndLoosenThroughTheLstFreeTheOru) {
   EXPECT_TRUE(cycles_ok);
   EXPECT_TRUE(plant->truth().gripped);
   plant->detach();
+}
+
+TEST(Plant, AStuckOruStaysFastenedAndThePullMeetsTheLatch) {
+  World w;
+  sim::Plant plant(w.robot, w.oru, w.base_T_oru, w.params);
+  plant.set_oru_stuck(true);
+  const Eigen::VectorXd q_in = w.q_at(along_axis(0.06));
+  step(plant, q_in, tool(true, 8.0));
+  EXPECT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Fastened);
+  // 2 mm of pull: 200 N from the latch into the ORU.
+  const sim::PlantStep r = step(plant, w.q_at(along_axis(0.058)), tool(true, 0.0));
+  EXPECT_EQ(r.state, OruState::Fastened);
+  const Eigen::Vector3d f_base =
+      plant.truth().base_T_tip.linear() * plant.sensor_T_tip().linear().transpose() * r.contact_ft.force_n;
+  EXPECT_NEAR(f_base.dot(w.base_T_oru.linear().col(2)), 200.0, 2.0);
+  plant.set_oru_stuck(false);
+  EXPECT_EQ(step(plant, q_in, tool(true, 0.0)).state, OruState::Seated);
+}
+
+namespace {
+
+/// config/scene.yaml with `from` replaced by `to`, written to a scratch file.
+std::string scene_with(const std::string& from, const std::string& to) {
+  std::ifstream in(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text = ss.str();
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string path = ::testing::TempDir() + "plant_scene_" +
+                           ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".yaml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+int line_of(const std::string& path, const std::string& needle) {
+  std::ifstream in(path);
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n)
+    if (line.find(needle) != std::string::npos) return n;
+  return 0;
+}
+
+}  // namespace
+
+TEST(Plant, BadSceneSectionsNameFileLineAndKey) {
+  {
+    const std::string path = scene_with("  radial_clearance_m: 0.001", "  radial_clearance: 0.001");
+    try {
+      sim::load_plant_params(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), path + ":" + std::to_string(line_of(path, "radial_clearance:")) +
+                                           ": slot.radial_clearance: unknown key");
+    }
+  }
+  {
+    const std::string path = scene_with("  oru_mass_kg: 5.0", "  oru_mass_kg: heavy");
+    try {
+      sim::load_plant_params(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()),
+                path + ":" + std::to_string(line_of(path, "oru_mass_kg:")) + ": plant.oru_mass_kg: not a number: 'heavy'");
+    }
+  }
+  {
+    const std::string path = scene_with("  depth_m: 0.10 ", "  depth_m: -0.10 ");
+    try {
+      sim::load_plant_params(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()),
+                path + ":" + std::to_string(line_of(path, "depth_m: -0.10")) + ": slot.depth_m must be a positive number");
+    }
+  }
+  {
+    const std::string path = scene_with("  sensor_bias: [1.2, -0.8, 2.5, 0.04, -0.03, 0.02]", "  sensor_bias: [1, 2]");
+    try {
+      sim::load_plant_params(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), path + ":" + std::to_string(line_of(path, "sensor_bias:")) +
+                                           ": 'plant.sensor_bias' must be a list of 6 numbers");
+    }
+  }
 }

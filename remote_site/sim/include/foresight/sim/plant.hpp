@@ -192,6 +192,10 @@ class Plant {
 
   /// Test/demo control: put the ORU back in its slot, fastened, released.
   void reset();
+  /// Fault injection: the ORU is stuck in its slot (corroded guides): it
+  /// does not come free even gripped with the screw loose, so pulling meets
+  /// the latch hold. Any thread.
+  void set_oru_stuck(bool stuck) { oru_stuck_ = stuck; }
 
  private:
   void add_wrench_at(const Eigen::Vector3d& force_base, const Eigen::Vector3d& point_base, const Pose& base_T_sensor,
@@ -223,6 +227,7 @@ class Plant {
   double grip_depth_m_ = 0.0;          ///< tip depth when the latch closed
   bool socket_engaged_ = false;
   std::atomic<bool> reset_requested_{false};
+  std::atomic<bool> oru_stuck_{false};
 
   // Ground truth for other threads.
   mutable std::mutex truth_mu_;
