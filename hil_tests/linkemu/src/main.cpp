@@ -139,12 +139,18 @@ RunOptions parse_run(const std::vector<std::string>& args) {
   return o;
 }
 
-json stats_json(const le::DirectionStats& s) {
-  return {{"packets_in", s.packets_in},       {"bytes_in", s.bytes_in},
-          {"packets_out", s.packets_out},     {"bytes_out", s.bytes_out},
-          {"dropped", s.dropped()},           {"dropped_loss", s.dropped_loss},
-          {"dropped_queue", s.dropped_queue}, {"dropped_overflow", s.dropped_overflow},
-          {"dropped_write", s.dropped_write}, {"reordered", s.reordered},
+json stats_json(const le::DirectionStats& s, std::size_t in_flight) {
+  return {{"packets_in", s.packets_in},
+          {"bytes_in", s.bytes_in},
+          {"packets_out", s.packets_out},
+          {"bytes_out", s.bytes_out},
+          {"in_flight_at_exit", in_flight},
+          {"dropped", s.dropped()},
+          {"dropped_loss", s.dropped_loss},
+          {"dropped_queue", s.dropped_queue},
+          {"dropped_overflow", s.dropped_overflow},
+          {"dropped_write", s.dropped_write},
+          {"reordered", s.reordered},
           {"max_queued", s.max_queued}};
 }
 
@@ -238,8 +244,10 @@ int run(const RunOptions& o) {
   if (err != 0) reason = std::string("ppoll: ") + std::strerror(err);
   print_line({{"event", "stats"},
               {"reason", reason},
-              {"ground_to_remote", stats_json(forwarder.stats(le::kGroundToRemote))},
-              {"remote_to_ground", stats_json(forwarder.stats(le::kRemoteToGround))}});
+              {"ground_to_remote",
+               stats_json(forwarder.stats(le::kGroundToRemote), forwarder.queued(le::kGroundToRemote))},
+              {"remote_to_ground",
+               stats_json(forwarder.stats(le::kRemoteToGround), forwarder.queued(le::kRemoteToGround))}});
   const auto& g = forwarder.stats(le::kGroundToRemote);
   const auto& r = forwarder.stats(le::kRemoteToGround);
   std::fprintf(stderr,

@@ -341,6 +341,14 @@ TEST(LinkEmu, LossRateWithinStatisticalBounds) {
   EXPECT_EQ(g2r.at("packets_in").get<int>(), n);
   EXPECT_EQ(g2r.at("dropped_loss").get<int>(), n - static_cast<int>(got.size()));
   EXPECT_EQ(g2r.at("packets_out").get<int>(), static_cast<int>(got.size()));
+  EXPECT_EQ(g2r.at("in_flight_at_exit").get<int>(), 0);
+  // Every packet is accounted for, in both directions.
+  for (const char* dir : {"ground_to_remote", "remote_to_ground"}) {
+    const auto& d = stats.at(dir);
+    EXPECT_EQ(d.at("packets_in").get<int>(),
+              d.at("packets_out").get<int>() + d.at("dropped").get<int>() + d.at("in_flight_at_exit").get<int>())
+        << dir;
+  }
 }
 
 // -------------------------------------------------------------- bandwidth
@@ -584,16 +592,23 @@ TEST(LinkEmu, DdsProcessLeftInsideCanStillExitAfterTheEmulatorStops) {
   START_EMULATOR(emu);
   Child peer = Child::spawn(
       {kEmu, "exec", emu.remote(), "--", kBin + "/foresight_protocol_peer", "--domain", "9", "--lifetime-s", "90"});
-  // Bounded wait until its participant has bound its UDP ports.
-  const std::string udp = "/proc/" + std::to_string(peer.pid) + "/net/udp";
+  // Bounded wait until the peer itself (after exec) holds its participant's
+  // sockets. (Not /proc/PID/net/udp: that lists the whole namespace's.)
+  const std::string proc = "/proc/" + std::to_string(peer.pid);
   const auto deadline = Clock::now() + 30s;
   auto sockets = [&] {
-    FILE* f = std::fopen(udp.c_str(), "r");
-    if (f == nullptr) return 0;
-    int lines = 0;
-    for (int c = std::fgetc(f); c != EOF; c = std::fgetc(f)) lines += c == '\n';
-    std::fclose(f);
-    return lines - 1;  // header
+    char exe[4096] = {};
+    if (readlink((proc + "/exe").c_str(), exe, sizeof exe - 1) <= 0) return 0;
+    if (std::string(exe).find("foresight_protocol_peer") == std::string::npos) return 0;
+    int n = 0;
+    for (int fd = 0; fd < 256; ++fd) {
+      char target[256] = {};
+      if (readlink((proc + "/fd/" + std::to_string(fd)).c_str(), target, sizeof target - 1) > 0 &&
+          std::strncmp(target, "socket:", 7) == 0) {
+        ++n;
+      }
+    }
+    return n;
   };
   while (sockets() < 2 && Clock::now() < deadline) peer.pump(50ms);
   ASSERT_GE(sockets(), 2) << peer.err_buf;

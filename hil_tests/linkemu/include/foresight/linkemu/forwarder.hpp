@@ -50,6 +50,8 @@ class Forwarder {
   int run(int stop_fd, std::int64_t deadline_ns) noexcept;
 
   const DirectionStats& stats(Direction d) const noexcept { return lanes_[d].stats; }
+  /// Packets still in the timed queue (in flight when run() returned).
+  std::size_t queued(Direction d) const noexcept { return lanes_[d].line.size(); }
 
  private:
   struct Lane {
