@@ -11,8 +11,8 @@
 # --loss 0.01 --rate-kbit 512 ...; see docs/linkemu.md). The remote command
 # starts first, in the background; the ground command runs until it ends, and
 # its exit status is the script's. Both see CYCLONEDDS_URI set for the link,
-# and LINKEMU_GROUND_NS, LINKEMU_REMOTE_NS. The emulator's ready and stats
-# lines (JSON) go to stderr.
+# and LINKEMU_GROUND_NS, LINKEMU_REMOTE_NS. A "link up" line and, at the end,
+# the emulator's statistics (one JSON line) go to stderr.
 #
 # Exit status: the ground command's; 77 when namespaces are not permitted here
 # (the emulator's reason is printed); 2 for bad usage; 1 if the link did not
@@ -41,7 +41,7 @@ while [ $# -gt 0 ]; do
     --remote) [ $# -ge 2 ] || usage "--remote wants a command"; remote_cmd="$2"; shift 2 ;;
     --ground) [ $# -ge 2 ] || usage "--ground wants a command"; ground_cmd="$2"; shift 2 ;;
     --exit-with-parent) shift ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
     *) emu_opts+=("$1"); shift ;;
   esac
 done
