@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include "foresight/protocol/codec.hpp"
@@ -55,8 +56,8 @@ struct GroundLink::Impl {
   explicit Impl(Config c)
       : config(std::move(c)),
         participant(make_participant(config)),
-        commands(participant),
-        chunks(participant),
+        commands(config.read_only ? nullptr : std::make_unique<Writer<msg::Command>>(participant)),
+        chunks(config.read_only ? nullptr : std::make_unique<Writer<msg::TrajectoryChunk>>(participant)),
         heartbeat_out(participant),
         acks(participant),
         uploads(participant),
@@ -91,9 +92,9 @@ struct GroundLink::Impl {
   protocol::Participant participant;
   std::mutex send_mutex;  // sequencer + command writer
   protocol::CommandSequencer sequencer;
-  Writer<msg::Command> commands;
+  std::unique_ptr<Writer<msg::Command>> commands;  // null when read-only
   std::mutex chunk_mutex;
-  Writer<msg::TrajectoryChunk> chunks;
+  std::unique_ptr<Writer<msg::TrajectoryChunk>> chunks;
   Writer<msg::Heartbeat> heartbeat_out;
   Reader<msg::CommandAck> acks;
   Reader<msg::TrajectoryStatus> uploads;
@@ -250,14 +251,15 @@ GroundLink::~GroundLink() {
 
 bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
   const auto deadline = Clock::now() + timeout;
-  if (!impl_->commands.wait_for_readers(1, timeout)) return false;
-  if (!impl_->chunks.wait_for_readers(1, deadline - Clock::now())) return false;
+  if (impl_->commands && !impl_->commands->wait_for_readers(1, timeout)) return false;
+  if (impl_->chunks && !impl_->chunks->wait_for_readers(1, deadline - Clock::now())) return false;
   const auto left = deadline - Clock::now();
   if (left <= Clock::duration::zero()) return false;
   return impl_->delay.wait_samples(1, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
 }
 
 std::uint64_t GroundLink::send(control::CommandKind kind, const control::Payload& payload, double lifetime_s) {
+  if (!impl_->commands) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot send commands");
   const double lifetime = lifetime_s < 0.0 ? impl_->config.command_lifetime_s : lifetime_s;
   std::lock_guard send_lock(impl_->send_mutex);
   auto c = impl_->sequencer.next(static_cast<msg::CommandKind>(kind), lifetime);
@@ -267,7 +269,7 @@ std::uint64_t GroundLink::send(control::CommandKind kind, const control::Payload
     std::lock_guard lock(impl_->mutex);
     impl_->sent_at[id] = Clock::now();
   }
-  impl_->commands.write(c);
+  impl_->commands->write(c);
   return id;
 }
 
@@ -315,6 +317,7 @@ CommandResult GroundLink::execute(control::CommandKind kind, const control::Payl
 
 UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
                                 std::uint64_t trajectory_id) {
+  if (!impl_->chunks) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot upload");
   const auto start = Clock::now();
   UploadResult r;
   r.trajectory_id = trajectory_id != 0 ? trajectory_id : protocol::random_id();
@@ -327,7 +330,7 @@ UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanos
   }
   {
     std::lock_guard lock(impl_->chunk_mutex);
-    for (const auto& chunk : parts) impl_->chunks.write(chunk);
+    for (const auto& chunk : parts) impl_->chunks->write(chunk);
   }
   std::unique_lock lock(impl_->mutex);
   const auto final_state = [&] {

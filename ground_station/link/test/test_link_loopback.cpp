@@ -313,6 +313,30 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
 }
 
+TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
+  RawCommander raw(ground_->participant());
+  constexpr int kFlood = 300;
+  for (int i = 0; i < kFlood; ++i) {
+    auto c = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
+    foresight::remote_link::fill_payload(*c, control::CommandKind::GotoJoint,
+                                         control::GotoJoint{{0, 0, 0, 0, 0, 0, std::nan("")}, 0.5});
+    raw.writer.write(c);
+  }
+  // Meanwhile the well-behaved ground is served.
+  EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
+  int rejected = 0;
+  fp::Sample<msg::CommandAck> a;
+  const auto deadline = Clock::now() + 30s;
+  while (rejected < kFlood && Clock::now() < deadline) {
+    if (!raw.acks.wait_take(a, 100ms)) continue;
+    if (a->session_id != raw.sequencer.session_id() || a->state != foresight_msg_ACK_REJECTED) continue;
+    EXPECT_EQ(a->code, foresight_msg_REASON_BAD_ARGUMENT);
+    ++rejected;
+  }
+  EXPECT_EQ(rejected, kFlood);
+  EXPECT_TRUE(run(control::CommandKind::GotoJoint, control::GotoJoint{std::vector<double>(7, 0.1), 0.5}).succeeded());
+}
+
 TEST_F(LinkLoopback, AnUploadCommitsWholeWithTheSameHashAndThenRuns) {
   const auto trajectory = slow_sine();
   ASSERT_TRUE(foresight::validate(trajectory, robot_limits()).empty());

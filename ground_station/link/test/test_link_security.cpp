@@ -117,6 +117,18 @@ TEST_F(SecureLink, AnObserverReadsTelemetryButCannotCommand) {
   EXPECT_EQ(s->q_rad._length, 7u);
   gl::DelayMonitor delay(observer);  // pings are granted to the observer
   EXPECT_TRUE(delay.wait_samples(3, kConnectTimeout));
+  // A read-only GroundLink with the observer's identity watches the robot.
+  gl::Config config;
+  config.domain = domain_;
+  config.security_dir = dir_;
+  config.security_identity = "observer";
+  config.read_only = true;
+  gl::GroundLink watcher(config);
+  ASSERT_TRUE(watcher.wait_for_remote(kConnectTimeout));
+  const auto deadline = Clock::now() + 10s;
+  while (!watcher.joint_state() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  EXPECT_TRUE(watcher.joint_state().has_value());
+  EXPECT_THROW(watcher.send(control::CommandKind::Recover), std::logic_error);
   for (const char* topic : {fp::topics::kCommand, fp::topics::kTrajectoryChunk}) {
     try {
       if (std::string(topic) == fp::topics::kCommand) {

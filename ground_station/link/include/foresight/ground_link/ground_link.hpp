@@ -46,6 +46,9 @@ struct Config {
   /// off) and this station's identity in it ("observer": telemetry only).
   std::string security_dir;
   std::string security_identity = "ground";
+  /// Watch only: no command or chunk writer (a secure "observer" may not
+  /// create them); send(), execute() and upload() throw std::logic_error.
+  bool read_only = false;
 };
 
 /// Every ack seen for one command, in arrival order.
@@ -94,8 +97,9 @@ class GroundLink {
   GroundLink(const GroundLink&) = delete;
   GroundLink& operator=(const GroundLink&) = delete;
 
-  /// Waits until the remote's command reader matched ours and a first pong
-  /// arrived (bounded by `timeout`). False on timeout.
+  /// Waits until the remote's command and chunk readers matched ours (not
+  /// when read-only) and a first pong arrived (bounded by `timeout`). False
+  /// on timeout.
   bool wait_for_remote(std::chrono::nanoseconds timeout);
 
   /// Sends one command; returns its id. `lifetime_s` < 0 uses
