@@ -7,6 +7,7 @@
 #include <time.h>
 
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
@@ -29,17 +30,24 @@ timespec to_timespec(std::int64_t ns) noexcept {
   return ts;
 }
 
-std::size_t bin_of(double us) noexcept {
-  if (!(us >= 0.0)) return 0;
-  const double b = us / LoopStats::kBinWidthUs;
-  return b >= static_cast<double>(LoopStats::kBins - 1) ? LoopStats::kBins - 1 : static_cast<std::size_t>(b);
-}
-
 bool is_sensor_fault(hw::HwFault f) noexcept {
   return f == hw::HwFault::FtMissing || f == hw::HwFault::FtSaturated || f == hw::HwFault::FtSensorFault;
 }
 
 }  // namespace
+
+double LoopStats::bin_upper_us(std::size_t i) noexcept {
+  if (i < 32) return 10.0 * static_cast<double>(i + 1);
+  return 320.0 * std::pow(2.0, static_cast<double>(i - 31) / 4.0);
+}
+
+std::size_t LoopStats::bin_of(double us) noexcept {
+  if (!(us >= 0.0)) return 0;
+  if (us < 320.0) return static_cast<std::size_t>(us / 10.0);
+  const double k = std::floor(4.0 * std::log2(us / 320.0));  // 0 for [320, 380)
+  const double i = 32.0 + k;
+  return i >= static_cast<double>(kBins - 1) ? kBins - 1 : static_cast<std::size_t>(i);
+}
 
 double LoopStats::percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept {
   std::uint64_t total = 0;
@@ -49,9 +57,9 @@ double LoopStats::percentile_us(const std::array<std::uint64_t, kBins>& hist, do
   std::uint64_t cum = 0;
   for (std::size_t i = 0; i < kBins; ++i) {
     cum += hist[i];
-    if (static_cast<double>(cum) >= target) return kBinWidthUs * static_cast<double>(i + 1);
+    if (static_cast<double>(cum) >= target) return bin_upper_us(i);
   }
-  return kBinWidthUs * static_cast<double>(kBins);
+  return bin_upper_us(kBins - 1);
 }
 
 void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& fb, const hw::FtReading& ft,
@@ -255,8 +263,8 @@ void ControlLoop::run() noexcept {
       compute_max_.store(compute_us, std::memory_order_relaxed);
     if (latency_us > latency_max_.load(std::memory_order_relaxed))
       latency_max_.store(latency_us, std::memory_order_relaxed);
-    compute_hist_[bin_of(compute_us)].fetch_add(1, std::memory_order_relaxed);
-    latency_hist_[bin_of(latency_us)].fetch_add(1, std::memory_order_relaxed);
+    compute_hist_[LoopStats::bin_of(compute_us)].fetch_add(1, std::memory_order_relaxed);
+    latency_hist_[LoopStats::bin_of(latency_us)].fetch_add(1, std::memory_order_relaxed);
     if (end > next + period_ns) {  // missed at least one deadline: skip to the grid
       overruns_.fetch_add(1, std::memory_order_relaxed);
       const std::int64_t behind = (end - next) / period_ns;

@@ -1,6 +1,8 @@
 // The per-cycle control logic (controller.hpp).
 #include "foresight/control/controller.hpp"
 
+#include "foresight/hw/drive_system.hpp"
+
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
@@ -433,8 +435,9 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
   char buf[96];
   // Hardware first: the drives (or the F/T sensor) said stop.
   if (in.hw_stop_required) {
-    std::snprintf(buf, sizeof buf, "hw: fault %u node %u joint %d code 0x%04x", static_cast<unsigned>(in.hw_fault),
-                  static_cast<unsigned>(in.hw_node), static_cast<int>(in.hw_joint), static_cast<unsigned>(in.hw_code));
+    std::snprintf(buf, sizeof buf, "hw: %s node %u joint %d code 0x%04x",
+                  hw::to_string(static_cast<hw::HwFault>(in.hw_fault)), static_cast<unsigned>(in.hw_node),
+                  static_cast<int>(in.hw_joint) + 1, static_cast<unsigned>(in.hw_code));
     const StopCause cause = in.hw_drive_fault ? StopCause::DriveFault : StopCause::SensorFault;
     begin_stop(cause, in.hw_drive_fault ? StopCategory::Cat0 : StopCategory::Cat1, in.hw_joint,
                static_cast<double>(in.hw_code), 0.0, buf);

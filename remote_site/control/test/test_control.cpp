@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "control_fixture.hpp"
+#include "foresight/control/control_loop.hpp"
 #include "foresight/control/spsc_ring.hpp"
 #include "foresight/control/trajectory_executor.hpp"
 
@@ -48,6 +49,24 @@ TEST(SpscRing, TwoThreadsDeliverEverythingInOrder) {
     }
   producer.join();
   EXPECT_EQ(expected, kN + 1);
+}
+
+TEST(LoopStats, HistogramBinsAndPercentiles) {
+  EXPECT_EQ(LoopStats::bin_of(5.0), 0u);
+  EXPECT_EQ(LoopStats::bin_of(319.0), 31u);
+  EXPECT_EQ(LoopStats::bin_of(320.0), 32u);
+  EXPECT_NEAR(LoopStats::bin_upper_us(32), 320.0 * std::pow(2.0, 0.25), 1e-9);
+  EXPECT_EQ(LoopStats::bin_of(1e9), LoopStats::kBins - 1);
+  for (std::size_t i = 0; i + 1 < LoopStats::kBins; ++i) {  // every value lands below its bin's upper edge
+    const double v = LoopStats::bin_upper_us(i) * 0.999;
+    EXPECT_EQ(LoopStats::bin_of(v), i) << v;
+  }
+  std::array<std::uint64_t, LoopStats::kBins> h{};
+  h[LoopStats::bin_of(15.0)] = 990;
+  h[LoopStats::bin_of(2000.0)] = 10;
+  EXPECT_DOUBLE_EQ(LoopStats::percentile_us(h, 0.5), 20.0);
+  EXPECT_DOUBLE_EQ(LoopStats::percentile_us(h, 0.99), 20.0);
+  EXPECT_GE(LoopStats::percentile_us(h, 0.999), 2000.0);
 }
 
 // ---- PreparedTrajectory ---------------------------------------------------------------------
@@ -495,6 +514,8 @@ TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
   EXPECT_TRUE(b.out.quick_stop);
   expect_stop(b, StopCause::DriveFault, StopCategory::Cat0);
   EXPECT_EQ(b.stops[0].hw_code, 0x8611u);
+  EXPECT_STREQ(b.stops[0].text.data(),
+               (std::string("hw: ") + hw::to_string(hw::HwFault::Emergency) + " node 3 joint 3 code 0x8611").c_str());
   EXPECT_EQ(b.stops[0].joint, 2);
   b.in.hw_stop_required = false;
   expect_after(b, StopCategory::Cat0);
