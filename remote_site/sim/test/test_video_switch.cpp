@@ -180,3 +180,38 @@ TEST(VideoSwitch, BadOptionsAreRefused) {
   c.port = 0;
   EXPECT_THROW(VideoSwitch{c}, InputError);
 }
+
+TEST(VideoSwitch, PartialWritesLoadTheSelectedCamerasOtherSetPoints) {
+  sim::VideoSwitchServer server(scene_options());
+  VideoSwitch sw(client_config(server.port()));
+  ASSERT_FALSE(sw.set_view({3, 0.3, 0.4, 2000.0})) << sw.last_error_message();
+  ASSERT_FALSE(sw.select(0));
+  // Camera 3 and its pan in one FC 16: its stored tilt and focal come back.
+  const std::uint16_t regs[2] = {3, static_cast<std::uint16_t>(static_cast<std::int16_t>(-100))};
+  ASSERT_FALSE(sw.write_registers(hw::video::kHoldCamera, 2, regs)) << sw.last_error_message();
+  CameraView v;
+  ASSERT_FALSE(sw.read_view(v));
+  EXPECT_EQ(v.camera, 3);
+  EXPECT_NEAR(v.pan_rad, -0.1, 1e-12);
+  EXPECT_NEAR(v.tilt_rad, 0.4, 1e-12);
+  EXPECT_DOUBLE_EQ(v.focal_px, 2000.0);
+  EXPECT_EQ(server.state().views[0].pan_mrad, 0);  // camera 0 untouched
+  // A write running past the map is exception 02 and changes nothing.
+  const std::uint16_t five[5] = {1, 0, 0, 700, 0};
+  EXPECT_EQ(sw.write_registers(0, 5, five), VideoSwitchError::IllegalDataAddress);
+  EXPECT_EQ(server.state().active, 3);
+}
+
+TEST(VideoSwitch, ANewClientReplacesTheOldOne) {
+  sim::VideoSwitchServer server(scene_options());
+  VideoSwitch a(client_config(server.port()));
+  ASSERT_FALSE(a.select(1)) << a.last_error_message();
+  VideoSwitch b(client_config(server.port()));
+  ASSERT_FALSE(b.select(2)) << b.last_error_message();
+  VideoSwitchStatus s;
+  ASSERT_FALSE(b.read_status(s));
+  EXPECT_EQ(s.active_camera, 2);
+  // The first client's link was closed by the server; it reconnects (retry).
+  ASSERT_FALSE(a.read_status(s)) << a.last_error_message();
+  EXPECT_EQ(s.active_camera, 2);
+}
