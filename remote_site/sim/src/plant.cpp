@@ -228,8 +228,8 @@ void Plant::attach(CanSimulator& sim, LstServer* tool) {
   if (sim.drive_count() != static_cast<std::size_t>(robot_.dof()))
     throw std::logic_error("Plant::attach: the simulator has " + std::to_string(sim.drive_count()) +
                            " drives, the robot " + std::to_string(robot_.dof()) + " joints");
+  detach();  // an earlier attachment's callback no longer runs once this returns
   sim.joint_positions_rad(q_buf_);  // throws std::logic_error for drives without scaling
-  detach();
   sim_ = &sim;
   tool_ = tool;
   auto last_engaged = std::make_shared<int>(-1);
