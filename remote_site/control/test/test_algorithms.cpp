@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <random>
 
 #include "control_fixture.hpp"
 
@@ -132,6 +134,35 @@ INSTANTIATE_TEST_SUITE_P(
                       // beyond the 3 mm requirement: the tip stalls on the face, the spiral finds the hole
                       InsertCase{0.0045, 0.0, 1.0, Eigen::Vector3d::UnitY()},
                       InsertCase{0.0, 0.006, 0.0, Eigen::Vector3d::UnitX()}));
+
+TEST(Insert, RandomizedStartsWithinTheLocalizationError) {
+  // Lateral error uniform over the 3 mm disk, tilt up to 1 deg about a random
+  // axis across the hole; FORESIGHT_INSERT_TRIALS overrides the count.
+  const char* env = std::getenv("FORESIGHT_INSERT_TRIALS");
+  const int trials = env != nullptr ? std::atoi(env) : 24;
+  std::mt19937 rng(2026);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int ok = 0;
+  double worst_peak = 0.0, total_s = 0.0;
+  for (int i = 0; i < trials; ++i) {
+    const double r = 0.003 * std::sqrt(u(rng)), a = 2.0 * M_PI * u(rng);
+    const double tilt = 1.0 * u(rng), b = 2.0 * M_PI * u(rng);
+    Bench bench(start_q(r * std::cos(a), r * std::sin(a), 0.010, tilt, Eigen::Vector3d(std::cos(b), std::sin(b), 0.0)));
+    AlgorithmParams p;
+    p.kind = AlgorithmKind::Insert;
+    p.insert.depth_m = 0.060;
+    const AlgoRun run = run_algorithm(bench, p, 40000);
+    const bool success = run.final_event.kind == MotionEventKind::Completed && run.contact.insertion_depth_m > 0.048 &&
+                         bench.stops.empty();
+    if (!success)
+      ADD_FAILURE() << "start " << i << ": r " << 1e3 * r << " mm, tilt " << tilt << " deg: "
+                    << run.final_event.text.data();
+    ok += success ? 1 : 0;
+    worst_peak = std::max(worst_peak, run.peak_n);
+    total_s += run.seconds;
+  }
+  std::printf("randomized insert: %d/%d, worst peak %.1f N, mean %.1f s\n", ok, trials, worst_peak, total_s / trials);
+}
 
 TEST(InsertFailure, ForceLimitFailsCleanlyAndHolds) {
   Bench b(start_q(0.0025, 0.0, 0.010, 1.0));
