@@ -5,8 +5,15 @@
 // "p95"},"offset_ms_median","discovery_s"}. The far end is
 // foresight_protocol_peer (its Pong responder).
 //
+// With --upload-samples S it then uploads a smooth S x 7 trajectory in chunks
+// (common/protocol make_chunks, reliable) and waits for the peer's
+// TrajectoryStatus COMMITTED, adding "upload":{"samples","chunks","bytes",
+// "seconds","state","hash_match"} (seconds: first chunk written -> COMMITTED
+// seen, so it includes one round trip).
+//
 // Usage: linkemu_ddsping --domain N [--count 20] [--interval-ms 100]
 //                        [--discovery-timeout-s 30] [--pong-timeout-s 10]
+//                        [--upload-samples S] [--upload-timeout-s 120]
 // Exit status: 0 when at least one pong came back, 1 otherwise, 2 bad usage.
 
 #include <algorithm>
@@ -19,9 +26,11 @@
 #include <string>
 #include <vector>
 
+#include "foresight/common/trajectory.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/topics.hpp"
+#include "foresight/protocol/trajectory_upload.hpp"
 
 namespace fp = foresight::protocol;
 namespace msg = foresight::protocol::msg;
@@ -32,7 +41,7 @@ namespace {
 int usage(const std::string& why) {
   std::fprintf(stderr,
                "linkemu_ddsping: %s\nusage: linkemu_ddsping --domain N [--count 20] [--interval-ms 100] "
-               "[--discovery-timeout-s 30] [--pong-timeout-s 10]\n",
+               "[--discovery-timeout-s 30] [--pong-timeout-s 10] [--upload-samples S] [--upload-timeout-s 120]\n",
                why.c_str());
   return 2;
 }
@@ -46,6 +55,54 @@ double percentile(std::vector<double> v, double q) {
   return v[lo] + (v[hi] - v[lo]) * (pos - static_cast<double>(lo));
 }
 
+/// A smooth S x 7 trajectory at 100 Hz, well inside any joint limits.
+foresight::Trajectory make_trajectory(long samples) {
+  foresight::Trajectory t;
+  t.time_s.resize(static_cast<std::size_t>(samples));
+  t.positions_rad.resize(samples, 7);
+  for (long s = 0; s < samples; ++s) {
+    const double time = 0.01 * static_cast<double>(s);
+    t.time_s[static_cast<std::size_t>(s)] = time;
+    for (int j = 0; j < 7; ++j) t.positions_rad(s, j) = 0.3 * std::sin(0.2 * time + j);
+  }
+  return t;
+}
+
+nlohmann::json run_upload(const fp::Participant& participant, long samples, double timeout_s) {
+  fp::Writer<msg::TrajectoryChunk> chunk(participant, fp::topics::kTrajectoryChunk, fp::qos::trajectory_chunk());
+  fp::Reader<msg::TrajectoryStatus> status(participant, fp::topics::kTrajectoryStatus, fp::qos::trajectory_status());
+  const auto timeout = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(timeout_s));
+  // Chunks are volatile: write only once the peer's chunk readers (its
+  // assembler and its echo) have matched, or they would miss the first ones.
+  if (!chunk.wait_for_readers(2, timeout) || !status.wait_for_writers(1, timeout)) {
+    return {{"state", "NOT_MATCHED"}};
+  }
+  const foresight::Trajectory t = make_trajectory(samples);
+  const foresight::TrajectoryHash hash = foresight::trajectory_hash(t);
+  const std::uint64_t id = 0x11e7;
+  const auto chunks = fp::make_chunks(t, id, 0x5e55, hash, 250);
+  std::size_t bytes = 0;
+  for (const auto& c : chunks) bytes += c->samples._length * sizeof(double);
+  const auto t0 = Clock::now();
+  for (const auto& c : chunks) chunk.write(c);
+  fp::Sample<msg::TrajectoryStatus> got;
+  std::string state = "TIMEOUT";
+  bool hash_match = false;
+  const auto deadline = t0 + timeout;
+  while (Clock::now() < deadline && status.wait_take(got, deadline - Clock::now())) {
+    if (got->trajectory_id != id || got->state == foresight_msg_UPLOAD_ASSEMBLING) continue;
+    state = got->state == foresight_msg_UPLOAD_COMMITTED ? "COMMITTED" : "REJECTED: " + std::string(fp::text(got->reason));
+    hash_match = fp::get_hash(got->content_hash) == hash;
+    break;
+  }
+  return {{"samples", samples},
+          {"chunks", chunks.size()},
+          {"bytes", bytes},
+          {"seconds", std::chrono::duration<double>(Clock::now() - t0).count()},
+          {"state", state},
+          {"hash_match", hash_match}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -54,6 +111,8 @@ int main(int argc, char** argv) {
   double interval_ms = 100.0;
   double discovery_timeout_s = 30.0;
   double pong_timeout_s = 10.0;
+  long upload_samples = 0;
+  double upload_timeout_s = 120.0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (i + 1 >= argc) return usage("missing value after " + arg);
@@ -66,6 +125,8 @@ int main(int argc, char** argv) {
     else if (arg == "--interval-ms") interval_ms = v;
     else if (arg == "--discovery-timeout-s") discovery_timeout_s = v;
     else if (arg == "--pong-timeout-s") pong_timeout_s = v;
+    else if (arg == "--upload-samples") upload_samples = static_cast<long>(v);
+    else if (arg == "--upload-timeout-s") upload_timeout_s = v;
     else return usage("unknown argument " + arg);
   }
   if (domain < 0 || domain > 232) return usage("--domain N (0..232) is required");
@@ -132,6 +193,8 @@ int main(int argc, char** argv) {
         if (rtt_ms.size() == static_cast<std::size_t>(count)) break;
       }
     }
+    nlohmann::json upload = nullptr;
+    if (upload_samples > 0) upload = run_upload(participant, upload_samples, upload_timeout_s);
     double mean = 0.0;
     for (double r : rtt_ms) mean += r;
     if (!rtt_ms.empty()) mean /= static_cast<double>(rtt_ms.size());
@@ -145,8 +208,12 @@ int main(int argc, char** argv) {
           {"max", rtt_ms.empty() ? 0.0 : *std::max_element(rtt_ms.begin(), rtt_ms.end())},
           {"p95", percentile(rtt_ms, 0.95)}}},
         {"offset_ms_median", percentile(offset_ms, 0.5)},
-        {"discovery_s", discovery_s}};
+        {"discovery_s", discovery_s},
+        {"upload", upload}};
     std::printf("%s\n", out.dump().c_str());
+    if (upload_samples > 0 && !(upload.value("state", "") == "COMMITTED" && upload.value("hash_match", false))) {
+      return 1;
+    }
     return rtt_ms.empty() ? 1 : 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "linkemu_ddsping: %s\n", e.what());

@@ -585,6 +585,27 @@ TEST(LinkEmuSession, InterruptedSessionRemovesEverything) {
   EXPECT_TRUE(le::list_netns(prefix).empty());
 }
 
+TEST(LinkEmu, DdsTrajectoryUploadArrivesWholeThroughLossAndJitter) {
+  // 1800 x 7 trajectory (115 kB in 8 reliable chunks, IP-fragmented at MTU
+  // 1500) across 2 x (200 +- 20) ms with 1% loss each way: the remote commits
+  // it with the same SHA-256.
+  START_EMULATOR(emu, "--delay-ms", "200", "--jitter-ms", "20", "--loss", "0.01", "--seed", "3");
+  Child peer = Child::spawn(
+      {kEmu, "exec", emu.remote(), "--", kBin + "/foresight_protocol_peer", "--domain", "8", "--lifetime-s", "110"});
+  Child ground = Child::spawn({kEmu, "exec", emu.ground(), "--", kBin + "/linkemu_ddsping", "--domain", "8",
+                               "--count", "5", "--interval-ms", "50", "--discovery-timeout-s", "40",
+                               "--upload-samples", "1800", "--upload-timeout-s", "60"});
+  const int rc = ground.finish(100s);
+  ASSERT_FALSE(ground.out_buf.empty()) << ground.err_buf;
+  const json result = json::parse(ground.out_buf);
+  std::printf("[ measure  ] 1800x7 upload at 2 x (200 +- 20) ms, 1%% loss: %s\n", result.at("upload").dump().c_str());
+  EXPECT_EQ(rc, 0) << ground.err_buf;
+  EXPECT_EQ(result.at("upload").at("state"), "COMMITTED");
+  EXPECT_TRUE(result.at("upload").at("hash_match").get<bool>());
+  EXPECT_EQ(result.at("upload").at("chunks"), 8);
+  RecordProperty("upload_s", std::to_string(result.at("upload").at("seconds").get<double>()));
+}
+
 TEST(LinkEmu, DdsProcessLeftInsideCanStillExitAfterTheEmulatorStops) {
   // Cyclone wakes its receive threads at shutdown with a packet to its own
   // address; the TUN device is persistent so that address survives the
