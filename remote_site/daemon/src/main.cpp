@@ -9,6 +9,7 @@
 // (the message names the file, line and key); 1 when the hardware cannot be
 // brought up or the daemon fails.
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -134,6 +135,7 @@ int run_daemon(const Options& o) {
   handlers.on_link = [&](const remote_link::LinkEvent& e) { supervisor.link_event(e); };
   remote_link::RemoteLink link(lc, handlers);
   link_ptr = &link;
+  link.start();
 
   {
     journal::EventRow start;
@@ -163,6 +165,8 @@ int run_daemon(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Logs on stderr: stdout carries only the ready line (scripts wait for it).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("foresight-remote"));
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
   CLI::App app{"foresight-remote: the Foresight robot-cabinet daemon (real-time control, DDS link, journal)"};
   Options o;

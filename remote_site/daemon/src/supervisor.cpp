@@ -855,6 +855,8 @@ void Supervisor::poll_loop() {
         }
         break;
       case MotionEventKind::Completed: {
+        // The loop is holding now; its telemetry may lag the event.
+        if (running_->kind == JobKind::Recover) latest_.mode = ControllerMode::Idle;
         std::string text = e.text.data();
         if (running_->kind == JobKind::Algorithm && text.empty())
           text = fmt("distance %.4f m, peak force %.1f N", e.distance_m, e.peak_force_n);

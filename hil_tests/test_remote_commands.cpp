@@ -1,0 +1,255 @@
+// Every command path end to end: the real daemon `foresight-remote --sim`
+// (CiA 402 drives and the F/T sensor simulated on mock CAN buses, the LST
+// over Modbus TCP on 127.0.0.1) in its own process, the ground's GroundLink in
+// this one, DDS between them on loopback.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+
+#include "foresight/common/plan.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/test/cli.hpp"
+#include "foresight/test/remote_process.hpp"
+
+using namespace foresight;
+using namespace std::chrono_literals;
+using control::AckState;
+using control::CommandKind;
+using control::Reason;
+
+namespace {
+
+class RemoteCommands : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    protocol::use_loopback_if_unconfigured();
+    domain_ = static_cast<int>(protocol::unique_test_domain());
+    test::RemoteProcess::Options o;
+    o.domain = domain_;
+    o.estop_file = test::temp_path(".estop");
+    estop_ = o.estop_file;
+    remote_ = std::make_unique<test::RemoteProcess>(o);
+    ASSERT_TRUE(remote_->ready()) << remote_->log();
+    ground_link::Config c;
+    c.domain = domain_;
+    ground_ = std::make_unique<ground_link::GroundLink>(c);
+    ASSERT_TRUE(ground_->wait_for_remote(30s)) << "no remote on DDS domain " << domain_;
+  }
+  void TearDown() override {
+    ground_.reset();
+    if (remote_) {
+      const int rc = remote_->stop(SIGTERM);
+      EXPECT_EQ(rc, 0) << remote_->log();
+    }
+    std::remove(estop_.c_str());
+  }
+
+  ground_link::CommandResult run(CommandKind kind, const control::Payload& payload = control::NoPayload{},
+                             double expected_s = 2.0) {
+    return ground_->execute(kind, payload, expected_s);
+  }
+
+  static std::vector<AckState> states(const ground_link::CommandResult& r) {
+    std::vector<AckState> s;
+    for (const auto& a : r.acks) s.push_back(a.state);
+    return s;
+  }
+
+  /// Take control and enable the drives.
+  void take_and_recover() {
+    const auto take = run(CommandKind::TakeControl);
+    ASSERT_TRUE(take.succeeded()) << take.reason;
+    const auto rec = run(CommandKind::Recover, control::NoPayload{}, 5.0);
+    ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
+  }
+
+  Eigen::VectorXd current_q() {
+    for (int i = 0; i < 200; ++i) {
+      if (auto js = ground_->joint_state(); js && js->value.q_rad.size() == 7)
+        return Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), 7);
+      std::this_thread::sleep_for(20ms);
+    }
+    ADD_FAILURE() << "no joint state";
+    return Eigen::VectorXd::Zero(7);
+  }
+
+  RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  int domain_ = 0;
+  std::string estop_;
+  std::unique_ptr<test::RemoteProcess> remote_;
+  std::unique_ptr<ground_link::GroundLink> ground_;
+};
+
+const std::vector<AckState> kCompletedMotion = {AckState::Received, AckState::Queued, AckState::Executing,
+                                                AckState::Completed};
+
+}  // namespace
+
+TEST_F(RemoteCommands, ControlMustBeTakenAndDrivesEnabledBeforeAnythingMoves) {
+  control::GotoJoint g;
+  g.q_rad.assign(7, 0.1);
+  auto r = run(CommandKind::GotoJoint, g);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.code, Reason::NotInControl);
+  EXPECT_EQ(r.reason, "no ground station holds control: send TAKE_CONTROL first");
+
+  ASSERT_TRUE(run(CommandKind::TakeControl).succeeded());
+  r = run(CommandKind::GotoJoint, g);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.code, Reason::Faulted);
+  EXPECT_EQ(r.reason, "the drives are not enabled: send RECOVER first");
+
+  // A second ground station can watch but not command, nor take control.
+  ground_link::Config c;
+  c.domain = domain_;
+  ground_link::GroundLink other(c);
+  ASSERT_TRUE(other.wait_for_remote(30s));
+  const auto take = other.execute(CommandKind::TakeControl, control::NoPayload{}, 1.0);
+  EXPECT_EQ(take.state, AckState::Rejected);
+  EXPECT_EQ(take.code, Reason::NotInControl);
+  const auto req = other.execute(CommandKind::Request, control::Request{control::RequestWhat::Status}, 1.0);
+  EXPECT_TRUE(req.succeeded()) << req.reason;
+}
+
+TEST_F(RemoteCommands, GotoJointRunsTheWholeLifecycleAndReportsTheFinalJoints) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  control::GotoJoint g;
+  g.q_rad.resize(7);
+  for (int j = 0; j < 7; ++j) g.q_rad[static_cast<std::size_t>(j)] = q0[j] + (j % 2 ? -0.05 : 0.05);
+  g.speed_fraction = 0.5;
+  const auto r = run(CommandKind::GotoJoint, g, 5.0);
+  ASSERT_TRUE(r.succeeded()) << r.reason << "\n" << remote_->log();
+  EXPECT_EQ(states(r), kCompletedMotion);
+  ASSERT_EQ(r.final_q_rad.size(), 7u);
+  for (int j = 0; j < 7; ++j) EXPECT_NEAR(r.final_q_rad[static_cast<std::size_t>(j)], g.q_rad[static_cast<std::size_t>(j)], 2e-3) << "joint " << j + 1;
+
+  // Bad inputs: nothing moves, the reason names what is wrong.
+  control::GotoJoint bad = g;
+  bad.q_rad.pop_back();
+  auto b = run(CommandKind::GotoJoint, bad);
+  EXPECT_EQ(b.code, Reason::JointCount);
+  EXPECT_EQ(b.reason, "command " + std::to_string(b.command_id) + ": goto_joint.q_rad has 6 angles; the arm has 7 joints");
+  bad = g;
+  bad.q_rad[2] = 9.0;
+  b = run(CommandKind::GotoJoint, bad);
+  EXPECT_EQ(b.code, Reason::BadArgument);
+  EXPECT_NE(b.reason.find("joint 3: 9.0000 rad outside its limits"), std::string::npos) << b.reason;
+  control::InvokeAlgorithm alg;
+  alg.name = "dance";
+  b = run(CommandKind::InvokeAlgorithm, alg);
+  EXPECT_EQ(b.code, Reason::UnknownAlgorithm);
+  alg.name = "insert";
+  alg.params = {{"depth", 0.05}};
+  b = run(CommandKind::InvokeAlgorithm, alg);
+  EXPECT_EQ(b.code, Reason::BadArgument);
+  EXPECT_EQ(b.reason.rfind("insert: unknown parameter 'depth' (expected one of: depth_m,", 0), 0u) << b.reason;
+}
+
+TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  Goal goal;
+  goal.name = "there";
+  goal.kind = SegmentKind::Joint;
+  goal.is_pose = false;
+  goal.q = q0;
+  goal.q[0] += 0.1;
+  goal.q[3] -= 0.1;
+  const Plan plan = plan_motion(model_, q0, {goal});
+  const auto up = ground_->upload(plan.trajectory, 30s);
+  ASSERT_TRUE(up.committed()) << up.reason;
+  EXPECT_EQ(up.remote_hash, trajectory_hash(plan.trajectory));
+
+  control::RunTrajectory run_cmd;
+  run_cmd.trajectory_id = up.trajectory_id;
+  run_cmd.content_hash = up.local_hash;
+  run_cmd.content_hash[0] ^= 1;
+  auto r = run(CommandKind::Trajectory, run_cmd);
+  EXPECT_EQ(r.code, Reason::HashMismatch);
+  run_cmd.trajectory_id = up.trajectory_id + 1;
+  r = run(CommandKind::Trajectory, run_cmd);
+  EXPECT_EQ(r.code, Reason::UnknownTrajectory);
+
+  run_cmd.trajectory_id = up.trajectory_id;
+  run_cmd.content_hash = up.local_hash;
+  r = run(CommandKind::Trajectory, run_cmd, plan.trajectory.duration_s());
+  ASSERT_TRUE(r.succeeded()) << r.reason << "\n" << remote_->log();
+  EXPECT_EQ(states(r), kCompletedMotion);
+  for (int j = 0; j < 7; ++j) EXPECT_NEAR(r.final_q_rad[static_cast<std::size_t>(j)], goal.q[j], 2e-3);
+
+  // Run again: the arm is at the end now, the trajectory starts elsewhere.
+  r = run(CommandKind::Trajectory, run_cmd);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.code, Reason::StartMismatch);
+  EXPECT_EQ(r.reason.rfind("the trajectory starts 0.1000 rad from the arm at joint 1", 0), 0u) << r.reason;
+}
+
+TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  control::GotoJoint g;
+  g.q_rad.assign(q0.data(), q0.data() + 7);
+  g.q_rad[0] += 0.6;
+  g.speed_fraction = 0.1;
+  const std::uint64_t id = ground_->send(CommandKind::GotoJoint, g);
+  // Wait for EXECUTING, then abort.
+  bool executing = false;
+  for (int i = 0; i < 500 && !executing; ++i) {
+    const auto partial = ground_->wait_final(id, 10ms);
+    for (const auto& a : partial.acks) executing = executing || a.state == AckState::Executing;
+  }
+  ASSERT_TRUE(executing);
+  control::Abort a;
+  a.category = control::StopCategory::Cat2;
+  a.reason = "test";
+  const auto ab = run(CommandKind::Abort, a);
+  EXPECT_TRUE(ab.succeeded()) << ab.reason;
+  const auto moved = ground_->wait_final(id, 10s);
+  EXPECT_EQ(moved.state, AckState::Canceled);
+  ASSERT_EQ(moved.final_q_rad.size(), 7u);
+  EXPECT_LT(moved.final_q_rad[0], q0[0] + 0.6 - 0.05);  // stopped well short of the goal
+
+  control::GotoJoint again = g;
+  auto r = run(CommandKind::GotoJoint, again);
+  EXPECT_EQ(r.code, Reason::Faulted);
+  ASSERT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+  again.speed_fraction = 0.5;
+  r = run(CommandKind::GotoJoint, again, 10.0);
+  EXPECT_TRUE(r.succeeded()) << r.reason;
+}
+
+TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence) {
+  take_and_recover();
+  std::ofstream(estop_) << "pressed\n";
+  // The status reports the stop.
+  bool stopped = false;
+  for (int i = 0; i < 500 && !stopped; ++i) {
+    if (auto s = ground_->status(); s && s->value.stop_category == control::StopCategory::Cat0) stopped = true;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(stopped);
+  std::remove(estop_.c_str());
+  const int rc = remote_->stop(SIGTERM);
+  EXPECT_EQ(rc, 0);
+  const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + remote_->journal();
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string out;
+  char buf[4096];
+  std::size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ASSERT_EQ(pclose(p), 0);
+  const auto json = nlohmann::json::parse(out);
+  bool cat0 = false;
+  for (const auto& f : json["faults"]) cat0 = cat0 || f["category"] == 0;
+  EXPECT_TRUE(cat0) << out.substr(0, 2000);
+  bool recover_completed = false;
+  for (const auto& c : json["commands"]) recover_completed = recover_completed || (c["kind"] == "RECOVER" && c["state"] == "COMPLETED");
+  EXPECT_TRUE(recover_completed);
+  remote_.reset();
+}
