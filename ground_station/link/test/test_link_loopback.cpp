@@ -29,6 +29,7 @@
 #include "foresight/ground_link/ground_link.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/ros2.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 #include "foresight/remote_link/convert.hpp"
 
@@ -50,12 +51,15 @@ constexpr auto kAckTimeout = 15s;
 /// link_test_remote in its own process; SIGTERM (then SIGKILL) on destruction.
 class RemoteProcess {
  public:
-  RemoteProcess(dds_domainid_t domain, double link_loss_s) {
+  RemoteProcess(dds_domainid_t domain, double link_loss_s, const std::vector<std::string>& extra = {}) {
     const std::string path = std::string(FORESIGHT_BIN_DIR) + "/link_test_remote";
-    const std::string d = std::to_string(domain), loss = std::to_string(link_loss_s);
-    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--link-loss-s", loss.c_str(), "--lifetime-s", "110",
-                          nullptr};
-    const int rc = posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ);
+    std::vector<std::string> args = {path, "--domain", std::to_string(domain), "--link-loss-s",
+                                     std::to_string(link_loss_s), "--lifetime-s", "110"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, path.c_str(), nullptr, nullptr, argv.data(), environ);
     if (rc != 0) throw std::runtime_error("cannot start " + path + ": " + std::strerror(rc));
   }
   ~RemoteProcess() {
@@ -121,10 +125,10 @@ foresight::Trajectory slow_sine(int samples = 1800) {
 
 class LinkLoopback : public ::testing::Test {
  protected:
-  void start(double link_loss_s = 1.0) {
+  void start(double link_loss_s = 1.0, const std::vector<std::string>& extra = {}) {
     fp::use_loopback_if_unconfigured();
     domain_ = fp::unique_test_domain();
-    remote_ = std::make_unique<RemoteProcess>(domain_, link_loss_s);
+    remote_ = std::make_unique<RemoteProcess>(domain_, link_loss_s, extra);
     gl::Config config;
     config.domain = domain_;
     config.heartbeat_period_s = 0.1;
@@ -462,6 +466,44 @@ TEST_F(LinkLoopback, TheRemoteDetectsLinkLossAndRegain) {
     const auto s = ground_->status();
     return s && s->value.mode == control::ControllerMode::Idle && s->value.stop_reason.empty();
   }, 15s));
+}
+
+class LinkLoopbackRos2 : public LinkLoopback {
+ protected:
+  void SetUp() override { start(1.0, {"--ros2", "on"}); }
+};
+
+TEST_F(LinkLoopbackRos2, JointStateAndWrenchAlsoGoOutAsRos2Types) {
+  // A plain DDS reader of ROS 2's own types and topics, as `ros2 topic echo` subscribes.
+  fp::Reader<fp::ros2::JointState> joints(ground_->participant());
+  fp::Reader<fp::ros2::WrenchStamped> wrench(ground_->participant());
+  EXPECT_STREQ(fp::MessageTraits<fp::ros2::JointState>::descriptor()->m_typename, "sensor_msgs::msg::dds_::JointState_");
+  fp::Sample<fp::ros2::JointState> j;
+  ASSERT_TRUE(joints.wait_take(j, 20s)) << "nothing on rt/joint_states";
+  ASSERT_EQ(j->name._length, 7u);
+  EXPECT_STREQ(j->name._buffer[0], "joint1");
+  EXPECT_STREQ(j->name._buffer[6], "joint7");
+  ASSERT_EQ(j->position._length, 7u);
+  ASSERT_EQ(j->effort._length, 7u);
+  EXPECT_EQ(j->effort._buffer[3], 1.5);
+  const double stamp_s = j->header.stamp.sec + 1e-9 * j->header.stamp.nanosec;
+  EXPECT_NEAR(stamp_s, 1e-9 * static_cast<double>(fp::now_ns()), 5.0);
+  // The commanded target shows up in the ROS 2 joint state too.
+  const std::vector<double> target{0.1, -0.2, 0.3, -0.4, 0.5, -0.6, 0.7};
+  ASSERT_TRUE(run(control::CommandKind::GotoJoint, control::GotoJoint{target, 0.5}).succeeded());
+  EXPECT_TRUE(eventually([&] {
+    while (joints.take(j)) {
+      if (j->position._length == 7 && std::vector<double>(j->position._buffer, j->position._buffer + 7) == target) {
+        return true;
+      }
+    }
+    return false;
+  }, 10s));
+  fp::Sample<fp::ros2::WrenchStamped> w;
+  ASSERT_TRUE(wrench.wait_take(w, 20s)) << "nothing on rt/wrench";
+  EXPECT_STREQ(w->header.frame_id, "lst_tip");
+  EXPECT_EQ(w->wrench.force.z, 3.0);
+  EXPECT_EQ(w->wrench.torque.y, 0.2);
 }
 
 TEST(DelayStats, PercentilesSharesAndOffsetFromKnownSamples) {

@@ -16,6 +16,7 @@
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/ros2.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 #include "foresight/remote_link/convert.hpp"
@@ -99,6 +100,55 @@ struct RemoteLink::Impl {
     waitset.attach(heartbeats, kHeartbeat);
     payload_limits.joints = config.trajectory_limits.joints;
     if (!config.pong_in_listener) waitset.attach(pings, kPing);
+    if (config.ros2) {
+      ros_joints = std::make_unique<LockedWriter<protocol::ros2::JointState>>(participant);
+      ros_wrench = std::make_unique<LockedWriter<protocol::ros2::WrenchStamped>>(participant);
+      std::lock_guard lock(ros_wrench->mutex);
+      protocol::ros2::set_frame_id(ros_wrench->sample->header, config.ros2_wrench_frame);
+    }
+  }
+
+  bool publish_ros(const control::JointReport& r) noexcept {
+    if (!ros_joints) return true;
+    try {
+      std::lock_guard lock(ros_joints->mutex);
+      auto& s = *ros_joints->sample;
+      if (s.name._length != r.q_rad.size()) {
+        std::vector<std::string> names = config.ros2_joint_names;
+        if (names.size() != r.q_rad.size()) {
+          names.clear();
+          for (std::size_t i = 0; i < r.q_rad.size(); ++i) names.push_back("joint" + std::to_string(i + 1));
+        }
+        protocol::ros2::set_names(s, names);
+      }
+      protocol::ros2::set_stamp(s.header.stamp, r.stamp_ns);
+      if (s.header.frame_id == nullptr) protocol::ros2::set_frame_id(s.header, "");
+      protocol::assign(s.position, std::span<const double>(r.q_rad), msg::kMaxJoints, "ros2 position");
+      protocol::assign(s.velocity, std::span<const double>(r.dq_rad_s), msg::kMaxJoints, "ros2 velocity");
+      protocol::assign(s.effort, std::span<const double>(r.torque_nm), msg::kMaxJoints, "ros2 effort");
+      if (ros_joints->writer.try_write(s) < 0) {
+        n_write_failures.fetch_add(1);
+        return false;
+      }
+      return true;
+    } catch (const std::exception&) {
+      n_write_failures.fetch_add(1);
+      return false;
+    }
+  }
+
+  bool publish_ros(const control::WrenchReport& r) noexcept {
+    if (!ros_wrench) return true;
+    std::lock_guard lock(ros_wrench->mutex);
+    auto& s = *ros_wrench->sample;
+    protocol::ros2::set_stamp(s.header.stamp, r.stamp_ns);
+    s.wrench.force = {r.force_tool_n[0], r.force_tool_n[1], r.force_tool_n[2]};
+    s.wrench.torque = {r.torque_tool_nm[0], r.torque_tool_nm[1], r.torque_tool_nm[2]};
+    if (ros_wrench->writer.try_write(s) < 0) {
+      n_write_failures.fetch_add(1);
+      return false;
+    }
+    return true;
   }
 
   /// Answers pings on Cyclone's receive thread (set in start()): no thread
@@ -154,6 +204,8 @@ struct RemoteLink::Impl {
   Writer<msg::Heartbeat> heartbeat_out;
   protocol::GuardCondition stop_guard;
   protocol::WaitSet waitset;
+  std::unique_ptr<LockedWriter<protocol::ros2::JointState>> ros_joints;   // Config::ros2 only
+  std::unique_ptr<LockedWriter<protocol::ros2::WrenchStamped>> ros_wrench;
 
   // Link thread only.
   struct Session {
@@ -528,8 +580,14 @@ bool RemoteLink::ack(const control::Ack& ack) noexcept {
   return ok;
 }
 
-bool RemoteLink::publish(const control::JointReport& r) noexcept { return impl_->publish(impl_->joints, r); }
-bool RemoteLink::publish(const control::WrenchReport& r) noexcept { return impl_->publish(impl_->wrenches, r); }
+bool RemoteLink::publish(const control::JointReport& r) noexcept {
+  const bool ros_ok = impl_->publish_ros(r);
+  return impl_->publish(impl_->joints, r) && ros_ok;
+}
+bool RemoteLink::publish(const control::WrenchReport& r) noexcept {
+  const bool ros_ok = impl_->publish_ros(r);
+  return impl_->publish(impl_->wrenches, r) && ros_ok;
+}
 bool RemoteLink::publish(const control::ToolReport& r) noexcept { return impl_->publish(impl_->tools, r); }
 bool RemoteLink::publish(const control::StatusReport& r) noexcept { return impl_->publish(impl_->status, r); }
 

@@ -15,6 +15,7 @@
 //
 // Usage: link_test_remote --domain N [--link-loss-s S] [--max-committed N] [--lifetime-s S]
 //                         [--security DIR (scripts/make_dds_security.sh; identity "remote")]
+//                         [--ros2 on (also ROS 2 joint_states and wrench)]
 // Exits on SIGTERM/SIGINT, when its parent dies, or after --lifetime-s.
 
 #include <signal.h>
@@ -175,6 +176,7 @@ int main(int argc, char** argv) {
   double link_loss_s = 1.0, lifetime_s = 120.0;
   std::size_t max_committed = 8;
   std::string security_dir;
+  bool ros2 = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--domain") domain = std::atoi(argv[i + 1]);
@@ -182,6 +184,7 @@ int main(int argc, char** argv) {
     else if (key == "--max-committed") max_committed = static_cast<std::size_t>(std::atoi(argv[i + 1]));
     else if (key == "--lifetime-s") lifetime_s = std::atof(argv[i + 1]);
     else if (key == "--security") security_dir = argv[i + 1];
+    else if (key == "--ros2") ros2 = std::string(argv[i + 1]) == "on";
     else {
       std::fprintf(stderr, "link_test_remote: unknown option %s\n", argv[i]);
       return 2;
@@ -207,6 +210,7 @@ int main(int argc, char** argv) {
     config.trajectory_limits = foresight::TrajectoryLimits::from_model(model);
     config.max_committed = max_committed;
     config.security_dir = security_dir;
+    config.ros2 = ros2;
     Stub stub;
     rl::Handlers handlers;
     handlers.on_command = [&](const rl::CommandEvent& e) { stub.on_command(e); };

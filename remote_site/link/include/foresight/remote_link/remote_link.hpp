@@ -14,6 +14,7 @@
 //               uploads are kept (the oldest is discarded).
 //   Ping     -> Pong at once (t2 on arrival, t3 just before the write), by
 //               default from a Cyclone listener (Config::pong_in_listener).
+//   ROS 2 (Config::ros2): joint state and wrench also as ROS 2 types.
 //   Heartbeat: the remote's own every heartbeat_period_s; no ground heartbeat
 //               for link_loss_s -> Handlers::on_link(Lost); the next one ->
 //               on_link(Regained). The daemon applies the link-loss policy.
@@ -30,6 +31,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "foresight/common/trajectory.hpp"
 #include "foresight/control/command.hpp"
@@ -56,6 +58,13 @@ struct Config {
   /// off) and this side's identity in it. docs/protocol.md, "Security".
   std::string security_dir;
   std::string security_identity = "remote";
+  /// ROS 2 visibility: publish(JointReport) also writes
+  /// sensor_msgs/JointState on rt/joint_states and publish(WrenchReport)
+  /// geometry_msgs/WrenchStamped on rt/wrench (protocol/ros2.hpp), so ROS 2
+  /// tools see the robot with no bridge.
+  bool ros2 = false;
+  std::vector<std::string> ros2_joint_names;  ///< empty: joint1 .. jointN
+  std::string ros2_wrench_frame = "lst_tip";  ///< the frame the wrench is expressed in
 };
 
 /// A command as received: accepted (code None; `command` complete) or
