@@ -9,6 +9,7 @@
 //   BM_ControlCycle/1  compliant trajectory (+ admittance, Jacobian, DLS)
 //   BM_ControlCycle/2  insert algorithm (+ Cartesian tracking, FK of the command)
 // Counters: median_us, p99_us, max_us (per-cycle, from every iteration).
+//   BM_ControllerStep/0,1  Controller::step alone (stiff / compliant trajectory)
 // BM_Insertion (bench_insertion.cpp, by the plant's owner) is linked in when
 // present; this file provides main().
 
@@ -125,6 +126,48 @@ void BM_ControlCycle(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ControlCycle)->Arg(0)->Arg(1)->Arg(2)->Iterations(20000)->UseManualTime()->Unit(benchmark::kMicrosecond);
+
+// Controller::step alone (no CAN): the share of the cycle that is the
+// controller's. The measured joints follow the command one cycle late.
+void BM_ControllerStep(benchmark::State& state) {
+  const int mode = static_cast<int>(state.range(0));
+  control::ControllerConfig cc;
+  control::Controller ctl(robot(), cc);
+  control::CycleInputs in;
+  control::CycleOutputs out;
+  in.joints = 7;
+  const double q0[7] = {0.0, 0.6, 0.0, -1.2, 0.0, 0.9, 0.0};
+  control::JointArray held{};
+  for (std::size_t j = 0; j < 7; ++j) held[j] = in.q[j] = q0[j];
+  ctl.step(in, out);
+  control::MotionCommand en;
+  en.command_id = 1;
+  en.kind = control::MotionCommandKind::Enable;
+  ctl.command(en);
+  ctl.step(in, out);
+  ctl.drive_request_done(control::DriveRequest::Enable, true, "", held);
+  in.drives_enabled = true;
+  Trajectory t;
+  t.positions_rad.resize(10001, 7);
+  for (int i = 0; i < 10001; ++i) {
+    t.time_s.push_back(i * 0.01);
+    for (int j = 0; j < 7; ++j) t.positions_rad(i, j) = q0[j] + 0.1 * std::pow(std::sin(M_PI * i * 0.01 / 100.0), 2);
+  }
+  const control::PreparedTrajectory traj(t);
+  control::MotionCommand c;
+  c.command_id = 2;
+  c.kind = control::MotionCommandKind::RunTrajectory;
+  c.trajectory = &traj;
+  c.compliant = mode == 1;
+  ctl.command(c);
+  for (auto _ : state) {
+    ctl.step(in, out);
+    in.q = out.q_cmd;
+    ++in.cycle;
+    benchmark::DoNotOptimize(out.q_cmd);
+  }
+}
+BENCHMARK(BM_ControllerStep)->Arg(0)->Arg(1)->Iterations(20000)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 
