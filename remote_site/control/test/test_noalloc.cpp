@@ -14,6 +14,9 @@
 #include <new>
 
 #include "control_fixture.hpp"
+#include "foresight/control/control_loop.hpp"
+#include "foresight/control/spsc_ring.hpp"
+#include "foresight/sim/can_simulator.hpp"
 
 
 extern "C" {
@@ -246,6 +249,81 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
       std::printf("event %llu %s %s %s at %llu\n", static_cast<unsigned long long>(e.command_id), to_string(e.command),
                   to_string(e.kind), e.text.data(), static_cast<unsigned long long>(e.cycle));
   }
+}
+
+// The loop body as ControlLoop runs it: cycle_read on the real DriveSystem
+// (mock CAN), fill_cycle_inputs, command hand-over through the ring, step,
+// cycle_write, events and telemetry into their rings. The simulated drives
+// answer between cycles from this thread, unarmed.
+TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
+  hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  config.tpdo_miss_limit = 1000;
+  auto buses = sim::make_mock_buses(config);
+  auto simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
+  simulator->start();
+  hw::DriveSystem drives(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
+  drives.configure();
+  drives.enable();
+  simulator->stop();
+  simulator->process(5);
+  Controller ctl(robot(), ControllerConfig{});
+  auto commands = std::make_unique<SpscRing<MotionCommand, 64>>();
+  auto events = std::make_unique<SpscRing<MotionEvent, 256>>();
+  auto telemetry = std::make_unique<SpscRing<TelemetrySample, 1024>>();
+  hw::JointFeedback fb;
+  hw::FtReading ft;
+  hw::JointTargets targets;
+  drives.held_targets(targets);
+  JointArray held{};
+  for (std::size_t j = 0; j < 7; ++j) held[j] = targets.position_rad[j];
+  CycleInputs in;
+  CycleOutputs out;
+  Trajectory t;
+  t.positions_rad.resize(3001, 7);
+  for (int i = 0; i < 3001; ++i) {
+    t.time_s.push_back(i * 0.01);
+    for (int j = 0; j < 7; ++j)
+      t.positions_rad(i, j) = held[static_cast<std::size_t>(j)] + 0.05 * std::pow(std::sin(M_PI * i / 3000.0), 2);
+  }
+  const PreparedTrajectory traj(t);
+  MotionCommand en;
+  en.command_id = 1;
+  en.kind = MotionCommandKind::Enable;
+  commands->try_push(en);
+  MotionCommand run;
+  run.command_id = 2;
+  run.kind = MotionCommandKind::RunTrajectory;
+  run.trajectory = &traj;
+  run.compliant = true;
+  g_allocations = 0;
+  long allocations = 0;
+  std::size_t popped = 0;
+  for (int k = 0; k < 10000; ++k) {
+    simulator->process(0);
+    if (k == 5) commands->try_push(run);
+    arm(true);
+    const hw::CycleStatus s = drives.cycle_read(fb, ft);
+    fill_cycle_inputs(s, fb, ft, in);
+    MotionCommand c;
+    while (commands->try_pop(c)) ctl.command(c);
+    ctl.step(in, out);
+    if (out.drive_request == DriveRequest::Enable)  // already enabled above (set-up)
+      ctl.drive_request_done(DriveRequest::Enable, true, "", held);
+    for (std::size_t j = 0; j < 7; ++j) targets.position_rad[j] = out.q_cmd[j];
+    drives.cycle_write(targets);
+    for (std::size_t i = 0; i < out.event_count; ++i) events->try_push(out.events[i]);
+    telemetry->try_push(out.telemetry);
+    arm(false);
+    allocations = g_allocations.load();
+    MotionEvent e;
+    while (events->try_pop(e)) ++popped;
+    TelemetrySample ts;
+    while (telemetry->try_pop(ts)) {
+    }
+    ASSERT_EQ(allocations, 0) << "cycle " << k;
+  }
+  EXPECT_EQ(ctl.mode(), ControllerMode::Trajectory);
+  EXPECT_GE(popped, 3u);  // enable started + completed, trajectory started
 }
 
 }  // namespace
