@@ -413,7 +413,8 @@ TEST_F(LinkLoopback, DelayStatisticsAndTelemetryAgesAreSane) {
   EXPECT_LE(d.p99_s, d.max_s);
   EXPECT_LT(d.median_s, 0.05);  // loopback: tens of microseconds idle, a few ms loaded
   EXPECT_EQ(d.share_over_4s, 0.0);
-  EXPECT_LT(std::abs(d.clock_offset_s), 0.005);  // one clock: the estimate is within the round trip
+  // One clock: the estimate (from the smallest round trip) is within half of it.
+  EXPECT_LE(std::abs(d.clock_offset_s), d.min_s / 2 + 1e-6);
   EXPECT_GE(d.sent, d.received);
   ASSERT_TRUE(eventually([&] { return ground_->joint_state() && ground_->wrench() && ground_->tool() && ground_->status(); },
                          10s));
