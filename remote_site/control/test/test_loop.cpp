@@ -30,6 +30,16 @@ bool eventually(Pred pred, double seconds) {
   return pred();
 }
 
+/// config/remote.yaml with generous timeouts: the loop runs SCHED_FIFO where
+/// permitted, the simulator thread does not, and ctest runs beside builds on
+/// 2 cores: a descheduled simulator must not look like a silent drive.
+hw::RemoteConfig loop_test_config() {
+  hw::RemoteConfig c = foresight::test::project_config();
+  c.tpdo_miss_limit = 250;          // 0.5 s
+  c.heartbeat_consumer_s = 1.0;
+  return c;
+}
+
 struct Collector {
   explicit Collector(ControlLoop& l) : loop(l) {}
   ControlLoop& loop;
@@ -57,7 +67,7 @@ struct Collector {
 };
 
 TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
-  hw::RemoteConfig config = foresight::test::project_config();
+  hw::RemoteConfig config = loop_test_config();
   foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()));
   rig.drives->configure();
 
@@ -152,7 +162,7 @@ TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
 // drives (second-order position loops) on the mock CAN buses, the contact
 // model feeding the simulated F/T node, read back through the CAN decoder.
 TEST(ControlLoop, InsertsThroughTheSimulatedDrivesAndSensor) {
-  hw::RemoteConfig config = foresight::test::project_config();
+  hw::RemoteConfig config = loop_test_config();
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
   auto contact = std::make_shared<sim::ContactModel>(oru, sim::load_contact_params(FORESIGHT_CONFIG_DIR "/scene.yaml"));
   const Pose base_T_oru = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml").base_T_object;
