@@ -12,7 +12,10 @@ std::string cyclone_config_xml(const std::string& interface, const std::string& 
          "<General><Interfaces><NetworkInterface name=\"" +
          interface +
          "\"/></Interfaces>"
-         "<AllowMulticast>false</AllowMulticast></General>"
+         "<AllowMulticast>false</AllowMulticast>"
+         // One RTPS message per IP packet (MTU 1500 - 28): a lost packet then
+         // costs one DDSI fragment, not a whole 14 kB datagram's worth.
+         "<MaxMessageSize>1472B</MaxMessageSize><FragmentSize>1344B</FragmentSize></General>"
          "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
          "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
          "<SPDPInterval>" +
@@ -21,6 +24,10 @@ std::string cyclone_config_xml(const std::string& interface, const std::string& 
          "<Peers><Peer address=\"" +
          peer_address +
          "\"/></Peers></Discovery>"
+         // A long link holds a lot of unacknowledged data: start a reliable
+         // writer's high watermark at its maximum instead of 30 kB, or an
+         // upload stalls a round trip per 30 kB and blocks the writer.
+         "<Internal><Watermarks><WhcHighInit>500kB</WhcHighInit></Watermarks></Internal>"
          "</Domain></CycloneDDS>";
 }
 
