@@ -68,11 +68,14 @@ struct Collector {
 
 TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
   hw::RemoteConfig config = loop_test_config();
-  foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()));
+  foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()), [](sim::CanSimulator& s) {
+    s.ft_sensor()->set_offset({4.0, -3.0, 2.0, 0.1, -0.05, 0.02});  // gauge zero offset: tare removes it
+  });
   rig.drives->configure();
 
   ControllerConfig cc;
   cc.cycle_rate_hz = config.cycle_rate_hz;
+  cc.tool.mass_kg = 0.0;  // the simulated sensor does not weigh the tool
   auto loop = std::make_unique<ControlLoop>(*rig.drives, robot(), cc);
   loop->start();
   for (const auto& w : loop->warnings()) std::printf("loop warning: %s\n", w.c_str());
@@ -90,6 +93,29 @@ TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
   ASSERT_TRUE(eventually([&] { return col.final_of(1) != nullptr; }, 15.0));
   ASSERT_EQ(col.final_of(1)->kind, MotionEventKind::Completed) << col.final_of(1)->text.data();
   ASSERT_TRUE(eventually([&] { col.drain(); return col.last.mode == ControllerMode::Idle && col.last.drives_enabled; }, 5.0));
+
+  // Tare through the loop: the offset disappears from the compensated wrench;
+  // then a known wrench reads back in the tool frame (sensor -> tip: +0.295 m z).
+  col.drain();
+  EXPECT_GT(std::abs(col.last.wrench_tool[0]), 3.0);
+  MotionCommand tare;
+  tare.command_id = 10;
+  tare.kind = MotionCommandKind::Tare;
+  tare.tare_samples = 20;
+  ASSERT_TRUE(loop->send(tare));
+  ASSERT_TRUE(eventually([&] { return col.final_of(10) != nullptr; }, 10.0));
+  EXPECT_EQ(col.final_of(10)->kind, MotionEventKind::Completed);
+  ASSERT_TRUE(eventually([&] {
+    col.drain();
+    double m = 0.0;
+    for (double w : col.last.wrench_tool) m = std::max(m, std::abs(w));
+    return m < 0.05;
+  }, 5.0));
+  rig.sim->ft_sensor()->set_true_wrench({0.0, 5.0, -10.0, 0.0, 0.0, 0.0});
+  ASSERT_TRUE(eventually([&] { col.drain(); return std::abs(col.last.wrench_tool[2] + 10.0) < 0.05; }, 5.0));
+  EXPECT_NEAR(col.last.wrench_tool[1], 5.0, 0.05);
+  EXPECT_NEAR(col.last.wrench_tool[3], 0.295 * 5.0, 0.01);  // moment about the tip: -(p x F)_x = 0.295 Fy
+  rig.sim->ft_sensor()->set_true_wrench({0.0, 0.0, 0.0, 0.0, 0.0, 0.0});
 
   // A 2 s move of three joints from where the arm is (100 Hz samples).
   const JointArray q0 = col.last.q_cmd;
