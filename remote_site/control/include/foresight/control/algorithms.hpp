@@ -11,13 +11,13 @@
 // tool) frozen at the algorithm's start, unless a parameter says Base.
 //
 // guarded_move  Reference moves along `direction` at speed_m_s (stiff
-//               admittance, 1000 N/m per axis, so contact builds force
+//               admittance, 2000 N/m per axis, so contact builds force
 //               gently). Success: the contact force component against the
-//               motion >= force_threshold_n; the reference then stays where
-//               the contact was detected (the arm holds there, compliant).
-//               Failure: Unreachable when the reference travelled
-//               max_distance_m without contact; Timeout; ForceLimit when
-//               |F| > 4 x force_threshold_n (a hard hit).
+//               motion >= force_threshold_n; the reference stays where it
+//               was, so the compliant hold that follows keeps about that
+//               force on the contact. Failure: Unreachable when the reference
+//               travelled max_distance_m without contact; Timeout; ForceLimit
+//               when |F| > 4 x force_threshold_n (a hard hit).
 // insert        Force-guided along +z of the tool with lateral (x, y) and
 //               tilt (rx, ry) compliance. Axial: the reference advances at
 //               speed_m_s x clamp(1 - F_push / contact_force_n, -1, 1), so it
@@ -33,8 +33,11 @@
 //               hole within depth_tolerance_m of it: bottomed out).
 //               Failure: ForceLimit when |F| > max_force_n; Unreachable when
 //               the spiral passes spiral_max_radius_m; Timeout after
-//               timeout_s; ForceLimit "bottomed out" when it stalls inside the
-//               hole short of depth_m - depth_tolerance_m.
+//               timeout_s; ForceLimit ("stuck at depth") when it stalls
+//               inside the hole short of depth_m - depth_tolerance_m.
+//               Lateral admittance: search_stiffness_n_m until entered (the
+//               spiral must not be dragged by friction), then
+//               lateral_stiffness_n_m.
 // pull_out      Reference moves along -z of the tool distance_m at speed_m_s,
 //               compliant across the axis and in tilt (the hole guides the
 //               tool). Success: the measured tip moved distance_m (within

@@ -107,8 +107,8 @@ class Admittance {
   /// std::invalid_argument naming the axis) and precomputes the transitions.
   Admittance(const AdmittanceParams& params, double cycle_rate_hz);
   /// Change parameters keeping the state (real-time: no throw; returns false
-  /// and keeps the old parameters when invalid). Uses a 2x2 matrix exponential
-  /// (Pade, fixed size): a few microseconds.
+  /// and keeps the old parameters when invalid). Six fixed-size 3x3 matrix
+  /// exponentials (scaling and squaring, Taylor): a few microseconds.
   bool configure(const AdmittanceParams& params) noexcept;
 
   /// Advance one cycle with the wrench w (in params().frame, about the tip). RT-safe.

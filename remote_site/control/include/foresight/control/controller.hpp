@@ -6,7 +6,8 @@
 //   modes (command.hpp ControllerMode):
 //     Disabled  drives not enabled; q_cmd follows q (nothing jumps at enable)
 //     Idle      holding the last commanded pose (stiff, or compliant on Hold{compliant})
-//     Trajectory  running a PreparedTrajectory (optionally compliant)
+//     Trajectory  running a PreparedTrajectory (optionally compliant; the
+//               daemon's GOTO moves are trajectories too: Goto is not used here)
 //     Algorithm   running guarded_move / insert / pull_out (algorithms.hpp)
 //     Stopping  controlled stop: every joint decelerates at stop_decel_fraction of
 //               its URDF acceleration limit to rest
