@@ -368,6 +368,41 @@ TEST(Controller, DisabledFollowsThenEnablesHoldsAndRunsATrajectory) {
   EXPECT_TRUE(b.stops.empty());
 }
 
+TEST(Controller, RunsTheSameTrajectoryAtAnyCycleRate) {
+  JointArray to = home_q();
+  to[1] += 0.2;
+  to[6] -= 0.3;
+  const PreparedTrajectory traj(line_trajectory(home_q(), to, 2.0));  // 100 Hz samples
+  for (const double rate : {250.0, 500.0, 1000.0}) {
+    ControllerConfig cfg;
+    cfg.cycle_rate_hz = rate;
+    Bench b(home_q(), cfg);
+    b.enable();
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunTrajectory;
+    c.trajectory = &traj;
+    const auto id = b.send(c);
+    JointArray prev = b.out.q_cmd;
+    double prev_v = 0.0, max_dv = 0.0;
+    int cycles = 0;
+    bool done = false;
+    for (; cycles < 10 * static_cast<int>(rate) && !done; ++cycles) {
+      b.step();
+      const double v = (b.out.q_cmd[6] - prev[6]) * rate;
+      max_dv = std::max(max_dv, std::abs(v - prev_v));
+      prev_v = v;
+      prev = b.out.q_cmd;
+      for (const auto& e : b.events) done = done || (e.command_id == id && e.kind == MotionEventKind::Completed);
+    }
+    EXPECT_TRUE(done) << rate;
+    EXPECT_NEAR(cycles, 2.0 * rate, 2.0) << rate;  // takes the trajectory's 2 s at every rate
+    EXPECT_NEAR(b.out.q_cmd[6], to[6], 1e-12);
+    // Velocity changes per cycle stay those of a smooth motion (<= a_max / rate x 2).
+    EXPECT_LT(max_dv, 2.0 * 6.0 / rate * 1.5 + 1e-3) << rate;
+    EXPECT_TRUE(b.stops.empty()) << rate;
+  }
+}
+
 TEST(Controller, RejectsWhatCannotRun) {
   Bench b(home_q());
   b.step();
