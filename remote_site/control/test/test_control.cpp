@@ -725,6 +725,37 @@ TEST(Controller, CompliantHoldYieldsToAPushLikeTheAdmittance) {
   EXPECT_LT(rotation_distance(start.linear(), now.linear()), 2e-3);
 }
 
+TEST(Controller, CompliantTrajectoryYieldsAroundThePath) {
+  ControllerConfig cfg;
+  cfg.filter.cutoff_hz = 0.0;
+  cfg.filter.force_deadband_n = 0.0;
+  Bench b(home_q(), cfg);
+  b.enable();
+  JointArray to = home_q();
+  to[0] += 0.2;
+  to[2] += 0.2;
+  const PreparedTrajectory traj(line_trajectory(home_q(), to, 10.0));
+  MotionCommand c;
+  c.kind = MotionCommandKind::RunTrajectory;
+  c.trajectory = &traj;
+  c.compliant = true;
+  b.send(c);
+  // 10 N along the tool's y, applied at the tip (sensor torque = p_tip x F).
+  b.extra_ft = {0.0, 10.0, 0.0, -0.295 * 10.0, 0.0, 0.0};
+  const int n = 4500;  // 9 s: the 1.5 s admittance time constant has settled
+  for (int k = 0; k < n; ++k) b.step();
+  ASSERT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
+  std::size_t hint = 0;
+  JointArray q_ref{}, dq_ref{};
+  traj.evaluate(n * 0.002, hint, q_ref, dq_ref);
+  const Pose ref = b.tip(q_ref), now = b.tip(b.q_arm);
+  const Eigen::Vector3d d_tool = ref.linear().transpose() * (now.translation() - ref.translation());
+  EXPECT_NEAR(d_tool.y(), 10.0 / 2000.0, 1e-4);  // F / K along the push
+  EXPECT_NEAR(d_tool.x(), 0.0, 1e-4);
+  EXPECT_NEAR(d_tool.z(), 0.0, 1e-4);
+  EXPECT_LT(rotation_distance(ref.linear(), now.linear()), 1e-3);
+}
+
 TEST(Controller, TareCompletesWhenTheDecoderIsDone) {
   Bench b(home_q());
   b.enable();
