@@ -16,6 +16,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libyaml-cpp-dev libspdlog-dev libcli11-dev
   nlohmann-json3-dev libbenchmark-dev libceres-dev libssl-dev iproute2
   libsqlite3-dev sqlite3
+  libsystemd-dev
 )
 
 missing=()

@@ -3,6 +3,13 @@
 //   foresight-remote [--config config/remote.yaml] [--sim] [--journal FILE]
 //                    [--domain N] [--estop-file F]
 //   foresight-remote journal [--db FILE] [--since T] [--json]
+//   foresight-remote check [--config FILE] [--sim] [--json] [--security DIR]
+//                    (fitness before first motion: check.hpp; exit 1 when unfit)
+//
+// Under systemd (remote_site/deploy/systemd/foresight-remote.service,
+// Type=notify): READY=1 when the ready line is printed, STOPPING=1 at
+// shutdown, WATCHDOG=1 from a watchdog thread every WatchdogSec/2 while the
+// control loop's cycle counter and the supervisor's status reports advance.
 //
 // Exit status: 0 after a clean shutdown (SIGINT/SIGTERM: controlled stop,
 // category 1, journal flushed, drives disabled); 2 on a bad configuration
@@ -12,8 +19,16 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <systemd/sd-daemon.h>
+
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <thread>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -22,6 +37,7 @@
 #include "foresight/control/control_loop.hpp"
 #include "foresight/journal/journal.hpp"
 #include "foresight/journal/reader.hpp"
+#include "foresight/remote/check.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/remote/daemon_config.hpp"
 #include "foresight/remote/site.hpp"
@@ -42,8 +58,81 @@ extern "C" void on_signal(int sig) {
 
 std::string default_config() {
   if (const char* dir = std::getenv("FORESIGHT_CONFIG_DIR")) return std::string(dir) + "/remote.yaml";
-  return FORESIGHT_DEFAULT_CONFIG_DIR "/remote.yaml";
+  // The build tree's config/, else the installed one (the foresight-remote package).
+  const std::string built = FORESIGHT_DEFAULT_CONFIG_DIR "/remote.yaml";
+  if (std::FILE* f = std::fopen(built.c_str(), "r")) {
+    std::fclose(f);
+    return built;
+  }
+  return "/etc/foresight/remote.yaml";
 }
+
+/// The systemd watchdog (WatchdogSec= in the unit): a thread pings WATCHDOG=1
+/// every half period, but only when, since its previous wake-up, the control
+/// loop's cycle counter advanced AND the supervisor published a status report
+/// (counted in the outbox: `beats`, at controller.reports.status_hz). So a
+/// stalled loop thread or a supervisor thread stuck for a whole period is
+/// killed by systemd and restarted (Restart=on-failure), coming up holding.
+/// Limitation: the supervisor is seen only through its status reports, so
+/// status_hz must be above 2/WatchdogSec (default 2 Hz against 10 s); a
+/// supervisor that still reports status while stuck elsewhere is not caught.
+/// Not real-time: its own thread, nothing on the control cycle.
+class SystemdWatchdog {
+ public:
+  SystemdWatchdog(const foresight::control::ControlLoop& loop, const std::atomic<std::uint64_t>& beats,
+                  double status_hz)
+      : loop_(loop), beats_(beats) {
+    std::uint64_t usec = 0;
+    if (sd_watchdog_enabled(0, &usec) <= 0 || usec == 0) return;  // not under a watchdog
+    const auto half = std::chrono::microseconds(usec / 2);
+    if (status_hz * static_cast<double>(usec) / 2e6 < 1.0)
+      spdlog::warn("watchdog: controller.reports.status_hz {} is too low for WatchdogSec {} s (needs > {:.2f} Hz)",
+                   status_hz, static_cast<double>(usec) / 1e6, 2e6 / static_cast<double>(usec));
+    spdlog::info("systemd watchdog: {} s, pinged every {} ms while the loop and the supervisor progress",
+                 static_cast<double>(usec) / 1e6, usec / 2000);
+    thread_ = std::thread([this, half] { run(half); });
+  }
+  ~SystemdWatchdog() { stop(); }
+  SystemdWatchdog(const SystemdWatchdog&) = delete;
+  SystemdWatchdog& operator=(const SystemdWatchdog&) = delete;
+  void stop() {
+    {
+      std::lock_guard lock(mu_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  void run(std::chrono::microseconds half) {
+    std::uint64_t last_cycles = loop_.stats().cycles;
+    std::uint64_t last_beats = beats_.load();
+    bool warned = false;
+    std::unique_lock lock(mu_);
+    while (!cv_.wait_for(lock, half, [this] { return stop_; })) {
+      const std::uint64_t cycles = loop_.stats().cycles;
+      const std::uint64_t beats = beats_.load();
+      if (cycles != last_cycles && beats != last_beats) {
+        sd_notify(0, "WATCHDOG=1");
+        warned = false;
+      } else if (!warned) {
+        spdlog::error("watchdog: no progress for {} ms (loop cycles {} -> {}, supervisor reports {} -> {}): "
+                      "not pinging systemd", half.count() / 1000, last_cycles, cycles, last_beats, beats);
+        warned = true;
+      }
+      last_cycles = cycles;
+      last_beats = beats;
+    }
+  }
+
+  const foresight::control::ControlLoop& loop_;
+  const std::atomic<std::uint64_t>& beats_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::thread thread_;
+};
 
 int default_domain() {
   if (const char* d = std::getenv("FORESIGHT_DDS_DOMAIN")) return std::atoi(d);
@@ -56,6 +145,8 @@ struct Options {
   std::string journal;
   int domain = default_domain();
   std::string estop_file;
+  int loop_cpu = -1;      ///< pin the control loop thread (an isolated CPU); -1: not pinned
+  int rt_priority = 80;   ///< the control loop's SCHED_FIFO priority
 };
 
 int run_daemon(const Options& o) {
@@ -99,7 +190,10 @@ int run_daemon(const Options& o) {
     for (int i = 0; i < 3; ++i) cc.tool.com_sensor_m[static_cast<std::size_t>(i)] = plant.tool_com_sensor_m()[i];
     cc.tool.sensor_T_tip = plant.sensor_T_tip();
   }
-  control::ControlLoop loop(*site.drives, model, cc);
+  control::LoopOptions loop_options;
+  loop_options.cpu = o.loop_cpu;
+  loop_options.rt_priority = o.rt_priority;
+  control::ControlLoop loop(*site.drives, model, cc, loop_options);
   loop.start();
   for (const auto& w : loop.warnings()) spdlog::warn("control loop: {}", w);
 
@@ -120,7 +214,11 @@ int run_daemon(const Options& o) {
   parts.outbox.joints = [&](const control::JointReport& r) { if (link_ptr) link_ptr->publish(r); };
   parts.outbox.wrench = [&](const control::WrenchReport& r) { if (link_ptr) link_ptr->publish(r); };
   parts.outbox.tool = [&](const control::ToolReport& r) { if (link_ptr) link_ptr->publish(r); };
-  parts.outbox.status = [&](const control::StatusReport& r) { if (link_ptr) link_ptr->publish(r); };
+  std::atomic<std::uint64_t> supervisor_beats{0};  // status reports published: the watchdog's sign of life
+  parts.outbox.status = [&](const control::StatusReport& r) {
+    supervisor_beats.fetch_add(1, std::memory_order_relaxed);
+    if (link_ptr) link_ptr->publish(r);
+  };
   parts.outbox.republish_uploads = [&] { if (link_ptr) link_ptr->republish_uploads(); };
   remote::Supervisor supervisor(std::move(parts));
 
@@ -147,8 +245,13 @@ int run_daemon(const Options& o) {
   spdlog::info("foresight-remote ready: DDS domain {}, journal {}, drives disabled until RECOVER", o.domain,
                journal.path());
   std::cout << "foresight-remote: ready" << std::endl;  // tests and scripts wait for this line
+  sd_notify(0, "READY=1\nSTATUS=ready: holding, drives disabled until RECOVER");
+  SystemdWatchdog watchdog(loop, supervisor_beats, config.reports.status_hz);
 
   supervisor.run(g_quit);
+
+  watchdog.stop();
+  sd_notify(0, "STOPPING=1\nSTATUS=controlled stop (category 1), drives off");
 
   const int sig = g_signal.load();
   const std::string why = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "stop requested";
@@ -183,6 +286,23 @@ int main(int argc, char** argv) {
   jcmd->add_option("--since", q.since, "only rows at or after T (ns since the epoch, or ISO-8601 UTC)");
   jcmd->add_flag("--json", q.json, "one JSON object");
 
+  foresight::remote::CheckOptions check;
+  check.remote_yaml = default_config();
+  bool check_json = false;
+  CLI::App* ccmd = app.add_subcommand("check", "fitness before first motion: config, URDF, bus budget, CAN, tool, "
+                                               "real-time permissions, clock, journal, DDS security (exit 1 when unfit)");
+  ccmd->add_option("--config", check.remote_yaml, "remote configuration (robot.urdf beside it)");
+  ccmd->add_flag("--sim", check.sim, "check the simulated site (mock CAN, simulated LST) instead of the hardware");
+  ccmd->add_flag("--json", check_json, "one JSON object");
+  ccmd->add_option("--security", check.security_dir, "DDS security folder (scripts/make_dds_security.sh)");
+  ccmd->add_option("--identity", check.security_identity, "this side's identity in it (default remote)");
+  ccmd->add_option("--journal", check.journal_path, "journal database (overrides controller.journal.path)");
+  ccmd->add_option("--rt-priority", check.rt_priority, "SCHED_FIFO priority to test (the loop's)")->check(CLI::Range(1, 99));
+  app.add_option("--loop-cpu", o.loop_cpu, "pin the control loop thread to this CPU (an isolated one; -1: no)")
+      ->check(CLI::Range(-1, 1023));
+  app.add_option("--rt-priority", o.rt_priority, "the control loop's SCHED_FIFO priority (1-99, default 80)")
+      ->check(CLI::Range(1, 99));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -190,6 +310,7 @@ int main(int argc, char** argv) {
     return rc == 0 ? 0 : 2;
   }
   if (jcmd->parsed()) return foresight::journal::run_journal_command(q, std::cout, std::cerr);
+  if (ccmd->parsed()) return foresight::remote::run_check_command(check, check_json, std::cout);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;

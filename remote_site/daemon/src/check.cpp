@@ -1,0 +1,528 @@
+#include "foresight/remote/check.hpp"
+
+#include <nlohmann/json.hpp>
+#include <openssl/err.h>
+#include <openssl/pem.h>
+#include <openssl/x509.h>
+#include <openssl/x509_vfy.h>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/timex.h>
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <sstream>
+#include <thread>
+
+#include <linux/can.h>
+
+#include "foresight/common/robot_model.hpp"
+#include "foresight/hw/remote_config.hpp"
+#include "foresight/protocol/security.hpp"
+#include "foresight/remote/daemon_config.hpp"
+#include "foresight/remote/site.hpp"
+
+namespace foresight::remote {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const char* to_string(CheckResult r) noexcept {
+  switch (r) {
+    case CheckResult::Pass: return "PASS";
+    case CheckResult::Warn: return "WARN";
+    case CheckResult::Fail: return "FAIL";
+    case CheckResult::Skip: return "SKIP";
+  }
+  return "?";
+}
+
+bool CheckReport::fit() const noexcept { return count(CheckResult::Fail) == 0; }
+
+int CheckReport::count(CheckResult r) const noexcept {
+  int n = 0;
+  for (const auto& i : items) n += i.result == r ? 1 : 0;
+  return n;
+}
+
+const CheckItem* CheckReport::find(const std::string& name) const noexcept {
+  for (const auto& i : items)
+    if (i.name == name) return &i;
+  return nullptr;
+}
+
+std::string CheckReport::text() const {
+  std::size_t width = 0;
+  for (const auto& i : items) width = std::max(width, i.name.size());
+  std::ostringstream os;
+  for (const auto& i : items)
+    os << to_string(i.result) << "  " << i.name << std::string(width - i.name.size() + 2, ' ') << i.why << "\n";
+  os << (fit() ? "fit to run" : "NOT fit to run") << ": " << count(CheckResult::Pass) << " passed, "
+     << count(CheckResult::Warn) << " warnings, " << count(CheckResult::Fail) << " failed, "
+     << count(CheckResult::Skip) << " skipped\n";
+  return os.str();
+}
+
+std::string CheckReport::json() const {
+  nlohmann::json j;
+  j["fit"] = fit();
+  j["counts"] = {{"pass", count(CheckResult::Pass)},
+                 {"warn", count(CheckResult::Warn)},
+                 {"fail", count(CheckResult::Fail)},
+                 {"skip", count(CheckResult::Skip)}};
+  j["items"] = nlohmann::json::array();
+  for (const auto& i : items) j["items"].push_back({{"name", i.name}, {"result", to_string(i.result)}, {"why", i.why}});
+  return j.dump();
+}
+
+namespace {
+
+CheckItem item(std::string name, CheckResult r, std::string why) { return {std::move(name), r, std::move(why)}; }
+
+std::string read_first_line(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  if (in) std::getline(in, line);
+  return line;
+}
+
+/// Runs `argv` (no shell), returns its stdout+stderr; exit status in *status.
+std::string run_capture(const std::string& command_line, int* status) {
+  std::string out;
+  FILE* p = ::popen((command_line + " 2>&1").c_str(), "r");
+  if (p == nullptr) {
+    *status = -1;
+    return std::strerror(errno);
+  }
+  std::array<char, 4096> buf{};
+  for (int guard = 0; guard < 4096; ++guard) {  // at most 16 MB: bounded
+    const std::size_t n = std::fread(buf.data(), 1, buf.size(), p);
+    if (n == 0) break;
+    out.append(buf.data(), n);
+  }
+  *status = ::pclose(p);
+  return out;
+}
+
+bool safe_interface_name(const std::string& s) {
+  if (s.empty() || s.size() > 15) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+  return true;
+}
+
+std::string errno_text(int e) { return std::string(std::strerror(e)); }
+
+std::string describe_bitrate(std::uint32_t bps) {
+  return bps % 1000 == 0 ? std::to_string(bps / 1000) + " kbit/s" : std::to_string(bps) + " bit/s";
+}
+
+}  // namespace
+
+// ---- CAN --------------------------------------------------------------------------------
+
+CheckItem assess_can_link(const std::string& name, const std::string& interface, std::uint32_t bitrate_bps,
+                          const std::string& ip_json) {
+  json links;
+  try {
+    links = json::parse(ip_json);
+  } catch (const std::exception& e) {
+    return item(name, CheckResult::Fail, "cannot read `ip -details -json link show " + interface + "`: " + e.what());
+  }
+  if (!links.is_array() || links.empty() || !links[0].is_object())
+    return item(name, CheckResult::Fail, "no interface " + interface);
+  const json& l = links[0];
+  const std::string link_type = l.value("link_type", "");
+  const json info = l.contains("linkinfo") ? l["linkinfo"] : json::object();
+  const std::string kind = info.value("info_kind", "");
+  if (link_type != "can" && kind != "can" && kind != "vcan")
+    return item(name, CheckResult::Fail,
+                interface + " is not a CAN interface (link type '" + link_type + "'); check `buses:` in remote.yaml");
+  bool up = false;
+  if (l.contains("flags") && l["flags"].is_array())
+    for (const auto& f : l["flags"]) up = up || (f.is_string() && f.get<std::string>() == "UP");
+  if (!up)
+    return item(name, CheckResult::Fail,
+                interface + " is down: bring it up (remote_site/deploy/can, systemd-networkd or can-setup.sh)");
+  const json data = info.contains("info_data") ? info["info_data"] : json::object();
+  const std::string state = data.value("state", "");
+  std::uint32_t bitrate = 0;
+  if (data.contains("bittiming") && data["bittiming"].is_object())
+    bitrate = data["bittiming"].value("bitrate", 0u);
+  const int restart_ms = data.value("restart_ms", 0);
+  const int txqlen = l.value("txqlen", 0);
+  std::string facts = interface + " up, " + (state.empty() ? std::string("state unknown") : state);
+  if (bitrate != 0) facts += ", " + describe_bitrate(bitrate);
+  facts += ", restart-ms " + std::to_string(restart_ms) + ", txqueuelen " + std::to_string(txqlen);
+  if (kind == "can" && bitrate != bitrate_bps)
+    return item(name, CheckResult::Fail,
+                facts + ": the configuration says " + describe_bitrate(bitrate_bps) + " (set the same bit rate on both)");
+  if (state == "BUS-OFF" || state == "ERROR-PASSIVE" || state == "STOPPED")
+    return item(name, CheckResult::Fail,
+                facts + ": the controller is " + state + " (wiring, termination, bit rate of the nodes, drive power)");
+  if (state == "ERROR-WARNING")
+    return item(name, CheckResult::Warn, facts + ": error counters above 96 (check termination and wiring)");
+  if (kind == "can" && restart_ms == 0)
+    return item(name, CheckResult::Warn, facts + ": no automatic bus-off recovery (set restart-ms, e.g. 100)");
+  return item(name, CheckResult::Pass, facts);
+}
+
+CheckItem check_can_interface(const std::string& bus_name, const std::string& interface, std::uint32_t bitrate_bps) {
+  const std::string name = "CAN " + bus_name + " (" + interface + ")";
+  if (interface == "mock")
+    return item(name, CheckResult::Fail,
+                "bus " + bus_name + " has interface 'mock': a real cabinet needs a SocketCAN interface (can0...); "
+                "or check the simulated site with --sim");
+  if (!safe_interface_name(interface))
+    return item(name, CheckResult::Fail, "'" + interface + "' is not a network interface name");
+  const int fd = ::socket(PF_CAN, SOCK_RAW, CAN_RAW);
+  if (fd < 0) {
+    const int e = errno;
+    if (e == EAFNOSUPPORT)
+      return item(name, CheckResult::Fail,
+                  "this kernel has no SocketCAN support (socket(PF_CAN) failed: EAFNOSUPPORT, " + errno_text(e) +
+                      "), so interface " + interface + " cannot exist: a cabinet kernel needs CONFIG_CAN, CONFIG_CAN_RAW "
+                      "and the adapter's driver");
+    return item(name, CheckResult::Fail, "cannot open a CAN socket: " + errno_text(e));
+  }
+  ::close(fd);
+  if (!fs::exists("/sys/class/net/" + interface))
+    return item(name, CheckResult::Fail,
+                "no interface " + interface + " on this machine (adapter not plugged in, driver not loaded, or "
+                "renamed: see `ip link` and remote_site/deploy/can)");
+  int status = 0;
+  const std::string out = run_capture("ip -details -json link show dev " + interface, &status);
+  if (status != 0) return item(name, CheckResult::Fail, "`ip -details -json link show " + interface + "`: " + out);
+  return assess_can_link(name, interface, bitrate_bps, out);
+}
+
+// ---- tool ---------------------------------------------------------------------------------
+
+CheckItem check_tool(const hw::LstToolConfig& config, double timeout_s) {
+  hw::LstToolConfig c = config;
+  c.response_timeout_s = timeout_s;
+  c.retries = 0;
+  const std::string name = "tool";
+  try {
+    hw::LstTool tool(c);
+    hw::LstStatus s;
+    if (const std::error_code ec = tool.read_status(s))
+      return item(name, CheckResult::Fail,
+                  "the LST at " + c.describe() + " does not answer: " + tool.last_error_message() +
+                      " (tool powered? cable? `tool.modbus` in remote.yaml)");
+    const std::string bits = s.describe();
+    if (s.fault())
+      return item(name, CheckResult::Warn,
+                  c.describe() + " answered, but reports a fault: " + bits + " (reset it before a tool step)");
+    return item(name, CheckResult::Pass, c.describe() + " answered: " + (bits.empty() ? "no status bits" : bits));
+  } catch (const std::exception& e) {
+    return item(name, CheckResult::Fail, e.what());
+  }
+}
+
+// ---- real time ----------------------------------------------------------------------------
+
+CheckItem check_rt_priority(int priority, bool required) {
+  rlimit rl{};
+  ::getrlimit(RLIMIT_RTPRIO, &rl);
+  const std::string limit =
+      rl.rlim_cur == RLIM_INFINITY ? std::string("unlimited") : std::to_string(static_cast<long long>(rl.rlim_cur));
+  int rc = 0;
+  std::thread probe([&] {
+    sched_param sp{};
+    sp.sched_priority = priority;
+    rc = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &sp);
+  });
+  probe.join();
+  const std::string name = "rt priority";
+  if (rc == 0)
+    return item(name, CheckResult::Pass,
+                "SCHED_FIFO " + std::to_string(priority) + " granted (RLIMIT_RTPRIO " + limit + ")");
+  return item(name, required ? CheckResult::Fail : CheckResult::Warn,
+              "SCHED_FIFO " + std::to_string(priority) + " refused (" + errno_text(rc) + "; RLIMIT_RTPRIO " + limit +
+                  "): the control loop would run as a normal thread; the unit sets LimitRTPRIO=95, a shell needs "
+                  "`ulimit -r 95` or CAP_SYS_NICE" + (required ? "" : " (--sim: not required)"));
+}
+
+CheckItem check_memlock(bool required) {
+  rlimit rl{};
+  ::getrlimit(RLIMIT_MEMLOCK, &rl);
+  const std::string name = "memory lock";
+  if (rl.rlim_cur == RLIM_INFINITY) return item(name, CheckResult::Pass, "RLIMIT_MEMLOCK unlimited");
+  const std::string limit = std::to_string(static_cast<unsigned long long>(rl.rlim_cur / 1024)) + " KiB";
+  if (::mlockall(MCL_CURRENT) == 0) {
+    ::munlockall();
+    return item(name, CheckResult::Pass, "mlockall permitted (CAP_IPC_LOCK; RLIMIT_MEMLOCK " + limit + ")");
+  }
+  const int e = errno;
+  return item(name, required ? CheckResult::Fail : CheckResult::Warn,
+              "RLIMIT_MEMLOCK " + limit + " and mlockall refused (" + errno_text(e) +
+                  "): page faults could stall the control cycle; the unit sets LimitMEMLOCK=infinity" +
+                  (required ? "" : " (--sim: not required)"));
+}
+
+CheckItem check_kernel() {
+  const std::string name = "kernel";
+  utsname u{};
+  ::uname(&u);
+  const bool rt = read_first_line("/sys/kernel/realtime") == "1" || std::strstr(u.version, "PREEMPT_RT") != nullptr;
+  const std::string isolated = read_first_line("/sys/devices/system/cpu/isolated");
+  const std::string facts = std::string(u.release) + ", " + std::to_string(std::thread::hardware_concurrency()) +
+                            " CPUs, isolated: " + (isolated.empty() ? "none" : isolated);
+  if (!rt)
+    return item(name, CheckResult::Warn,
+                facts + ": not a PREEMPT_RT kernel (cycle latency is not bounded; docs/deploy.md, linux-image-rt-amd64)");
+  if (isolated.empty())
+    return item(name, CheckResult::Warn, facts + ": PREEMPT_RT, but no CPU isolated for the loop (isolcpus=, nohz_full=)");
+  return item(name, CheckResult::Pass, facts + ", PREEMPT_RT");
+}
+
+CheckItem check_clock() {
+  const std::string name = "clock";
+  timex tx{};
+  tx.modes = 0;  // read only
+  const int state = ::adjtimex(&tx);
+  if (state < 0) return item(name, CheckResult::Warn, "adjtimex failed: " + errno_text(errno));
+  if (state == TIME_ERROR || (tx.status & STA_UNSYNC) != 0)
+    return item(name, CheckResult::Warn,
+                "system clock not synchronised (adjtimex: STA_UNSYNC): journal and telemetry times may drift from the "
+                "ground's; enable systemd-timesyncd or chrony (the ground still measures the offset)");
+  return item(name, CheckResult::Pass,
+              "synchronised (estimated error " + std::to_string(tx.esterror) + " us, maximum error " +
+                  std::to_string(tx.maxerror) + " us)");
+}
+
+CheckItem check_journal_dir(const std::string& journal_path) {
+  const std::string name = "journal";
+  fs::path p(journal_path);
+  fs::path dir = p.parent_path();
+  if (dir.empty()) dir = fs::current_path();
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    return item(name, CheckResult::Fail, "the journal's folder " + dir.string() + " does not exist (" + journal_path + ")");
+  if (::access(dir.c_str(), W_OK) != 0)
+    return item(name, CheckResult::Fail, "the journal's folder " + dir.string() + " is not writable: " + errno_text(errno));
+  return item(name, CheckResult::Pass, fs::absolute(p, ec).string() + " (folder writable)");
+}
+
+// ---- DDS security -------------------------------------------------------------------------
+
+namespace {
+
+struct X509Free {
+  void operator()(X509* x) const noexcept { X509_free(x); }
+};
+struct KeyFree {
+  void operator()(EVP_PKEY* k) const noexcept { EVP_PKEY_free(k); }
+};
+struct StoreFree {
+  void operator()(X509_STORE* s) const noexcept { X509_STORE_free(s); }
+};
+struct CtxFree {
+  void operator()(X509_STORE_CTX* c) const noexcept { X509_STORE_CTX_free(c); }
+};
+
+std::unique_ptr<X509, X509Free> read_cert(const fs::path& p) {
+  FILE* f = std::fopen(p.c_str(), "r");
+  if (f == nullptr) return nullptr;
+  X509* x = PEM_read_X509(f, nullptr, nullptr, nullptr);
+  std::fclose(f);
+  return std::unique_ptr<X509, X509Free>(x);
+}
+
+std::unique_ptr<EVP_PKEY, KeyFree> read_key(const fs::path& p) {
+  FILE* f = std::fopen(p.c_str(), "r");
+  if (f == nullptr) return nullptr;
+  EVP_PKEY* k = PEM_read_PrivateKey(f, nullptr, nullptr, nullptr);
+  std::fclose(f);
+  return std::unique_ptr<EVP_PKEY, KeyFree>(k);
+}
+
+}  // namespace
+
+CheckItem check_security(const std::string& dir, const std::string& identity) {
+  const std::string name = "DDS security";
+  if (dir.empty())
+    return item(name, CheckResult::Skip, "not configured (no --security folder): the link runs unauthenticated");
+  try {
+    (void)protocol::security_qos(dir, identity);  // every file present, or the first missing one named
+  } catch (const std::exception& e) {
+    return item(name, CheckResult::Fail, e.what());
+  }
+  const fs::path base(dir);
+  const fs::path cert_path = base / "identities" / identity / "cert.pem";
+  const auto ca = read_cert(base / "ca.pem");
+  if (!ca) return item(name, CheckResult::Fail, (base / "ca.pem").string() + " is not a PEM certificate");
+  const auto cert = read_cert(cert_path);
+  if (!cert) return item(name, CheckResult::Fail, cert_path.string() + " is not a PEM certificate");
+  const auto key = read_key(base / "identities" / identity / "key.pem");
+  if (!key)
+    return item(name, CheckResult::Fail, (base / "identities" / identity / "key.pem").string() + " is not a PEM private key");
+  if (X509_check_private_key(cert.get(), key.get()) != 1) {
+    ERR_clear_error();
+    return item(name, CheckResult::Fail, cert_path.string() + " does not match its key.pem");
+  }
+  std::unique_ptr<X509_STORE, StoreFree> store(X509_STORE_new());
+  std::unique_ptr<X509_STORE_CTX, CtxFree> ctx(X509_STORE_CTX_new());
+  if (!store || !ctx || X509_STORE_add_cert(store.get(), ca.get()) != 1 ||
+      X509_STORE_CTX_init(ctx.get(), store.get(), cert.get(), nullptr) != 1)
+    return item(name, CheckResult::Fail, "OpenSSL could not set up the verification");
+  if (X509_verify_cert(ctx.get()) != 1) {
+    const int err = X509_STORE_CTX_get_error(ctx.get());
+    ERR_clear_error();
+    return item(name, CheckResult::Fail,
+                cert_path.string() + " does not verify against " + (base / "ca.pem").string() + ": " +
+                    X509_verify_cert_error_string(err));
+  }
+  int days = 0, secs = 0;
+  ASN1_TIME_diff(&days, &secs, nullptr, X509_get0_notAfter(cert.get()));
+  const std::string plugins = protocol::security_plugin_dir();
+  if (!plugins.empty())
+    for (const char* lib : {"libdds_security_auth.so", "libdds_security_ac.so", "libdds_security_crypto.so"})
+      if (!fs::exists(fs::path(plugins) / lib))
+        return item(name, CheckResult::Fail, "Cyclone's security plugin " + (fs::path(plugins) / lib).string() + " is missing");
+  const std::string facts = "identity '" + identity + "' in " + dir + ": certificate signed by the CA, matches its key, " +
+                            std::to_string(days) + " days left";
+  if (days < 30) return item(name, CheckResult::Warn, facts + " (renew it soon: scripts/make_dds_security.sh)");
+  return item(name, CheckResult::Pass, facts);
+}
+
+// ---- the whole check ----------------------------------------------------------------------
+
+CheckReport run_check(const CheckOptions& o) {
+  CheckReport report;
+  auto add = [&](CheckItem i) { report.items.push_back(std::move(i)); };
+  const bool required = !o.sim;
+
+  std::optional<hw::RemoteConfig> hw_config;
+  std::optional<hw::LstToolConfig> tool_config;
+  std::optional<DaemonConfig> daemon_config;
+  try {
+    hw_config = hw::load_remote_config(o.remote_yaml);
+    tool_config = hw::load_lst_tool_config(o.remote_yaml);
+    daemon_config = load_daemon_config(o.remote_yaml);
+    add(item("config", CheckResult::Pass,
+             o.remote_yaml + ": " + std::to_string(hw_config->buses.size()) + " bus(es), " +
+                 std::to_string(hw_config->drives.size()) + " drives at " +
+                 std::to_string(static_cast<int>(hw_config->cycle_rate_hz)) + " Hz" +
+                 (hw_config->ft.present ? ", F/T sensor on " + hw_config->ft.bus : std::string(", no F/T sensor")) +
+                 "; tool " + tool_config->describe()));
+  } catch (const std::exception& e) {
+    add(item("config", CheckResult::Fail, e.what()));
+  }
+
+  const std::string urdf = o.urdf.empty() ? sibling(o.remote_yaml, "robot.urdf") : o.urdf;
+  bool model_ok = false;
+  try {
+    if (!fs::exists(urdf)) throw std::runtime_error("missing URDF: " + urdf + " does not exist");
+    const RobotModel model = RobotModel::from_file(urdf);
+    std::string mismatch;
+    if (hw_config) {
+      if (hw_config->drives.size() != static_cast<std::size_t>(model.dof()))
+        mismatch = std::to_string(hw_config->drives.size()) + " drives configured, the robot has " +
+                   std::to_string(model.dof()) + " joints";
+      for (std::size_t j = 0; mismatch.empty() && j < hw_config->drives.size(); ++j)
+        if (hw_config->drives[j].joint != model.joint_names()[j])
+          mismatch = "drive " + std::to_string(j + 1) + " is for joint '" + hw_config->drives[j].joint +
+                     "', the robot's joint " + std::to_string(j + 1) + " is '" + model.joint_names()[j] + "'";
+    }
+    if (!mismatch.empty()) {
+      add(item("robot model", CheckResult::Fail, urdf + ": " + mismatch));
+    } else {
+      add(item("robot model", CheckResult::Pass, urdf + ": " + std::to_string(model.dof()) + " joints"));
+      model_ok = true;
+    }
+  } catch (const std::exception& e) {
+    add(item("robot model", CheckResult::Fail, e.what()));
+  }
+
+  if (hw_config) {
+    std::string loads;
+    bool over = false;
+    for (const auto& l : hw::compute_bus_loads(*hw_config)) {
+      char pct[32];
+      std::snprintf(pct, sizeof pct, "%.1f%%", l.load * 100.0);
+      loads += (loads.empty() ? "" : ", ") + l.bus + " " + pct;
+      over = over || l.load > hw_config->max_bus_load;
+    }
+    char limit[32];
+    std::snprintf(limit, sizeof limit, "%.0f%%", hw_config->max_bus_load * 100.0);
+    add(item("bus budget", over ? CheckResult::Fail : CheckResult::Pass,
+             loads + " worst case at " + std::to_string(static_cast<int>(hw_config->cycle_rate_hz)) + " Hz (limit " +
+                 limit + ")"));
+  } else {
+    add(item("bus budget", CheckResult::Skip, "the configuration did not load"));
+  }
+
+  // CAN and tool: the hardware, or the simulated site.
+  if (!hw_config || !tool_config) {
+    add(item("CAN", CheckResult::Skip, "the configuration did not load"));
+    add(item("tool", CheckResult::Skip, "the configuration did not load"));
+  } else if (!o.sim) {
+    for (const auto& bus : hw_config->buses) add(check_can_interface(bus.name, bus.interface, bus.bitrate_bps));
+    add(check_tool(*tool_config, o.tool_timeout_s));
+  } else if (!model_ok) {
+    add(item("CAN (simulated)", CheckResult::Skip, "the robot model did not load"));
+    add(item("tool", CheckResult::Skip, "the robot model did not load"));
+  } else {
+    try {
+      SiteOptions so;
+      so.remote_yaml = o.remote_yaml;
+      so.urdf = urdf;
+      so.sim = true;
+      Site site = build_site(so);
+      std::string buses;
+      for (const auto& b : site.hw_config.buses) buses += (buses.empty() ? "" : ", ") + b.name;
+      try {
+        site.drives->configure();
+        add(item("CAN (simulated)", CheckResult::Pass,
+                 std::to_string(site.hw_config.drives.size()) + " simulated drives" +
+                     (site.hw_config.ft.present ? " and the F/T sensor" : "") + " answered on mock buses " + buses +
+                     " (boot-up, SDO, PDO mapping); drive 1: '" + site.drives->device_name(0) + "'"));
+      } catch (const std::exception& e) {
+        add(item("CAN (simulated)", CheckResult::Fail, e.what()));
+      }
+      add(check_tool(site.tool_config, o.tool_timeout_s));
+    } catch (const std::exception& e) {
+      add(item("CAN (simulated)", CheckResult::Fail, std::string("the simulated site did not start: ") + e.what()));
+      add(item("tool", CheckResult::Skip, "the simulated site did not start"));
+    }
+  }
+
+  add(check_rt_priority(o.rt_priority, required));
+  add(check_memlock(required));
+  add(check_kernel());
+  add(check_clock());
+  if (daemon_config || !o.journal_path.empty())
+    add(check_journal_dir(o.journal_path.empty() ? daemon_config->journal.path : o.journal_path));
+  else
+    add(item("journal", CheckResult::Skip, "the configuration did not load"));
+  add(check_security(o.security_dir, o.security_identity));
+  return report;
+}
+
+int run_check_command(const CheckOptions& options, bool json_out, std::ostream& out) {
+  const CheckReport report = run_check(options);
+  if (json_out)
+    out << report.json() << "\n";
+  else
+    out << "foresight-remote check: " << options.remote_yaml << (options.sim ? " (--sim)" : "") << "\n" << report.text();
+  return report.fit() ? 0 : 1;
+}
+
+}  // namespace foresight::remote

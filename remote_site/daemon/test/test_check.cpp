@@ -1,0 +1,376 @@
+// foresight-remote check: every missing piece fails with its reason, the
+// simulated site passes; the deployment files (systemd unit, CAN bring-up
+// script, the two .deb packages) hold what they should.
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <linux/can.h>
+
+#include <cerrno>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "foresight/remote/check.hpp"
+#include "foresight/test/cli.hpp"
+
+namespace fs = std::filesystem;
+using foresight::remote::CheckItem;
+using foresight::remote::CheckOptions;
+using foresight::remote::CheckReport;
+using foresight::remote::CheckResult;
+
+namespace {
+
+const std::string kConfig = FORESIGHT_CONFIG_DIR;
+const std::string kSource = FORESIGHT_SOURCE_DIR;
+const std::string kBin = FORESIGHT_BIN_DIR;
+
+std::string slurp(const std::string& path) { return foresight::test::read_file(path); }
+
+/// A scratch folder holding a copy of config/ (remote.yaml edited by `edit`).
+struct ConfigDir {
+  fs::path dir;
+  explicit ConfigDir(bool with_urdf = true) {
+    dir = foresight::test::temp_path("_cfg");
+    fs::create_directories(dir);
+    for (const char* f : {"remote.yaml", "scene.yaml", "oru.yaml"}) fs::copy_file(kConfig + "/" + f, dir / f);
+    if (with_urdf) fs::copy_file(kConfig + "/robot.urdf", dir / "robot.urdf");
+  }
+  ~ConfigDir() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  std::string yaml() const { return (dir / "remote.yaml").string(); }
+  void replace(const std::string& from, const std::string& to) const {
+    std::string text = slurp(yaml());
+    text = std::regex_replace(text, std::regex(from), to);
+    std::ofstream(yaml()) << text;
+  }
+  /// The cabinet's buses: can0 and can1 instead of the mock buses.
+  void real_buses() const {
+    replace("name: arm_a, interface: mock", "name: arm_a, interface: can0");
+    replace("name: arm_b, interface: mock", "name: arm_b, interface: can1");
+  }
+};
+
+const CheckItem& must_find(const CheckReport& r, const std::string& name) {
+  const CheckItem* i = r.find(name);
+  if (i == nullptr) {
+    ADD_FAILURE() << "no item '" << name << "' in\n" << r.text();
+    static const CheckItem none{};
+    return none;
+  }
+  return *i;
+}
+
+struct ShellRun {
+  int status = -1;
+  std::string out;
+};
+
+/// Runs `cmd` through the shell; stderr joins stdout unless `cmd` redirects it.
+ShellRun run_shell(const std::string& cmd) {
+  ShellRun r;
+  FILE* p = ::popen((cmd.find("2>") == std::string::npos ? cmd + " 2>&1" : cmd).c_str(), "r");
+  if (p == nullptr) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = ::pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+bool kernel_has_can() {
+  const int fd = ::socket(PF_CAN, SOCK_RAW, CAN_RAW);
+  if (fd < 0) return errno != EAFNOSUPPORT;
+  ::close(fd);
+  return true;
+}
+
+}  // namespace
+
+// ---- CAN ----------------------------------------------------------------------------------
+
+TEST(CheckCan, AssessesTheLinkFromIpJson) {
+  using foresight::remote::assess_can_link;
+  const auto link = [](const std::string& flags, const std::string& state, int bitrate, int restart_ms) {
+    return R"([{"ifname":"can0","flags":[)" + flags + R"(],"txqlen":1000,"link_type":"can",)" +
+           R"("linkinfo":{"info_kind":"can","info_data":{"state":")" + state + R"(","restart_ms":)" +
+           std::to_string(restart_ms) + R"(,"bittiming":{"bitrate":)" + std::to_string(bitrate) + "}}}}]";
+  };
+  const std::string up = R"("NOARP","UP","LOWER_UP","ECHO")";
+  CheckItem i = assess_can_link("CAN arm_a (can0)", "can0", 1000000, link(up, "ERROR-ACTIVE", 1000000, 100));
+  EXPECT_EQ(i.result, CheckResult::Pass) << i.why;
+  EXPECT_EQ(i.why, "can0 up, ERROR-ACTIVE, 1000 kbit/s, restart-ms 100, txqueuelen 1000");
+
+  i = assess_can_link("c", "can0", 1000000, link(up, "ERROR-ACTIVE", 500000, 100));
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("the configuration says 1000 kbit/s"), std::string::npos) << i.why;
+
+  i = assess_can_link("c", "can0", 1000000, link(up, "BUS-OFF", 1000000, 100));
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("BUS-OFF"), std::string::npos) << i.why;
+
+  i = assess_can_link("c", "can0", 1000000, link(R"("NOARP","ECHO")", "STOPPED", 1000000, 100));
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("can0 is down"), std::string::npos) << i.why;
+
+  i = assess_can_link("c", "can0", 1000000, link(up, "ERROR-ACTIVE", 1000000, 0));
+  EXPECT_EQ(i.result, CheckResult::Warn);
+  EXPECT_NE(i.why.find("no automatic bus-off recovery"), std::string::npos) << i.why;
+
+  i = assess_can_link("c", "eth0", 1000000, R"([{"ifname":"eth0","flags":["UP"],"link_type":"ether"}])");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("eth0 is not a CAN interface"), std::string::npos) << i.why;
+
+  i = assess_can_link("c", "can0", 1000000, "Device \"can0\" does not exist.");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+}
+
+TEST(CheckCan, NoCanInterfaceSaysSo) {
+  ConfigDir cfg;
+  cfg.real_buses();
+  CheckOptions o;
+  o.remote_yaml = cfg.yaml();
+  o.tool_timeout_s = 0.1;
+  const CheckReport r = foresight::remote::run_check(o);
+  EXPECT_FALSE(r.fit());
+  for (const char* name : {"CAN arm_a (can0)", "CAN arm_b (can1)"}) {
+    const CheckItem& i = must_find(r, name);
+    EXPECT_EQ(i.result, CheckResult::Fail) << i.why;
+    if (!kernel_has_can()) {
+      EXPECT_NE(i.why.find("this kernel has no SocketCAN support (socket(PF_CAN) failed: EAFNOSUPPORT"),
+                std::string::npos)
+          << i.why;
+    } else if (!fs::exists(std::string("/sys/class/net/") + (name[8] == 'a' ? "can0" : "can1"))) {
+      EXPECT_NE(i.why.find("no interface can"), std::string::npos) << i.why;
+    }
+  }
+  // The configuration itself is fine.
+  EXPECT_EQ(must_find(r, "config").result, CheckResult::Pass) << must_find(r, "config").why;
+  EXPECT_EQ(must_find(r, "robot model").result, CheckResult::Pass);
+  EXPECT_EQ(must_find(r, "bus budget").result, CheckResult::Pass);
+}
+
+TEST(CheckCan, MockBusesAreNotACabinet) {
+  CheckOptions o;
+  o.remote_yaml = kConfig + "/remote.yaml";  // the repository's config: mock buses
+  o.tool_timeout_s = 0.1;
+  const CheckReport r = foresight::remote::run_check(o);
+  const CheckItem& i = must_find(r, "CAN arm_a (mock)");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("has interface 'mock': a real cabinet needs a SocketCAN interface"), std::string::npos) << i.why;
+}
+
+// ---- configuration and model --------------------------------------------------------------
+
+TEST(CheckConfig, MissingUrdfIsNamed) {
+  ConfigDir cfg(/*with_urdf=*/false);
+  CheckOptions o;
+  o.remote_yaml = cfg.yaml();
+  o.sim = true;
+  const CheckReport r = foresight::remote::run_check(o);
+  EXPECT_FALSE(r.fit());
+  const CheckItem& i = must_find(r, "robot model");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_EQ(i.why, "missing URDF: " + (cfg.dir / "robot.urdf").string() + " does not exist");
+  EXPECT_EQ(must_find(r, "CAN (simulated)").result, CheckResult::Skip);
+}
+
+TEST(CheckConfig, BadKeyNamesFileAndLine) {
+  ConfigDir cfg;
+  cfg.replace("control_lease_s: 10", "control_leas_s: 10");
+  CheckOptions o;
+  o.remote_yaml = cfg.yaml();
+  o.sim = true;
+  const CheckReport r = foresight::remote::run_check(o);
+  EXPECT_FALSE(r.fit());
+  const CheckItem& i = must_find(r, "config");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  int line = 0;  // the key's line in the file
+  {
+    std::istringstream in(slurp(cfg.yaml()));
+    std::string l;
+    for (int n = 1; line == 0 && std::getline(in, l); ++n)
+      if (l.find("control_leas_s") != std::string::npos) line = n;
+  }
+  ASSERT_GT(line, 0);
+  EXPECT_EQ(i.why.rfind(cfg.yaml() + ":" + std::to_string(line) + ": controller: unknown key 'control_leas_s'", 0), 0u)
+      << i.why;
+}
+
+TEST(CheckConfig, DriveJointMismatch) {
+  ConfigDir cfg;
+  cfg.replace("joint: joint2, bus: arm_a", "joint: joint9, bus: arm_a");
+  CheckOptions o;
+  o.remote_yaml = cfg.yaml();
+  o.sim = true;
+  const CheckReport r = foresight::remote::run_check(o);
+  const CheckItem& i = must_find(r, "robot model");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("drive 2 is for joint 'joint9', the robot's joint 2 is 'joint2'"), std::string::npos) << i.why;
+}
+
+TEST(CheckConfig, JournalFolderMustExist) {
+  const CheckItem i = foresight::remote::check_journal_dir("/nonexistent_foresight_dir/j.db");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_EQ(i.why, "the journal's folder /nonexistent_foresight_dir does not exist (/nonexistent_foresight_dir/j.db)");
+  EXPECT_EQ(foresight::remote::check_journal_dir("/tmp/j.db").result, CheckResult::Pass);
+}
+
+// ---- tool -----------------------------------------------------------------------------------
+
+TEST(CheckTool, UnreachableEndpointFails) {
+  // A port that was just free: bind, read the port, close (nothing listens).
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  const int port = ntohs(a.sin_port);
+  ::close(fd);
+
+  foresight::hw::LstToolConfig c;
+  c.host = "127.0.0.1";
+  c.port = port;
+  const CheckItem i = foresight::remote::check_tool(c, 0.2);
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_EQ(i.why.rfind("the LST at tcp 127.0.0.1:" + std::to_string(port) + " unit 1 does not answer: ", 0), 0u)
+      << i.why;
+}
+
+// ---- the simulated site passes ----------------------------------------------------------------
+
+TEST(CheckSim, SimulatedSitePasses) {
+  CheckOptions o;
+  o.remote_yaml = kConfig + "/remote.yaml";
+  o.sim = true;
+  o.journal_path = "/tmp/foresight-check-journal.db";
+  const CheckReport r = foresight::remote::run_check(o);
+  EXPECT_TRUE(r.fit()) << r.text();
+  EXPECT_EQ(r.count(CheckResult::Fail), 0);
+  const CheckItem& can = must_find(r, "CAN (simulated)");
+  EXPECT_EQ(can.result, CheckResult::Pass) << can.why;
+  EXPECT_NE(can.why.find("7 simulated drives and the F/T sensor answered on mock buses arm_a, arm_b"),
+            std::string::npos)
+      << can.why;
+  const CheckItem& tool = must_find(r, "tool");
+  EXPECT_EQ(tool.result, CheckResult::Pass) << tool.why;
+  EXPECT_EQ(tool.why.rfind("tcp 127.0.0.1:", 0), 0u) << tool.why;
+  EXPECT_EQ(must_find(r, "bus budget").why, "arm_a 53.4%, arm_b 54.4% worst case at 500 Hz (limit 70%)");
+  EXPECT_EQ(must_find(r, "DDS security").result, CheckResult::Skip);
+  // --sim never fails for missing real-time permissions.
+  EXPECT_NE(must_find(r, "rt priority").result, CheckResult::Fail);
+  EXPECT_NE(must_find(r, "memory lock").result, CheckResult::Fail);
+}
+
+TEST(CheckCli, SimPassesAndRealConfigFailsWithReasons) {
+  ShellRun ok = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + kConfig +
+                     "/remote.yaml --sim --json --journal /tmp/foresight-check-journal.db 2>/dev/null");
+  ASSERT_EQ(ok.status, 0) << ok.out;
+  const auto j = nlohmann::json::parse(ok.out);
+  EXPECT_TRUE(j.at("fit").get<bool>());
+  EXPECT_EQ(j.at("counts").at("fail").get<int>(), 0);
+  EXPECT_GE(j.at("items").size(), 11u);
+
+  ConfigDir cfg;
+  cfg.real_buses();
+  ShellRun bad = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>/dev/null");
+  EXPECT_EQ(bad.status, 1) << bad.out;
+  EXPECT_NE(bad.out.find("FAIL  CAN arm_a (can0)"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("FAIL  tool"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("NOT fit to run"), std::string::npos) << bad.out;
+}
+
+// ---- DDS security ---------------------------------------------------------------------------------
+
+TEST(CheckSecurity, SkippedMissingValidForeign) {
+  using foresight::remote::check_security;
+  EXPECT_EQ(check_security("", "remote").result, CheckResult::Skip);
+
+  const std::string none = foresight::test::temp_path("_nosec");
+  CheckItem i = check_security(none, "remote");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find(none + "/ca.pem is missing"), std::string::npos) << i.why;
+
+  if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
+  const std::string dir = foresight::test::temp_path("_sec");
+  const ShellRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
+  ASSERT_EQ(made.status, 0) << made.out;
+  i = check_security(dir, "remote");
+  EXPECT_EQ(i.result, CheckResult::Pass) << i.why;
+  EXPECT_NE(i.why.find("identity 'remote' in " + dir + ": certificate signed by the CA, matches its key"),
+            std::string::npos)
+      << i.why;
+
+  // The foreign CA's identity put in place of ours: it does not verify against our CA.
+  fs::copy(dir + "/foreign/identities/intruder", dir + "/identities/intruder", fs::copy_options::recursive);
+  i = check_security(dir, "intruder");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("does not verify against " + dir + "/ca.pem"), std::string::npos) << i.why;
+
+  // A key that is not the certificate's.
+  fs::copy_file(dir + "/identities/ground/key.pem", dir + "/identities/remote/key.pem",
+                fs::copy_options::overwrite_existing);
+  i = check_security(dir, "remote");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("does not match its key.pem"), std::string::npos) << i.why;
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+// ---- deployment files -----------------------------------------------------------------------------
+
+TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {
+  if (run_shell("command -v systemd-analyze").status != 0) GTEST_SKIP() << "systemd-analyze is not installed";
+  const std::string unit = kSource + "/remote_site/deploy/systemd/foresight-remote.service";
+  std::string text = slurp(unit);
+  ASSERT_FALSE(text.empty());
+  for (const char* key : {"Type=notify", "WatchdogSec=", "LimitRTPRIO=", "LimitMEMLOCK=infinity", "Restart=on-failure",
+                          "NotifyAccess=main", "ExecStart=/usr/bin/foresight-remote"})
+    EXPECT_NE(text.find(key), std::string::npos) << key;
+  // verify checks that ExecStart exists: point it at the built daemon.
+  const fs::path dir = foresight::test::temp_path("_unit");
+  fs::create_directories(dir);
+  text = std::regex_replace(text, std::regex("/usr/bin/foresight-remote"), kBin + "/foresight-remote");
+  std::ofstream(dir / "foresight-remote.service") << text;
+  const ShellRun v = run_shell("systemd-analyze verify " + (dir / "foresight-remote.service").string());
+  EXPECT_EQ(v.status, 0) << v.out;
+  EXPECT_EQ(v.out.find("foresight-remote.service:"), std::string::npos) << v.out;  // no complaint about our unit
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+TEST(Deploy, CanSetupDryRun) {
+  const ShellRun r = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run can0 can1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("ip link set can0 down"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ip link set can0 type can bitrate 1000000 restart-ms 100"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ip link set can0 txqueuelen 1000"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ip link set can1 up"), std::string::npos) << r.out;
+  const ShellRun bad = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run --bitrate 7 can0");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.out.find("bit rate 7 is not one of"), std::string::npos) << bad.out;
+}
+
+TEST(Deploy, PackagesHoldWhatTheyShould) {
+  const std::string build = fs::path(kBin).parent_path().string();
+  for (const char* b : {"foresight-remote", "foresight"})
+    if (!fs::exists(kBin + "/" + b)) GTEST_SKIP() << kBin << "/" << b << " is not built (build every target first)";
+  if (run_shell("command -v cpack && command -v dpkg-deb && command -v dpkg-shlibdeps").status != 0)
+    GTEST_SKIP() << "cpack, dpkg-deb or dpkg-shlibdeps missing";
+  const ShellRun r = run_shell("timeout 150 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("packages: ok"), std::string::npos) << r.out;
+}

@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Builds the two Debian packages from a build tree (cpack -G DEB, into a scratch
+# folder) and checks them:
+#   foresight-remote: the daemon, its units, /etc/foresight config, the CAN
+#     bring-up, conffiles; its dependencies name no ground library (OpenCV, GL,
+#     OSMesa, EGL) and the binary links none (ldd); the cabinet's remote.yaml
+#     names SocketCAN interfaces.
+#   foresight-ground: the CLI and its config; it depends on OpenCV.
+#   both: `apt-get install --simulate ./x.deb` resolves (when apt has lists).
+#
+#   bash remote_site/deploy/test_packages.sh BUILD_DIR     (prints "packages: ok")
+# Needs foresight-remote and foresight built in BUILD_DIR, cpack, dpkg-deb,
+# dpkg-shlibdeps. Run by test_check (Deploy.PackagesHoldWhatTheyShould).
+set -euo pipefail
+build=${1:?usage: test_packages.sh BUILD_DIR}
+build=$(cd "$build" && pwd)
+tmp=$(mktemp -d /tmp/foresight_pkg_XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "test_packages: $*" >&2; exit 1; }
+
+start=$(date +%s)
+(cd "$build" && cpack -G DEB -B "$tmp" >"$tmp/cpack.log" 2>&1) || { cat "$tmp/cpack.log" >&2; fail "cpack failed"; }
+remote=$(ls "$tmp"/foresight-remote_*.deb 2>/dev/null | head -1)
+ground=$(ls "$tmp"/foresight-ground_*.deb 2>/dev/null | head -1)
+[[ -n $remote ]] || fail "no foresight-remote_*.deb in $(ls "$tmp")"
+[[ -n $ground ]] || fail "no foresight-ground_*.deb in $(ls "$tmp")"
+echo "built $(basename "$remote") ($(stat -c %s "$remote") bytes), $(basename "$ground") ($(stat -c %s "$ground") bytes) in $(( $(date +%s) - start )) s"
+
+# ---- foresight-remote -----------------------------------------------------------------
+dpkg-deb -c "$remote" | awk '{print $NF}' | sed 's#^\./#/#' >"$tmp/remote.files"
+for f in /usr/bin/foresight-remote \
+         /lib/systemd/system/foresight-remote.service /lib/systemd/system/foresight-can.service \
+         /etc/systemd/system/foresight-remote.service.d/cpu.conf /etc/default/foresight-remote \
+         /etc/foresight/remote.yaml /etc/foresight/robot.urdf /etc/foresight/oru.yaml /etc/foresight/scene.yaml \
+         /usr/lib/foresight/can-setup.sh \
+         /usr/share/foresight-remote/can/80-foresight-can.network /usr/share/foresight-remote/can/80-foresight-can.link \
+         /usr/share/foresight-remote/scripts/make_dds_security.sh \
+         /usr/share/doc/foresight-remote/deploy.md /usr/share/doc/foresight-remote/journal.md; do
+  grep -qx "$f" "$tmp/remote.files" || fail "foresight-remote lacks $f"
+done
+grep -qx /usr/bin/foresight "$tmp/remote.files" && fail "foresight-remote holds the ground CLI"
+depends=$(dpkg-deb -f "$remote" Depends)
+echo "foresight-remote Depends: $depends"
+grep -Eiq 'opencv|libgl|osmesa|libegl|mesa|ceres' <<<"$depends" && fail "foresight-remote depends on a ground library: $depends"
+for d in libsystemd0 libddsc0debian libmodbus iproute2 systemd libsqlite3; do
+  grep -q "$d" <<<"$depends" || fail "foresight-remote does not depend on $d: $depends"
+done
+dpkg-deb -x "$remote" "$tmp/remote"
+linked=$(ldd "$tmp/remote/usr/bin/foresight-remote")
+grep -Eiq 'GL|opencv' <<<"$linked" && fail "foresight-remote links a ground library: $(grep -Ei 'GL|opencv' <<<"$linked")"
+grep -q 'not found' <<<"$linked" && fail "foresight-remote: unresolved libraries: $linked"
+grep -q 'interface: can0' "$tmp/remote/etc/foresight/remote.yaml" || fail "/etc/foresight/remote.yaml does not name can0"
+grep -q 'interface: mock' "$tmp/remote/etc/foresight/remote.yaml" && fail "/etc/foresight/remote.yaml still has a mock bus"
+[[ -x $tmp/remote/usr/lib/foresight/can-setup.sh ]] || fail "can-setup.sh is not executable"
+dpkg-deb -e "$remote" "$tmp/remote.ctl"
+grep -qx /etc/foresight/remote.yaml "$tmp/remote.ctl/conffiles" || fail "remote.yaml is not a conffile"
+grep -q 'systemctl daemon-reload' "$tmp/remote.ctl/postinst" || fail "postinst does not reload systemd"
+grep -Eq '^[[:space:]]*(deb-systemd-invoke|systemctl (start|enable|restart))' "$tmp/remote.ctl/postinst" &&
+  fail "postinst starts or enables the daemon (the first start is the operator's, after the check)"
+
+# ---- foresight-ground -----------------------------------------------------------------
+dpkg-deb -c "$ground" | awk '{print $NF}' | sed 's#^\./#/#' >"$tmp/ground.files"
+for f in /usr/bin/foresight /etc/foresight-ground/robot.urdf /etc/foresight-ground/oru.yaml \
+         /etc/foresight-ground/scene.yaml /etc/foresight-ground/scripts/oru_changeout.task \
+         /etc/profile.d/foresight-ground.sh /usr/share/foresight-ground/scripts/make_dds_security.sh; do
+  grep -qx "$f" "$tmp/ground.files" || fail "foresight-ground lacks $f"
+done
+grep -qx /usr/bin/foresight-remote "$tmp/ground.files" && fail "foresight-ground holds the daemon"
+# No file in both packages (they install side by side).
+common=$(comm -12 <(grep -v '/$' "$tmp/remote.files" | sort) <(grep -v '/$' "$tmp/ground.files" | sort))
+[[ -z $common ]] || fail "both packages hold: $common"
+gdepends=$(dpkg-deb -f "$ground" Depends)
+echo "foresight-ground Depends: $gdepends"
+grep -q 'libopencv' <<<"$gdepends" || fail "foresight-ground does not depend on OpenCV: $gdepends"
+
+# ---- dependencies resolve on this Debian (apt-get's own solver, nothing installed) ---------
+if command -v apt-get >/dev/null && [[ -n $(ls /var/lib/apt/lists/ 2>/dev/null | grep -v -e lock -e partial -e auxfiles) ]]; then
+  for deb in "$remote" "$ground"; do
+    apt-get install --simulate -qq "$deb" >"$tmp/apt.log" 2>&1 || { cat "$tmp/apt.log" >&2; fail "apt-get cannot install $(basename "$deb")"; }
+  done
+  echo "apt-get install --simulate: both resolve"
+else
+  echo "apt-get install --simulate: skipped (no apt lists)"
+fi
+echo "packages: ok ($(( $(date +%s) - start )) s)"
