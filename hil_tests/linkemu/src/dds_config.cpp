@@ -12,10 +12,7 @@ std::string cyclone_config_xml(const std::string& interface, const std::string& 
          "<General><Interfaces><NetworkInterface name=\"" +
          interface +
          "\"/></Interfaces>"
-         "<AllowMulticast>false</AllowMulticast>"
-         // One RTPS message per IP packet (MTU 1500 - 28): a lost packet then
-         // costs one DDSI fragment, not a whole 14 kB datagram's worth.
-         "<MaxMessageSize>1472B</MaxMessageSize><FragmentSize>1344B</FragmentSize></General>"
+         "<AllowMulticast>false</AllowMulticast></General>"
          "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
          "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
          "<SPDPInterval>" +

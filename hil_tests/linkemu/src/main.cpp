@@ -191,8 +191,9 @@ int run(const RunOptions& o) {
       if (fd >= 0) ::close(fd);
     }
   };
-  // Closing the fds (before the namespaces go, by declaration order) removes
-  // the TUN devices.
+  // Destroyed in reverse order: the fds close (nobody forwards any more), then
+  // the names go; the persistent TUN devices go with their namespaces once no
+  // process is left in them (netns.hpp).
   CloseFd ground_tun{le::create_tun(ground.name(), gcfg)};
   CloseFd remote_tun{le::create_tun(remote.name(), rcfg)};
 
