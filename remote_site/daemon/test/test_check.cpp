@@ -3,6 +3,9 @@
 // script, the two .deb packages) hold what they should.
 #include <gtest/gtest.h>
 #include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/un.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -16,9 +19,12 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <vector>
 
+#include "foresight/protocol/loopback.hpp"
 #include "foresight/remote/check.hpp"
 #include "foresight/test/cli.hpp"
+#include "foresight/test/remote_process.hpp"
 
 namespace fs = std::filesystem;
 using foresight::remote::CheckItem;
@@ -373,4 +379,58 @@ TEST(Deploy, PackagesHoldWhatTheyShould) {
   const ShellRun r = run_shell("timeout 150 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("packages: ok"), std::string::npos) << r.out;
+}
+
+// The daemon speaks systemd's notify protocol: a fake NOTIFY_SOCKET (what
+// systemd gives a Type=notify service) receives READY=1 after the ready line,
+// WATCHDOG=1 every WatchdogSec/2 while the loop and the supervisor progress,
+// and STOPPING=1 at SIGTERM.
+TEST(Deploy, DaemonNotifiesReadyWatchdogStopping) {
+  const std::string sock_path = foresight::test::temp_path(".notify");
+  const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  std::snprintf(a.sun_path, sizeof a.sun_path, "%s", sock_path.c_str());
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+
+  std::vector<std::string> messages;
+  const auto wait_for = [&](const std::string& what, int count, double timeout_s) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    const auto seen = [&] {
+      int n = 0;
+      for (const auto& m : messages) n += m.find(what) != std::string::npos ? 1 : 0;
+      return n;
+    };
+    while (seen() < count && std::chrono::steady_clock::now() < deadline) {
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, 100) > 0) {
+        char buf[1024];
+        const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+        if (n > 0) messages.emplace_back(buf, static_cast<std::size_t>(n));
+      }
+    }
+    return seen() >= count;
+  };
+
+  ::setenv("NOTIFY_SOCKET", sock_path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "2000000", 1);  // 2 s: pinged every 1 s
+  foresight::test::RemoteProcess::Options o;
+  o.domain = static_cast<int>(foresight::protocol::unique_test_domain());
+  {
+    foresight::test::RemoteProcess daemon(o);
+    ::unsetenv("NOTIFY_SOCKET");
+    ::unsetenv("WATCHDOG_USEC");
+    ASSERT_TRUE(daemon.ready()) << daemon.log();
+    EXPECT_TRUE(wait_for("READY=1", 1, 10.0)) << daemon.log();
+    EXPECT_TRUE(wait_for("WATCHDOG=1", 3, 15.0)) << daemon.log();
+    EXPECT_EQ(daemon.stop(SIGTERM, 30.0), 0) << daemon.log();
+    EXPECT_TRUE(wait_for("STOPPING=1", 1, 5.0)) << daemon.log();
+    EXPECT_EQ(daemon.log().find("watchdog: no progress"), std::string::npos) << daemon.log();
+  }
+  ::close(fd);
+  std::remove(sock_path.c_str());
+  ASSERT_FALSE(messages.empty());
+  EXPECT_NE(messages.front().find("READY=1"), std::string::npos) << messages.front();
+  EXPECT_NE(messages.back().find("STOPPING=1"), std::string::npos) << messages.back();
 }
