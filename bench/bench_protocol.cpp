@@ -26,6 +26,10 @@
 //                              trip: doubled here. Counters: medians and p99s
 //                              in us, and our/ddsperf ratios. ddsperf comes
 //                              from cyclonedds-tools ($FORESIGHT_DDSPERF or PATH).
+//   BM_TelemetryRate/plain, /secure   joint states the remote link publishes
+//                              flat out (link_test_remote --telemetry-hz 0),
+//                              received per second by a ground reader
+//                              (best effort: what arrives, not what was sent)
 //   BM_LinkSecurity/plain, /secure   the remote link (link_test_remote) with and
 //                              without DDS Security (scripts/make_dds_security.sh
 //                              material in a scratch folder; identities
@@ -577,6 +581,59 @@ void BM_LinkSecurity(benchmark::State& state, bool secure) {
   state.counters["upload1800x7_committed_median_ms"] = percentile(upload_ms, 0.5);
   state.counters["upload1800x7_committed_max_ms"] = percentile(upload_ms, 1.0);
 }
+void BM_TelemetryRate(benchmark::State& state, bool secure) {
+  const std::string link_remote = bin_path("link_test_remote");
+  if (!std::filesystem::exists(link_remote)) {
+    state.SkipWithError("link_test_remote not built");
+    return;
+  }
+  setup();
+  std::string dir;
+  if (secure) {
+    char tmpl[] = "/tmp/foresight_bench_sec_XXXXXX";
+    if (foresight::protocol::security_plugin_dir().empty() || mkdtemp(tmpl) == nullptr) {
+      state.SkipWithError("no DDS Security plugins or no scratch folder");
+      return;
+    }
+    dir = tmpl;
+    const std::string cmd = "bash " + std::string(FORESIGHT_CONFIG_DIR) + "/../scripts/make_dds_security.sh " + dir +
+                            " >/dev/null";
+    if (std::system(cmd.c_str()) != 0) {
+      state.SkipWithError("make_dds_security.sh failed (openssl?)");
+      return;
+    }
+  }
+  const dds_domainid_t domain = 1 + (setup().domain - 1 + (secure ? 143 : 199)) % 230;
+  std::vector<std::string> args{link_remote, "--domain", std::to_string(domain), "--lifetime-s", "600",
+                                "--telemetry-hz", "0"};
+  if (secure) args.insert(args.end(), {"--security", dir});
+  double per_s = 0.0;
+  {
+    Peer remote(args, true);
+    auto participant = secure ? std::make_unique<fp::Participant>(domain, fp::security_qos(dir, "ground"))
+                              : std::make_unique<fp::Participant>(domain);
+    fp::Reader<msg::JointState> joints(*participant);
+    fp::Sample<msg::JointState> s;
+    if (!joints.wait_take(s, 30s)) {
+      state.SkipWithError("no joint state within 30 s");
+      return;
+    }
+    for (auto _ : state) {
+      std::uint64_t n = 0;
+      const auto t0 = Clock::now();
+      const auto end = t0 + 3s;
+      while (Clock::now() < end) {
+        if (joints.wait_take(s, 100ms)) ++n;
+      }
+      per_s = static_cast<double>(n) / std::chrono::duration<double>(Clock::now() - t0).count();
+    }
+  }
+  if (!dir.empty()) std::filesystem::remove_all(dir);
+  state.counters["joint_states_per_s"] = per_s;
+}
+BENCHMARK_CAPTURE(BM_TelemetryRate, plain, false)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK_CAPTURE(BM_TelemetryRate, secure, true)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
 BENCHMARK_CAPTURE(BM_LinkSecurity, plain, false)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 BENCHMARK_CAPTURE(BM_LinkSecurity, secure, true)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 

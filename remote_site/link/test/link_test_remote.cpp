@@ -16,6 +16,7 @@
 // Usage: link_test_remote --domain N [--link-loss-s S] [--max-committed N] [--lifetime-s S]
 //                         [--security DIR (scripts/make_dds_security.sh; identity "remote")]
 //                         [--ros2 on (also ROS 2 joint_states and wrench)]
+//                         [--telemetry-hz R (default 50; 0 = joint states as fast as possible)]
 // Exits on SIGTERM/SIGINT, when its parent dies, or after --lifetime-s.
 
 #include <signal.h>
@@ -177,6 +178,7 @@ int main(int argc, char** argv) {
   std::size_t max_committed = 8;
   std::string security_dir;
   bool ros2 = false;
+  double telemetry_hz = 50.0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--domain") domain = std::atoi(argv[i + 1]);
@@ -185,6 +187,7 @@ int main(int argc, char** argv) {
     else if (key == "--lifetime-s") lifetime_s = std::atof(argv[i + 1]);
     else if (key == "--security") security_dir = argv[i + 1];
     else if (key == "--ros2") ros2 = std::string(argv[i + 1]) == "on";
+    else if (key == "--telemetry-hz") telemetry_hz = std::atof(argv[i + 1]);
     else {
       std::fprintf(stderr, "link_test_remote: unknown option %s\n", argv[i]);
       return 2;
@@ -219,9 +222,22 @@ int main(int argc, char** argv) {
     stub.link = &link;
     link.start();
     const auto start = std::chrono::steady_clock::now();
-    const timespec tick{0, 20'000'000};  // 50 Hz telemetry
+    const long period_ns = telemetry_hz > 0.0 ? static_cast<long>(1e9 / telemetry_hz) : 0;
+    const timespec tick{period_ns / 1'000'000'000, period_ns % 1'000'000'000};
+    control::JointReport flat_out;
+    flat_out.q_rad.assign(7, 0.0);
+    flat_out.dq_rad_s.assign(7, 0.0);
+    flat_out.torque_nm.assign(7, 0.0);
     for (;;) {
-      stub.publish_all();
+      if (period_ns > 0) {
+        stub.publish_all();
+      } else {
+        for (int k = 0; k < 100; ++k) {  // throughput: joint states only, then check for a signal
+          flat_out.stamp_ns = foresight::protocol::now_ns();
+          ++flat_out.cycle;
+          link.publish(flat_out);
+        }
+      }
       const int sig = sigtimedwait(&stop_signals, nullptr, &tick);
       if (sig == SIGTERM || sig == SIGINT) break;
       if (std::chrono::steady_clock::now() - start > std::chrono::duration<double>(lifetime_s)) break;
