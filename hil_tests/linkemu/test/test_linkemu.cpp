@@ -657,6 +657,35 @@ TEST(LinkEmu, DdsProcessLeftInsideCanStillExitAfterTheEmulatorStops) {
   EXPECT_EQ(peer.finish(20s), 0) << "the DDS process hung in its shutdown: " << peer.err_buf;
 }
 
+TEST(LinkEmuSession, SigkilledSessionLeavesNothing) {
+  // Nothing in the script runs: the kernel's parent-death signal reaches the
+  // emulator (which removes its namespaces) and both exec supervisors (which
+  // stop their commands' process groups, grandchildren included).
+  setenv("FORESIGHT_BIN_DIR", kBin.c_str(), 1);
+  const std::string prefix = "fsltest_x" + std::to_string(getpid());
+  struct Sweep {
+    std::string prefix;
+    ~Sweep() { le::remove_stale_netns(prefix); }
+  } sweep{prefix};
+  Child c = Child::spawn({"/bin/bash", kSession, "--prefix", prefix, "--remote", "sleep 60; true", "--ground",
+                          "sleep 60 & echo \"grandchild $!\"; wait"});
+  const auto started = Clock::now() + 30s;
+  while (c.out_buf.find('\n') == std::string::npos && !c.exited() && Clock::now() < started) c.pump(50ms);
+  if (c.exited() && c.exit_code() == le::kExitNotPermitted) GTEST_SKIP() << c.err_buf;
+  const auto at = c.out_buf.find("grandchild ");
+  ASSERT_NE(at, std::string::npos) << c.err_buf;
+  const pid_t grandchild = static_cast<pid_t>(std::stol(c.out_buf.substr(at + 11)));
+  ASSERT_EQ(kill(grandchild, 0), 0);
+  ASSERT_EQ(le::list_netns(prefix).size(), 2u);
+  kill(c.pid, SIGKILL);
+  ASSERT_TRUE(c.wait_exit(10s));
+  const auto deadline = Clock::now() + 20s;
+  auto gone = [&] { return le::list_netns(prefix).empty() && kill(grandchild, 0) != 0; };
+  while (!gone() && Clock::now() < deadline) std::this_thread::sleep_for(50ms);  // polled, bounded
+  EXPECT_TRUE(le::list_netns(prefix).empty());
+  EXPECT_NE(kill(grandchild, 0), 0) << "the ground command's child outlived the session";
+}
+
 // -------------------------------------------------------------- bad input
 
 TEST(LinkEmu, BadOptionsExit2WithTheReason) {
