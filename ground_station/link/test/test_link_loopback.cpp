@@ -507,6 +507,40 @@ TEST_F(LinkLoopbackRos2, JointStateAndWrenchAlsoGoOutAsRos2Types) {
   EXPECT_EQ(w->wrench.torque.y, 0.2);
 }
 
+class LinkLoopbackTwoKept : public LinkLoopback {
+ protected:
+  void SetUp() override { start(1.0, {"--max-committed", "2"}); }
+};
+
+TEST_F(LinkLoopbackTwoKept, TheOldestCommittedUploadIsDiscardedBeyondTheLimit) {
+  fp::Reader<msg::TrajectoryStatus> status(ground_->participant());
+  std::vector<gl::UploadResult> ups;
+  for (int k = 0; k < 3; ++k) {
+    auto t = slow_sine(100 + 10 * k);
+    ups.push_back(ground_->upload(t, 30s));
+    ASSERT_TRUE(ups.back().committed()) << ups.back().reason;
+  }
+  // The first is gone (DISCARDED on the status topic; a run is refused), the
+  // two latest still run.
+  bool discarded = false;
+  fp::Sample<msg::TrajectoryStatus> s;
+  const auto deadline = Clock::now() + 15s;
+  while (!discarded && Clock::now() < deadline) {
+    if (!status.wait_take(s, 100ms)) continue;
+    discarded = s->trajectory_id == ups[0].trajectory_id && s->state == foresight_msg_UPLOAD_DISCARDED;
+  }
+  EXPECT_TRUE(discarded);
+  auto run_upload = [&](const gl::UploadResult& u) {
+    control::RunTrajectory p;
+    p.trajectory_id = u.trajectory_id;
+    p.content_hash = u.remote_hash;
+    return run(control::CommandKind::Trajectory, p);
+  };
+  EXPECT_EQ(run_upload(ups[0]).code, control::Reason::UnknownTrajectory);
+  EXPECT_TRUE(run_upload(ups[1]).succeeded());
+  EXPECT_TRUE(run_upload(ups[2]).succeeded());
+}
+
 TEST(DelayStats, PercentilesSharesAndOffsetFromKnownSamples) {
   std::vector<fp::DelaySample> samples;
   for (int i = 1; i <= 100; ++i) {
