@@ -278,6 +278,16 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   const auto again = raw.acks_of(newer->command_id);
   ASSERT_EQ(again.size(), 1u);
   EXPECT_EQ(again[0].state, AckState::Completed);
+  // A re-sent command that was rejected for its payload gets its REJECTED again.
+  auto bad = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
+  foresight::remote_link::fill_payload(*bad, control::CommandKind::GotoJoint, control::GotoJoint{{0, 0}, 0.5});
+  raw.writer.write(bad);
+  ASSERT_EQ(raw.acks_of(bad->command_id).back().code, control::Reason::JointCount);
+  raw.writer.write(bad);
+  const auto bad_again = raw.acks_of(bad->command_id);
+  ASSERT_EQ(bad_again.size(), 1u);
+  EXPECT_EQ(bad_again[0].state, AckState::Rejected);
+  EXPECT_EQ(bad_again[0].code, control::Reason::JointCount);
   // Expired on the ground's clock.
   auto expired = raw.sequencer.next(foresight_msg_CMD_REQUEST);
   expired->expires_ns = expired->issued_ns - 1'000'000'000;

@@ -342,6 +342,10 @@ void RemoteLink::Impl::serve_commands() {
         event.duplicate = std::find(accepted.begin(), accepted.end(), key) != accepted.end();
       }
     } else {
+      // Past the envelope: a re-send of this very command is a duplicate,
+      // whatever the payload check says (the daemon repeats its last ack).
+      accepted.emplace_back(c.session_id, c.command_id, c.sequence_number);
+      if (accepted.size() > kRememberedCommands) accepted.pop_front();
       const auto payload = check_payload(c, payload_limits);
       if (!payload.ok()) {
         event.command = envelope_of(c, received);
@@ -349,8 +353,6 @@ void RemoteLink::Impl::serve_commands() {
         event.reason = "command " + std::to_string(c.command_id) + ": " + payload.reason;
       } else {
         event.command = to_control(c, received);
-        accepted.emplace_back(c.session_id, c.command_id, c.sequence_number);
-        if (accepted.size() > kRememberedCommands) accepted.pop_front();
       }
     }
     if (!event.accepted()) {

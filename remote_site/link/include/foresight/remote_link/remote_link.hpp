@@ -75,9 +75,10 @@ struct CommandEvent {
   control::Command command;
   control::Reason code = control::Reason::None;
   std::string reason;
-  /// The same (session, command id, sequence) as a command already accepted:
-  /// code BadSequence; the daemon may re-send that command's last ack
-  /// instead of a rejection (a re-sent command is idempotent).
+  /// The same (session, command id, sequence) as a command that already
+  /// passed the envelope checks (accepted, or rejected for its payload):
+  /// code BadSequence; the daemon re-sends that command's last ack instead
+  /// of a rejection (a re-sent command is idempotent).
   bool duplicate = false;
   bool accepted() const noexcept { return code == control::Reason::None; }
 };
