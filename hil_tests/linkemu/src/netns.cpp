@@ -145,7 +145,10 @@ std::vector<std::string> remove_stale_netns(const std::string& prefix) {
   std::vector<std::string> removed;
   for (const auto& name : list_netns(prefix)) {
     const auto owner = netns_owner(name, prefix);
-    if (!owner || owner_alive(*owner)) continue;
+    if (!owner) continue;
+    // Our own pid: a dead emulator's leftover whose pid we reuse (we have not
+    // made ours yet). Any other live foresight-linkemu owns its names.
+    if (*owner != ::getpid() && owner_alive(*owner)) continue;
     if (remove_netns(name)) removed.push_back(name);
   }
   return removed;

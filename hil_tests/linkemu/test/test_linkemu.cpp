@@ -534,6 +534,23 @@ TEST(LinkEmu, AfterSigkillTheNextStartRemovesTheStaleNamespaces) {
   EXPECT_FALSE(le::netns_exists(second.ground()));
 }
 
+TEST(LinkEmu, StaleNamesWithTheStartingProcessesOwnPidAreRemoved) {
+  // A dead emulator's names whose pid the starting one reuses: the start
+  // must clear them, or creating its own would fail with "already exists".
+  const std::string prefix = "fsltest_p" + std::to_string(getpid());
+  std::optional<le::NamedNetns> leftover;
+  try {
+    le::check_permitted();
+    leftover.emplace(le::netns_name(prefix, getpid(), "ground"));
+  } catch (const le::NotPermitted& e) {
+    GTEST_SKIP() << e.what();
+  }
+  ASSERT_TRUE(le::netns_exists(leftover->name()));
+  const auto removed = le::remove_stale_netns(prefix);
+  EXPECT_EQ(removed, std::vector<std::string>{leftover->name()});
+  EXPECT_FALSE(le::netns_exists(leftover->name()));
+}
+
 // ------------------------------------------------------------ exec and DDS
 
 TEST(LinkEmu, ExecRunsInTheNamespaceWithTheLinkDdsConfig) {

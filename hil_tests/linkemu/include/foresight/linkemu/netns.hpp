@@ -44,7 +44,9 @@ bool netns_exists(const std::string& name);
 std::vector<std::string> list_netns(const std::string& prefix);
 /// Whether `pid` is a live (not zombie) foresight-linkemu process.
 bool owner_alive(pid_t pid);
-/// Removes every PREFIX-PID-* namespace whose owner is not alive; returns
+/// Removes every PREFIX-PID-* namespace whose owner is not alive (or is
+/// this very process: a leftover from a dead owner with a reused pid; call it
+/// before creating this process's own namespaces); returns
 /// the names removed. Errors on single entries are ignored (another start
 /// may be removing the same one).
 std::vector<std::string> remove_stale_netns(const std::string& prefix);
