@@ -113,25 +113,25 @@ set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEBIAN_COMPRESSION_TYPE xz)
 
 set(CPACK_DEBIAN_REMOTE_PACKAGE_NAME foresight-remote)
-set(CPACK_COMPONENT_REMOTE_DESCRIPTION
+string(CONCAT CPACK_COMPONENT_REMOTE_DESCRIPTION
     "Foresight remote controller for the robot cabinet\n"
     "The foresight-remote daemon: real-time control of the CiA 402 drives over SocketCAN, wrist F/T compliance, "
     "the LST tool over Modbus, the DDS link to the ground and the journal; its systemd unit, CAN bring-up and "
     "configuration templates in /etc/foresight.")
-# Beside the shared libraries: Cyclone's DDS Security plugins are dlopen'ed (libddsc0debian),
-# `check` reads CAN state with ip (iproute2), and the unit needs systemd.
-set(CPACK_DEBIAN_REMOTE_PACKAGE_DEPENDS "libddsc0debian, iproute2, systemd")
+# Beside the shared libraries (libddsc0debian, which also holds Cyclone's DDS Security
+# plugins, comes from shlibdeps): `check` reads the CAN state with ip, the unit needs systemd.
+set(CPACK_DEBIAN_REMOTE_PACKAGE_DEPENDS "iproute2, systemd")
 set(CPACK_DEBIAN_REMOTE_PACKAGE_RECOMMENDS "systemd-timesyncd | chrony, openssl")
 set(CPACK_DEBIAN_REMOTE_PACKAGE_CONTROL_EXTRA
     "${_stage}/remote/conffiles;${_stage}/remote/postinst;${_stage}/remote/prerm;${_stage}/remote/postrm")
 
 set(CPACK_DEBIAN_GROUND_PACKAGE_NAME foresight-ground)
-set(CPACK_COMPONENT_GROUND_DESCRIPTION
+string(CONCAT CPACK_COMPONENT_GROUND_DESCRIPTION
     "Foresight ground station (operator CLI)\n"
     "The foresight command: camera calibration with the arm as fixture, multi-view ORU localization, "
     "calibrated overlays and motion preview (OSMesa/EGL), planning, and the DDS link to the robot cabinet.")
 # Mesa's drivers are loaded at run time by OSMesa/EGL.
-set(CPACK_DEBIAN_GROUND_PACKAGE_DEPENDS "libddsc0debian, libgl1-mesa-dri, libegl-mesa0")
+set(CPACK_DEBIAN_GROUND_PACKAGE_DEPENDS "libgl1-mesa-dri, libegl-mesa0")
 set(CPACK_DEBIAN_GROUND_PACKAGE_CONTROL_EXTRA "${_stage}/ground/conffiles")
 
 include(CPack)

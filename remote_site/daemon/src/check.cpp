@@ -250,9 +250,11 @@ CheckItem check_rt_priority(int priority, bool required) {
   });
   probe.join();
   const std::string name = "rt priority";
+  const bool by_limit = rl.rlim_cur == RLIM_INFINITY || rl.rlim_cur >= static_cast<rlim_t>(priority);
   if (rc == 0)
     return item(name, CheckResult::Pass,
-                "SCHED_FIFO " + std::to_string(priority) + " granted (RLIMIT_RTPRIO " + limit + ")");
+                "SCHED_FIFO " + std::to_string(priority) + " granted (RLIMIT_RTPRIO " + limit +
+                    (by_limit ? ")" : "; by CAP_SYS_NICE)"));
   return item(name, required ? CheckResult::Fail : CheckResult::Warn,
               "SCHED_FIFO " + std::to_string(priority) + " refused (" + errno_text(rc) + "; RLIMIT_RTPRIO " + limit +
                   "): the control loop would run as a normal thread; the unit sets LimitRTPRIO=95, a shell needs "

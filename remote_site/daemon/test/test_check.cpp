@@ -354,6 +354,16 @@ TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {
   const ShellRun v = run_shell("systemd-analyze verify " + (dir / "foresight-remote.service").string());
   EXPECT_EQ(v.status, 0) << v.out;
   EXPECT_EQ(v.out.find("foresight-remote.service:"), std::string::npos) << v.out;  // no complaint about our unit
+
+  // The CAN bring-up unit, its script at the source path.
+  std::string can = slurp(kSource + "/remote_site/deploy/can/foresight-can.service");
+  ASSERT_NE(can.find("ExecStart=/usr/lib/foresight/can-setup.sh"), std::string::npos);
+  can = std::regex_replace(can, std::regex("/usr/lib/foresight/can-setup.sh"),
+                           kSource + "/remote_site/deploy/can/can-setup.sh");
+  std::ofstream(dir / "foresight-can.service") << can;
+  const ShellRun c = run_shell("systemd-analyze verify " + (dir / "foresight-can.service").string());
+  EXPECT_EQ(c.status, 0) << c.out;
+  EXPECT_EQ(c.out.find("foresight-can.service:"), std::string::npos) << c.out;
   std::error_code ec;
   fs::remove_all(dir, ec);
 }
