@@ -12,6 +12,7 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -546,7 +547,13 @@ TEST(LinkEmu, StaleNamesWithTheStartingProcessesOwnPidAreRemoved) {
     GTEST_SKIP() << e.what();
   }
   ASSERT_TRUE(le::netns_exists(leftover->name()));
+  // Look like a live foresight-linkemu, so only the own-pid rule can remove it.
+  char old_name[17] = {};
+  prctl(PR_GET_NAME, old_name);
+  prctl(PR_SET_NAME, "foresight-linkemu");
+  ASSERT_TRUE(le::owner_alive(getpid()));
   const auto removed = le::remove_stale_netns(prefix);
+  prctl(PR_SET_NAME, old_name);
   EXPECT_EQ(removed, std::vector<std::string>{leftover->name()});
   EXPECT_FALSE(le::netns_exists(leftover->name()));
 }
