@@ -71,9 +71,11 @@ Qos command_ack() { return std::move(Qos().reliable(1.0).keep_all().volatile_dur
 
 // A trajectory runs only when every chunk arrived: reliable + keep-all.
 // Several 64 KiB chunks can exceed Cyclone's writer history high-water mark,
-// so a write may wait for acknowledgements: allow 5 s before failing.
+// so a write may wait for acknowledgements, which take a round trip: at the
+// paper's 4 s round trip (plus jitter and retransmissions after loss) 5 s
+// failed uploads through the link emulator, so allow 30 s before failing.
 // Volatile: an upload is meaningful only to the remote that was there.
-Qos trajectory_chunk() { return std::move(Qos().reliable(5.0).keep_all().volatile_durability()); }
+Qos trajectory_chunk() { return std::move(Qos().reliable(30.0).keep_all().volatile_durability()); }
 
 // Keyed per trajectory_id; the last state of each upload is what matters, and
 // a ground that (re)joins must see which trajectories the remote holds:

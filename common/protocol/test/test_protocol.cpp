@@ -62,7 +62,7 @@ TEST(ProtocolQos, CommandsAcksAndUploadsAreReliableKeepAllVolatile) {
     EXPECT_EQ(p.history, DDS_HISTORY_KEEP_ALL);
     EXPECT_EQ(p.durability, DDS_DURABILITY_VOLATILE);  // a restarted remote must not replay commands
   }
-  EXPECT_EQ(policies(fp::qos::trajectory_chunk()).max_blocking, DDS_SECS(5));
+  EXPECT_EQ(policies(fp::qos::trajectory_chunk()).max_blocking, DDS_SECS(30));
 }
 
 TEST(ProtocolQos, StatusIsReliableTransientLocalKeepLastOne) {

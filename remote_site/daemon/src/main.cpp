@@ -16,6 +16,7 @@
 // (the message names the file, line and key); 1 when the hardware cannot be
 // brought up or the daemon fails.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -27,6 +28,7 @@
 #include <cstdint>
 #include <mutex>
 #include <thread>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -220,6 +222,24 @@ int run_daemon(const Options& o) {
     if (link_ptr) link_ptr->publish(r);
   };
   parts.outbox.republish_uploads = [&] { if (link_ptr) link_ptr->republish_uploads(); };
+  if (site.simulated && site.simulated->plant) {
+    const sim::Plant* plant = site.simulated->plant.get();
+    parts.sim_truth = [plant] {
+      const sim::PlantTruth t = plant->truth();
+      nlohmann::json j;
+      j["oru_state"] = sim::to_string(t.state);
+      j["gripped"] = t.gripped;
+      const Eigen::Vector3d p = t.base_T_oru.translation();
+      j["base_T_oru_xyz_m"] = {p.x(), p.y(), p.z()};
+      const Eigen::Vector3d tip = t.base_T_tip.translation();
+      j["base_T_tip_xyz_m"] = {tip.x(), tip.y(), tip.z()};
+      j["tip_depth_m"] = t.tip_depth_m;
+      j["oru_slot_depth_m"] = t.oru_slot_depth_m;
+      j["alignment_error_m"] = t.alignment_error_m;
+      j["alignment_error_deg"] = t.alignment_error_rad * 180.0 / M_PI;
+      return j.dump();
+    };
+  }
   remote::Supervisor supervisor(std::move(parts));
 
   if (o.sim) protocol::use_loopback_if_unconfigured();

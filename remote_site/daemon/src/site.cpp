@@ -64,10 +64,14 @@ Site build_site(SiteOptions options) {
   std::vector<std::unique_ptr<hw::CanBus>> master;
   if (options.sim) {
     for (auto& bus : site.hw_config.buses) bus.interface = "mock";  // --sim: every bus simulated
-    // The simulated drives answer from an ordinary thread on a shared machine,
-    // not from their own hardware: a few late TPDOs are scheduling, not a
-    // silent drive. 25 cycles (50 ms at 500 Hz) as in the simulator's tests.
-    site.hw_config.tpdo_miss_limit = std::max(site.hw_config.tpdo_miss_limit, 25);
+    // The simulated drives answer from an ordinary thread on a shared
+    // machine, not from their own hardware: late TPDOs and heartbeats are
+    // scheduling, not a silent drive. Half a second of TPDOs and a second of
+    // heartbeat silence before a fault (as the control loop's own tests);
+    // a real cabinet keeps the configured values.
+    site.hw_config.tpdo_miss_limit =
+        std::max(site.hw_config.tpdo_miss_limit, static_cast<int>(0.5 * site.hw_config.cycle_rate_hz));
+    site.hw_config.heartbeat_consumer_s = std::max(site.hw_config.heartbeat_consumer_s, 1.0);
     SimulatedSite sim;
     auto buses = sim::make_mock_buses(site.hw_config);
     sim.can = sim::CanSimulator::from_config(site.hw_config, std::move(buses.far));

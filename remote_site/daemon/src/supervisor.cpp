@@ -204,14 +204,15 @@ void Supervisor::ack(const control::Command& command, AckState state, Reason cod
     spdlog::error("journal: {} (command {} {})", e.what(), a.command_id, row.state);
   }
   if (p_.outbox.ack) p_.outbox.ack(a);
-  if (!last_ack_.count(a.command_id)) {
-    last_ack_order_.push_back(a.command_id);
+  const CommandKey key{a.session_id, a.command_id};
+  if (!last_ack_.count(key)) {
+    last_ack_order_.push_back(key);
     if (last_ack_order_.size() > kAckMemory) {
       last_ack_.erase(last_ack_order_.front());
       last_ack_order_.pop_front();
     }
   }
-  last_ack_[a.command_id] = std::move(a);
+  last_ack_[key] = std::move(a);
 }
 
 void Supervisor::reject(const control::Command& command, Reason code, const std::string& reason) {
@@ -224,7 +225,7 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   const control::Command& c = event.command;
   if (event.duplicate) {
     // A re-sent command: answer with its last state, never run it twice.
-    if (auto it = last_ack_.find(c.command_id); it != last_ack_.end()) {
+    if (auto it = last_ack_.find({c.session_id, c.command_id}); it != last_ack_.end()) {
       if (p_.outbox.ack) p_.outbox.ack(it->second);
       return;
     }
@@ -464,11 +465,30 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c,
         job->kind = JobKind::ToolStep;
         return job;
       }
+      if (p.name == "tare") {
+        // Zero the F/T sensor with the arm still (after picking up the ORU:
+        // its weight is then no contact force). Parameter: samples (1..10000).
+        for (const auto& nv : p.params) {
+          if (nv.name != "samples") {
+            *code = Reason::BadArgument;
+            *reason = "tare: unknown parameter '" + nv.name + "' (expected one of: samples)";
+            return nullptr;
+          }
+          if (!(nv.value >= 1.0 && nv.value <= 10000.0) || nv.value != std::floor(nv.value)) {
+            *code = Reason::BadArgument;
+            *reason = fmt("tare: samples %g must be an integer in 1..10000", nv.value);
+            return nullptr;
+          }
+          job->tare_samples = static_cast<int>(nv.value);
+        }
+        job->kind = JobKind::Tare;
+        return job;
+      }
       const std::string why = parse_algorithm(p, job->algorithm);
       if (!why.empty()) {
         *code = job->algorithm.kind == control::AlgorithmKind::None ? Reason::UnknownAlgorithm : Reason::BadArgument;
         *reason = job->algorithm.kind == control::AlgorithmKind::None
-                      ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten)"
+                      ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten, tare)"
                       : why;
         return nullptr;
       }
@@ -557,12 +577,19 @@ void Supervisor::start_next() {
       case JobKind::Recover:
         mc.kind = latest_.mode == ControllerMode::Disabled ? MotionCommandKind::Enable : MotionCommandKind::Recover;
         break;
+      case JobKind::Tare:
+        mc.kind = MotionCommandKind::Tare;
+        mc.tare_samples = job->tare_samples;
+        break;
       case JobKind::ToolStep: {
-        // The arm holds compliantly while the tool turns or latches.
+        // The arm holds its position stiffly while the tool latches or turns:
+        // when the screw comes free the ORU's weight moves onto the tool, and
+        // a compliant hold would let it sag into its slot's walls. (Tare
+        // afterwards so that compliant motions see the ORU as payload.)
         MotionCommand hold;
         hold.command_id = internal_id();
         hold.kind = MotionCommandKind::Hold;
-        hold.compliant = true;
+        hold.compliant = false;
         (void)p_.loop->send(hold);
         if (!p_.tool->start_step(job->tool_step)) {
           ack(job->command, AckState::Failed, Reason::Busy, "the tool is busy", current_q());
@@ -585,6 +612,10 @@ void Supervisor::start_next() {
 void Supervisor::finish_running(AckState state, Reason code, const std::string& reason, std::vector<double> final_q) {
   if (!running_) return;
   ack(running_->command, state, code, reason, std::move(final_q));
+  if (p_.sim_truth)
+    journal_event("sim_truth", "after command " + std::to_string(running_->command.command_id) + " (" +
+                                   control::to_string(running_->command.kind) + ", " + control::to_string(state) + ")",
+                  p_.sim_truth());
   running_.reset();
   start_next();
 }

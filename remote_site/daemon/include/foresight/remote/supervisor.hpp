@@ -15,7 +15,7 @@
 //       straight line of the tool tip), the RT algorithms (guarded_move,
 //       insert, pull_out) -> the loop's command ring; the tool steps (latch,
 //       unlatch, loosen, tighten) -> the tool thread while the arm holds
-//       compliantly; CAMERA -> the video switch; RECOVER -> enable / recover.
+//       still; CAMERA -> the video switch; RECOVER -> enable / recover.
 //     the loop's rings: events -> acks; stops -> fault rows (with evidence)
 //       and a status report; telemetry -> reports at the configured rates and
 //       journal rows.
@@ -75,6 +75,11 @@ struct SupervisorParts {
   hw::VideoSwitch* video = nullptr;            ///< may be null: CAMERA is then refused
   std::vector<std::string> camera_names;       ///< video switch index = position
   Outbox outbox;
+  /// --sim only: the simulated plant's ground truth as JSON (the ORU's state
+  /// and pose, its alignment against its slot), journaled as a `sim_truth`
+  /// event after every motion and tool step, for the demo's report. Empty on
+  /// a real cabinet, where no such truth exists.
+  std::function<std::string()> sim_truth;
 };
 
 class Supervisor {
@@ -104,13 +109,14 @@ class Supervisor {
   std::uint64_t commander() const noexcept { return commander_; }
 
  private:
-  enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover };
+  enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover, Tare };
   struct Job {
     control::Command command;
     JobKind kind = JobKind::Trajectory;
     std::shared_ptr<const Trajectory> trajectory;           ///< Trajectory, or the planned Goto
     std::unique_ptr<control::PreparedTrajectory> prepared;  ///< alive until the final event
     control::AlgorithmParams algorithm{};
+    int tare_samples = 50;
     ToolStep tool_step;
     bool compliant = false;
     double start_tolerance_rad = 0.0;
@@ -165,8 +171,9 @@ class Supervisor {
   std::map<std::uint64_t, std::shared_ptr<const Trajectory>> uploads_;  ///< committed, by id
   std::map<std::uint64_t, TrajectoryHash> upload_hash_;
   std::deque<std::uint64_t> upload_order_;
-  std::map<std::uint64_t, control::Ack> last_ack_;  ///< by command id (bounded)
-  std::deque<std::uint64_t> last_ack_order_;
+  using CommandKey = std::pair<std::uint64_t, std::uint64_t>;  ///< (session, command id): ids restart per session
+  std::map<CommandKey, control::Ack> last_ack_;  ///< the last ack of each command (bounded)
+  std::deque<CommandKey> last_ack_order_;
   std::map<std::uint64_t, control::Command> aborts_;  ///< Stop sent for these ABORT commands
 
   std::deque<std::unique_ptr<Job>> queue_;
