@@ -23,7 +23,6 @@ find_package(benchmark REQUIRED)
 find_package(CycloneDDS REQUIRED)
 
 find_package(OpenCV 4.6 REQUIRED COMPONENTS core imgproc imgcodecs calib3d videoio)
-find_package(Ceres REQUIRED)
 
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)

@@ -14,7 +14,7 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools libopencv-dev libosmesa6-dev
   libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libgtest-dev libgmock-dev libyaml-cpp-dev libspdlog-dev libcli11-dev
-  nlohmann-json3-dev libbenchmark-dev libceres-dev libssl-dev iproute2
+  nlohmann-json3-dev libbenchmark-dev libssl-dev iproute2
   libsqlite3-dev sqlite3
   libsystemd-dev
 )

@@ -11,7 +11,7 @@
 
 #include "foresight/calibration/detail/levenberg_marquardt.hpp"
 #include "foresight/calibration/detail/robust.hpp"
-#include "foresight/calibration/detail/so3.hpp"
+#include "foresight/camera/projection.hpp"
 
 namespace foresight {
 
@@ -23,18 +23,16 @@ std::string point_name(const Correspondence& c) {
   return s;
 }
 
-using detail::exp_so3;
-using detail::skew;
 
 /// Checks count, finiteness and the point geometry needed by the linear stage.
 void check_points(const std::vector<Correspondence>& pts, const std::string& name) {
   const std::string who = "camera '" + name + "': ";
   if (pts.size() < 6)
-    throw EstimationError(who + std::to_string(pts.size()) +
+    throw EstimationInputError(who + std::to_string(pts.size()) +
                           " points; the linear calibration needs at least 6 (11 unknowns, 2 equations a point)");
   for (const auto& c : pts)
     if (!c.p_m.allFinite() || !c.uv_px.allFinite())
-      throw EstimationError(who + "point " + point_name(c) + " has a non-finite coordinate");
+      throw EstimationInputError(who + "point " + point_name(c) + " has a non-finite coordinate");
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& c : pts) mean += c.p_m;
   mean /= static_cast<double>(pts.size());
@@ -43,14 +41,14 @@ void check_points(const std::vector<Correspondence>& pts, const std::string& nam
   // Singular values of the centred point matrix, largest first.
   const Eigen::Vector3d s = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
-    throw EstimationError(who + "the " + std::to_string(pts.size()) +
+    throw EstimationInputError(who + "the " + std::to_string(pts.size()) +
                           " points are collinear (or coincide): calibration needs points spread in 3-D");
   if (s[2] <= 1e-7 * s[0]) {
     std::ostringstream m;
     m << who << "the " << pts.size()
       << " points are coplanar: the linear calibration (11 unknowns) is degenerate for points on one plane;"
          " click points off that plane (another arm pose)";
-    throw EstimationError(m.str());
+    throw EstimationInputError(m.str());
   }
 }
 
@@ -136,7 +134,7 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
     std::ostringstream m;
     m << who << "the linear calibration system is rank deficient (smallest/largest singular value " << sv[10] / sv[0]
       << "): degenerate point geometry";
-    throw EstimationError(m.str());
+    throw EstimationInputError(m.str());
   }
   const Eigen::Matrix<double, 11, 1> x = svd.solve(R.topRightCorner<11, 1>());
   const Eigen::Vector3d m1 = x.segment<3>(0), m2 = x.segment<3>(4), m3 = x.segment<3>(8);
@@ -219,25 +217,19 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   int iterations = 0;
 
   auto evaluate = [&](const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) {
-    const Eigen::Matrix3d Rt = s.R.transpose();
     for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
       const Correspondence& c = pts[idx[k]];
-      const Eigen::Vector3d pc = Rt * (c.p_m - s.c);
-      const double iz = 1.0 / pc.z();
-      const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
-      e.segment<2>(2 * k) = pp + s.f * xy - c.uv_px;
-      if (J) {
-        Eigen::Matrix<double, 2, 3> dproj;
-        dproj << s.f * iz, 0.0, -s.f * xy.x() * iz, 0.0, s.f * iz, -s.f * xy.y() * iz;
-        J->block<2, 3>(2 * k, 0) = dproj * skew(pc);   // body-frame rotation increment
-        J->block<2, 3>(2 * k, 3) = -dproj * Rt;        // camera position
-        J->block<2, 1>(2 * k, 6) = xy;                 // f_px
-      }
+      const Projection pr = project_with_jacobians(s.R, s.c, s.f, pp, c.p_m);
+      e.segment<2>(2 * k) = pr.uv_px - c.uv_px;
+      if (J) J->block<2, 7>(2 * k, 0) = pr.d_camera;  // body rotation, position, f_px
     }
   };
   auto retract = [](const CamState& s, const Eigen::Matrix<double, 7, 1>& d) {
     return CamState{s.R * exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
   };
+  // Size of the parameters in the units of a step (rad, m, px): for the relative step test.
+  auto state_norm = [](const CamState& s) { return std::sqrt(3.0 + s.c.squaredNorm() + s.f * s.f); };
+  detail::LmReport last_fit;
   auto residual_norms = [&](const CamState& s) {
     std::vector<double> r(static_cast<std::size_t>(n));
     const Eigen::Matrix3d Rt = s.R.transpose();
@@ -264,13 +256,18 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
       state = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
       have_state = true;
     }
-    const auto rep = detail::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract,
-                                                    opt.max_iterations);
-    iterations = rep.iterations;
+    detail::LmOptions lm;
+    lm.max_iterations = opt.max_iterations;
+    last_fit = detail::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
+                                              lm);
+    iterations = last_fit.iterations;
     return residual_norms(state);
   };
   std::vector<double> r;
   const std::vector<bool> inlier = detail::flag_outliers(n, 8, opt.outliers, fit, r);
+  if (!last_fit.converged)
+    throw EstimationError(who + "the nonlinear fit did not converge after " + std::to_string(last_fit.iterations) +
+                          " iterations (" + detail::to_string(last_fit.stop) + ")");
 
   // The final camera and its statistics over the inliers.
   res.camera.name = name;
@@ -305,7 +302,7 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
     }
     res.residuals.push_back(pr);
   }
-  if (!behind.empty()) throw EstimationError(who + "points behind the camera: " + behind);
+  if (!behind.empty()) throw EstimationInputError(who + "points behind the camera: " + behind);
   const int m = static_cast<int>(in_pts.size());
   res.rms_px = std::sqrt(ss / m);
   if (res.outliers.empty()) {

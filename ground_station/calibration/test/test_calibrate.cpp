@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <type_traits>
 
 #include "foresight/calibration/calibrate.hpp"
 #include "synthetic.hpp"
@@ -16,7 +17,7 @@ namespace {
 std::string error_of(const std::vector<Correspondence>& pts, const Viewport& vp = {}) {
   try {
     calibrate_camera(pts, vp, "side");
-  } catch (const EstimationError& e) {
+  } catch (const Error& e) {  // EstimationInputError or EstimationError
     return e.what();
   }
   return "(no error)";
@@ -88,6 +89,35 @@ TEST(Calibrate, NoisyEstimatesWithinThreeSigmaAndSigmaMatchesSpread) {
   }
   // All 7 within 3 sigma: 0.9973^7 = 98% for independent parameters.
   EXPECT_GE(within, static_cast<int>(0.95 * trials));
+}
+
+TEST(Calibrate, AFitThatHasNotConvergedFailsWithItsIterationCount) {
+  // One iteration from the linear start cannot reach the minimum of noisy
+  // data: a computation error (exit 1), not a camera presented as converged.
+  std::mt19937 rng(12);
+  const Eigen::Vector3d target(0.8, 0.1, 0.5);
+  const Camera truth = random_camera(rng, target, 2.0, 700.0);
+  const auto pts = with_noise(rng, random_points(rng, truth, target, 0.5, 30, 0.0), 1.0);
+  CalibrationOptions opt;
+  opt.max_iterations = 1;
+  try {
+    calibrate_camera(pts, truth.viewport, "side", opt);
+    ADD_FAILURE() << "no error";
+  } catch (const EstimationError& e) {
+    EXPECT_EQ(std::string(e.what()), "camera 'side': the nonlinear fit did not converge after 1 iterations (iteration limit)");
+  }
+  opt.max_iterations = 100;  // the default converges
+  EXPECT_LT(calibrate_camera(pts, truth.viewport, "side", opt).iterations, 100);
+}
+
+TEST(Calibrate, BadInputAndFailedComputationAreDistinctErrors) {
+  static_assert(std::is_base_of_v<InputError, EstimationInputError>);
+  static_assert(std::is_base_of_v<ComputationError, EstimationError>);
+  static_assert(!std::is_base_of_v<std::invalid_argument, EstimationError>);
+  std::mt19937 rng(13);
+  const Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
+  const auto five = random_points(rng, truth, Eigen::Vector3d(1, 0, 0.5), 0.4, 5, 0.0);
+  EXPECT_THROW(calibrate_camera(five, truth.viewport, "side"), EstimationInputError);
 }
 
 TEST(Calibrate, PlantedOutliersFlaggedAndFitUnharmed) {

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "foresight/camera/camera.hpp"
+#include "foresight/camera/projection.hpp"
 #include "foresight/common/error.hpp"
 
 using namespace foresight;
@@ -81,4 +82,61 @@ TEST(Camera, LoadRejectsNonOrthonormalRotation) {
     EXPECT_STREQ(e.what(), (path + ": camera 'side': base_T_camera rotation is not orthonormal").c_str());
   }
   std::remove(path.c_str());
+}
+
+// ---- the projection module: value as Camera::project, Jacobians as finite differences ----
+
+TEST(Projection, ValueAndJacobiansMatchFiniteDifferences) {
+  const Camera cam = Camera::look_at("side", Viewport{646, 486}, 812.0, Eigen::Vector3d(2.1, -1.3, 1.4),
+                                     Eigen::Vector3d(0.7, 0.1, 0.5));
+  const Eigen::Matrix3d R_obj = exp_so3(Eigen::Vector3d(0.3, -0.2, 0.9));
+  const Eigen::Vector3d t_obj(0.8, 0.05, 0.45), p_obj(0.1, -0.07, 0.2);
+  const Eigen::Vector3d p = R_obj * p_obj + t_obj;
+  const Projection pr = project_with_jacobians(cam, p);
+  EXPECT_LT((pr.uv_px - cam.project(p)).norm(), 1e-12);
+  const double h = 1e-6;
+  for (int k = 0; k < 7; ++k) {  // camera: body rotation, position, f
+    auto moved = [&](double s) {
+      Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
+      d[k] = s;
+      Camera c = cam;
+      c.base_T_camera.linear() = cam.base_T_camera.linear() * exp_so3(d.head<3>());
+      c.base_T_camera.translation() += d.segment<3>(3);
+      c.f_px += d[6];
+      return c.project(p);
+    };
+    const Eigen::Vector2d fd = (moved(h) - moved(-h)) / (2 * h);
+    EXPECT_LT((pr.d_camera.col(k) - fd).norm(), 1e-5 * (1.0 + fd.norm())) << "camera parameter " << k;
+  }
+  const Eigen::Matrix<double, 2, 6> J = object_pose_jacobian(pr, R_obj, p_obj);
+  for (int k = 0; k < 6; ++k) {  // object pose: body rotation, origin
+    auto moved = [&](double s) {
+      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+      d[k] = s;
+      return cam.project(R_obj * exp_so3(d.head<3>()) * p_obj + t_obj + d.tail<3>());
+    };
+    const Eigen::Vector2d fd = (moved(h) - moved(-h)) / (2 * h);
+    EXPECT_LT((J.col(k) - fd).norm(), 1e-5 * (1.0 + fd.norm())) << "pose parameter " << k;
+  }
+  EXPECT_LT((skew(Eigen::Vector3d(1, 2, 3)) * Eigen::Vector3d(-4, 5, 0.5) -
+             Eigen::Vector3d(1, 2, 3).cross(Eigen::Vector3d(-4, 5, 0.5)))
+                .norm(),
+            1e-15);
+}
+
+TEST(Projection, InverseRightJacobianMatchesFiniteDifferences) {
+  for (const Eigen::Vector3d& phi : {Eigen::Vector3d(0.3, -0.5, 0.2), Eigen::Vector3d(1e-8, 0.0, 2e-8)}) {
+    const Eigen::Matrix3d R = exp_so3(phi);
+    auto log_of = [](const Eigen::Matrix3d& M) {
+      const Eigen::AngleAxisd aa(M);
+      return Eigen::Vector3d(aa.angle() * aa.axis());
+    };
+    const Eigen::Matrix3d Jinv = right_jacobian_inverse_so3(phi);
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      d[k] = 1e-6;
+      const Eigen::Vector3d fd = (log_of(R * exp_so3(d)) - log_of(R * exp_so3(-d))) / 2e-6;
+      EXPECT_LT((Jinv.col(k) - fd).norm(), 1e-6) << k;
+    }
+  }
 }

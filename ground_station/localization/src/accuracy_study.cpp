@@ -9,6 +9,7 @@
 #include <random>
 
 #include "foresight/calibration/calibrate.hpp"
+#include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/localization/localize.hpp"
 #include "foresight/localization/peers.hpp"
@@ -16,12 +17,6 @@
 namespace foresight {
 
 namespace {
-
-Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
-  const double a = w.norm();
-  if (a < 1e-300) return Eigen::Matrix3d::Identity();
-  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
-}
 
 /// Error (x, y, z, theta) in the object frame of an estimate.
 Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
@@ -89,7 +84,7 @@ std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& m) {
         const Eigen::Vector3d pb = T * p;
         bool dup = false;
         for (const auto& f : pose.features) dup = dup || (f.p_base - pb).norm() < 0.03;  // distinct features only
-        if (!dup) pose.features.push_back({k, p, pb});
+        if (!dup) pose.features.push_back({k, p, pb, static_cast<int>(out.size())});
       }
     }
     out.push_back(std::move(pose));
@@ -109,11 +104,42 @@ std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrat
 }
 
 void choose_calibration_points(StudySetup& setup, const std::vector<ArmCalibrationPose>& poses) {
+  setup.arm_q.clear();
+  for (const auto& pose : poses) setup.arm_q.push_back(pose.q);
   for (auto& v : setup.views) {
     v.calibration_points_base.clear();
+    v.calibration_features.clear();
     for (const auto& pose : poses)
-      for (const auto& f : visible_features(v.truth, pose)) v.calibration_points_base.push_back(f.p_base);
+      for (const auto& f : visible_features(v.truth, pose)) {
+        v.calibration_points_base.push_back(f.p_base);
+        v.calibration_features.push_back(f);
+      }
   }
+}
+
+Spread spread_of(const std::vector<double>& values) {
+  Spread s;
+  s.n = static_cast<int>(values.size());
+  if (s.n == 0) return s;
+  for (const double v : values) s.mean += v;
+  s.mean /= s.n;
+  double ss = 0.0;
+  for (const double v : values) ss += (v - s.mean) * (v - s.mean);
+  s.sd = s.n > 1 ? std::sqrt(ss / (s.n - 1)) : 0.0;
+  return s;
+}
+
+std::vector<StudyResult> run_accuracy_study_seeds(const StudySetup& setup, const StudyOptions& options, int seeds) {
+  if (seeds < 1) throw InputError("accuracy study: seeds must be at least 1, got " + std::to_string(seeds));
+  std::vector<StudyResult> out;
+  for (int k = 0; k < seeds; ++k) {
+    StudyOptions o = options;
+    o.seed = options.seed + static_cast<unsigned>(k);
+    if (options.progress)
+      o.progress = [&options, k, seeds](int done, int total) { options.progress(k * total + done, seeds * total); };
+    out.push_back(run_accuracy_study(setup, o));
+  }
+  return out;
 }
 
 StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
@@ -145,39 +171,24 @@ void cramer_rao_bound(const StudySetup& setup, const std::vector<int>& views, do
   int rows = 0;
   for (const int v : views)
     rows += 2 * static_cast<int>(setup.views[v].calibration_points_base.size() + setup.views[v].object_points.size());
-  // Predicted pixels as a function of a parameter perturbation: pose (body
-  // rotation, base translation), then per camera (body rotation, position, f).
-  auto predict = [&](const Eigen::VectorXd& d) {
-    Eigen::VectorXd out(rows);
-    Pose T = setup.base_T_object;
-    T.linear() = T.linear() * exp_so3(d.head<3>());
-    T.translation() += d.segment<3>(3);
-    int r = 0;
-    for (int k = 0; k < k_views; ++k) {
-      Camera c = setup.views[views[k]].truth;
-      const Eigen::Matrix<double, 7, 1> dc = d.segment<7>(6 + 7 * k);
-      c.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(dc.head<3>());
-      c.base_T_camera.translation() += dc.segment<3>(3);
-      c.f_px += dc[6];
-      for (const auto& p : setup.views[views[k]].calibration_points_base) {
-        out.segment<2>(r) = c.project(p);
-        r += 2;
-      }
-      for (const auto& p : setup.views[views[k]].object_points) {
-        out.segment<2>(r) = c.project(T * p);
-        r += 2;
-      }
+  // d pixels / d parameters at the truth: pose (body rotation, base
+  // translation), then per camera (body rotation, position, f), the
+  // estimators' own parameterization (camera/projection.hpp).
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(rows, np);
+  const Pose& T = setup.base_T_object;
+  int r = 0;
+  for (int k = 0; k < k_views; ++k) {
+    const StudyView& view = setup.views[views[k]];
+    for (const auto& p : view.calibration_points_base) {
+      J.block<2, 7>(r, 6 + 7 * k) = project_with_jacobians(view.truth, p).d_camera;
+      r += 2;
     }
-    return out;
-  };
-  Eigen::MatrixXd J(rows, np);
-  for (int j = 0; j < np; ++j) {
-    const double h = (j >= 6 && (j - 6) % 7 == 6) ? 1e-3 : 1e-6;
-    Eigen::VectorXd d = Eigen::VectorXd::Zero(np);
-    d[j] = h;
-    const Eigen::VectorXd plus = predict(d);
-    d[j] = -h;
-    J.col(j) = (plus - predict(d)) / (2.0 * h);
+    for (const auto& p : view.object_points) {
+      const Projection pr = project_with_jacobians(view.truth, T * p);
+      J.block<2, 6>(r, 0) = object_pose_jacobian(pr, T.linear(), p);
+      J.block<2, 7>(r, 6 + 7 * k) = pr.d_camera;
+      r += 2;
+    }
   }
   const Eigen::MatrixXd F = J.transpose() * J / (noise_px * noise_px);
   const Eigen::MatrixXd C = F.inverse();
@@ -195,9 +206,18 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   StudyResult res;
   res.trials = opt.trials;
   res.noise_px = opt.noise_px;
+  res.arm_link_error_m = opt.arm_link_error_m;
+  const bool arm_error = opt.arm_link_error_m > 0.0;
+  if (arm_error) {
+    if (opt.robot == nullptr) throw InputError("accuracy study: an arm-model error needs the robot model");
+    for (const auto& v : setup.views)
+      if (v.calibration_features.size() != v.calibration_points_base.size() || setup.arm_q.empty())
+        throw InputError("accuracy study: an arm-model error needs the arm's calibration features (view '" +
+                         v.truth.name + "' has none; use choose_calibration_points)");
+  }
   for (const auto& v : setup.views) {
     if (v.calibration_points_base.size() < 6)
-      throw EstimationError("view '" + v.truth.name + "' sees " + std::to_string(v.calibration_points_base.size()) +
+      throw EstimationInputError("view '" + v.truth.name + "' sees " + std::to_string(v.calibration_points_base.size()) +
                             " arm points; calibration needs at least 6");
     res.view_names.push_back(v.truth.name);
     res.calibration_points.push_back(static_cast<int>(v.calibration_points_base.size()));
@@ -227,7 +247,26 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   int good_trials = 0;
   std::mt19937_64 rng(opt.seed);
   std::normal_distribution<double> noise(0.0, opt.noise_px);
+  // The arm-model error has its own stream: the clicks are the same with and without it.
+  std::mt19937_64 arm_rng(opt.seed ^ 0x9E3779B97F4A7C15ull);
+  std::normal_distribution<double> link_error(0.0, arm_error ? opt.arm_link_error_m : 1.0);
   for (int t = 0; t < opt.trials; ++t) {
+    // Where the calibration believes each arm point is (the arm model's FK).
+    std::vector<std::vector<Eigen::Vector3d>> believed(nv);
+    for (int v = 0; v < nv; ++v) believed[v] = setup.views[v].calibration_points_base;
+    if (arm_error) {
+      const RobotModel& robot = *opt.robot;
+      std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
+      for (unsigned k = 0; k < delta.size(); ++k)
+        if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(arm_rng);
+      const RobotModel model = robot.with_link_lengths_changed(delta);
+      KinematicsWorkspace ws(model);
+      for (int v = 0; v < nv; ++v)
+        for (std::size_t i = 0; i < believed[v].size(); ++i) {
+          const ArmFeature& f = setup.views[v].calibration_features[i];
+          believed[v][i] = forward_kinematics(model, ws, setup.arm_q.at(f.pose), f.link) * f.p_link;
+        }
+    }
     std::map<std::string, Camera> cams;
     std::map<std::string, Eigen::Matrix<double, 7, 7>> information;
     std::vector<Correspondence> clicks;
@@ -239,8 +278,8 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
         Correspondence c;
         c.n = static_cast<int>(i) + 1;
         c.cam = view.truth.name;
-        c.p_m = view.calibration_points_base[i];
-        c.uv_px = view.truth.project(c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
+        c.p_m = believed[v][i];
+        c.uv_px = view.truth.project(view.calibration_points_base[i]) + Eigen::Vector2d(noise(rng), noise(rng));
         cal.push_back(c);
       }
       try {
@@ -248,7 +287,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
         cams[view.truth.name] = r.camera;
         information[view.truth.name] = r.information;
         calib_rms_sum[v] += r.rms_px;
-      } catch (const EstimationError&) {
+      } catch (const Error&) {  // an estimation that failed (input or computation)
         ok = false;
       }
       for (std::size_t i = 0; i < view.object_points.size(); ++i) {
@@ -277,14 +316,14 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       }
       try {
         ours[ci].add(pose_error(localize_object(pts, cams, lo).base_T_object, setup.base_T_object));
-      } catch (const EstimationError&) {
+      } catch (const Error&) {  // an estimation that failed (input or computation)
         ++combo.failures;
       }
       try {
         LocalizationOptions lj = lo;
         lj.camera_information = information;
         ours_joint[ci].add(pose_error(localize_object(pts, cams, lj).base_T_object, setup.base_T_object));
-      } catch (const EstimationError&) {
+      } catch (const Error&) {  // an estimation that failed (input or computation)
         ++combo.joint_failures;
       }
       if (combo.views.size() == 1) {

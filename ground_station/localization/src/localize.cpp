@@ -13,7 +13,7 @@
 
 #include "foresight/calibration/detail/levenberg_marquardt.hpp"
 #include "foresight/calibration/detail/robust.hpp"
-#include "foresight/calibration/detail/so3.hpp"
+#include "foresight/camera/projection.hpp"
 
 namespace foresight {
 
@@ -25,8 +25,6 @@ std::string point_name(const Correspondence& c) {
   return s;
 }
 
-using detail::exp_so3;
-using detail::skew;
 
 std::string names_of(const std::map<std::string, Camera>& cameras) {
   std::string s;
@@ -54,18 +52,18 @@ std::pair<int, double> score(const Pose& base_T_object, const std::vector<Obs>& 
 
 void check_geometry(const std::vector<Obs>& obs) {
   if (obs.size() < 6)
-    throw EstimationError("localization needs at least 6 clicked points over all views, got " +
+    throw EstimationInputError("localization needs at least 6 clicked points over all views, got " +
                           std::to_string(obs.size()));
   std::vector<Eigen::Vector3d> distinct;
   for (const auto& o : obs) {
     if (!o.c->p_m.allFinite() || !o.c->uv_px.allFinite())
-      throw EstimationError("point " + point_name(*o.c) + " has a non-finite coordinate");
+      throw EstimationInputError("point " + point_name(*o.c) + " has a non-finite coordinate");
     bool seen = false;
     for (const auto& d : distinct) seen = seen || (d - o.c->p_m).norm() < 1e-12;
     if (!seen) distinct.push_back(o.c->p_m);
   }
   if (distinct.size() < 4)
-    throw EstimationError("localization needs at least 4 distinct model points, got " + std::to_string(distinct.size()));
+    throw EstimationInputError("localization needs at least 4 distinct model points, got " + std::to_string(distinct.size()));
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& d : distinct) mean += d;
   mean /= static_cast<double>(distinct.size());
@@ -74,7 +72,7 @@ void check_geometry(const std::vector<Obs>& obs) {
   const Eigen::Vector3d s =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
-    throw EstimationError("the " + std::to_string(distinct.size()) +
+    throw EstimationInputError("the " + std::to_string(distinct.size()) +
                           " distinct model points are collinear: the object's rotation about that line is undetermined");
 }
 
@@ -147,7 +145,7 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
     const bool ok = u == 12 ? particular_and_null<12>(A, b, rank_tolerance, xp, xh)
                             : particular_and_null<9>(A, b, rank_tolerance, xp, xh);
     if (!ok)
-      throw EstimationError("the linear localization system is rank deficient (rank below " + std::to_string(u - 1) +
+      throw EstimationInputError("the linear localization system is rank deficient (rank below " + std::to_string(u - 1) +
                             "): degenerate geometry of the model points and views");
     auto rot_part = [&](const Eigen::VectorXd& x) {
       Eigen::VectorXd r(3 * cols);
@@ -194,20 +192,20 @@ std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::m
                          const std::vector<std::string>& views, std::vector<std::string>& used_views) {
   std::set<std::string> wanted(views.begin(), views.end());
   for (const auto& v : views)
-    if (!cameras.count(v)) throw EstimationError("unknown view '" + v + "' (known cameras: " + names_of(cameras) + ")");
+    if (!cameras.count(v)) throw EstimationInputError("unknown view '" + v + "' (known cameras: " + names_of(cameras) + ")");
   std::vector<Obs> obs;
   std::set<std::string> used;
   for (const auto& c : points) {
     if (!wanted.empty() && !wanted.count(c.cam)) continue;
     const auto it = cameras.find(c.cam);
     if (it == cameras.end())
-      throw EstimationError("point n=" + std::to_string(c.n) + (c.line > 0 ? " (line " + std::to_string(c.line) + ")" : "") +
+      throw EstimationInputError("point n=" + std::to_string(c.n) + (c.line > 0 ? " (line " + std::to_string(c.line) + ")" : "") +
                             ": unknown camera '" + c.cam + "' (known cameras: " + names_of(cameras) + ")");
     obs.push_back({&c, &it->second});
     used.insert(c.cam);
   }
   for (const auto& v : views)
-    if (!used.count(v)) throw EstimationError("view '" + v + "' has no points");
+    if (!used.count(v)) throw EstimationInputError("view '" + v + "' has no points");
   used_views.assign(used.begin(), used.end());
   return obs;
 }
@@ -242,23 +240,24 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   auto evaluate = [&](const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) {
     for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
       const Obs& o = obs[idx[k]];
-      const Eigen::Matrix3d& Rc = o.cam->base_T_camera.linear();
-      const Eigen::Vector3d pb = s.R * o.c->p_m + s.t;
-      const Eigen::Vector3d pc = Rc.transpose() * (pb - o.cam->base_T_camera.translation());
-      const double iz = 1.0 / pc.z(), f = o.cam->f_px;
-      const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
-      e.segment<2>(2 * k) = o.cam->principal_point() + f * xy - o.c->uv_px;
-      if (J) {
-        Eigen::Matrix<double, 2, 3> dproj;
-        dproj << f * iz, 0.0, -f * xy.x() * iz, 0.0, f * iz, -f * xy.y() * iz;
-        const Eigen::Matrix<double, 2, 3> d = dproj * Rc.transpose();
-        J->block<2, 3>(2 * k, 0) = -d * s.R * skew(o.c->p_m);  // body-frame rotation increment
-        J->block<2, 3>(2 * k, 3) = d;                           // translation
-      }
+      const Projection pr = project_with_jacobians(*o.cam, s.R * o.c->p_m + s.t);
+      e.segment<2>(2 * k) = pr.uv_px - o.c->uv_px;
+      if (J) J->block<2, 6>(2 * k, 0) = object_pose_jacobian(pr, s.R, o.c->p_m);  // body rotation, translation
     }
   };
   auto retract = [](const State& s, const Eigen::Matrix<double, 6, 1>& d) {
     return State{s.R * exp_so3(d.head<3>()), s.t + d.tail<3>()};
+  };
+  // Size of the parameters in the units of a step (rad, m): for the relative step test.
+  auto state_norm = [](const State& s) { return std::sqrt(3.0 + s.t.squaredNorm()); };
+  detail::LmOptions lm;
+  lm.max_iterations = opt.max_iterations;
+  detail::LmReport last_fit;
+  auto require_converged = [&](const char* stage) {
+    if (!last_fit.converged)
+      throw EstimationError(std::string("the ") + stage + " did not converge after " +
+                            std::to_string(last_fit.iterations) + " iterations (" + detail::to_string(last_fit.stop) +
+                            ")");
   };
   auto residual_norms = [&](const State& s) {
     std::vector<double> r(static_cast<std::size_t>(n));
@@ -279,13 +278,14 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       state = {linear_all.linear(), linear_all.translation()};
       have_state = true;
     }
-    iterations = detail::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract,
-                                                opt.max_iterations)
-                     .iterations;
+    last_fit = detail::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
+                                              lm);
+    iterations = last_fit.iterations;
     return residual_norms(state);
   };
   std::vector<double> r;
   const std::vector<bool> inlier = detail::flag_outliers(n, 6, opt.outliers, fit, r);
+  require_converged("nonlinear localization");
   if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
   idx.clear();
   for (int i = 0; i < n; ++i)
@@ -313,7 +313,7 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       const Eigen::Matrix<double, 7, 7>& info = opt.camera_information.at(joint_names[j]);
       const Eigen::LLT<Eigen::Matrix<double, 7, 7>> llt(info);
       if (llt.info() != Eigen::Success || !info.allFinite())
-        throw EstimationError("camera '" + joint_names[j] + "': calibration information is not positive definite");
+        throw EstimationInputError("camera '" + joint_names[j] + "': calibration information is not positive definite");
       Lt[j] = llt.matrixL().transpose();
     }
     struct JointState {
@@ -329,23 +329,11 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
         const Obs& o = obs[idx[k]];
         const auto it = slot.find(o.c->cam);
         const Camera& cam = it == slot.end() ? *o.cam : s.cams[it->second];
-        const Eigen::Matrix3d& Rc = cam.base_T_camera.linear();
-        const Eigen::Vector3d pc = Rc.transpose() * (s.R * o.c->p_m + s.t - cam.base_T_camera.translation());
-        const double iz = 1.0 / pc.z(), f = cam.f_px;
-        const Eigen::Vector2d xy(pc.x() * iz, pc.y() * iz);
-        e.segment<2>(2 * k) = cam.principal_point() + f * xy - o.c->uv_px;
+        const Projection pr = project_with_jacobians(cam, s.R * o.c->p_m + s.t);
+        e.segment<2>(2 * k) = pr.uv_px - o.c->uv_px;
         if (J) {
-          Eigen::Matrix<double, 2, 3> dproj;
-          dproj << f * iz, 0.0, -f * xy.x() * iz, 0.0, f * iz, -f * xy.y() * iz;
-          const Eigen::Matrix<double, 2, 3> d = dproj * Rc.transpose();
-          J->block<2, 3>(2 * k, 0) = -d * s.R * skew(o.c->p_m);
-          J->block<2, 3>(2 * k, 3) = d;
-          if (it != slot.end()) {
-            const int c0 = 6 + 7 * it->second;
-            J->block<2, 3>(2 * k, c0) = dproj * skew(pc);
-            J->block<2, 3>(2 * k, c0 + 3) = -d;
-            J->block<2, 1>(2 * k, c0 + 6) = xy;
-          }
+          J->block<2, 6>(2 * k, 0) = object_pose_jacobian(pr, s.R, o.c->p_m);
+          if (it != slot.end()) J->block<2, 7>(2 * k, 6 + 7 * it->second) = pr.d_camera;
         }
       }
       for (int j = 0; j < kj; ++j) {
@@ -354,7 +342,11 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
         dlt << aa.angle() * aa.axis(), s.cams[j].base_T_camera.translation() - cams0[j].base_T_camera.translation(),
             s.cams[j].f_px - cams0[j].f_px;
         e.segment<7>(2 * m + 7 * j) = Lt[j] * dlt;
-        if (J) J->block<7, 7>(2 * m + 7 * j, 6 + 7 * j) = Lt[j];
+        if (J) {  // d log(R0^T R exp([d]x)) / dd is the inverse right Jacobian, not I
+          Eigen::Matrix<double, 7, 7> D = Eigen::Matrix<double, 7, 7>::Identity();
+          D.topLeftCorner<3, 3>() = right_jacobian_inverse_so3(dlt.head<3>());
+          J->block<7, 7>(2 * m + 7 * j, 6 + 7 * j) = Lt[j] * D;
+        }
       }
     };
     auto jretract = [&](const JointState& s, const Eigen::VectorXd& d) {
@@ -367,8 +359,14 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       }
       return out;
     };
-    iterations += detail::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, opt.max_iterations, np)
-                      .iterations;
+    auto jnorm = [&](const JointState& s) {
+      double ss = 3.0 * (1 + kj) + s.t.squaredNorm();
+      for (int j = 0; j < kj; ++j) ss += s.cams[j].base_T_camera.translation().squaredNorm() + s.cams[j].f_px * s.cams[j].f_px;
+      return std::sqrt(ss);
+    };
+    last_fit = detail::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm, np);
+    require_converged("joint refinement (pose and cameras)");
+    iterations += last_fit.iterations;
     state.R = js.R;
     state.t = js.t;
     for (int j = 0; j < kj; ++j) refined[joint_names[j]] = js.cams[j];
@@ -415,7 +413,7 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
     }
     res.residuals.push_back(pr);
   }
-  if (!behind.empty()) throw EstimationError("points behind their camera at the fitted pose: " + behind);
+  if (!behind.empty()) throw EstimationInputError("points behind their camera at the fitted pose: " + behind);
   res.rms_px = std::sqrt(ss / m);
   res.linear_rms_px = score(res.outliers.empty() ? linear_all : linear_pose(in_obs, opt.rank_tolerance), in_obs).second;
 

@@ -118,3 +118,112 @@ TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
   EXPECT_LT(all.ours.position_rmse_m, 1.25 * all.crlb_position_m);
   EXPECT_LT(all.ours.rotation_rmse_rad, 1.25 * all.crlb_rotation_rad);
 }
+
+namespace {
+
+/// The CLI's set-up: the URDF arm at four poses as the calibration fixture.
+StudySetup arm_setup(const RobotModel& robot) {
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  StudySetup s = make_study_setup(scene, oru, {});
+  choose_calibration_points(s, arm_calibration_poses(robot));
+  return s;
+}
+
+}  // namespace
+
+TEST(AccuracyStudy, OnTheUrdfArmBothMethodsNearTheBound) {
+  const RobotModel robot = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  const StudySetup s = arm_setup(robot);
+  for (const auto& v : s.views) {
+    EXPECT_GE(v.calibration_points_base.size(), 6u) << v.truth.name;
+    EXPECT_EQ(v.calibration_features.size(), v.calibration_points_base.size()) << v.truth.name;
+  }
+  StudyOptions opt;
+  opt.trials = 150;
+  const StudyResult r = run_accuracy_study(s, opt);
+  EXPECT_EQ(r.calibration_failures, 0);
+  for (const auto& c : r.combos) {
+    EXPECT_EQ(c.failures, 0) << c.label;
+    EXPECT_EQ(c.joint_failures, 0) << c.label;
+    std::printf("%-8s two-step %.3f mm %.4f deg | joint %.3f mm %.4f deg | bound %.3f mm %.4f deg\n", c.label.c_str(),
+                1e3 * c.ours.position_rmse_m, c.ours.rotation_rmse_rad * 180 / M_PI,
+                1e3 * c.ours_joint.position_rmse_m, c.ours_joint.rotation_rmse_rad * 180 / M_PI,
+                1e3 * c.crlb_position_m, c.crlb_rotation_rad * 180 / M_PI);
+    if (c.views.size() < 2) continue;
+    // An efficient estimator sits at the bound: 150 trials put the RMSE
+    // within about +-12% (3 sigma of a chi with 450 degrees of freedom) of
+    // it; the joint method within 20% of the bound, the two-step within 50%.
+    EXPECT_GT(c.ours_joint.position_rmse_m, 0.85 * c.crlb_position_m) << c.label;
+    EXPECT_LT(c.ours_joint.position_rmse_m, 1.2 * c.crlb_position_m) << c.label;
+    EXPECT_GT(c.ours_joint.rotation_rmse_rad, 0.85 * c.crlb_rotation_rad) << c.label;
+    EXPECT_LT(c.ours_joint.rotation_rmse_rad, 1.2 * c.crlb_rotation_rad) << c.label;
+    EXPECT_LT(c.ours.position_rmse_m, 1.5 * c.crlb_position_m) << c.label;
+    EXPECT_GT(c.ours.position_rmse_m, 0.85 * c.crlb_position_m) << c.label;
+  }
+}
+
+TEST(AccuracyStudy, ArmModelErrorCostsAccuracyOnTheSameClicks) {
+  const RobotModel robot = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  const StudySetup s = arm_setup(robot);
+  StudyOptions opt;
+  opt.trials = 60;
+  opt.seed = 5;
+  const StudyResult exact = run_accuracy_study(s, opt);
+  opt.robot = &robot;
+  opt.arm_link_error_m = 0.002;
+  const StudyResult wrong = run_accuracy_study(s, opt);
+  EXPECT_EQ(wrong.arm_link_error_m, 0.002);
+  const ComboStats& a = exact.combos.back();
+  const ComboStats& b = wrong.combos.back();
+  std::printf("four views: exact arm %.3f mm, 2 mm link-length error %.3f mm (bound %.3f mm)\n",
+              1e3 * a.ours.position_rmse_m, 1e3 * b.ours.position_rmse_m, 1e3 * a.crlb_position_m);
+  EXPECT_GT(b.ours.position_rmse_m, 1.05 * a.ours.position_rmse_m);
+  EXPECT_GT(b.ours.position_rmse_m, 1.1 * b.crlb_position_m);  // beyond the click-noise bound
+  EXPECT_LT(b.ours.position_rmse_m, 0.05);                      // but not lost
+
+  StudyOptions no_robot;
+  no_robot.trials = 1;
+  no_robot.arm_link_error_m = 0.002;
+  try {
+    run_accuracy_study(s, no_robot);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "accuracy study: an arm-model error needs the robot model");
+  }
+  no_robot.robot = &robot;
+  try {
+    run_accuracy_study(project_setup(), no_robot);  // random points: no arm features
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "accuracy study: an arm-model error needs the arm's calibration features (view 'side' has "
+                           "none; use choose_calibration_points)");
+  }
+}
+
+TEST(AccuracyStudy, SeedsGiveTheMonteCarloSpread) {
+  const StudySetup s = project_setup();
+  StudyOptions opt;
+  opt.trials = 20;
+  opt.seed = 7;
+  int last = 0;
+  opt.progress = [&](int done, int total) {
+    EXPECT_EQ(total, 60);
+    EXPECT_EQ(done, last + 1);
+    last = done;
+  };
+  const std::vector<StudyResult> runs = run_accuracy_study_seeds(s, opt, 3);
+  ASSERT_EQ(runs.size(), 3u);
+  EXPECT_EQ(last, 60);
+  std::vector<double> four;
+  for (const auto& r : runs) four.push_back(r.combos.back().ours.position_rmse_m);
+  EXPECT_NE(four[0], four[1]);  // different seeds, different clicks
+  const Spread sp = spread_of(four);
+  EXPECT_EQ(sp.n, 3);
+  EXPECT_NEAR(sp.mean, (four[0] + four[1] + four[2]) / 3.0, 1e-15);
+  EXPECT_GT(sp.sd, 0.0);
+  const Spread known = spread_of({1.0, 2.0, 3.0});
+  EXPECT_DOUBLE_EQ(known.mean, 2.0);
+  EXPECT_DOUBLE_EQ(known.sd, 1.0);
+  EXPECT_THROW(run_accuracy_study_seeds(s, opt, 0), InputError);
+}

@@ -68,7 +68,7 @@ std::string error_of(const std::vector<Correspondence>& pts, const std::map<std:
   opt.views = views;
   try {
     localize_object(pts, cams, opt);
-  } catch (const EstimationError& e) {
+  } catch (const Error& e) {  // EstimationInputError or EstimationError
     return e.what();
   }
   return "(no error)";

@@ -1,20 +1,44 @@
 #pragma once
-// Errors raised while loading configuration and data (non-real-time code).
-// Every message names where the problem is: a file, and a line or element.
+// The project's exceptions: one root, two branches (as libfranka's
+// franka::Exception). Only set-up and ground-side code throws; real-time code
+// returns errors as values.
+//
+//   foresight::Error                 (std::runtime_error)
+//   ├── InputError        bad input: a file, option or data set that cannot be
+//   │                     used as given. The CLI exits 2.
+//   └── ComputationError  the input was usable but a computation or an
+//                         operation failed (an estimate did not converge, IK
+//                         found no solution, a plan breaks a limit, a bus or DDS
+//                         call failed). The CLI exits 1.
+//
+// Branch members elsewhere: EstimationInputError (InputError) and
+// EstimationError (ComputationError) in calibration, PlanError
+// (ComputationError) in common/plan, hw::HwError (ComputationError) in
+// remote_site/hw, protocol::ProtocolError (ComputationError).
 
 #include <stdexcept>
 #include <string>
 
 namespace foresight {
 
-/// A configuration or data file is missing, unreadable or malformed.
-/// what() reads "<file>[:<line>]: <message>" so an operator can find it.
-class InputError : public std::runtime_error {
+/// The root of every Foresight exception.
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A configuration or data file is missing, unreadable or malformed, or the
+/// data cannot be used as given. what() reads "<file>[:<line>]: <message>"
+/// so an operator can find it (just "<message>" when no file is involved).
+class InputError : public Error {
  public:
   InputError(std::string file, int line, const std::string& message)
-      : std::runtime_error(format(file, line, message)), file_(std::move(file)), line_(line) {}
+      : Error(format(file, line, message)), file_(std::move(file)), line_(line) {}
   InputError(std::string file, const std::string& message) : InputError(std::move(file), 0, message) {}
+  /// Bad input not tied to a file (e.g. a data set that determines nothing).
+  explicit InputError(const std::string& message) : Error(message), line_(0) {}
 
+  /// Empty when the problem is not tied to a file.
   const std::string& file() const noexcept { return file_; }
   /// 1-based line number, 0 when the problem is not tied to a line.
   int line() const noexcept { return line_; }
@@ -25,6 +49,12 @@ class InputError : public std::runtime_error {
   }
   std::string file_;
   int line_;
+};
+
+/// The input was usable but the computation or operation failed.
+class ComputationError : public Error {
+ public:
+  using Error::Error;
 };
 
 }  // namespace foresight

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/common/error.hpp"
 #include "foresight/common/pose.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
@@ -27,9 +28,9 @@ namespace foresight {
 
 /// A goal cannot be planned (IK fails, a linear move leaves the workspace or
 /// flips the arm's configuration, bad options). The message names the goal.
-class PlanError : public std::runtime_error {
+class PlanError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 enum class SegmentKind { Joint, Linear };

@@ -25,16 +25,24 @@
 
 #include "foresight/calibration/correspondence.hpp"
 #include "foresight/camera/camera.hpp"
+#include "foresight/common/error.hpp"
 
 namespace foresight {
 
-/// The data cannot determine the estimate (too few points, degenerate
-/// geometry, points behind the camera, non-finite input). A std::invalid_argument
-/// so the CLI reports it as bad input (exit 2). what() names the camera or
-/// view and the offending points.
-class EstimationError : public std::invalid_argument {
+/// The data cannot determine the estimate: too few points, degenerate
+/// geometry (collinear, coplanar, rank deficient), non-finite input, points
+/// behind their camera, unknown views. Bad input: the CLI exits 2. what()
+/// names the camera or view and the offending points.
+class EstimationInputError : public InputError {
  public:
-  using std::invalid_argument::invalid_argument;
+  explicit EstimationInputError(const std::string& message) : InputError(message) {}
+};
+
+/// The estimation failed on usable data: the nonlinear fit did not converge,
+/// the linear stage found no solution. A computation error: the CLI exits 1.
+class EstimationError : public ComputationError {
+ public:
+  using ComputationError::ComputationError;
 };
 
 /// Robust outlier rejection shared by calibration and localization.
@@ -100,11 +108,13 @@ struct CalibrationResult {
 /// Calibrate one camera from its correspondences (base-frame points). All
 /// given points are used (select one camera's rows first). `name` becomes
 /// camera.name and appears in error messages.
-/// Throws EstimationError: fewer than 6 points; a non-finite coordinate
-/// (naming the point and line); collinear or coplanar points (the linear
-/// stage needs points off one plane) or an otherwise rank-deficient linear
-/// system; the points' centroid or most points behind the camera; no
-/// convergence to a camera with the points in front.
+/// Throws EstimationInputError (bad input): fewer than 6 points; a
+/// non-finite coordinate (naming the point and line); collinear or coplanar
+/// points (the linear stage needs points off one plane) or an otherwise
+/// rank-deficient linear system; points behind the fitted camera. Throws
+/// EstimationError (computation): the linear stage found no camera with the
+/// points in front; the nonlinear fit did not converge (the message gives
+/// the iteration count).
 CalibrationResult calibrate_camera(const std::vector<Correspondence>& points, const Viewport& viewport,
                                    const std::string& name, const CalibrationOptions& options = {});
 

@@ -27,15 +27,28 @@
 
 namespace foresight {
 
+/// A point fixed on an arm link that an operator can click in a camera
+/// image: a link origin or the centre of one of its visual shapes.
+struct ArmFeature {
+  int link = 0;                                    ///< index in RobotModel::links()
+  Eigen::Vector3d p_link = Eigen::Vector3d::Zero();  ///< in the link frame
+  Eigen::Vector3d p_base = Eigen::Vector3d::Zero();  ///< FK(q) * p_link
+  int pose = 0;                                    ///< index of its arm pose (StudySetup::arm_q)
+};
+
 struct StudyView {
   Camera truth;
   std::vector<Eigen::Vector3d> calibration_points_base;  ///< arm points seen by this camera (exact)
+  /// The arm features behind calibration_points_base, one each, when the
+  /// points come from the arm (choose_calibration_points); empty otherwise.
+  std::vector<ArmFeature> calibration_features;
   std::vector<Eigen::Vector3d> object_points;            ///< model points (object frame) seen by this camera
 };
 
 struct StudySetup {
   std::vector<StudyView> views;  ///< the paper's order: view 1..V
   Pose base_T_object = Pose::Identity();
+  std::vector<Eigen::VectorXd> arm_q;  ///< the calibration arm poses (choose_calibration_points)
 };
 
 /// Cameras from the scene (in file order) and, per camera, the arm points in
@@ -45,14 +58,6 @@ struct StudySetup {
 /// from the front side; points deeper in the panel are hidden).
 StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
                             const std::vector<Eigen::Vector3d>& arm_points_base);
-
-/// A point fixed on an arm link that an operator can click in a camera
-/// image: a link origin or the centre of one of its visual shapes.
-struct ArmFeature {
-  int link = 0;                                    ///< index in RobotModel::links()
-  Eigen::Vector3d p_link = Eigen::Vector3d::Zero();  ///< in the link frame
-  Eigen::Vector3d p_base = Eigen::Vector3d::Zero();  ///< FK(q) * p_link
-};
 
 /// One arm pose of the calibration: joint angles and the distinct features
 /// (at least 3 cm apart) the arm shows there.
@@ -70,7 +75,8 @@ std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& model);
 /// most `max_count` spread evenly over them, as an operator clicks 6-8 a pose.
 std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrationPose& pose, int max_count = 8);
 
-/// Sets every view's calibration points to the visible features of every pose.
+/// Sets every view's calibration points (and features) to the visible
+/// features of every pose, and setup.arm_q to the poses' joint angles.
 void choose_calibration_points(StudySetup& setup, const std::vector<ArmCalibrationPose>& poses);
 
 /// Per-axis statistics of pose errors: order x, y, z (m), theta x, y, z
@@ -113,6 +119,15 @@ struct StudyOptions {
   int trials = 1000;
   double noise_px = 1.0;
   unsigned seed = 1;
+  /// Arm-model error: each trial, the length of every non-zero link offset
+  /// of `robot` is off by a Gaussian of this standard deviation (m), and
+  /// the calibration takes its arm points from that wrong model (FK of the
+  /// erroneous arm at the clicked poses) while the clicks show the true arm.
+  /// 0: the arm model is exact (the study's default). Needs `robot` and a
+  /// setup from choose_calibration_points. The click noise is drawn exactly
+  /// as without it (same seed: the same clicks).
+  double arm_link_error_m = 0.0;
+  const RobotModel* robot = nullptr;
   /// Called after each trial with (done, total); for a progress bar.
   std::function<void(int, int)> progress;
 };
@@ -125,11 +140,25 @@ struct StudyResult {
   std::vector<ComboStats> combos;          ///< all non-empty view subsets, by size then index
   int trials = 0;
   double noise_px = 0.0;
+  double arm_link_error_m = 0.0;
   int calibration_failures = 0;  ///< trials skipped because a calibration threw
 };
 
-/// Throws EstimationError when a view sees fewer than 6 arm points.
+/// Throws EstimationInputError when a view sees fewer than 6 arm points;
+/// InputError when arm_link_error_m > 0 without a robot or arm features.
 StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& options);
+
+/// Mean and sample standard deviation of a quantity over several runs.
+struct Spread {
+  int n = 0;
+  double mean = 0.0;
+  double sd = 0.0;
+};
+Spread spread_of(const std::vector<double>& values);
+
+/// The accuracy study repeated with seeds options.seed, options.seed + 1,
+/// ... (`seeds` runs): the Monte Carlo spread of every statistic.
+std::vector<StudyResult> run_accuracy_study_seeds(const StudySetup& setup, const StudyOptions& options, int seeds);
 
 /// The joint Cramer-Rao covariance (object frame, order x, y, z, theta) for
 /// the given views, and the one with the cameras known exactly.

@@ -66,11 +66,13 @@ struct LocalizationResult {
 };
 
 /// Localize the object from its model points (object frame) clicked in
-/// calibrated views. Throws EstimationError: a point's camera unknown (names
-/// it, the line and the known cameras); a listed view with no points; fewer
-/// than 6 points in total or fewer than 4 distinct model points; collinear
-/// model points; non-finite numbers; no solution with the points in front of
-/// the cameras.
+/// calibrated views. Throws EstimationInputError (bad input): a point's
+/// camera unknown (names it, the line and the known cameras); a listed view
+/// with no points; fewer than 6 points in total or fewer than 4 distinct
+/// model points; collinear model points; non-finite numbers; a rank-deficient
+/// linear system; points behind their camera at the fitted pose. Throws
+/// EstimationError (computation): no linear solution, or the nonlinear fit
+/// did not converge (the message gives the iteration count).
 LocalizationResult localize_object(const std::vector<Correspondence>& points,
                                    const std::map<std::string, Camera>& cameras,
                                    const LocalizationOptions& options = {});
