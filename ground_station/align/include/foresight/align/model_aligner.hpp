@@ -1,0 +1,147 @@
+#pragma once
+// Model-to-image alignment (issue 16): refine a camera's 7 parameters and/or
+// the task object's pose by pulling the projected model's visible edges onto
+// the image's edges, using every edge pixel instead of a few clicks.
+//
+// The method, per frame and per coarse-to-fine level:
+//  1. Visibility from the renderer: the arm and the object are rendered as a
+//     label image (one flat colour per convex primitive, depth-tested), so an
+//     edge behind another part never pulls.
+//  2. Model edges: every mesh edge that is a silhouette from this camera (one
+//     adjacent face towards the camera, one away) or a crease (dihedral angle
+//     > 25 deg) with a face towards the camera; sampled every ~4 px along its
+//     projection; a sample is kept when the label image shows its primitive
+//     on the inner side (and something of another colour on the outer side
+//     of a silhouette).
+//  3. Edge-normal search: along the projected edge normal, within +-R px, the
+//     nearest strong maximum of the image gradient (Sobel of the blurred grey
+//     image) with sub-pixel parabola; the residual is the signed distance.
+//  4. Robust Gauss-Newton (Tukey weights, scale from the MAD), the Jacobians
+//     of foresight/camera/projection.hpp (camera: body rotation, centre in
+//     base, f_px; object: body rotation, origin in base).
+//  Levels: search 24 px on a 4 px blur, 10 px on 2 px, 4 px on 1 px, 2.5 px on
+//  0.5 px; the peak by Gaussian (log-parabola) interpolation.
+//  Several frames (arm poses) per camera and several cameras combine into one
+//  least-squares problem (the object pose shared by all views).
+//
+// Confidence: the result is refused (cameras and object unchanged, reason
+// said) when too few model edges are visible, when too few of them found an
+// image edge at the end, or when the truncated edge distance (the residual
+// against every visible sample, misses counted as 8 px) is not lower than at
+// the start. A model entirely out of view is reported separately (bad input).
+//
+// Not real-time code: set-up uploads meshes; align() renders and allocates.
+
+#include <Eigen/Core>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "foresight/camera/camera.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/pose.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/render/gl_context.hpp"
+
+namespace foresight::align {
+
+enum class Refine { Camera, Object, Both };
+
+/// "camera", "object" or "both"; throws std::invalid_argument otherwise.
+Refine parse_refine(const std::string& text);
+const char* to_string(Refine refine);
+
+struct AlignOptions {
+  Refine refine = Refine::Camera;
+  double sample_spacing_px = 4.0;    ///< along each projected model edge
+  int max_samples_per_frame = 4000;  ///< spacing grows when exceeded
+  int iterations_per_level = 8;
+  int min_visible_samples = 80;      ///< fewer: refused, "too few model edges"
+  double min_matched_fraction = 0.3; ///< final inliers within 1 px / visible samples
+  double gradient_threshold = 6.0;   ///< grey levels per pixel (Sobel / 8)
+  double score_cap_px = 8.0;         ///< truncation of the confidence score
+};
+
+/// One image of a camera with the arm at joint angles q.
+struct AlignFrame {
+  cv::Mat image_bgr;  ///< CV_8UC3 of the camera's viewport size
+  Eigen::VectorXd q;  ///< radians
+};
+
+/// One camera and its frames.
+struct AlignView {
+  Camera camera;
+  std::vector<AlignFrame> frames;
+};
+
+enum class AlignStatus {
+  Aligned,   ///< refined and confident: use the result
+  Refused,   ///< not confident: `reason` says why; cameras/object are the start
+  NotInView  ///< the model projects nowhere into a view: bad input
+};
+const char* to_string(AlignStatus status);
+
+struct AlignResult {
+  AlignStatus status = AlignStatus::Refused;
+  std::string reason;                 ///< why refused / not in view; empty when aligned
+  std::vector<Camera> cameras;        ///< refined (or the start, when not aligned)
+  std::optional<Pose> base_T_object;  ///< refined (or the start), when an object was given
+  double start_score_px = 0.0;        ///< truncated RMS edge distance at the start
+  double final_score_px = 0.0;        ///< same measure at the end
+  double residual_rms_px = 0.0;       ///< RMS of the final inlier residuals (weights > 0)
+  int visible_samples = 0;            ///< model edge samples visible at the end (all frames)
+  int matched_samples = 0;            ///< of which found an image edge within 1 px
+  int iterations = 0;
+  /// Parameter change, per camera (roll,pitch,yaw rad body increment; x,y,z
+  /// m; f_px), then the object (rotation vector rad, translation m).
+  std::vector<Eigen::Matrix<double, 7, 1>> camera_change;
+  Eigen::Matrix<double, 6, 1> object_change = Eigen::Matrix<double, 6, 1>::Zero();
+  /// Covariance of the refined parameters in the same order (cameras'
+  /// blocks of 7 when refined, then the object's 6), from the final
+  /// Jacobian and the residual scale. Edge samples along one edge are
+  /// correlated, so this is optimistic (see docs/estimation.md).
+  Eigen::MatrixXd covariance;
+  double time_ms = 0.0;
+};
+
+/// The aligner for one viewport: holds a GL renderer and the model's
+/// primitives. One per thread. Set-up may throw std::runtime_error (GL).
+class ModelAligner {
+ public:
+  /// `object` may be null (arm only). The models must outlive this.
+  ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object, const Viewport& viewport);
+  ~ModelAligner();
+  ModelAligner(const ModelAligner&) = delete;
+  ModelAligner& operator=(const ModelAligner&) = delete;
+
+  /// Refines the views' cameras and/or the object (`base_T_object` required
+  /// for Refine::Object/Both and when the object should occlude/pull).
+  /// Throws std::invalid_argument on a frame of the wrong size or type, a
+  /// wrong joint count, a camera of another viewport, Refine::Object without
+  /// an object pose, or no frames.
+  AlignResult align(const std::vector<AlignView>& views, const std::optional<Pose>& base_T_object,
+                    const AlignOptions& options = {});
+
+  /// The truncated RMS edge distance of the model through `camera` on one
+  /// frame (the confidence score; px) and the fraction of visible samples
+  /// within 1 px of an image edge, the silhouette check of `health`.
+  struct FrameScore {
+    double score_px = 0.0;
+    double matched_fraction = 0.0;
+    int visible_samples = 0;
+  };
+  FrameScore score(const Camera& camera, const AlignFrame& frame, const std::optional<Pose>& base_T_object,
+                   const AlignOptions& options = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// RMS pixel distance between two cameras' projections of `points_base`
+/// (points behind either camera skipped): the reprojection difference.
+double reprojection_rms_px(const Camera& a, const Camera& b, const std::vector<Eigen::Vector3d>& points_base);
+
+}  // namespace foresight::align

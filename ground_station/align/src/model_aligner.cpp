@@ -1,0 +1,700 @@
+#include "foresight/align/model_aligner.hpp"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <opencv2/imgcodecs.hpp>
+#include <map>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "foresight/camera/projection.hpp"
+#include "foresight/common/kinematics.hpp"
+#include "foresight/render/mesh.hpp"
+#include "foresight/render/renderer.hpp"
+
+namespace foresight::align {
+
+Refine parse_refine(const std::string& text) {
+  if (text == "camera") return Refine::Camera;
+  if (text == "object") return Refine::Object;
+  if (text == "both") return Refine::Both;
+  throw std::invalid_argument("--refine '" + text + "' is not one of: camera, object, both");
+}
+
+const char* to_string(Refine r) {
+  switch (r) {
+    case Refine::Camera: return "camera";
+    case Refine::Object: return "object";
+    case Refine::Both: return "both";
+  }
+  return "?";
+}
+
+const char* to_string(AlignStatus s) {
+  switch (s) {
+    case AlignStatus::Aligned: return "aligned";
+    case AlignStatus::Refused: return "refused";
+    case AlignStatus::NotInView: return "not_in_view";
+  }
+  return "?";
+}
+
+double reprojection_rms_px(const Camera& a, const Camera& b, const std::vector<Eigen::Vector3d>& pts) {
+  double s = 0.0;
+  int n = 0;
+  for (const auto& p : pts) {
+    if (a.to_camera(p).z() <= 1e-3 || b.to_camera(p).z() <= 1e-3) continue;
+    s += (a.project(p) - b.project(p)).squaredNorm();
+    ++n;
+  }
+  return n ? std::sqrt(s / n) : 0.0;
+}
+
+namespace {
+
+constexpr double kCreaseCos = 0.9063;  // cos 25 deg
+constexpr double kNear_m = 0.05;
+
+struct Edge {
+  Eigen::Vector3d a, b;    // primitive frame (link or object)
+  Eigen::Vector3d n1, n2;  // outward face normals
+  bool two_faces = true;
+  bool crease = false;
+};
+
+struct Primitive {
+  int link = -1;  // link index; -1: the object
+  int body = -1;
+  int label = 0;  // 1..
+  Eigen::Vector4d rgba = Eigen::Vector4d::Zero();
+  std::vector<Edge> edges;
+};
+
+// Mesh edges with their adjacent face normals (vertices are duplicated per
+// face in the meshes, so adjacency goes by position). Coplanar edges (a face's
+// diagonal, a cap's spokes) are dropped: they never show.
+std::vector<Edge> mesh_edges(const render::Mesh& m) {
+  using Key = std::array<long long, 3>;
+  auto key = [&](std::uint32_t i) {
+    const float* p = m.vertices[i].position;
+    return Key{std::llround(p[0] * 1e5), std::llround(p[1] * 1e5), std::llround(p[2] * 1e5)};
+  };
+  auto pos = [&](std::uint32_t i) {
+    const float* p = m.vertices[i].position;
+    return Eigen::Vector3d(p[0], p[1], p[2]);
+  };
+  struct Entry {
+    Eigen::Vector3d a, b;
+    std::vector<Eigen::Vector3d> normals;
+  };
+  std::map<std::pair<Key, Key>, Entry> map;
+  for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
+    const std::uint32_t v[3] = {m.triangles[t], m.triangles[t + 1], m.triangles[t + 2]};
+    Eigen::Vector3d n = (pos(v[1]) - pos(v[0])).cross(pos(v[2]) - pos(v[0]));
+    if (n.norm() < 1e-12) continue;
+    n.normalize();
+    Eigen::Vector3d vn = Eigen::Vector3d::Zero();
+    for (auto i : v) vn += Eigen::Vector3d(m.vertices[i].normal[0], m.vertices[i].normal[1], m.vertices[i].normal[2]);
+    if (n.dot(vn) < 0.0) n = -n;
+    for (int e = 0; e < 3; ++e) {
+      std::uint32_t i = v[e], j = v[(e + 1) % 3];
+      Key ki = key(i), kj = key(j);
+      if (ki == kj) continue;
+      if (kj < ki) {
+        std::swap(ki, kj);
+        std::swap(i, j);
+      }
+      auto& entry = map[{ki, kj}];
+      if (entry.normals.empty()) {
+        entry.a = pos(i);
+        entry.b = pos(j);
+      }
+      entry.normals.push_back(n);
+    }
+  }
+  std::vector<Edge> out;
+  for (const auto& [k, e] : map) {
+    Edge edge;
+    edge.a = e.a;
+    edge.b = e.b;
+    edge.n1 = e.normals[0];
+    if (e.normals.size() >= 2) {
+      edge.n2 = e.normals[1];
+      if (edge.n1.dot(edge.n2) > 0.9999) continue;
+      edge.crease = edge.n1.dot(edge.n2) < kCreaseCos;
+    } else {
+      edge.two_faces = false;
+      edge.crease = true;
+      edge.n2 = -edge.n1;
+    }
+    out.push_back(edge);
+  }
+  return out;
+}
+
+struct Level {
+  double search_px;
+  double blur_px;
+};
+constexpr std::array<Level, 4> kLevels{{{24.0, 4.0}, {10.0, 2.0}, {4.0, 1.0}, {2.5, 0.5}}};
+constexpr Level kScoreLevel{8.0, 1.0};
+
+// A model edge sample: a point fixed in its primitive.
+struct Sample {
+  int view = 0, frame = 0;
+  bool on_object = false;
+  Eigen::Vector3d p_local, dir_local;  // object frame when on_object, else base
+};
+
+struct Gradient {
+  cv::Mat gx, gy;  // CV_32F, grey levels per pixel
+};
+
+// Bilinear sample at continuous pixel coordinates (pixel centres at i + 0.5).
+inline bool bilinear(const cv::Mat& m, double u, double v, float& out) {
+  const double x = u - 0.5, y = v - 0.5;
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= m.cols || y0 + 1 >= m.rows) return false;
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* r0 = m.ptr<float>(y0);
+  const float* r1 = m.ptr<float>(y0 + 1);
+  out = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+  return true;
+}
+
+// The nearest strong gradient maximum along n within +-R of uv; the signed
+// offset along n (sub-pixel), or false when none.
+bool search_edge(const Gradient& g, const Eigen::Vector2d& uv, const Eigen::Vector2d& n, double R, double threshold,
+                 double& t_out) {
+  constexpr int kMax = 64;
+  const int half = std::min(kMax / 2 - 1, static_cast<int>(std::ceil(R)));
+  const int N = 2 * half + 1;
+  std::array<float, kMax> mag{};
+  for (int i = 0; i < N; ++i) {
+    const double t = i - half;
+    const double u = uv.x() + t * n.x(), v = uv.y() + t * n.y();
+    float gx = 0, gy = 0;
+    if (!bilinear(g.gx, u, v, gx) || !bilinear(g.gy, u, v, gy)) {
+      mag[i] = 0.0f;
+      continue;
+    }
+    mag[i] = std::abs(static_cast<float>(n.x()) * gx + static_cast<float>(n.y()) * gy);
+  }
+  float best_mag = 0.0f;
+  for (int i = 1; i + 1 < N; ++i)
+    if (mag[i] >= threshold && mag[i] >= mag[i - 1] && mag[i] > mag[i + 1]) best_mag = std::max(best_mag, mag[i]);
+  if (best_mag <= 0.0f) return false;
+  int best = -1;
+  for (int i = 1; i + 1 < N; ++i) {
+    if (!(mag[i] >= 0.5f * best_mag && mag[i] >= mag[i - 1] && mag[i] > mag[i + 1])) continue;
+    if (best < 0 || std::abs(i - half) < std::abs(best - half)) best = i;
+  }
+  // Gaussian (log-parabola) interpolation: exact for a Gaussian-blurred step.
+  const double a = std::log(std::max(1e-3f, mag[best - 1])), b = std::log(std::max(1e-3f, mag[best])),
+               c = std::log(std::max(1e-3f, mag[best + 1]));
+  const double den = a - 2.0 * b + c;
+  double off = den < -1e-9 ? 0.5 * (a - c) / den : 0.0;
+  off = std::clamp(off, -0.5, 0.5);
+  t_out = best - half + off;
+  return std::abs(t_out) <= R;
+}
+
+Pose make_pose(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+  Pose T = Pose::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
+
+}  // namespace
+
+struct ModelAligner::Impl {
+  const RobotModel& arm;
+  const ObjectModel* object;
+  Viewport vp;
+  render::Renderer renderer;
+  KinematicsWorkspace ws;
+  std::vector<Primitive> prims;
+  render::DrawList list;
+  cv::Mat layer;
+
+  Impl(render::GlContext& ctx, const RobotModel& a, const ObjectModel* o, const Viewport& v)
+      : arm(a), object(o), vp(v), renderer(ctx, v, 1), ws(a) {
+    const auto& links = arm.links();
+    for (int k = 0; k < static_cast<int>(links.size()); ++k)
+      for (const auto& shape : links[k].visuals) add(k, render::make_shape(shape), shape.rgba);
+    if (object) {
+      add(-1, render::make_box(object->size_m, object->oru_T_box, object->rgba), object->rgba);
+      for (const auto& shape : object->visuals) add(-1, render::make_shape(shape), shape.rgba);
+    }
+  }
+
+  void add(int link, const render::Mesh& mesh, const Eigen::Vector4d& rgba) {
+    Primitive p;
+    p.link = link;
+    p.body = renderer.add_body(mesh);
+    p.label = static_cast<int>(prims.size()) + 1;
+    p.rgba = rgba;
+    p.edges = mesh_edges(mesh);
+    prims.push_back(std::move(p));
+  }
+
+  // Per frame: the link poses at its q, the grey image.
+  struct FrameData {
+    std::vector<Pose> link_poses;
+    cv::Mat grey8, grey;
+    std::map<int, Gradient> gradients;  // by level index (-1: score level)
+  };
+
+  static Eigen::Vector4d label_rgba(int label) {
+    return {(label & 0xFF) / 255.0, ((label >> 8) & 0xFF) / 255.0, 0.0, 1.0};
+  }
+  static int label_at(const cv::Mat& layer_bgra, const Eigen::Vector2d& uv) {
+    const int x = static_cast<int>(std::floor(uv.x())), y = static_cast<int>(std::floor(uv.y()));
+    if (x < 0 || y < 0 || x >= layer_bgra.cols || y >= layer_bgra.rows) return 0;
+    const std::uint8_t* p = layer_bgra.ptr<std::uint8_t>(y) + 4 * x;
+    return p[2] + 256 * p[1];
+  }
+
+  const Gradient& gradient(FrameData& f, int level_index, double blur) {
+    auto it = f.gradients.find(level_index);
+    if (it != f.gradients.end()) return it->second;
+    Gradient g;
+    cv::Mat blurred;
+    // Coarse levels blur the 8-bit image (several times faster); the fine
+    // levels blur in float so the sub-pixel edge is not quantized.
+    if (blur >= 2.0) cv::GaussianBlur(f.grey8, blurred, cv::Size(0, 0), blur);
+    else if (blur > 0.0) cv::GaussianBlur(f.grey, blurred, cv::Size(0, 0), blur);
+    else blurred = f.grey;
+    cv::Sobel(blurred, g.gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
+    cv::Sobel(blurred, g.gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+    return f.gradients.emplace(level_index, std::move(g)).first->second;
+  }
+
+  FrameData prepare(const AlignFrame& frame) {
+    if (frame.image_bgr.empty() || frame.image_bgr.cols != vp.width_px || frame.image_bgr.rows != vp.height_px)
+      throw std::invalid_argument("frame is " + std::to_string(frame.image_bgr.cols) + "x" +
+                                  std::to_string(frame.image_bgr.rows) + " but the camera viewport is " +
+                                  std::to_string(vp.width_px) + "x" + std::to_string(vp.height_px));
+    if (frame.q.size() != arm.dof())
+      throw std::invalid_argument("joint vector has " + std::to_string(frame.q.size()) + " values but the arm has " +
+                                  std::to_string(arm.dof()) + " joints");
+    FrameData f;
+    if (frame.image_bgr.type() == CV_8UC3) cv::cvtColor(frame.image_bgr, f.grey8, cv::COLOR_BGR2GRAY);
+    else if (frame.image_bgr.type() == CV_8UC1) f.grey8 = frame.image_bgr;
+    else throw std::invalid_argument("frame must be an 8-bit BGR or grey image");
+    f.grey8.convertTo(f.grey, CV_32F);
+    f.link_poses.resize(arm.links().size());
+    for (int k = 0; k < static_cast<int>(arm.links().size()); ++k)
+      f.link_poses[k] = forward_kinematics(arm, ws, frame.q, k);
+    return f;
+  }
+
+  // The visible model edge samples of one frame through `cam`.
+  void sample(const Camera& cam, const FrameData& f, const std::optional<Pose>& base_T_object, int view, int frame_index,
+              bool want_arm, bool want_object, const AlignOptions& o, std::vector<Sample>& out) {
+    list.clear();
+    for (const auto& p : prims) {
+      if (p.link < 0 && !base_T_object) continue;
+      render::BodyInstance b;
+      b.body = p.body;
+      b.base_T_body = p.link >= 0 ? f.link_poses[p.link] : *base_T_object;
+      b.solid_rgba = label_rgba(p.label);
+      list.bodies.push_back(b);
+    }
+    render::RenderSettings st;
+    st.mode = render::RenderMode::Solid;
+    st.lighting = false;
+    st.near_m = kNear_m;
+    renderer.render(cam, list, st, layer);
+
+    const Eigen::Vector3d C = cam.base_T_camera.translation();
+    struct Candidate {
+      const Primitive* prim;
+      Eigen::Vector3d a, b;
+      Eigen::Vector2d ua, ub;
+      bool silhouette;
+    };
+    std::vector<Candidate> cands;
+    double total_len = 0.0;
+    for (const auto& p : prims) {
+      const bool is_object = p.link < 0;
+      if (is_object && (!base_T_object || !want_object)) continue;
+      if (!is_object && !want_arm) continue;
+      const Pose& T = is_object ? *base_T_object : f.link_poses[p.link];
+      for (const auto& e : p.edges) {
+        const Eigen::Vector3d a = T * e.a, b = T * e.b, m = 0.5 * (a + b);
+        const bool f1 = (T.linear() * e.n1).dot(C - m) > 0.0;
+        const bool f2 = e.two_faces ? (T.linear() * e.n2).dot(C - m) > 0.0 : false;
+        const bool silhouette = f1 != f2;
+        if (!silhouette && !(e.crease && f1 && f2)) continue;
+        if (cam.to_camera(a).z() <= kNear_m || cam.to_camera(b).z() <= kNear_m) continue;
+        const Eigen::Vector2d ua = cam.project(a), ub = cam.project(b);
+        const double len = (ub - ua).norm();
+        if (len < 1.0) continue;
+        cands.push_back({&p, a, b, ua, ub, silhouette});
+        total_len += len;
+      }
+    }
+    const double spacing = std::max(o.sample_spacing_px, total_len / std::max(1, o.max_samples_per_frame));
+    const double margin = 3.0;
+    for (const auto& c : cands) {
+      const Eigen::Vector2d d = (c.ub - c.ua).normalized();
+      const Eigen::Vector2d n(-d.y(), d.x());
+      const int ns = std::clamp(static_cast<int>((c.ub - c.ua).norm() / spacing), 1, 400);
+      for (int k = 0; k < ns; ++k) {
+        const double t = (k + 0.5) / ns;
+        const Eigen::Vector3d p = c.a + t * (c.b - c.a);
+        const Eigen::Vector2d uv = cam.project(p);
+        if (uv.x() < margin || uv.y() < margin || uv.x() > vp.width_px - margin || uv.y() > vp.height_px - margin)
+          continue;
+        const int lp = label_at(layer, uv + 1.5 * n), lm = label_at(layer, uv - 1.5 * n);
+        const int id = c.prim->label;
+        bool visible;
+        if (c.silhouette) {
+          const int other = lp == id ? lm : lm == id ? lp : -1;
+          visible = (lp == id) != (lm == id) && other >= 0;
+          if (visible && other > 0 && (prims[other - 1].rgba - c.prim->rgba).norm() < 0.02) visible = false;
+        } else {
+          visible = lp == id && lm == id;
+        }
+        if (!visible) continue;
+        Sample s;
+        s.view = view;
+        s.frame = frame_index;
+        s.on_object = c.prim->link < 0;
+        const Eigen::Vector3d dir = (c.b - c.a).normalized();
+        if (s.on_object) {
+          s.p_local = base_T_object->inverse() * p;
+          s.dir_local = base_T_object->linear().transpose() * dir;
+        } else {
+          s.p_local = p;
+          s.dir_local = dir;
+        }
+        out.push_back(s);
+      }
+    }
+  }
+};
+
+ModelAligner::ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object,
+                           const Viewport& viewport)
+    : impl_(std::make_unique<Impl>(context, arm, object, viewport)) {}
+
+ModelAligner::~ModelAligner() = default;
+
+namespace {
+
+// One residual evaluation: the search result for each sample.
+struct Eval {
+  std::vector<double> r;       // signed distance along n, px
+  std::vector<char> matched;
+  std::vector<Eigen::Matrix<double, 1, 13>> J;  // camera 7, object 6
+};
+
+}  // namespace
+
+AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::optional<Pose>& base_T_object_start,
+                                const AlignOptions& o) {
+  auto& I = *impl_;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (views.empty()) throw std::invalid_argument("align: no views");
+  const bool refine_camera = o.refine != Refine::Object;
+  const bool refine_object = o.refine != Refine::Camera;
+  if (refine_object && !base_T_object_start)
+    throw std::invalid_argument("refining the object needs its start pose (--object-pose)");
+  if (refine_object && !I.object) throw std::invalid_argument("refining the object needs the object model");
+  const int V = static_cast<int>(views.size());
+  std::vector<std::vector<Impl::FrameData>> data(V);
+  for (int v = 0; v < V; ++v) {
+    if (views[v].frames.empty()) throw std::invalid_argument("camera '" + views[v].camera.name + "' has no frames");
+    if (!(views[v].camera.viewport == I.vp))
+      throw std::invalid_argument("camera '" + views[v].camera.name + "' has another viewport than the aligner's");
+    for (const auto& fr : views[v].frames) data[v].push_back(I.prepare(fr));
+  }
+
+  // Parameters: per view camera (R, c, f), the object (R, t).
+  std::vector<Eigen::Matrix3d> cam_R(V);
+  std::vector<Eigen::Vector3d> cam_c(V);
+  std::vector<double> cam_f(V);
+  for (int v = 0; v < V; ++v) {
+    cam_R[v] = views[v].camera.base_T_camera.linear();
+    cam_c[v] = views[v].camera.base_T_camera.translation();
+    cam_f[v] = views[v].camera.f_px;
+  }
+  Eigen::Matrix3d obj_R = base_T_object_start ? Eigen::Matrix3d(base_T_object_start->linear()) : Eigen::Matrix3d::Identity();
+  Eigen::Vector3d obj_t = base_T_object_start ? Eigen::Vector3d(base_T_object_start->translation()) : Eigen::Vector3d::Zero();
+  auto camera_of = [&](int v) {
+    Camera c = views[v].camera;
+    c.base_T_camera = make_pose(cam_R[v], cam_c[v]);
+    c.f_px = cam_f[v];
+    return c;
+  };
+  auto object_pose = [&]() -> std::optional<Pose> {
+    if (!base_T_object_start) return std::nullopt;
+    return make_pose(obj_R, obj_t);
+  };
+  const bool want_arm = refine_camera;
+  const bool want_object = refine_object;
+  const int P = (refine_camera ? 7 * V : 0) + (refine_object ? 6 : 0);
+  const int obj_col = refine_camera ? 7 * V : 0;
+
+  auto collect = [&](std::vector<Sample>& samples, std::vector<int>* per_view) {
+    samples.clear();
+    if (per_view) per_view->assign(V, 0);
+    const auto obj = object_pose();
+    for (int v = 0; v < V; ++v) {
+      const Camera cam = camera_of(v);
+      for (int k = 0; k < static_cast<int>(data[v].size()); ++k) {
+        const std::size_t before = samples.size();
+        I.sample(cam, data[v][k], obj, v, k, want_arm, want_object, o, samples);
+        if (per_view) (*per_view)[v] += static_cast<int>(samples.size() - before);
+      }
+    }
+  };
+
+  // Residuals (and Jacobian rows) of the samples at the current parameters.
+  auto evaluate = [&](const std::vector<Sample>& samples, int level_index, const Level& L, Eval& e, bool jac) {
+    e.r.assign(samples.size(), 0.0);
+    e.matched.assign(samples.size(), 0);
+    if (jac) e.J.assign(samples.size(), Eigen::Matrix<double, 1, 13>::Zero());
+    const double thr = o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px);
+    std::vector<Camera> cams;
+    for (int v = 0; v < V; ++v) cams.push_back(camera_of(v));
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const Sample& s = samples[i];
+      const Camera& cam = cams[s.view];
+      const Eigen::Vector3d p = s.on_object ? Eigen::Vector3d(obj_R * s.p_local + obj_t) : s.p_local;
+      const Eigen::Vector3d dir = s.on_object ? Eigen::Vector3d(obj_R * s.dir_local) : s.dir_local;
+      if (cam.to_camera(p).z() <= kNear_m) continue;
+      const Projection pr = project_with_jacobians(cam, p);
+      Eigen::Vector2d d2 = pr.d_point * dir;
+      if (d2.norm() < 1e-9) continue;
+      d2.normalize();
+      const Eigen::Vector2d n(-d2.y(), d2.x());
+      double t = 0.0;
+      const Gradient& g = I.gradient(data[s.view][s.frame], level_index, L.blur_px);
+      if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t)) continue;
+      e.r[i] = t;
+      e.matched[i] = 1;
+      if (jac) {
+        if (refine_camera) e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
+        if (refine_object && s.on_object)
+          e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, obj_R, s.p_local);
+      }
+    }
+  };
+
+  auto score_of = [&](const std::vector<Sample>& samples, int* matched1) {
+    Eval e;
+    evaluate(samples, -1, kScoreLevel, e, false);
+    double s2 = 0.0;
+    int m1 = 0;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const double d = e.matched[i] ? std::min(std::abs(e.r[i]), o.score_cap_px) : o.score_cap_px;
+      s2 += d * d;
+      if (e.matched[i] && std::abs(e.r[i]) < 1.0) ++m1;
+    }
+    if (matched1) *matched1 = m1;
+    return samples.empty() ? o.score_cap_px : std::sqrt(s2 / samples.size());
+  };
+
+  AlignResult res;
+  for (int v = 0; v < V; ++v) res.cameras.push_back(views[v].camera);
+  res.base_T_object = base_T_object_start;
+  res.camera_change.assign(V, Eigen::Matrix<double, 7, 1>::Zero());
+  auto finish = [&](AlignResult& r) -> AlignResult& {
+    r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return r;
+  };
+
+  // Start: visibility (the samples serve the first level too) and score.
+  std::vector<Sample> samples;
+  {
+    std::vector<int> per_view;
+    collect(samples, &per_view);
+    for (int v = 0; v < V; ++v)
+      if (per_view[v] == 0) {
+        res.status = AlignStatus::NotInView;
+        res.reason = std::string("the ") + (want_arm ? "arm" : "object") + " model is not in view of camera '" +
+                     views[v].camera.name + "': none of its edges projects visibly into the image";
+        return finish(res);
+      }
+  }
+  res.start_score_px = score_of(samples, nullptr);
+
+  Eigen::MatrixXd H_last;
+  double s2_last = 0.0;
+  Eval e;
+  for (int li = 0; li < static_cast<int>(kLevels.size()); ++li) {
+    const Level& L = kLevels[li];
+    if (li > 0) collect(samples, nullptr);
+    if (static_cast<int>(samples.size()) < o.min_visible_samples) {
+      res.status = AlignStatus::Refused;
+      res.reason = "too few model edges in view: " + std::to_string(samples.size()) + " samples (need " +
+                   std::to_string(o.min_visible_samples) + ")";
+      res.visible_samples = static_cast<int>(samples.size());
+      return finish(res);
+    }
+    for (int it = 0; it < o.iterations_per_level; ++it) {
+      evaluate(samples, li, L, e, true);
+      std::vector<double> absr;
+      for (std::size_t i = 0; i < samples.size(); ++i)
+        if (e.matched[i]) absr.push_back(std::abs(e.r[i]));
+      if (absr.size() < 10) break;
+      std::nth_element(absr.begin(), absr.begin() + absr.size() / 2, absr.end());
+      const double sigma = std::max(1.4826 * absr[absr.size() / 2], 0.1);
+      const double c = std::clamp(4.685 * sigma, 0.5, L.search_px);
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(P);
+      double wsum = 0.0, wr2 = 0.0;
+      Eigen::VectorXd row(P);
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!e.matched[i]) continue;
+        const double u = e.r[i] / c;
+        if (std::abs(u) >= 1.0) continue;
+        const double w = (1 - u * u) * (1 - u * u);
+        row.setZero();
+        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
+        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
+        g += w * e.r[i] * row;
+        wsum += w;
+        wr2 += w * e.r[i] * e.r[i];
+      }
+      H = H.selfadjointView<Eigen::Lower>();
+      H_last = H;
+      s2_last = wr2 / std::max(1.0, wsum - P);
+      Eigen::MatrixXd A = H;
+      for (int k = 0; k < P; ++k) A(k, k) += 1e-3 * H(k, k) + 1e-12;
+      Eigen::VectorXd delta = A.ldlt().solve(g);
+      if (!delta.allFinite()) break;
+      // Limit the step to the search range (predicted pixel motion).
+      double max_move = 0.0;
+      for (std::size_t i = 0; i < samples.size(); i += 7) {
+        row.setZero();
+        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
+        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        max_move = std::max(max_move, std::abs(row.dot(delta)));
+      }
+      if (max_move > L.search_px) delta *= L.search_px / max_move;
+      if (refine_camera)
+        for (int v = 0; v < V; ++v) {
+          const Eigen::Matrix<double, 7, 1> d = delta.segment<7>(7 * v);
+          cam_R[v] = cam_R[v] * exp_so3(d.head<3>());
+          cam_c[v] += d.segment<3>(3);
+          cam_f[v] += d[6];
+          res.camera_change[v] += d;
+        }
+      if (refine_object) {
+        const Eigen::Matrix<double, 6, 1> d = delta.segment<6>(obj_col);
+        obj_R = obj_R * exp_so3(d.head<3>());
+        obj_t += d.tail<3>();
+        res.object_change += d;
+      }
+      ++res.iterations;
+      if (max_move < (li + 1 == static_cast<int>(kLevels.size()) ? 0.005 : 0.05)) break;
+    }
+  }
+
+  // Final residuals at the finest level.
+  evaluate(samples, static_cast<int>(kLevels.size()) - 1, kLevels.back(), e, false);
+  if (const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG")) {
+    cv::Mat img;
+    cv::cvtColor(views[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
+    cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
+    cv::resize(img, img, cv::Size(), 2.0, 2.0, cv::INTER_NEAREST);
+    const Camera cam = camera_of(0);
+    double sum = 0; int n = 0;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (samples[i].view != 0 || samples[i].frame != 0) continue;
+      const Eigen::Vector3d p = samples[i].on_object ? Eigen::Vector3d(obj_R * samples[i].p_local + obj_t) : samples[i].p_local;
+      const Eigen::Vector2d uv = cam.project(p) * 2.0;
+      const cv::Scalar col = !e.matched[i] ? cv::Scalar(0, 0, 255) : std::abs(e.r[i]) < 1.0 ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 255, 255);
+      cv::circle(img, cv::Point2d(uv.x(), uv.y()), 2, col, -1);
+      if (e.matched[i]) { sum += e.r[i]; ++n; }
+    }
+    std::fprintf(stderr, "debug: mean residual %.3f px over %d\n", n ? sum / n : 0.0, n);
+    cv::imwrite(dbg, img);
+  }
+  double r2 = 0.0;
+  int n_in = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i)
+    if (e.matched[i] && std::abs(e.r[i]) < 1.0) {
+      r2 += e.r[i] * e.r[i];
+      ++n_in;
+    }
+  res.residual_rms_px = n_in ? std::sqrt(r2 / n_in) : 0.0;
+  {
+    std::vector<Sample> final_samples;
+    collect(final_samples, nullptr);
+    res.final_score_px = score_of(final_samples, nullptr);
+    res.visible_samples = static_cast<int>(final_samples.size());
+  }
+  res.matched_samples = n_in;
+  if (H_last.size() > 0) {
+    Eigen::MatrixXd Hinv = H_last.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
+    res.covariance = s2_last * Hinv;
+  }
+
+  const double matched_fraction = samples.empty() ? 0.0 : static_cast<double>(n_in) / samples.size();
+  char buf[256];
+  if (res.final_score_px > res.start_score_px + 0.02) {
+    std::snprintf(buf, sizeof buf, "the edge distance got worse: %.2f px at the start, %.2f px after alignment",
+                  res.start_score_px, res.final_score_px);
+    res.status = AlignStatus::Refused;
+    res.reason = buf;
+  } else if (matched_fraction < o.min_matched_fraction) {
+    std::snprintf(buf, sizeof buf,
+                  "only %.0f%% of the %zu visible model edge samples lie within 1 px of an image edge (need %.0f%%)",
+                  100.0 * matched_fraction, samples.size(), 100.0 * o.min_matched_fraction);
+    res.status = AlignStatus::Refused;
+    res.reason = buf;
+  } else {
+    res.status = AlignStatus::Aligned;
+  }
+  if (res.status == AlignStatus::Aligned) {
+    for (int v = 0; v < V; ++v) res.cameras[v] = camera_of(v);
+    if (refine_object) res.base_T_object = object_pose();
+  }
+  return finish(res);
+}
+
+ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFrame& frame,
+                                             const std::optional<Pose>& base_T_object, const AlignOptions& o) {
+  auto& I = *impl_;
+  Impl::FrameData f = I.prepare(frame);
+  std::vector<Sample> samples;
+  I.sample(camera, f, base_T_object, 0, 0, true, false, o, samples);
+  FrameScore out;
+  out.visible_samples = static_cast<int>(samples.size());
+  if (samples.empty()) {
+    out.score_px = o.score_cap_px;
+    return out;
+  }
+  const Gradient& g = I.gradient(f, -1, kScoreLevel.blur_px);
+  const double thr = o.gradient_threshold * 0.7 / std::max(0.7, kScoreLevel.blur_px);
+  double s2 = 0.0;
+  int m1 = 0;
+  for (const auto& s : samples) {
+    const Projection pr = project_with_jacobians(camera, s.p_local);
+    Eigen::Vector2d d2 = (pr.d_point * s.dir_local).normalized();
+    const Eigen::Vector2d n(-d2.y(), d2.x());
+    double t = 0.0;
+    double d = o.score_cap_px;
+    if (search_edge(g, pr.uv_px, n, kScoreLevel.search_px, thr, t)) {
+      d = std::min(std::abs(t), o.score_cap_px);
+      if (std::abs(t) < 1.0) ++m1;
+    }
+    s2 += d * d;
+  }
+  out.score_px = std::sqrt(s2 / samples.size());
+  out.matched_fraction = static_cast<double>(m1) / samples.size();
+  return out;
+}
+
+}  // namespace foresight::align
