@@ -13,12 +13,14 @@
 #include <linux/can.h>
 
 #include <cerrno>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "foresight/protocol/loopback.hpp"
@@ -443,4 +445,44 @@ TEST(Deploy, DaemonNotifiesReadyWatchdogStopping) {
   ASSERT_FALSE(messages.empty());
   EXPECT_NE(messages.front().find("READY=1"), std::string::npos) << messages.front();
   EXPECT_NE(messages.back().find("STOPPING=1"), std::string::npos) << messages.back();
+}
+
+// Restart=on-failure after a crash: the daemon comes back holding. The second
+// run says the first did not shut down cleanly, and its telemetry shows the
+// controller Disabled (drives off) until the ground sends RECOVER.
+TEST(Deploy, RestartAfterCrashComesUpHolding) {
+  const std::string journal = foresight::test::temp_path(".db");
+  const auto read_journal = [&] {
+    const ShellRun j = run_shell(kBin + "/foresight-remote journal --json --db " + journal + " 2>/dev/null");
+    return j.status == 0 ? nlohmann::json::parse(j.out) : nlohmann::json::object();
+  };
+  foresight::test::RemoteProcess::Options o;
+  o.domain = static_cast<int>(foresight::protocol::unique_test_domain());
+  o.journal = journal;
+  {
+    foresight::test::RemoteProcess first(o);
+    ASSERT_TRUE(first.ready()) << first.log();
+    EXPECT_EQ(first.stop(SIGKILL, 10.0), 128 + SIGKILL);
+  }
+  const auto count_after_crash = read_journal().value("telemetry_count", 0);
+  foresight::test::RemoteProcess second(o);
+  ASSERT_TRUE(second.ready()) << second.log();
+  EXPECT_NE(second.log().find("the previous run did not shut down cleanly; coming up holding, drives disabled"),
+            std::string::npos)
+      << second.log();
+  // Telemetry of the second run reaches the journal (10 rows/s): poll with a deadline.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  int rows = 0;
+  while (std::chrono::steady_clock::now() < deadline && (rows = read_journal().value("telemetry_count", 0)) <=
+                                                            count_after_crash + 2)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_GT(rows, count_after_crash + 2);
+  EXPECT_EQ(second.stop(SIGTERM, 30.0), 0) << second.log();
+  const auto j = read_journal();
+  ASSERT_TRUE(j.contains("telemetry_last")) << j.dump();
+  EXPECT_EQ(j["telemetry_last"].value("mode", -1), 0) << j.dump();  // ControllerMode::Disabled
+  int starts = 0;
+  for (const auto& e : j["events"]) starts += e.value("kind", "") == "start" ? 1 : 0;
+  EXPECT_EQ(starts, 2);
+  for (const char* suffix : {"", "-wal", "-shm"}) std::remove((journal + suffix).c_str());
 }
