@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include "foresight/common/plan.hpp"
@@ -32,6 +33,8 @@ class RemoteCommands : public ::testing::Test {
     o.domain = domain_;
     o.estop_file = test::temp_path(".estop");
     estop_ = o.estop_file;
+    faults_ = test::temp_path(".faults");
+    o.extra_args = {"--sim-faults", faults_};
     remote_ = std::make_unique<test::RemoteProcess>(o);
     ASSERT_TRUE(remote_->ready()) << remote_->log();
     ground_link::Config c;
@@ -46,6 +49,40 @@ class RemoteCommands : public ::testing::Test {
       EXPECT_EQ(rc, 0) << remote_->log();
     }
     std::remove(estop_.c_str());
+    std::filesystem::remove_all(faults_);
+  }
+
+  void fault_file(const std::string& name, const std::string& text = "") {
+    std::ofstream(faults_ + "/" + name) << text;
+  }
+
+  nlohmann::json journal_json(const std::string& db) {
+    const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + db;
+    FILE* p = popen(cmd.c_str(), "r");
+    std::string out;
+    char buf[4096];
+    std::size_t n;
+    while (p != nullptr && (n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    const int rc = p != nullptr ? pclose(p) : -1;
+    EXPECT_EQ(rc, 0) << out;
+    return nlohmann::json::parse(out);
+  }
+
+  /// Sends a slow GOTO_JOINT of joint 1 by `delta` and returns its id once EXECUTING.
+  std::uint64_t start_slow_motion(double delta) {
+    const Eigen::VectorXd q0 = current_q();
+    control::GotoJoint g;
+    g.q_rad.assign(q0.data(), q0.data() + 7);
+    g.q_rad[0] += delta;
+    g.speed_fraction = 0.1;
+    const std::uint64_t id = ground_->send(CommandKind::GotoJoint, g);
+    bool executing = false;
+    for (int i = 0; i < 500 && !executing; ++i) {
+      const auto partial = ground_->wait_final(id, 10ms);
+      for (const auto& a : partial.acks) executing = executing || a.state == AckState::Executing;
+    }
+    EXPECT_TRUE(executing);
+    return id;
   }
 
   ground_link::CommandResult run(CommandKind kind, const control::Payload& payload = control::NoPayload{},
@@ -80,6 +117,7 @@ class RemoteCommands : public ::testing::Test {
   RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   int domain_ = 0;
   std::string estop_;
+  std::string faults_;
   std::unique_ptr<test::RemoteProcess> remote_;
   std::unique_ptr<ground_link::GroundLink> ground_;
 };
@@ -192,18 +230,10 @@ TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
 TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t id = start_slow_motion(0.6);
   control::GotoJoint g;
   g.q_rad.assign(q0.data(), q0.data() + 7);
   g.q_rad[0] += 0.6;
-  g.speed_fraction = 0.1;
-  const std::uint64_t id = ground_->send(CommandKind::GotoJoint, g);
-  // Wait for EXECUTING, then abort.
-  bool executing = false;
-  for (int i = 0; i < 500 && !executing; ++i) {
-    const auto partial = ground_->wait_final(id, 10ms);
-    for (const auto& a : partial.acks) executing = executing || a.state == AckState::Executing;
-  }
-  ASSERT_TRUE(executing);
   control::Abort a;
   a.category = control::StopCategory::Cat2;
   a.reason = "test";
@@ -236,20 +266,92 @@ TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence)
   std::remove(estop_.c_str());
   const int rc = remote_->stop(SIGTERM);
   EXPECT_EQ(rc, 0);
-  const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + remote_->journal();
-  FILE* p = popen(cmd.c_str(), "r");
-  ASSERT_NE(p, nullptr);
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  ASSERT_EQ(pclose(p), 0);
-  const auto json = nlohmann::json::parse(out);
+  const auto json = journal_json(remote_->journal());
   bool cat0 = false;
   for (const auto& f : json["faults"]) cat0 = cat0 || f["category"] == 0;
-  EXPECT_TRUE(cat0) << out.substr(0, 2000);
+  EXPECT_TRUE(cat0) << json.dump().substr(0, 2000);
   bool recover_completed = false;
   for (const auto& c : json["commands"]) recover_completed = recover_completed || (c["kind"] == "RECOVER" && c["state"] == "COMPLETED");
   EXPECT_TRUE(recover_completed);
   remote_.reset();
+}
+
+TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
+  take_and_recover();
+  fault_file("tool_jam");
+  control::InvokeAlgorithm loosen;
+  loosen.name = "loosen";
+  loosen.params = {{"turns", 2.0}};
+  const auto r = run(CommandKind::InvokeAlgorithm, loosen, 5.0);
+  EXPECT_EQ(r.state, AckState::Failed);
+  EXPECT_EQ(r.code, Reason::ToolFault);
+  EXPECT_EQ(r.reason.rfind("loosen: tool jammed", 0), 0u) << r.reason;
+  // The tool stopped (its next report says so); the arm holds and takes the next motion.
+  bool stopped = false;
+  for (int i = 0; i < 300 && !stopped; ++i) {
+    const auto tool = ground_->tool();
+    stopped = tool && tool->age_s < 0.5 && !tool->value.running && (tool->value.fault_bits & 1u);
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(stopped);
+  std::filesystem::remove(faults_ + "/tool_jam");
+  const Eigen::VectorXd q0 = current_q();
+  control::GotoJoint g;
+  g.q_rad.assign(q0.data(), q0.data() + 7);
+  g.q_rad[1] += 0.02;
+  EXPECT_TRUE(run(CommandKind::GotoJoint, g, 3.0).succeeded());
+}
+
+TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidence) {
+  take_and_recover();
+  const std::uint64_t id = start_slow_motion(0.5);
+  fault_file("drive_emcy_3", "2310");
+  const auto moved = ground_->wait_final(id, 10s);
+  EXPECT_EQ(moved.state, AckState::Canceled);
+  EXPECT_NE(moved.reason.find("0x2310"), std::string::npos) << moved.reason;
+  bool cat0 = false;
+  for (int i = 0; i < 300 && !cat0; ++i) {
+    if (auto s = ground_->status(); s && s->value.stop_category == control::StopCategory::Cat0) cat0 = true;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(cat0);
+  // Recover (fault reset, enable) and go on.
+  std::filesystem::remove(faults_ + "/drive_emcy_3");
+  ASSERT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded()) << remote_->log();
+  const auto json = journal_json(remote_->journal());
+  bool found = false;
+  for (const auto& f : json["faults"])
+    if (f["category"] == 0 && f["cause"] == "drive_fault") found = found || !f["evidence"]["samples"].empty();
+  EXPECT_TRUE(found) << json["faults"].dump();
+}
+
+TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHolding) {
+  take_and_recover();
+  const std::uint64_t id = start_slow_motion(0.5);
+  EXPECT_EQ(remote_->stop(SIGKILL), 128 + SIGKILL);
+  const std::string db = remote_->journal();
+  const auto json = journal_json(db);
+  std::vector<std::string> seen;
+  for (const auto& c : json["commands"])
+    if (c["command_id"] == id && c["kind"] == "GOTO_JOINT") seen.push_back(c["state"]);
+  EXPECT_EQ(seen, (std::vector<std::string>{"RECEIVED", "QUEUED", "EXECUTING"}));
+
+  // A restart on the same journal: it appends, and nothing moves until RECOVER.
+  ground_.reset();
+  test::RemoteProcess::Options o;
+  o.domain = domain_;
+  o.journal = db;
+  remote_ = std::make_unique<test::RemoteProcess>(o);
+  ASSERT_TRUE(remote_->ready()) << remote_->log();
+  EXPECT_NE(remote_->log().find("did not shut down cleanly"), std::string::npos) << remote_->log();
+  ground_link::Config c;
+  c.domain = domain_;
+  ground_ = std::make_unique<ground_link::GroundLink>(c);
+  ASSERT_TRUE(ground_->wait_for_remote(30s));
+  bool disabled = false;
+  for (int i = 0; i < 300 && !disabled; ++i) {
+    if (auto s = ground_->status(); s && s->value.mode == control::ControllerMode::Disabled) disabled = true;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(disabled);
 }

@@ -43,6 +43,7 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/remote/daemon_config.hpp"
 #include "foresight/remote/site.hpp"
+#include "foresight/remote/sim_faults.hpp"
 #include "foresight/remote/supervisor.hpp"
 #include "foresight/remote/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
@@ -147,6 +148,7 @@ struct Options {
   std::string journal;
   int domain = default_domain();
   std::string estop_file;
+  std::string sim_faults;
   int loop_cpu = -1;      ///< pin the control loop thread (an isolated CPU); -1: not pinned
   int rt_priority = 80;   ///< the control loop's SCHED_FIFO priority
 };
@@ -160,8 +162,12 @@ int run_daemon(const Options& o) {
   remote::SiteOptions site_options;
   site_options.remote_yaml = o.config;
   site_options.sim = o.sim;
+  if (!o.sim_faults.empty() && !o.sim)
+    throw foresight::InputError("--sim-faults", "fault injection needs --sim (a real cabinet breaks by itself)");
   remote::Site site = remote::build_site(site_options);
   const RobotModel& model = *site.model;
+  std::unique_ptr<remote::SimFaultWatcher> faults;
+  if (!o.sim_faults.empty()) faults = std::make_unique<remote::SimFaultWatcher>(site, o.sim_faults);
 
   journal::JournalOptions jo;
   jo.path = config.journal.path;
@@ -299,6 +305,8 @@ int main(int argc, char** argv) {
   app.add_option("--journal", o.journal, "journal database (overrides controller.journal.path)");
   app.add_option("--domain", o.domain, "DDS domain id (default $FORESIGHT_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
   app.add_option("--estop-file", o.estop_file, "E-stop (category 0) while this file exists (HIL tests, --sim)");
+  app.add_option("--sim-faults", o.sim_faults,
+                 "with --sim: fault injection folder (tool_jam, ft_fault, oru_stuck, drive_emcy_J files; HIL tests)");
 
   foresight::journal::JournalQuery q;
   CLI::App* jcmd = app.add_subcommand("journal", "print the journal: commands, faults, uploads, events");

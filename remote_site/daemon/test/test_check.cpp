@@ -388,7 +388,7 @@ TEST(Deploy, PackagesHoldWhatTheyShould) {
     if (!fs::exists(kBin + "/" + b)) GTEST_SKIP() << kBin << "/" << b << " is not built (build every target first)";
   if (run_shell("command -v cpack && command -v dpkg-deb && command -v dpkg-shlibdeps").status != 0)
     GTEST_SKIP() << "cpack, dpkg-deb or dpkg-shlibdeps missing";
-  const ShellRun r = run_shell("timeout 150 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
+  const ShellRun r = run_shell("timeout 170 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("packages: ok"), std::string::npos) << r.out;
 }

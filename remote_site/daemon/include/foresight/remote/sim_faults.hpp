@@ -1,0 +1,43 @@
+#pragma once
+// Fault injection into the simulated site (--sim --sim-faults DIR), for the
+// hardware-in-the-loop tests and drills: a file in DIR stands for a fault of
+// the simulated hardware, so a test process can break the daemon's hardware
+// from outside, as a real cabinet's hardware would break.
+//
+//   tool_jam        the LST's output cannot turn while the file exists
+//   ft_fault        the F/T sensor reports a sensor fault while it exists
+//   oru_stuck       the ORU stays fastened in its slot while it exists
+//   drive_emcy_J    joint J (1-based) faults once, with EMCY code = the file's
+//                   text in hex (default 2310, over-current), each time the
+//                   file appears
+//
+// A thread polls DIR every 20 ms. Not on a real cabinet (the option needs --sim).
+
+#include <atomic>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "foresight/remote/site.hpp"
+
+namespace foresight::remote {
+
+class SimFaultWatcher {
+ public:
+  /// Starts polling `dir` (created if missing). `site` must be simulated and outlive the watcher.
+  SimFaultWatcher(Site& site, std::string dir);
+  ~SimFaultWatcher();
+  SimFaultWatcher(const SimFaultWatcher&) = delete;
+  SimFaultWatcher& operator=(const SimFaultWatcher&) = delete;
+
+ private:
+  void run();
+  Site& site_;
+  std::string dir_;
+  std::vector<bool> emcy_present_;
+  bool jam_ = false, ft_fault_ = false, stuck_ = false;
+  std::atomic<bool> quit_{false};
+  std::thread thread_;
+};
+
+}  // namespace foresight::remote

@@ -1,0 +1,69 @@
+#include "foresight/remote/sim_faults.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+#include "foresight/sim/can_simulator.hpp"
+#include "foresight/sim/lst_server.hpp"
+#include "foresight/sim/plant.hpp"
+
+namespace foresight::remote {
+
+namespace fs = std::filesystem;
+
+SimFaultWatcher::SimFaultWatcher(Site& site, std::string dir) : site_(site), dir_(std::move(dir)) {
+  if (!site_.simulated) throw std::invalid_argument("--sim-faults needs --sim");
+  fs::create_directories(dir_);
+  emcy_present_.assign(site_.simulated->can->drive_count(), false);
+  thread_ = std::thread([this] { run(); });
+}
+
+SimFaultWatcher::~SimFaultWatcher() {
+  quit_.store(true);
+  if (thread_.joinable()) thread_.join();
+}
+
+void SimFaultWatcher::run() {
+  auto& sim = *site_.simulated;
+  auto level = [&](const char* name, bool& state, const auto& apply) {
+    std::error_code ec;
+    const bool now = fs::exists(fs::path(dir_) / name, ec);
+    if (now == state) return;
+    state = now;
+    spdlog::warn("simulated fault {}: {}", name, now ? "on" : "off");
+    apply(now);
+  };
+  while (!quit_.load()) {
+    level("tool_jam", jam_, [&](bool on) { sim.lst->set_jam(on); });
+    level("ft_fault", ft_fault_, [&](bool on) {
+      if (sim.can->ft_sensor()) sim.can->ft_sensor()->inject_sensor_fault(on);
+    });
+    level("oru_stuck", stuck_, [&](bool on) { sim.plant->set_oru_stuck(on); });
+    for (std::size_t j = 0; j < emcy_present_.size(); ++j) {
+      const fs::path p = fs::path(dir_) / ("drive_emcy_" + std::to_string(j + 1));
+      std::error_code ec;
+      const bool now = fs::exists(p, ec);
+      if (now && !emcy_present_[j]) {
+        std::uint16_t code = 0x2310;
+        std::ifstream in(p);
+        std::string text;
+        if (in >> text) {
+          try {
+            code = static_cast<std::uint16_t>(std::stoul(text, nullptr, 16));
+          } catch (const std::exception&) {
+          }
+        }
+        spdlog::warn("simulated fault: joint {} EMCY 0x{:04x}", j + 1, code);
+        sim.can->drive(j).inject_fault(code);
+      }
+      emcy_present_[j] = now;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+}  // namespace foresight::remote
