@@ -283,6 +283,32 @@ int run_daemon(const Options& o) {
   const std::string why = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "stop requested";
   spdlog::info("{}: controlled stop (category 1), drives off", why);
   supervisor.shutdown(why);
+  {
+    // The loop's timing over the whole run, for the engineer (and the README).
+    const control::LoopStats st = loop.stats();
+    using LS = control::LoopStats;
+    nlohmann::json j;
+    j["cycles"] = st.cycles;
+    j["overruns"] = st.overruns;
+    j["realtime"] = st.realtime;
+    j["compute_us"] = {{"mean", st.compute_us_mean},
+                       {"p99", LS::percentile_us(st.compute_hist, 0.99)},
+                       {"max", st.compute_us_max}};
+    j["wakeup_latency_us"] = {{"mean", st.wakeup_latency_us_mean},
+                              {"p99", LS::percentile_us(st.latency_hist, 0.99)},
+                              {"p999", LS::percentile_us(st.latency_hist, 0.999)},
+                              {"max", st.wakeup_latency_us_max}};
+    spdlog::info("control loop: {}", j.dump());
+    journal::EventRow row;
+    row.kind = "loop_stats";
+    row.text = std::to_string(st.cycles) + " cycles, " + std::to_string(st.overruns) + " overruns";
+    row.detail = j.dump();
+    try {
+      journal.record_event(row);
+    } catch (const std::exception& e) {
+      spdlog::error("journal: {}", e.what());
+    }
+  }
   link_ptr = nullptr;
   link.stop();
   if (!journal.flush()) spdlog::warn("journal: telemetry not flushed within the timeout");
