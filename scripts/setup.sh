@@ -17,6 +17,7 @@ PACKAGES=(
   nlohmann-json3-dev libbenchmark-dev libssl-dev iproute2
   libsqlite3-dev sqlite3
   libsystemd-dev
+  fastddsgen libfastrtps-dev
 )
 
 missing=()
