@@ -6,7 +6,8 @@
 #     OSMesa, EGL) and the binary links none (ldd); the cabinet's remote.yaml
 #     names SocketCAN interfaces.
 #   foresight-ground: the CLI and its config; it depends on OpenCV.
-#   both: `apt-get install --simulate ./x.deb` resolves (when apt has lists).
+#   both: `apt-get install --simulate ./x.deb` resolves on an empty system (when
+#     apt has package lists): what `apt-get install ./x.deb` does on a fresh Debian 12.
 #
 #   bash remote_site/deploy/test_packages.sh BUILD_DIR     (prints "packages: ok")
 # Needs foresight-remote and foresight built in BUILD_DIR, cpack, dpkg-deb,
@@ -73,12 +74,16 @@ gdepends=$(dpkg-deb -f "$ground" Depends)
 echo "foresight-ground Depends: $gdepends"
 grep -q 'libopencv' <<<"$gdepends" || fail "foresight-ground does not depend on OpenCV: $gdepends"
 
-# ---- dependencies resolve on this Debian (apt-get's own solver, nothing installed) ---------
+# ---- dependencies resolve on a fresh Debian 12 -------------------------------------------------
+# apt-get's own solver against an empty dpkg status (a machine with nothing
+# installed) and this machine's package lists; nothing is installed.
 if command -v apt-get >/dev/null && [[ -n $(ls /var/lib/apt/lists/ 2>/dev/null | grep -v -e lock -e partial -e auxfiles) ]]; then
+  : >"$tmp/empty_status"
   for deb in "$remote" "$ground"; do
-    apt-get install --simulate -qq "$deb" >"$tmp/apt.log" 2>&1 || { cat "$tmp/apt.log" >&2; fail "apt-get cannot install $(basename "$deb")"; }
+    apt-get install --simulate -o Dir::State::status="$tmp/empty_status" "$deb" >"$tmp/apt.log" 2>&1 ||
+      { tail -20 "$tmp/apt.log" >&2; fail "apt-get cannot install $(basename "$deb") on a fresh machine"; }
+    echo "apt-get install --simulate $(basename "$deb") on an empty system: $(grep -c '^Inst' "$tmp/apt.log") packages"
   done
-  echo "apt-get install --simulate: both resolve"
 else
   echo "apt-get install --simulate: skipped (no apt lists)"
 fi
