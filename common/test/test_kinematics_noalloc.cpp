@@ -1,126 +1,20 @@
 // The real-time half of the kinematics contract: with a pre-built workspace,
-// forward_kinematics, jacobian and gravity_torques never touch the heap.
-// This binary replaces global operator new/delete AND interposes the C
-// allocator (malloc, calloc, realloc, the aligned forms; Eigen and KDL's
-// Eigen-backed arrays allocate through malloc, not operator new) with counting
-// versions that forward to glibc's __libc_* functions. The counter is armed
-// only around the calls under test. (glibc-specific, like the project.)
+// forward_kinematics, jacobian and gravity_torques never touch the heap,
+// counted through both operator new and malloc (foresight/test/allocation_counter.hpp:
+// Eigen and KDL's Eigen-backed arrays allocate through malloc).
 
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
-#include <new>
 #include <random>
 #include <vector>
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/robot_model.hpp"
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-}
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-inline void count() {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
-}
-void* checked(void* p) {
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-// ---- the C allocator ----
-extern "C" {
-void* malloc(std::size_t n) {
-  count();
-  return __libc_malloc(n);
-}
-void* calloc(std::size_t n, std::size_t size) {
-  count();
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t n) {
-  count();
-  return __libc_realloc(p, n);
-}
-void* memalign(std::size_t a, std::size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-void* aligned_alloc(std::size_t a, std::size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-int posix_memalign(void** out, std::size_t a, std::size_t n) {
-  count();
-  void* p = __libc_memalign(a, n);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* p) { __libc_free(p); }
-}
-
-// ---- C++ operator new/delete ----
-void* operator new(std::size_t n) {
-  count();
-  return checked(__libc_malloc(n == 0 ? 1 : n));
-}
-void* operator new[](std::size_t n) {
-  count();
-  return checked(__libc_malloc(n == 0 ? 1 : n));
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  count();
-  return __libc_malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  count();
-  return __libc_malloc(n == 0 ? 1 : n);
-}
-void* operator new(std::size_t n, std::align_val_t a) {
-  count();
-  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  count();
-  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
-}
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+#include "foresight/test/allocation_counter.hpp"
 
 using namespace foresight;
-
-namespace {
-
-/// Counts allocations made while it is alive (this thread's calls only run then).
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    g_allocations = 0;
-    g_counting = true;
-  }
-  ~AllocationCounter() { g_counting = false; }
-  long count() const { return g_allocations.load(); }
-};
-
-}  // namespace
+using foresight::test::AllocationCounter;
 
 TEST(KinematicsNoAlloc, CounterSeesAllocations) {
   // The guard itself must work, or the tests below prove nothing.

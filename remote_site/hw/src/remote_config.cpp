@@ -89,12 +89,7 @@ std::string drive_name(std::size_t i, const std::string& joint) {
 
 RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string& source_name) {
   Parser p(source_name);
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::ParserException& e) {
-    throw InputError(source_name, e.mark.line + 1, "YAML syntax: " + e.msg);
-  }
+  const YAML::Node root = yaml::parse(yaml_text, source_name);  // the project's one wording for malformed YAML
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",

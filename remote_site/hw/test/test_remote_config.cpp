@@ -118,7 +118,10 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
                 .find("buses[0] (a): bitrate 900000 is not a CiA 301 bit rate"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 300\n"))
                 .find("is not a multiple of 0.1 ms"), std::string::npos);
-  EXPECT_NE(error_of("cycle_rate_hz: [500\n").find("remote.yaml:"), std::string::npos);
+  // Malformed YAML in the words every config reader uses (common/yaml_util).
+  const std::string malformed = error_of("cycle_rate_hz: [500\n");
+  EXPECT_EQ(malformed.rfind("remote.yaml:", 0), 0u) << malformed;
+  EXPECT_NE(malformed.find(": malformed YAML: "), std::string::npos) << malformed;
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: fast}\n"))
                 .find("'bitrate' has a value of the wrong type: 'fast'"), std::string::npos);
   try {

@@ -1,44 +1,33 @@
 // ContactModel::compute and LstMechanism::step are documented RT-safe: they
-// must not touch the heap. Own binary: replaces global operator new/delete
-// to count allocations inside a window.
+// must not touch the heap. Own binary: counts operator new AND malloc inside
+// a window (foresight/test/allocation_counter.hpp; Eigen allocates through malloc).
 #include <gtest/gtest.h>
 
-#include <atomic>
+#include <cmath>
 #include <cstdlib>
-#include <new>
 #include <vector>
 
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/sim/contact_model.hpp"
 #include "foresight/sim/screw_model.hpp"
+#include "foresight/test/allocation_counter.hpp"
 
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-
+using foresight::test::AllocationCounter;
 using namespace foresight;
 using namespace foresight::sim;
 
 TEST(RtSafety, TheCounterCounts) {
-  g_allocations = 0;
-  g_counting = true;
-  std::vector<double>* v = new std::vector<double>(static_cast<std::size_t>(100 + g_allocations.load()));
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 2);  // the vector object and its buffer
-  delete v;
+  long seen = 0;
+  {
+    AllocationCounter counter;
+    std::vector<double>* v = new std::vector<double>(100);  // the vector object and its buffer
+    Eigen::VectorXd x(50);                                  // Eigen: malloc
+    x.setZero();
+    seen = counter.count();
+    delete v;
+  }
+  EXPECT_EQ(seen, 3);
 }
 
 TEST(RtSafety, ContactComputeDoesNotAllocate) {
@@ -49,18 +38,20 @@ TEST(RtSafety, ContactComputeDoesNotAllocate) {
   v.v_m_s = Eigen::Vector3d(0.01, -0.02, 0.005);
   v.w_rad_s = Eigen::Vector3d(0.1, 0.0, -0.2);
   double sum = 0.0;
-  g_allocations = 0;
-  g_counting = true;
-  for (int i = 0; i < 1000; ++i) {
-    // Sweep through face, rim, wall and bottom contacts.
-    const double z = -0.01 + 0.1 * i / 1000.0;
-    const double x = 0.002 * std::sin(0.05 * i);
-    Pose oru_T_tip(Eigen::Translation3d(x, 0.0, z));
-    oru_T_tip.linear() = Eigen::AngleAxisd(0.03 * std::cos(0.02 * i), Eigen::Vector3d::UnitY()).toRotationMatrix();
-    sum += model.compute(base_T_oru * oru_T_tip, base_T_oru, v).sensor.force_n.norm();
+  long allocations = 0;
+  {
+    AllocationCounter counter;
+    for (int i = 0; i < 1000; ++i) {
+      // Sweep through face, rim, wall and bottom contacts.
+      const double z = -0.01 + 0.1 * i / 1000.0;
+      const double x = 0.002 * std::sin(0.05 * i);
+      Pose oru_T_tip(Eigen::Translation3d(x, 0.0, z));
+      oru_T_tip.linear() = Eigen::AngleAxisd(0.03 * std::cos(0.02 * i), Eigen::Vector3d::UnitY()).toRotationMatrix();
+      sum += model.compute(base_T_oru * oru_T_tip, base_T_oru, v).sensor.force_n.norm();
+    }
+    allocations = counter.count();
   }
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(allocations, 0);
   EXPECT_GT(sum, 0.0);  // contacts did happen
 }
 
@@ -72,10 +63,12 @@ TEST(RtSafety, ScrewStepDoesNotAllocate) {
   cmd.latch = true;
   cmd.speed_rad_s = 20.0;
   cmd.torque_limit_nm = 40.0;
-  g_allocations = 0;
-  g_counting = true;
-  for (int i = 0; i < 5000; ++i) m.step(cmd, 1e-3);
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  long allocations = 0;
+  {
+    AllocationCounter counter;
+    for (int i = 0; i < 5000; ++i) m.step(cmd, 1e-3);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
   EXPECT_TRUE(m.state().screw_free());
 }

@@ -1,50 +1,29 @@
 // The real-time cycle (cycle_read + cycle_write) must not touch the heap,
-// also when it reports faults. This binary replaces the global operator
-// new/delete and counts allocations made by the test thread only (the
+// also when it reports faults. Counted through both operator new and malloc
+// (foresight/test/allocation_counter.hpp), on the test thread only (the
 // simulator thread allocates freely; it is not real-time code).
 
-#include <atomic>
+#include <cmath>
 #include <cstdlib>
-#include <new>
+#include <vector>
 
+#include "foresight/test/allocation_counter.hpp"
 #include "sim_fixture.hpp"
-
-namespace {
-thread_local bool g_counting = false;
-std::atomic<long> g_allocations{0};
-
-void* counted_alloc(std::size_t n) {
-  if (g_counting) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return counted_alloc(n); }
-void* operator new[](std::size_t n) { return counted_alloc(n); }
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  if (g_counting) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(n ? n : 1);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  if (g_counting) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(n ? n : 1);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace foresight;
 using namespace foresight::test;
 
 TEST(RtAlloc, CounterWorks) {
-  g_allocations = 0;
-  g_counting = true;
-  auto* v = new std::vector<int>(100);
-  g_counting = false;
-  delete v;
-  EXPECT_GE(g_allocations.load(), 2);  // the guard can fail
+  long seen = 0;
+  {
+    AllocationCounter counter;
+    auto* v = new std::vector<int>(100);  // operator new, twice
+    void* p = std::malloc(64);            // and the C allocator
+    seen = counter.count();
+    std::free(p);
+    delete v;
+  }
+  EXPECT_EQ(seen, 3);  // the guard can fail
 }
 
 TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
@@ -53,7 +32,8 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
   rig.drives->request_tare(5);
   long frames = 0;
   int events = 0;
-  g_allocations = 0;
+  AllocationCounter counter;
+  counter.pause();
   for (int i = 0; i < 300; ++i) {
     // faults injected from the far end while the cycle runs
     if (i == 100) rig.sim->inject(0, hw::make_frame(0x181, {1, 2}));   // malformed TPDO
@@ -66,14 +46,14 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
     }
     std::this_thread::sleep_until(rig.deadline);
     rig.deadline += std::chrono::milliseconds(2);
-    g_counting = true;
+    counter.resume();
     const CycleStatus s = rig.drives->cycle_read(rig.fb, rig.ft);
     rig.drives->cycle_write(rig.targets);
-    g_counting = false;
+    counter.pause();
     frames += s.frames_received;
     events += s.event_count;
   }
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(counter.count(), 0);
   EXPECT_GT(frames, 300 * 9);  // the cycle did real work: 7 TPDOs + 2 F/T frames a cycle
   EXPECT_GE(events, 5);        // and reported the injected faults
 }

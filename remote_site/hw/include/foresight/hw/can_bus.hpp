@@ -23,12 +23,14 @@
 #include <utility>
 #include <vector>
 
+#include "foresight/common/error.hpp"
+
 namespace foresight::hw {
 
 /// A bus could not be opened or configured (set-up only).
-class CanError : public std::runtime_error {
+class CanError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 /// Result of one non-blocking read or write.

@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/common/error.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/hw/can_bus.hpp"
 #include "foresight/hw/canopen.hpp"
@@ -43,10 +44,11 @@ namespace foresight::hw {
 inline constexpr std::size_t kMaxJoints = 16;
 inline constexpr std::size_t kMaxBuses = 8;
 
-/// Set-up failure (configure/enable): says which bus, node and joint.
-class HwError : public std::runtime_error {
+/// Set-up failure (configure/enable): says which bus, node and joint. A
+/// ComputationError (foresight/common/error.hpp): an operation failed.
+class HwError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 /// An SDO transfer failed. kind says how; abort_code is the CiA 301 code
