@@ -69,7 +69,8 @@ const char* to_string(Op op) noexcept;  ///< the command word, e.g. "INVOKE_ALGO
 /// True for the commands sent to the robot.
 bool is_remote(Op op) noexcept;
 
-/// The remote's algorithms (INVOKE_ALGORITHM).
+/// The remote's algorithms (INVOKE_ALGORITHM): guarded_move, insert, latch,
+/// unlatch, loosen, tighten, pull_out, tare (re-zero the wrist F/T sensor).
 const std::vector<std::string>& algorithm_names();
 
 /// One value as written, with where it starts.

@@ -1,0 +1,30 @@
+#pragma once
+// The options every command that talks to the remote shares (CLI11; include
+// it only from commands/*.cpp that register a command).
+
+#include "command.hpp"
+
+namespace foresight::cli {
+
+struct LinkOptions {
+  int domain = -1;               ///< < 0: $FORESIGHT_DDS_DOMAIN, else 0
+  double connect_timeout_s = 10.0;
+  double timeout_s = 0.0;        ///< final-ack timeout; 0 = derived from the measured delay
+  bool json = false;
+};
+
+inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = true) {
+  sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
+      ->check(CLI::Range(0, 232));
+  sub.add_option("--connect-timeout", o.connect_timeout_s, "seconds to wait for the remote to answer")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  if (final_ack)
+    sub.add_option("--timeout", o.timeout_s,
+                   "seconds to wait for the final acknowledgement (default: the expected duration + 3 x the "
+                   "measured p99 round trip + 2 s)")
+        ->check(CLI::PositiveNumber);
+  sub.add_flag("--json", o.json, "print one JSON object");
+}
+
+}  // namespace foresight::cli

@@ -1,0 +1,215 @@
+// The link commands' shared helpers (link_session.hpp). Registers no command.
+#include "link_session.hpp"
+
+#include "foresight/common/plan.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <thread>
+
+namespace foresight::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::chrono::nanoseconds seconds(double s) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
+}
+
+std::string fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+}  // namespace
+
+int resolve_domain(int option) {
+  if (option >= 0) return option;
+  const char* env = std::getenv("FORESIGHT_DDS_DOMAIN");
+  if (env == nullptr || *env == '\0') return 0;
+  char* end = nullptr;
+  const long d = std::strtol(env, &end, 10);
+  if (end == env || *end != '\0' || d < 0 || d > 232)
+    throw std::invalid_argument(std::string("FORESIGHT_DDS_DOMAIN: '") + env + "' is not a DDS domain id (0-232)");
+  return static_cast<int>(d);
+}
+
+std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s) {
+  ground_link::Config config;
+  config.domain = domain;
+  auto link = std::make_unique<ground_link::GroundLink>(config);
+  if (!link->wait_for_remote(seconds(timeout_s)))
+    throw LinkFailure("no remote answered on DDS domain " + std::to_string(domain) + " within " +
+                      fixed(timeout_s, 1) + " s (is foresight-remote running? --domain / FORESIGHT_DDS_DOMAIN)");
+  return link;
+}
+
+std::chrono::nanoseconds final_ack_timeout(const ground_link::GroundLink& link, double expected_s,
+                                           double override_s) {
+  return override_s > 0 ? seconds(override_s) : link.timeout_for(expected_s);
+}
+
+ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control::CommandKind kind,
+                                         const control::Payload& payload, std::chrono::nanoseconds timeout,
+                                         const std::function<bool()>& interrupted) {
+  const auto t0 = Clock::now();
+  const std::uint64_t id = link.send(kind, payload);
+  const auto deadline = t0 + timeout;
+  bool aborted = false;
+  ground_link::CommandResult r;
+  r.command_id = id;
+  while (Clock::now() < deadline) {
+    const auto slice = std::min<std::chrono::nanoseconds>(std::chrono::milliseconds(100), deadline - Clock::now());
+    r = link.wait_final(id, slice);
+    if (r.finished) break;
+    if (!aborted && interrupted && interrupted()) {
+      aborted = true;
+      control::Abort a;
+      a.target_command_id = id;
+      a.category = control::StopCategory::Cat2;
+      a.reason = "canceled by the operator";
+      link.send(control::CommandKind::Abort, a);
+    }
+  }
+  r.elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return r;
+}
+
+nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r) {
+  nlohmann::json acks = nlohmann::json::array();
+  for (const auto& a : r.acks)
+    acks.push_back({{"state", control::to_string(a.state)}, {"code", control::to_string(a.code)}, {"reason", a.reason}});
+  return {{"command", control::to_string(kind)},
+          {"command_id", r.command_id},
+          {"state", r.finished ? control::to_string(r.state) : "timeout"},
+          {"code", control::to_string(r.code)},
+          {"reason", r.reason},
+          {"finished", r.finished},
+          {"elapsed_s", r.elapsed_s},
+          {"final_q_rad", r.final_q_rad},
+          {"acks", acks}};
+}
+
+std::string result_line(control::CommandKind kind, const ground_link::CommandResult& r) {
+  std::string s = std::string(control::to_string(kind)) + " " + std::to_string(r.command_id) + ": ";
+  if (!r.finished) {
+    const std::string last = r.acks.empty() ? "no ack" : control::to_string(r.acks.back().state);
+    return s + "timed out after " + fixed(r.elapsed_s, 1) + " s waiting for the final ack (last: " + last + ")";
+  }
+  s += control::to_string(r.state);
+  if (r.state == control::AckState::Completed) return s + " in " + fixed(r.elapsed_s, 2) + " s";
+  s += std::string(" (") + control::to_string(r.code) + ")";
+  if (!r.reason.empty()) s += ": " + r.reason;
+  return s;
+}
+
+int exit_status(const ground_link::CommandResult& r) { return r.succeeded() ? 0 : 1; }
+
+std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
+                                                                    double timeout_s) {
+  const auto deadline = Clock::now() + seconds(timeout_s);
+  while (true) {
+    if (auto j = link.joint_state()) return j;
+    if (Clock::now() >= deadline) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const Trajectory& trajectory,
+                                           double timeout_s) {
+  const auto r = link.upload(trajectory, seconds(timeout_s));
+  if (r.state == control::UploadState::Committed && r.local_hash != r.remote_hash)
+    throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": the remote committed hash " +
+                      to_hex(r.remote_hash) + " but the local hash is " + to_hex(r.local_hash));
+  if (r.state == control::UploadState::Rejected || r.state == control::UploadState::Discarded)
+    throw LinkFailure("upload " + std::to_string(r.trajectory_id) + " rejected (" + control::to_string(r.code) +
+                      ")" + (r.reason.empty() ? "" : ": " + r.reason));
+  if (r.state != control::UploadState::Committed)
+    throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": not committed within " + fixed(timeout_s, 1) +
+                      " s");
+  return r;
+}
+
+double planned_goto_duration_s(const RobotModel& model, const std::vector<double>& q_now,
+                               const control::Payload& payload) {
+  if (static_cast<int>(q_now.size()) != model.dof())
+    throw PlanError("the remote reported " + std::to_string(q_now.size()) + " joints; the model has " +
+                    std::to_string(model.dof()));
+  const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(q_now.data(), model.dof());
+  Goal goal;
+  PlanOptions options;
+  if (const auto* gj = std::get_if<control::GotoJoint>(&payload)) {
+    goal.name = "goto_joint";
+    goal.kind = SegmentKind::Joint;
+    goal.is_pose = false;
+    goal.q = Eigen::Map<const Eigen::VectorXd>(gj->q_rad.data(), static_cast<Eigen::Index>(gj->q_rad.size()));
+    options.limit_fraction = gj->speed_fraction;
+  } else if (const auto* gc = std::get_if<control::GotoCart>(&payload)) {
+    goal.name = "goto_cart";
+    goal.kind = SegmentKind::Linear;
+    goal.base_T_tip = gc->base_T_frame;
+    options.limit_fraction = gc->speed_fraction;
+    options.tool_speed_m_s = 0.1 * gc->speed_fraction;
+  } else {
+    throw std::invalid_argument("planned_goto_duration_s: not a goto payload");
+  }
+  return plan_motion(model, q0, {goal}, options).trajectory.duration_s();
+}
+
+nlohmann::json status_json(const ground_link::GroundLink& link) {
+  const auto d = link.delay().stats();
+  nlohmann::json j;
+  j["rtt_s"] = {{"median", d.median_s}, {"p95", d.p95_s},         {"p99", d.p99_s},
+                {"max", d.max_s},       {"min", d.min_s},         {"count", d.count},
+                {"share_over_0_5s", d.share_over_0_5s}, {"share_over_4s", d.share_over_4s}};
+  j["clock_offset_s"] = d.clock_offset_s;
+  j["remote_alive"] = link.remote_alive();
+  j["session_id"] = link.session_id();
+  nlohmann::json faults = nlohmann::json::array();
+  if (const auto js = link.joint_state()) {
+    j["joints_rad"] = js->value.q_rad;
+    j["joint_velocities_rad_s"] = js->value.dq_rad_s;
+    j["joints_age_s"] = js->age_s;
+  } else {
+    j["joints_rad"] = nlohmann::json::array();
+    j["joints_age_s"] = nullptr;
+  }
+  if (const auto st = link.status()) {
+    const auto& s = st->value;
+    j["state"] = control::to_string(s.mode);
+    j["active_command_id"] = s.active_command_id;
+    j["active_trajectory_id"] = s.active_trajectory_id;
+    j["stop_category"] = control::to_string(s.stop_category);
+    j["stop_reason"] = s.stop_reason;
+    j["fault_bits"] = s.fault_bits;
+    j["status_age_s"] = st->age_s;
+    if (s.fault_bits != 0 || !s.fault_text.empty())
+      faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
+    if (s.stop_category != control::StopCategory::None)
+      faults.push_back(std::string("stop ") + control::to_string(s.stop_category) +
+                       (s.stop_reason.empty() ? "" : ": " + s.stop_reason));
+  } else {
+    j["state"] = "unknown";
+  }
+  if (const auto t = link.tool()) {
+    const auto& v = t->value;
+    j["tool"] = {{"latched", v.latched}, {"running", v.running}, {"direction", v.direction},
+                 {"turns", v.turns},     {"torque_nm", v.torque_nm}, {"fault_bits", v.fault_bits},
+                 {"age_s", t->age_s}};
+    if (v.fault_bits != 0) faults.push_back("tool fault bits " + std::to_string(v.fault_bits));
+  }
+  if (const auto w = link.wrench()) {
+    j["wrench"] = {{"force_tool_n", w->value.force_tool_n},
+                   {"torque_tool_nm", w->value.torque_tool_nm},
+                   {"saturated", w->value.saturated},
+                   {"age_s", w->age_s}};
+    if (w->value.saturated) faults.push_back("F/T sensor saturated");
+  }
+  j["faults"] = faults;
+  return j;
+}
+
+}  // namespace foresight::cli

@@ -1,0 +1,83 @@
+#pragma once
+// What the link commands (status, send, abort, request, goto, invoke,
+// take-control, release-control, recover, watch) and `run` share: the DDS
+// domain, connecting to the remote, waiting for a command's final
+// acknowledgement (interruptible), and printing outcomes. No CLI11 here (it is
+// slow to compile); each command file adds its own options. Not real-time.
+
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "foresight/common/robot_model.hpp"
+#include "foresight/common/trajectory.hpp"
+#include "foresight/control/command.hpp"
+#include "foresight/ground_link/ground_link.hpp"
+
+namespace foresight::cli {
+
+/// The remote did not answer, an upload was not committed, or a command was
+/// rejected/failed/timed out (exit 1).
+class LinkFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The DDS domain: `option` when >= 0, else $FORESIGHT_DDS_DOMAIN, else 0.
+/// std::invalid_argument "FORESIGHT_DDS_DOMAIN: 'x' is not a DDS domain id (0-232)".
+int resolve_domain(int option);
+
+/// Joins the domain and waits for the remote (its command reader matched and a
+/// first pong), at most `timeout_s`. LinkFailure "no remote answered on DDS
+/// domain D within T s".
+std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s);
+
+/// How long a command may take before its final ack: the link's
+/// timeout_for(expected_s), or `override_s` when > 0.
+std::chrono::nanoseconds final_ack_timeout(const ground_link::GroundLink& link, double expected_s,
+                                           double override_s);
+
+/// Sends and waits for the final ack, polling `interrupted` every 0.1 s (may be
+/// empty). When it returns true the command is aborted (ABORT of its id,
+/// category 2) and the wait goes on for its final ack (CANCELED). A timeout
+/// leaves result.finished false.
+ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control::CommandKind kind,
+                                         const control::Payload& payload, std::chrono::nanoseconds timeout,
+                                         const std::function<bool()>& interrupted = {});
+
+/// {"command", "command_id", "state", "code", "reason", "finished", "elapsed_s", "final_q_rad", "acks"}.
+nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r);
+/// One line: "goto_joint 12: completed in 3.2 s" or "... rejected (busy): reason"
+/// or "... timed out after 5.0 s waiting for the final ack (last: queued)".
+std::string result_line(control::CommandKind kind, const ground_link::CommandResult& r);
+
+/// Every trajectory/goto/algorithm command's exit status: 0 on COMPLETED, else 1.
+int exit_status(const ground_link::CommandResult& r);
+
+/// The latest joint angles, waiting for the first report at most `timeout_s`.
+std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
+                                                                    double timeout_s);
+
+/// Uploads and waits for COMMITTED with the remote's hash equal to the local
+/// one (LinkFailure otherwise, naming both hashes or the rejection reason).
+ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const Trajectory& trajectory,
+                                           double timeout_s);
+
+/// The duration of the path the remote will plan for a GOTO_JOINT or GOTO_CART
+/// from joints `q_now` (the same common plan_motion, the same options as the
+/// remote's supervisor). Throws PlanError when the goal cannot be planned (the
+/// remote would answer Unreachable).
+double planned_goto_duration_s(const RobotModel& model, const std::vector<double>& q_now,
+                               const control::Payload& payload);
+
+/// The status object of `foresight status --json` (keys: rtt_s{median, p95,
+/// p99, max, count, share_over_0_5s, share_over_4s}, clock_offset_s,
+/// joints_rad[], joints_age_s, state, active_command_id, stop_category,
+/// stop_reason, faults[], tool{...}, wrench{...}, remote_alive).
+nlohmann::json status_json(const ground_link::GroundLink& link);
+
+}  // namespace foresight::cli

@@ -1,0 +1,459 @@
+// `foresight run`'s command runner (script_runner.hpp). Registers no command.
+#include "script_runner.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <thread>
+
+#include "foresight/common/plan.hpp"
+#include "foresight/common/trajectory.hpp"
+#include "foresight/render/overlay_inputs.hpp"
+#include "link_session.hpp"
+
+namespace foresight::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using script::CommandState;
+using script::Op;
+using script::Outcome;
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::string joints_text(const Eigen::VectorXd& q) {
+  std::string out;
+  char buf[32];
+  for (Eigen::Index i = 0; i < q.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%.9g", q[i]);
+    out += (i ? "," : "") + std::string(buf);
+  }
+  return out;
+}
+
+Outcome failed(const std::string& message, Clock::time_point t0) {
+  return {CommandState::Failed, message, since(t0)};
+}
+Outcome done(const std::string& message, Clock::time_point t0) {
+  return {CommandState::Completed, message, since(t0)};
+}
+
+Outcome from_result(control::CommandKind kind, const ground_link::CommandResult& r, Clock::time_point t0) {
+  Outcome o;
+  o.seconds = since(t0);
+  o.message = result_line(kind, r);
+  if (r.succeeded()) o.state = CommandState::Completed;
+  else if (r.finished && r.state == control::AckState::Canceled) o.state = CommandState::Canceled;
+  else o.state = CommandState::Failed;
+  return o;
+}
+
+}  // namespace
+
+ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::GroundLink> link)
+    : s_(std::move(settings)),
+      link_(std::move(link)),
+      model_(RobotModel::from_file(s_.robot)),
+      object_(ObjectModel::from_file(s_.object)),
+      scene_(Scene::from_file(s_.scene)),
+      ws_(model_) {
+  std::filesystem::create_directories(s_.work_dir);
+  journal_.open(path("run.jsonl"), std::ios::app);
+  if (!journal_) throw InputError(path("run.jsonl"), "cannot write the journal");
+  if (s_.object_pose == "scene") {
+    base_T_object_ = scene_.base_T_object;
+    pose_source_ = s_.scene + " (the work site's true pose)";
+  } else if (!s_.object_pose.empty()) {
+    base_T_object_ = render::read_object_pose_json(s_.object_pose);
+    pose_source_ = s_.object_pose;
+  }
+  if (link_) {
+    const auto j = wait_joints(*link_, 10.0);
+    if (!j) throw LinkFailure("no joint report from the remote within 10 s");
+    q_ = Eigen::Map<const Eigen::VectorXd>(j->value.q_rad.data(), static_cast<Eigen::Index>(j->value.q_rad.size()));
+    if (q_.size() != model_.dof())
+      throw LinkFailure("the remote reports " + std::to_string(q_.size()) + " joints; the model has " +
+                        std::to_string(model_.dof()));
+  } else {
+    if (s_.q_from.size() != model_.dof()) throw std::invalid_argument("--dry-run needs --from or --from-deg");
+    q_ = s_.q_from;
+  }
+  q_start_ = q_;
+}
+
+script::ScriptContext ScriptRunner::context_for(const RobotModel& model, const ObjectModel& object,
+                                                const Scene& scene) {
+  script::ScriptContext ctx;
+  for (const auto& [name, T] : object.tags) ctx.tags.insert(name);
+  for (const auto& [name, cam] : scene.cameras) ctx.cameras.insert(name);
+  ctx.objects.insert(object.name);
+  ctx.joints = model.dof();
+  for (const auto& l : model.limits()) {
+    ctx.lower_rad.push_back(l.lower_rad);
+    ctx.upper_rad.push_back(l.upper_rad);
+  }
+  return ctx;
+}
+
+std::string ScriptRunner::path(const std::string& name) const { return s_.work_dir + "/" + name; }
+
+void ScriptRunner::say(const std::string& line) const { (s_.quiet ? std::cerr : std::cout) << "    " << line << "\n"; }
+
+void ScriptRunner::journal(const script::Command& c, const Outcome& o, nlohmann::json extra) {
+  extra["line"] = c.line;
+  extra["command"] = c.text;
+  extra["outcome"] = script::to_string(o.state);
+  extra["message"] = o.message;
+  extra["seconds"] = o.seconds;
+  extra["dry_run"] = s_.dry_run;
+  journal_ << extra.dump() << "\n" << std::flush;
+}
+
+int ScriptRunner::child(const std::vector<std::string>& args, const std::string& stdout_path,
+                        const std::function<bool()>& interrupted, std::string* error) {
+  const std::string log = path("child.log");
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(s_.self_exe.c_str()));
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) {
+    *error = "fork failed";
+    return -1;
+  }
+  if (pid == 0) {
+    const int out = ::open(stdout_path.empty() ? "/dev/null" : stdout_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (out >= 0) ::dup2(out, 1);
+    if (err >= 0) ::dup2(err, 2);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  const auto deadline = Clock::now() + std::chrono::minutes(10);
+  int status = 0;
+  bool killed = false;
+  while (true) {
+    const pid_t w = ::waitpid(pid, &status, WNOHANG);
+    if (w == pid) break;
+    if (!killed && ((interrupted && interrupted()) || Clock::now() > deadline)) {
+      ::kill(pid, SIGTERM);
+      killed = true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  std::ifstream in(log);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  *error = killed ? "interrupted" : text;
+  if (killed) return -2;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+nlohmann::json ScriptRunner::update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted) {
+  nlohmann::json j;
+  if (static_cast<int>(reported.size()) != model_.dof()) {
+    j["update"] = "no final joints reported; the simulated arm keeps the predicted ones";
+    q_ = predicted;
+    return j;
+  }
+  const Eigen::VectorXd q = Eigen::Map<const Eigen::VectorXd>(reported.data(), model_.dof());
+  const double dq = (q - predicted).cwiseAbs().maxCoeff();
+  const Pose a = forward_kinematics(model_, ws_, predicted);
+  const Pose b = forward_kinematics(model_, ws_, q);
+  const double dp = (a.translation() - b.translation()).norm();
+  const double dr = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+  q_ = q;  // the paper's update step
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "update: reported final joints differ from the predicted by %.4f deg max; tool tip %.2f mm, %.3f deg",
+                dq * 180.0 / M_PI, dp * 1e3, dr * 180.0 / M_PI);
+  say(buf);
+  j["predicted_final_q_rad"] = std::vector<double>(predicted.data(), predicted.data() + predicted.size());
+  j["reported_final_q_rad"] = reported;
+  j["max_joint_difference_rad"] = dq;
+  j["tip_position_difference_m"] = dp;
+  j["tip_rotation_difference_deg"] = dr * 180.0 / M_PI;
+  return j;
+}
+
+Outcome ScriptRunner::run(const script::Command& c, const std::function<bool()>& interrupted) {
+  pending_journal_ = nlohmann::json::object();
+  Outcome o;
+  try {
+    if (c.op == Op::Trajectory || c.op == Op::Preview) o = trajectory(c, c.op == Op::Trajectory, interrupted);
+    else if (script::is_remote(c.op)) o = remote(c, interrupted);
+    else o = local(c, interrupted);
+  } catch (const std::exception& e) {  // a bad file, a link error: the command fails, the run stops here
+    o = {CommandState::Failed, e.what(), 0.0};
+  }
+  journal(c, o, pending_journal_);
+  return o;
+}
+
+Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()>& interrupted) {
+  const auto t0 = Clock::now();
+  switch (c.op) {
+    case Op::Graphics: graphics_ = c.positional[0].text; return done("graphics " + graphics_, t0);
+    case Op::Video: video_camera_ = c.positional[0].text; return done("video from camera " + video_camera_, t0);
+    case Op::Frame: frame_ = c.positional[0].text; return done("reference frame " + frame_, t0);
+    case Op::Tag: tag_ = c.positional[0].text; return done("tag " + tag_ + " selected", t0);
+    case Op::Grab: grabbed_ = true; return done("the object's graphics move with the tool", t0);
+    case Op::Release: grabbed_ = false; return done("the object's graphics stay where they are", t0);
+    case Op::Object:
+      if (c.has("pose")) {
+        base_T_object_ = render::read_object_pose_json(c.text_or("pose", ""));
+        pose_source_ = c.text_or("pose", "");
+      }
+      return done("object " + c.positional[0].text + (pose_source_.empty() ? "" : ", pose from " + pose_source_), t0);
+    case Op::Calibrate: {
+      std::vector<std::string> cams = c.names("cameras");
+      if (cams.empty()) cams = scene_.camera_order;
+      const std::string points = c.text_or("points", path("arm_clicks.csv"));
+      const std::string out = s_.cameras.empty() ? path("cameras.yaml") : s_.cameras;
+      for (const auto& cam : cams) {
+        std::string err;
+        const int rc = child({"calibrate", points, "--camera", cam, "--out", out, "--robot", s_.robot}, "", interrupted, &err);
+        if (rc == -2) return {CommandState::Canceled, "calibration of " + cam + " interrupted", since(t0)};
+        if (rc != 0) return failed("calibrate " + cam + ": " + err, t0);
+        say("calibrated " + cam + " -> " + out);
+      }
+      s_.cameras = out;
+      return done("calibrated " + std::to_string(cams.size()) + " camera(s) into " + out, t0);
+    }
+    case Op::Localize: {
+      if (s_.cameras.empty()) return failed("no calibrated cameras: CALIBRATE first or give --cameras", t0);
+      const std::string points = c.text_or("points", path("oru_clicks.csv"));
+      const std::string out = path("localize.json");
+      std::vector<std::string> args = {"localize", points, "--cameras", s_.cameras, "--object", s_.object, "--json"};
+      if (c.has("views")) {
+        args.push_back("--views");
+        args.push_back(c.text_or("views", ""));
+      }
+      std::string err;
+      const int rc = child(args, out, interrupted, &err);
+      if (rc == -2) return {CommandState::Canceled, "localization interrupted", since(t0)};
+      if (rc != 0) return failed("localize: " + err, t0);
+      base_T_object_ = render::read_object_pose_json(out);
+      pose_source_ = out;
+      const Eigen::Vector3d p = base_T_object_->translation();
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "object at %.4f %.4f %.4f m (base) -> %s", p.x(), p.y(), p.z(), out.c_str());
+      return done(buf, t0);
+    }
+    default:
+      return failed(std::string("not a local command: ") + script::to_string(c.op), t0);
+  }
+}
+
+Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std::function<bool()>& interrupted) {
+  const auto t0 = Clock::now();
+  if (!base_T_object_) return failed("no object pose: LOCALIZE first, OBJECT oru pose=FILE, or --object-pose", t0);
+  std::vector<Goal> goals;
+  for (const auto& g : script::goals_of(c)) {
+    Goal goal;
+    goal.name = g.name;
+    goal.kind = g.linear ? SegmentKind::Linear : SegmentKind::Joint;
+    if (g.name == "start") {
+      goal.is_pose = false;
+      goal.q = q_start_;
+    } else {
+      goal.base_T_tip = *base_T_object_ * object_.tags.at(g.name);
+    }
+    goals.push_back(goal);
+  }
+  PlanOptions options;
+  options.limit_fraction = c.number_or("limit", options.limit_fraction);
+  options.tool_speed_m_s = c.number_or("speed_m_s", options.tool_speed_m_s);
+  options.dwell_s = c.number_or("dwell_s", options.dwell_s);
+  Plan plan;
+  try {
+    plan = plan_motion(model_, q_, goals, options);
+  } catch (const PlanError& e) {
+    return failed(std::string("not sent: ") + e.what(), t0);
+  }
+  const auto violations = validate(plan.trajectory, TrajectoryLimits::from_model(model_));
+  if (!violations.empty())
+    return failed("not sent: the path breaks " + std::to_string(violations.size()) + " rule(s): " + violations[0].message, t0);
+  ++motion_count_;
+  char stem[64];
+  std::snprintf(stem, sizeof stem, "line%03d_%02d", c.line, motion_count_);
+  const std::string csv = path(std::string(stem) + ".csv");
+  write_trajectory_csv(csv, plan.trajectory);
+  const std::string hash = to_hex(trajectory_hash(plan.trajectory));
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "planned %zu segment(s), %.2f s, %d samples -> %s", plan.segments.size(),
+                plan.trajectory.duration_s(), plan.trajectory.samples(), csv.c_str());
+  say(buf);
+  pending_journal_["trajectory"] = csv;
+  pending_journal_["sha256"] = hash;
+  pending_journal_["duration_s"] = plan.trajectory.duration_s();
+  if (s_.preview) {
+    const std::string camera = c.text_or("camera", video_camera_.empty() ? scene_.camera_order.front() : video_camera_);
+    if (s_.cameras.empty()) return failed("no calibrated cameras for the preview: CALIBRATE first, --cameras, or --no-preview", t0);
+    std::string image = s_.image;
+    std::string err;
+    if (image.empty()) {  // the synthetic camera stands in for the live video
+      image = path(std::string(stem) + "_video_" + camera + ".png");
+      const int rc = child({"synth", "--camera", camera, "--joints", joints_text(q_), "--out", image}, "", interrupted, &err);
+      if (rc == -2) return {CommandState::Canceled, "preview interrupted", since(t0)};
+      if (rc != 0) return failed("synth (the preview's video frame): " + err, t0);
+    }
+    const std::string video = path(std::string(stem) + "_preview.mp4");
+    const std::string sheet = path(std::string(stem) + "_sheet.png");
+    std::vector<std::string> args = {"preview", csv, "--cameras", s_.cameras, "--camera", camera, "--image", image,
+                                     "--out", video, "--contact-sheet", sheet, "--speed", std::to_string(s_.preview_speed),
+                                     "--robot", s_.robot, "--object", s_.object, "--scale-image"};
+    if (pose_source_ != "" && std::filesystem::exists(pose_source_)) {
+      args.push_back("--object-pose");
+      args.push_back(pose_source_);
+    }
+    const int rc = child(args, "", interrupted, &err);
+    if (rc == -2) return {CommandState::Canceled, "preview interrupted", since(t0)};
+    if (rc != 0) return failed("not sent: preview: " + err, t0);
+    say("preview " + video + ", contact sheet " + sheet);
+    pending_journal_["preview"] = video;
+    pending_journal_["contact_sheet"] = sheet;
+  }
+  say("sha256 " + hash);
+  const Eigen::VectorXd predicted = plan.trajectory.positions_rad.row(plan.trajectory.samples() - 1).transpose();
+  if (!send) return done("previewed, not sent (sha256 " + hash.substr(0, 12) + ")", t0);
+  if (s_.dry_run) {
+    q_ = predicted;
+    return done("dry run: not sent (sha256 " + hash.substr(0, 12) + ")", t0);
+  }
+  const auto up = upload_committed(*link_, plan.trajectory,
+                                   std::chrono::duration<double>(link_->timeout_for(1.0 + plan.trajectory.samples() * 1e-4)).count());
+  say("committed trajectory " + std::to_string(up.trajectory_id) + ": remote sha256 " + to_hex(up.remote_hash) +
+      " = local");
+  pending_journal_["remote_sha256"] = to_hex(up.remote_hash);
+  control::RunTrajectory run;
+  run.trajectory_id = up.trajectory_id;
+  run.content_hash = up.remote_hash;
+  run.compliant = c.flag_or("compliant", false);
+  const auto kind = control::CommandKind::Trajectory;
+  const auto r = send_and_wait(*link_, kind, run, final_ack_timeout(*link_, plan.trajectory.duration_s(), s_.timeout_s),
+                               interrupted);
+  Outcome o = from_result(kind, r, t0);
+  if (r.finished) pending_journal_.update(update_arm(r.final_q_rad, predicted));
+  return o;
+}
+
+Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool()>& interrupted) {
+  const auto t0 = Clock::now();
+  control::Payload payload;
+  control::CommandKind kind = control::CommandKind::Request;
+  double expected_s = 0.0;
+  std::optional<Eigen::VectorXd> predicted;
+  switch (c.op) {
+    case Op::InvokeAlgorithm: {
+      control::InvokeAlgorithm inv;
+      inv.name = c.positional[0].text;
+      inv.timeout_s = c.number_or("timeout_s", 0.0);
+      for (const auto& [k, v] : c.parameters()) inv.params.push_back({k, v});
+      payload = inv;
+      kind = control::CommandKind::InvokeAlgorithm;
+      expected_s = inv.timeout_s > 0 ? inv.timeout_s : 60.0;
+      break;
+    }
+    case Op::Request: {
+      control::Request r;
+      const std::string w = c.positional[0].text;
+      r.what = w == "joints"   ? control::RequestWhat::JointState
+               : w == "wrench" ? control::RequestWhat::Wrench
+               : w == "tool"   ? control::RequestWhat::ToolState
+               : w == "trajectories" ? control::RequestWhat::Trajectories
+                                     : control::RequestWhat::Status;
+      payload = r;
+      break;
+    }
+    case Op::Camera: {
+      control::CameraCommand cam;
+      cam.camera = c.positional[0].text;
+      const std::string a = c.text_or("action", "select");
+      cam.action = a == "point" ? control::CameraAction::Point
+                   : a == "grab" ? control::CameraAction::Grab
+                                 : control::CameraAction::Select;
+      cam.pan_rad = c.number_or("pan_deg", 0.0) * M_PI / 180.0;
+      cam.tilt_rad = c.number_or("tilt_deg", 0.0) * M_PI / 180.0;
+      cam.focal_px = c.number_or("focal_px", 0.0);
+      payload = cam;
+      kind = control::CommandKind::Camera;
+      break;
+    }
+    case Op::GotoJoint: {
+      control::GotoJoint g;
+      Eigen::VectorXd q = q_start_;
+      if (c.has("q") || c.has("q_deg")) {
+        const bool deg = c.has("q_deg");
+        const auto v = c.numbers(deg ? "q_deg" : "q");
+        q = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size())) * (deg ? M_PI / 180.0 : 1.0);
+      }
+      g.q_rad.assign(q.data(), q.data() + q.size());
+      g.speed_fraction = c.number_or("speed", 0.5);
+      payload = g;
+      kind = control::CommandKind::GotoJoint;
+      predicted = q;
+      break;
+    }
+    case Op::GotoCart: {
+      control::GotoCart g;
+      g.frame = "lst_tip";
+      if (c.has("tag")) {
+        if (!base_T_object_) return failed("no object pose: LOCALIZE first, OBJECT oru pose=FILE, or --object-pose", t0);
+        g.base_T_frame = *base_T_object_ * object_.tags.at(c.text_or("tag", ""));
+      } else {
+        const auto xyz = c.numbers("xyz_m");
+        auto rpy = c.numbers("rpy_deg");
+        if (rpy.empty()) rpy = {0, 0, 0};
+        g.base_T_frame = make_pose(Eigen::Vector3d(xyz[0], xyz[1], xyz[2]),
+                                   Eigen::Vector3d(rpy[0], rpy[1], rpy[2]) * M_PI / 180.0);
+      }
+      g.speed_fraction = c.number_or("speed", 0.5);
+      payload = g;
+      kind = control::CommandKind::GotoCart;
+      break;
+    }
+    default:
+      return failed(std::string("not a remote command: ") + script::to_string(c.op), t0);
+  }
+  if (kind == control::CommandKind::GotoJoint || kind == control::CommandKind::GotoCart) {
+    // Plan the remote's path here first: its duration bounds the wait, and a
+    // goal that cannot be planned is not sent.
+    try {
+      std::vector<double> q(q_.data(), q_.data() + q_.size());
+      expected_s = planned_goto_duration_s(model_, q, payload);
+    } catch (const PlanError& e) {
+      return failed(std::string("not sent: ") + e.what(), t0);
+    }
+    if (!predicted) {  // GOTO_CART: the IK end point of the same plan
+      const auto& gc = std::get<control::GotoCart>(payload);
+      Goal goal;
+      goal.kind = SegmentKind::Linear;
+      goal.base_T_tip = gc.base_T_frame;
+      PlanOptions options;
+      options.limit_fraction = gc.speed_fraction;
+      options.tool_speed_m_s = 0.1 * gc.speed_fraction;
+      predicted = plan_motion(model_, q_, {goal}, options).segments.back().q_end;
+    }
+  }
+  if (s_.dry_run) {
+    if (predicted) q_ = *predicted;
+    return done(std::string("dry run: ") + control::to_string(kind) + " not sent", t0);
+  }
+  const auto r = send_and_wait(*link_, kind, payload, final_ack_timeout(*link_, expected_s, s_.timeout_s), interrupted);
+  Outcome o = from_result(kind, r, t0);
+  if (r.finished && !r.final_q_rad.empty()) {
+    if (predicted) pending_journal_.update(update_arm(r.final_q_rad, *predicted));
+    else q_ = Eigen::Map<const Eigen::VectorXd>(r.final_q_rad.data(), static_cast<Eigen::Index>(r.final_q_rad.size()));
+  }
+  return o;
+}
+
+}  // namespace foresight::cli

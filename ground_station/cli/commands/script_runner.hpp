@@ -1,0 +1,81 @@
+#pragma once
+// `foresight run`'s command runner: each task-script command (script.hpp)
+// carried out on the ground and, for the remote ones, over the link. CALIBRATE,
+// LOCALIZE and the preview rendering run this same executable as a child
+// (`foresight calibrate|localize|synth|preview`) so the run does exactly what
+// those commands do; planning is in-process (common plan_motion). Not
+// real-time code. No CLI11 here.
+
+#include <Eigen/Core>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/pose.hpp"
+#include "foresight/common/robot_model.hpp"
+#include "foresight/common/scene.hpp"
+#include "foresight/ground_link/ground_link.hpp"
+#include "foresight/script/executor.hpp"
+
+namespace foresight::cli {
+
+struct RunSettings {
+  std::string work_dir = ".";     ///< trajectories, previews, cameras.yaml, localize.json, run.jsonl
+  std::string self_exe;           ///< this executable (for the child commands)
+  std::string robot, object, scene;
+  std::string cameras;            ///< cameras.yaml (CALIBRATE writes work/cameras.yaml)
+  std::string image;              ///< video frame for previews ("": synthesized by `foresight synth`)
+  std::string object_pose;        ///< localize JSON, "scene" (the work site's true pose) or ""
+  bool preview = true;            ///< render every TRAJECTORY / PREVIEW
+  double preview_speed = 4.0;     ///< preview playback speed
+  bool dry_run = false;           ///< nothing sent; the simulated arm follows the plan
+  Eigen::VectorXd q_from;         ///< dry run: the start joints
+  double timeout_s = 0.0;         ///< final-ack override (0: derived from the delay)
+  bool quiet = false;             ///< --json: progress goes to stderr
+};
+
+class ScriptRunner : public script::CommandRunner {
+ public:
+  /// Loads the models; connects unless dry_run (LinkFailure when no remote).
+  ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::GroundLink> link);
+  script::Outcome run(const script::Command& command, const std::function<bool()>& interrupted) override;
+
+  /// The configuration a script is checked against (tags, cameras, objects,
+  /// joint count and limits), before anything connects.
+  static script::ScriptContext context_for(const RobotModel& model, const ObjectModel& object, const Scene& scene);
+  const Eigen::VectorXd& q_current() const { return q_; }
+
+ private:
+  script::Outcome local(const script::Command& c, const std::function<bool()>& interrupted);
+  script::Outcome trajectory(const script::Command& c, bool send, const std::function<bool()>& interrupted);
+  script::Outcome remote(const script::Command& c, const std::function<bool()>& interrupted);
+  /// The paper's update step: the simulated arm takes the reported joints;
+  /// returns the journal fields comparing them with the predicted ones.
+  nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted);
+  int child(const std::vector<std::string>& args, const std::string& stdout_path,
+            const std::function<bool()>& interrupted, std::string* error);
+  std::string path(const std::string& name) const;
+  void say(const std::string& line) const;
+  void journal(const script::Command& c, const script::Outcome& o, nlohmann::json extra);
+
+  RunSettings s_;
+  std::unique_ptr<ground_link::GroundLink> link_;
+  RobotModel model_;
+  ObjectModel object_;
+  Scene scene_;
+  KinematicsWorkspace ws_;
+  Eigen::VectorXd q_, q_start_;
+  std::optional<Pose> base_T_object_;
+  std::string pose_source_;
+  std::string video_camera_, graphics_ = "hidden", frame_ = "world", tag_;
+  bool grabbed_ = false;
+  int motion_count_ = 0;
+  std::ofstream journal_;
+  nlohmann::json pending_journal_;
+};
+
+}  // namespace foresight::cli

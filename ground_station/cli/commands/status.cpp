@@ -1,0 +1,80 @@
+// foresight status: the link's measured delay (round trip statistics, clock
+// offset) and the remote's latest state: controller mode, active command,
+// stop and faults, joint angles, tool, wrist wrench, each with its age.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+#include "command.hpp"
+#include "link_options.hpp"
+#include "link_session.hpp"
+
+namespace foresight::cli {
+namespace {
+
+struct Options {
+  LinkOptions link;
+  int samples = 5;
+  double sample_timeout_s = 5.0;
+};
+
+int run(const Options& o) {
+  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  // A few round trips for the statistics, and the first telemetry (both bounded).
+  link->delay().wait_samples(static_cast<std::size_t>(o.samples),
+                             std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                 std::chrono::duration<double>(o.sample_timeout_s)));
+  wait_joints(*link, o.sample_timeout_s);
+  const nlohmann::json j = status_json(*link);
+  if (o.link.json) {
+    std::cout << j.dump(2) << "\n";
+    return kExitOk;
+  }
+  const auto& r = j["rtt_s"];
+  std::printf("link: round trip median %.1f ms, p99 %.1f ms, max %.1f ms over %zu; clock offset %+.3f ms; remote %s\n",
+              1e3 * r["median"].get<double>(), 1e3 * r["p99"].get<double>(), 1e3 * r["max"].get<double>(),
+              r["count"].get<std::size_t>(), 1e3 * j["clock_offset_s"].get<double>(),
+              j["remote_alive"].get<bool>() ? "alive" : "SILENT");
+  std::printf("controller: %s", j["state"].get<std::string>().c_str());
+  if (j.contains("active_command_id") && j["active_command_id"].get<std::uint64_t>() != 0)
+    std::printf(", running command %llu", static_cast<unsigned long long>(j["active_command_id"].get<std::uint64_t>()));
+  std::printf("\n");
+  if (!j["joints_rad"].empty()) {
+    std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
+    for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);
+    std::printf("\n");
+  } else {
+    std::printf("joints: no report yet\n");
+  }
+  if (j.contains("tool"))
+    std::printf("tool: %s, %s, %.2f turns, %.2f N m\n", j["tool"]["latched"].get<bool>() ? "latched" : "unlatched",
+                j["tool"]["running"].get<bool>() ? "running" : "stopped", j["tool"]["turns"].get<double>(),
+                j["tool"]["torque_nm"].get<double>());
+  if (j.contains("wrench")) {
+    const auto& f = j["wrench"]["force_tool_n"];
+    const auto& t = j["wrench"]["torque_tool_nm"];
+    std::printf("wrench (tool frame): F %.2f %.2f %.2f N, T %.3f %.3f %.3f N m\n", f[0].get<double>(),
+                f[1].get<double>(), f[2].get<double>(), t[0].get<double>(), t[1].get<double>(), t[2].get<double>());
+  }
+  if (j["faults"].empty()) std::printf("faults: none\n");
+  for (const auto& f : j["faults"]) std::printf("fault: %s\n", f.get<std::string>().c_str());
+  return kExitOk;
+}
+
+const bool registered = register_command(
+    {"status", "the link's delay statistics and the remote's state, joints, tool, wrench and faults",
+     [](CLI::App& sub) -> std::function<int()> {
+       auto o = std::make_shared<Options>();
+       add_link_options(sub, o->link, false);
+       sub.add_option("--samples", o->samples, "round trips to wait for before reporting")
+           ->check(CLI::Range(1, 10000))
+           ->capture_default_str();
+       sub.add_option("--sample-timeout", o->sample_timeout_s, "at most this long, s")
+           ->check(CLI::PositiveNumber)
+           ->capture_default_str();
+       return [o] { return run(*o); };
+     }});
+
+}  // namespace
+}  // namespace foresight::cli

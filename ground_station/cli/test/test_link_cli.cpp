@@ -1,0 +1,146 @@
+// The operator's link commands and `foresight run` through the executable,
+// with no remote: every bad input exits 2 with its exact message before
+// anything connects; a missing remote exits 1 naming the domain; a dry run of
+// the changeout script plans every motion of the paper's steps 3-17.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <sys/wait.h>
+
+#include "foresight/common/trajectory.hpp"
+#include "foresight/protocol/loopback.hpp"
+#include "foresight/test/cli.hpp"
+
+using namespace foresight;
+using foresight::test::run_foresight;
+using foresight::test::temp_path;
+using foresight::test::write_temp_file;
+
+namespace {
+
+const std::string kChangeout = std::string(FORESIGHT_CONFIG_DIR) + "/scripts/oru_changeout.task";
+
+void expect_bad_input(const std::string& args, const std::string& message) {
+  const auto r = run_foresight(args + " </dev/null");
+  EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+  EXPECT_EQ(r.err, message) << args;
+  EXPECT_EQ(r.out, "") << args;
+}
+
+}  // namespace
+
+TEST(LinkCli, BadArgumentsExit2BeforeConnecting) {
+  expect_bad_input("invoke screw", "foresight invoke: error: unknown algorithm 'screw' (algorithms: guarded_move, "
+                                   "insert, latch, unlatch, loosen, tighten, pull_out, tare)\n");
+  expect_bad_input("invoke insert depth_m=6cm",
+                   "foresight invoke: error: parameter depth_m: '6cm' is not a finite number\n");
+  expect_bad_input("invoke insert depth", "foresight invoke: error: parameter 'depth' is not NAME=VALUE\n");
+  expect_bad_input("goto", "foresight goto: error: give exactly one of --joints, --joints-deg or --tag\n");
+  expect_bad_input("goto --joints 0,0 --tag stow",
+                   "foresight goto: error: give exactly one of --joints, --joints-deg or --tag\n");
+  expect_bad_input("goto --joints 0,0.1", "foresight goto: error: --joints has 2 values but the arm has 7 joints\n");
+  expect_bad_input("goto --tag nowhere",
+                   "foresight goto: error: --tag: unknown tag 'nowhere' (tags of oru: approach_20cm, hole_entrance, "
+                   "pulled_out_5cm, stow, tool_inserted, withdrawn_15cm)\n");
+  expect_bad_input("send /nonexistent/traj.csv --run", "foresight send: error: /nonexistent/traj.csv: cannot open trajectory file\n");
+}
+
+TEST(LinkCli, OptionChecksExit2) {
+  for (const std::string args : {"abort --category 3", "request everything", "status --domain 300",
+                                 "watch --period 0", "send x.csv --upload-timeout -1"}) {
+    const auto r = run_foresight(args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+    EXPECT_FALSE(r.err.empty()) << args;
+  }
+  const std::string traj = write_temp_file("t,q1,q2,q3,q4,q5,q6,q7\n0,0,0,0,-0.5,0,0,0\n1,0,0,0,-0.5,0,0,0\n");
+  expect_bad_input("send " + traj + " --compliant", "foresight send: error: --compliant needs --run\n");
+}
+
+TEST(LinkCli, DomainFromTheEnvironmentIsChecked) {
+  // Set the variable for the child only.
+  const std::string bin = std::string(FORESIGHT_BIN_DIR) + "/foresight";
+  const std::string err = temp_path(".err");
+  const int st = std::system(("FORESIGHT_DDS_DOMAIN=abc " + bin + " status 2>" + err + " >/dev/null").c_str());
+  EXPECT_EQ(WEXITSTATUS(st), 2);
+  EXPECT_EQ(foresight::test::read_file(err),
+            "foresight status: error: FORESIGHT_DDS_DOMAIN: 'abc' is not a DDS domain id (0-232)\n");
+}
+
+TEST(LinkCli, NoRemoteExits1NamingTheDomain) {
+  protocol::use_loopback_if_unconfigured();  // the child inherits CYCLONEDDS_URI
+  const int domain = static_cast<int>(protocol::unique_test_domain());
+  for (const std::string cmd : {"status", "abort", "request joints", "take-control", "watch --count 1"}) {
+    const auto r = run_foresight(cmd + " --domain " + std::to_string(domain) + " --connect-timeout 0.5");
+    EXPECT_EQ(r.status, 1) << cmd << "\n" << r.err;
+    const std::string name = cmd.substr(0, cmd.find(' '));
+    EXPECT_EQ(r.err, "foresight " + name + ": error: no remote answered on DDS domain " + std::to_string(domain) +
+                         " within 0.5 s (is foresight-remote running? --domain / FORESIGHT_DDS_DOMAIN)\n")
+        << cmd;
+  }
+}
+
+TEST(LinkCli, SendRefusesATrajectoryTheRemoteWouldReject) {
+  // Joint 1 jumps 1 rad in 10 ms: far over its velocity limit.
+  const std::string traj = write_temp_file("t,q1,q2,q3,q4,q5,q6,q7\n0,0,0,0,-0.5,0,0,0\n0.01,1,0,0,-0.5,0,0,0\n");
+  const auto r = run_foresight("send " + traj + " --connect-timeout 0.5");
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("violation(s); not sent (the remote would reject this trajectory)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("no remote answered"), std::string::npos) << "it must refuse before connecting";
+}
+
+TEST(RunCli, ScriptErrorsNameLineAndColumn) {
+  const std::string bad = write_temp_file("VIDEO side\n\nTRAJECTORY to=approach_20cm,hole_entance:linear\n", ".task");
+  expect_bad_input("run " + bad + " --auto",
+                   "foresight run: error: " + bad +
+                       ":3:29: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, pulled_out_5cm, stow, "
+                       "tool_inserted, withdrawn_15cm)\n");
+  const std::string syntax = write_temp_file("GRAPHICS hidden\nINVOKE_ALGORITHM insert depth_m=6cm\n", ".task");
+  expect_bad_input("run " + syntax + " --auto",
+                   "foresight run: error: " + syntax + ":2:33: INVOKE_ALGORITHM depth_m: '6cm' is not a finite number\n");
+  expect_bad_input("run /nonexistent/x.task --auto", "foresight run: error: /nonexistent/x.task: cannot open script\n");
+  expect_bad_input("run " + kChangeout, "foresight run: error: stdin is not a terminal: give --auto or --keys\n");
+  expect_bad_input("run " + kChangeout + " --keys step,halt",
+                   "foresight run: error: --keys: 'halt' is not a key (step, auto, cancel, abort, retry, skip, quit)\n");
+  expect_bad_input("run " + kChangeout + " --auto --dry-run",
+                   "foresight run: error: --dry-run needs --joints or --joints-deg\n");
+}
+
+TEST(RunCli, DryRunPlansTheWholeChangeoutFromTheFirstMotion) {
+  // The arm's start: the pose the simulated operator's clicks end at (as the demo).
+  const std::string q_file = temp_path(".txt");
+  const auto clicks = run_foresight("synth-clicks --joints-out " + q_file + " --calibration-out " +
+                                    temp_path(".csv") + " --object-out " + temp_path(".csv"));
+  ASSERT_EQ(clicks.status, 0) << clicks.err;
+  std::string q = foresight::test::read_file(q_file);
+  while (!q.empty() && (q.back() == '\n' || q.back() == ' ')) q.pop_back();
+  const std::string work = temp_path("_run");
+  // From the first TAG line (after CALIBRATE and LOCALIZE), the ORU at its true pose.
+  const auto r = run_foresight("run " + kChangeout + " --auto --dry-run --no-preview --object-pose scene --json" +
+                               " --joints " + q + " --work " + work + " --from-line 17");
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["end"], "finished");
+  int completed = 0, skipped = 0, trajectories = 0;
+  for (const auto& s : j["steps"]) {
+    if (s["outcome"] == "completed") ++completed;
+    if (s["outcome"] == "skipped") ++skipped;
+    if (s["command"].get<std::string>().rfind("TRAJECTORY", 0) == 0) ++trajectories;
+  }
+  EXPECT_EQ(skipped, 6);  // OBJECT VIDEO GRAPHICS FRAME CALIBRATE LOCALIZE
+  EXPECT_EQ(completed, static_cast<int>(j["steps"].size()) - 6);
+  EXPECT_GE(trajectories, 4);  // approach, hole entrance, stow, ..., start
+  // `TRAJECTORY to=start` brings the simulated arm back to where it began.
+  const auto q_end = j["final_q_rad"].get<std::vector<double>>();
+  ASSERT_EQ(q_end.size(), 7u);
+  std::vector<double> q0;
+  std::stringstream ss(q);
+  std::string item;
+  while (std::getline(ss, item, ',')) q0.push_back(std::stod(item));
+  ASSERT_EQ(q0.size(), 7u);
+  for (int i = 0; i < 7; ++i) EXPECT_NEAR(q_end[i], q0[i], 1e-9);
+  // Every motion was written and journaled with its hash.
+  const std::string journal = foresight::test::read_file(work + "/run.jsonl");
+  EXPECT_NE(journal.find("\"sha256\""), std::string::npos);
+}
