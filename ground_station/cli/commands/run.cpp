@@ -214,6 +214,7 @@ const bool registered = register_command(
        sub.add_option("--keys", o->keys, "the operator's keys in order: step,auto,cancel,abort,retry,skip,quit");
        sub.add_option("--from-line", o->from_line, "go on from the command at or after this line (earlier: skipped)")
            ->capture_default_str();
+       sub.add_flag("--recover", o->settings.recover, "send RECOVER after taking control (drives on, holding)");
        sub.add_flag("--dry-run", o->dry_run, "plan and preview every motion without a remote");
        sub.add_option("--joints", o->joints, "dry run: the start joint angles (rad)");
        sub.add_option("--joints-deg", o->joints_deg, "dry run: the start joint angles (deg)");

@@ -76,6 +76,12 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     pose_source_ = s_.object_pose;
   }
   if (link_) {
+    for (const auto kind : {control::CommandKind::TakeControl, control::CommandKind::Recover}) {
+      if (kind == control::CommandKind::Recover && !s_.recover) continue;
+      const auto r = send_and_wait(*link_, kind, control::NoPayload{}, link_->timeout_for(5.0));
+      if (!r.succeeded()) throw LinkFailure(result_line(kind, r));
+      say(result_line(kind, r));
+    }
     const auto j = wait_joints(*link_, 10.0);
     if (!j) throw LinkFailure("no joint report from the remote within 10 s");
     q_ = Eigen::Map<const Eigen::VectorXd>(j->value.q_rad.data(), static_cast<Eigen::Index>(j->value.q_rad.size()));
@@ -87,6 +93,14 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     q_ = s_.q_from;
   }
   q_start_ = q_;
+}
+
+ScriptRunner::~ScriptRunner() {
+  if (!link_) return;
+  try {  // give control back so another station (or the next run) may take it
+    send_and_wait(*link_, control::CommandKind::ReleaseControl, control::NoPayload{}, link_->timeout_for(0.0));
+  } catch (const std::exception&) {
+  }
 }
 
 script::ScriptContext ScriptRunner::context_for(const RobotModel& model, const ObjectModel& object,
@@ -187,12 +201,26 @@ Outcome ScriptRunner::run(const script::Command& c, const std::function<bool()>&
   pending_journal_ = nlohmann::json::object();
   Outcome o;
   try {
+    if (recover_before_next_ && link_ && script::is_remote(c.op)) {
+      // The controlled stop may still be running: RECOVER is Busy until it ends (bounded).
+      ground_link::CommandResult r;
+      const auto deadline = Clock::now() + std::chrono::seconds(10);
+      do {
+        r = send_and_wait(*link_, control::CommandKind::Recover, control::NoPayload{}, link_->timeout_for(5.0));
+        if (r.succeeded() || r.code != control::Reason::Busy) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      } while (Clock::now() < deadline);
+      say(result_line(control::CommandKind::Recover, r) + " (after the cancel)");
+      if (!r.succeeded()) throw LinkFailure(result_line(control::CommandKind::Recover, r));
+      recover_before_next_ = false;
+    }
     if (c.op == Op::Trajectory || c.op == Op::Preview) o = trajectory(c, c.op == Op::Trajectory, interrupted);
     else if (script::is_remote(c.op)) o = remote(c, interrupted);
     else o = local(c, interrupted);
   } catch (const std::exception& e) {  // a bad file, a link error: the command fails, the run stops here
     o = {CommandState::Failed, e.what(), 0.0};
   }
+  if (o.state == CommandState::Canceled && link_ && script::is_remote(c.op)) recover_before_next_ = true;
   journal(c, o, pending_journal_);
   return o;
 }

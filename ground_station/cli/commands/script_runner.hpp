@@ -36,12 +36,17 @@ struct RunSettings {
   Eigen::VectorXd q_from;         ///< dry run: the start joints
   double timeout_s = 0.0;         ///< final-ack override (0: derived from the delay)
   bool quiet = false;             ///< --json: progress goes to stderr
+  bool recover = false;           ///< send RECOVER after taking control (drives on, hold)
 };
 
 class ScriptRunner : public script::CommandRunner {
  public:
-  /// Loads the models; connects unless dry_run (LinkFailure when no remote).
+  /// Loads the models; with a link, takes control of the remote (and RECOVERs
+  /// when asked): LinkFailure when that is refused. Gives control back at the end.
   ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::GroundLink> link);
+  ~ScriptRunner() override;
+  ScriptRunner(const ScriptRunner&) = delete;
+  ScriptRunner& operator=(const ScriptRunner&) = delete;
   script::Outcome run(const script::Command& command, const std::function<bool()>& interrupted) override;
 
   /// The configuration a script is checked against (tags, cameras, objects,
@@ -73,6 +78,7 @@ class ScriptRunner : public script::CommandRunner {
   std::string pose_source_;
   std::string video_camera_, graphics_ = "hidden", frame_ = "world", tag_;
   bool grabbed_ = false;
+  bool recover_before_next_ = false;  ///< a cancel stopped the arm (category 2): RECOVER before moving again
   int motion_count_ = 0;
   std::ofstream journal_;
   nlohmann::json pending_journal_;
