@@ -47,10 +47,13 @@ int main(int argc, char** argv) {
     if (!sub->parsed()) continue;
     try {
       return action();
-    } catch (const foresight::InputError& e) {
+    } catch (const foresight::InputError& e) {  // bad input: a file, option or data set
       std::cerr << "foresight " << sub->get_name() << ": error: " << e.what() << "\n";
       return kExitBadInput;
-    } catch (const std::invalid_argument& e) {
+    } catch (const foresight::Error& e) {  // ComputationError and the rest of the tree: the computation failed
+      std::cerr << "foresight " << sub->get_name() << ": error: " << e.what() << "\n";
+      return kExitFailure;
+    } catch (const std::invalid_argument& e) {  // the commands' own option checks (std::invalid_argument)
       std::cerr << "foresight " << sub->get_name() << ": error: " << e.what() << "\n";
       return kExitBadInput;
     } catch (const std::exception& e) {

@@ -1,7 +1,8 @@
 // foresight calibrate: camera calibration with the robot arm as the fixture.
 //
 //   foresight calibrate POINTS.csv --camera NAME [--viewport 646x486]
-//                       [--robot config/robot.urdf] [--out cameras.yaml] [--json]
+//                       [--robot config/robot.urdf] [--out cameras.yaml]
+//                       [--max-iterations 100] [--json]
 //
 // Uses the rows of POINTS.csv whose cam column is NAME (base-frame points or
 // points on arm links with their joint angles). Exit: 0 ok, 2 bad input
@@ -32,6 +33,7 @@ struct CalibrateArgs {
   std::string viewport = "646x486";
   std::string robot = default_config("robot.urdf");
   std::string out;
+  int max_iterations = 100;
   bool json = false;
 };
 
@@ -56,7 +58,10 @@ int run_calibrate(const CalibrateArgs& a) {
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
     throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
   }
-  const CalibrationResult r = calibrate_camera(pts, vp, a.camera);
+  if (a.max_iterations < 1) throw std::invalid_argument("--max-iterations must be at least 1");
+  CalibrationOptions copt;
+  copt.max_iterations = a.max_iterations;
+  const CalibrationResult r = calibrate_camera(pts, vp, a.camera, copt);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
   const Eigen::Vector3d pos = r.position_m();
   const double fovy_deg = r.camera.fovy_rad() / kDeg;
@@ -133,6 +138,8 @@ std::function<int()> setup(CLI::App& sub) {
   sub.add_option("--viewport", a->viewport, "viewport WIDTHxHEIGHT in pixels")->capture_default_str();
   sub.add_option("--robot", a->robot, "robot URDF for points on arm links")->capture_default_str();
   sub.add_option("--out", a->out, "cameras.yaml to add this camera to (others are kept)");
+  sub.add_option("--max-iterations", a->max_iterations, "Levenberg-Marquardt iteration limit (the fit fails, exit 1, when it "
+                 "has not converged by then)")->capture_default_str();
   sub.add_flag("--json", a->json, "print one JSON object");
   return [a] { return run_calibrate(*a); };
 }

@@ -1,6 +1,7 @@
 // foresight eval: accuracy studies.
 //
-//   foresight eval localization [--trials N] [--noise-px S] [--seed K]
+//   foresight eval localization [--trials N] [--noise-px S] [--seed K] [--seeds M]
+//                               [--arm-error-mm E]
 //                               [--scene config/scene.yaml] [--object config/oru.yaml]
 //                               [--robot config/robot.urdf] [--json]
 //
@@ -10,6 +11,11 @@
 // localizes the ORU from its visible model points with every combination of
 // views; beside it the Cramer-Rao bound and the peers (OpenCV solvePnP,
 // triangulate-then-align) on the same clicks. A progress bar on stderr.
+// --seeds M repeats the study with seeds K..K+M-1 and reports the spread of
+// the RMSEs over the seeds (the tables show seed K). --arm-error-mm E adds the
+// arm-model error (every link length off by a Gaussian of E mm in each
+// trial, the calibration using that wrong arm) and reports the study both
+// without and with it, on the same clicks.
 
 #include <unistd.h>
 
@@ -34,6 +40,8 @@ struct EvalArgs {
   int trials = 1000;
   double noise_px = 1.0;
   unsigned seed = 1;
+  int seeds = 1;
+  double arm_error_mm = 0.0;
   std::string scene = default_config("scene.yaml");
   std::string object = default_config("oru.yaml");
   std::string robot = default_config("robot.urdf");
@@ -52,8 +60,54 @@ nlohmann::json stats_json(const ErrorStats& s) {
           {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg}};
 }
 
+/// Per view combination, the spread over seeds of the RMSEs and of their ratio to the bound.
+nlohmann::json spread_json(const std::vector<StudyResult>& runs) {
+  nlohmann::json out = nlohmann::json::array();
+  for (std::size_t ci = 0; ci < runs.front().combos.size(); ++ci) {
+    std::vector<double> p, r, jp, jr;
+    for (const auto& run : runs) {
+      const ComboStats& c = run.combos[ci];
+      p.push_back(c.ours.position_rmse_m * 1e3);
+      r.push_back(c.ours.rotation_rmse_rad / kDeg);
+      jp.push_back(c.ours_joint.position_rmse_m * 1e3);
+      jr.push_back(c.ours_joint.rotation_rmse_rad / kDeg);
+    }
+    const ComboStats& c0 = runs.front().combos[ci];
+    auto js = [](const Spread& s) { return nlohmann::json{{"mean", s.mean}, {"sd", s.sd}}; };
+    out.push_back({{"views", c0.label},
+                   {"position_rmse_mm", js(spread_of(p))},
+                   {"rotation_rmse_deg", js(spread_of(r))},
+                   {"joint_position_rmse_mm", js(spread_of(jp))},
+                   {"joint_rotation_rmse_deg", js(spread_of(jr))},
+                   {"crlb_position_mm", c0.crlb_position_m * 1e3},
+                   {"crlb_rotation_deg", c0.crlb_rotation_rad / kDeg}});
+  }
+  return out;
+}
+
+void print_spread(const std::vector<StudyResult>& runs, const char* title) {
+  std::printf("\n%s: RMSE over %zu seeds x %d trials, mean +- sd over the seeds (ratio to the bound)\n", title,
+              runs.size(), runs.front().trials);
+  std::printf("%-9s %26s %26s %16s\n", "views", "two-step mm / deg", "joint mm / deg", "CRLB mm / deg");
+  for (const auto& j : spread_json(runs)) {
+    const double b = j["crlb_position_mm"].get<double>();
+    char two[64], joint[64];
+    std::snprintf(two, sizeof two, "%.2f+-%.2f (%.2fx) / %.3f", j["position_rmse_mm"]["mean"].get<double>(),
+                  j["position_rmse_mm"]["sd"].get<double>(), j["position_rmse_mm"]["mean"].get<double>() / b,
+                  j["rotation_rmse_deg"]["mean"].get<double>());
+    std::snprintf(joint, sizeof joint, "%.2f+-%.2f (%.2fx) / %.3f", j["joint_position_rmse_mm"]["mean"].get<double>(),
+                  j["joint_position_rmse_mm"]["sd"].get<double>(), j["joint_position_rmse_mm"]["mean"].get<double>() / b,
+                  j["joint_rotation_rmse_deg"]["mean"].get<double>());
+    std::printf("%-9s %26s %26s %8.2f / %.3f\n", j["views"].get<std::string>().c_str(), two, joint, b,
+                j["crlb_rotation_deg"].get<double>());
+  }
+}
+
 int run_eval(const EvalArgs& a) {
   if (a.trials < 1) throw std::invalid_argument("--trials must be at least 1");
+  if (a.seeds < 1) throw std::invalid_argument("--seeds must be at least 1");
+  if (!(a.arm_error_mm >= 0.0) || !std::isfinite(a.arm_error_mm))
+    throw std::invalid_argument("--arm-error-mm must be a non-negative number");
   if (!(a.noise_px > 0.0) || !std::isfinite(a.noise_px)) throw std::invalid_argument("--noise-px must be a positive number");
   const Scene scene = Scene::from_file(a.scene);
   const ObjectModel object = ObjectModel::from_file(a.object);
@@ -65,8 +119,13 @@ int run_eval(const EvalArgs& a) {
   opt.trials = a.trials;
   opt.noise_px = a.noise_px;
   opt.seed = a.seed;
+  opt.robot = &robot;
+  const bool arm_error = a.arm_error_mm > 0.0;
+  const int studies = a.seeds * (arm_error ? 2 : 1);
+  int study = 0;
   int last_shown = -1;
-  opt.progress = [&](int done, int total) {
+  opt.progress = [&](int done_in_study, int total_in_study) {
+    const int done = study * total_in_study + done_in_study, total = studies * total_in_study;
     const int pct = 100 * done / total;
     if (pct == last_shown) return;
     last_shown = pct;
@@ -77,7 +136,20 @@ int run_eval(const EvalArgs& a) {
     std::fflush(stderr);
   };
   const auto t0 = std::chrono::steady_clock::now();
-  const StudyResult r = run_accuracy_study(setup, opt);
+  std::vector<StudyResult> runs, arm_runs;
+  for (int k = 0; k < a.seeds; ++k, ++study) {
+    StudyOptions o = opt;
+    o.seed = a.seed + static_cast<unsigned>(k);
+    runs.push_back(run_accuracy_study(setup, o));
+  }
+  if (arm_error)
+    for (int k = 0; k < a.seeds; ++k, ++study) {
+      StudyOptions o = opt;
+      o.seed = a.seed + static_cast<unsigned>(k);
+      o.arm_link_error_m = a.arm_error_mm * 1e-3;
+      arm_runs.push_back(run_accuracy_study(setup, o));
+    }
+  const StudyResult& r = runs.front();
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const ComboStats& all = r.combos.back();
   const double pos_ratio = all.ours.position_rmse_m / all.crlb_position_m;
@@ -116,10 +188,12 @@ int run_eval(const EvalArgs& a) {
                         {"pnp_iterative", stats_json(c.pnp_iterative)},
                         {"triangulation", stats_json(c.triangulation)}});
     }
-    const nlohmann::json j = {{"study", "localization"},
+    nlohmann::json j = {{"study", "localization"},
                               {"trials", r.trials},
                               {"noise_px", r.noise_px},
                               {"seed", a.seed},
+                              {"seeds", a.seeds},
+                              {"arm_model_error", "none: the calibration uses the exact arm model"},
                               {"calibration_failures", r.calibration_failures},
                               {"elapsed_s", elapsed_s},
                               {"frame", "oru (z along the hole axis)"},
@@ -138,6 +212,20 @@ int run_eval(const EvalArgs& a) {
                                 {"joint_rotation_rmse_deg", all.ours_joint.rotation_rmse_rad / kDeg},
                                 {"joint_rotation_ratio", jrot_ratio},
                                 {"joint_within_10_percent", jpos_ratio <= 1.1 && jrot_ratio <= 1.1}}}};
+    j["over_seeds"] = spread_json(runs);
+    if (arm_error) {
+      const ComboStats& w = arm_runs.front().combos.back();
+      j["with_arm_model_error"] = {{"link_length_sd_mm", a.arm_error_mm},
+                                   {"calibration_failures", arm_runs.front().calibration_failures},
+                                   {"four_view",
+                                    {{"position_rmse_m", w.ours.position_rmse_m},
+                                     {"rotation_rmse_deg", w.ours.rotation_rmse_rad / kDeg},
+                                     {"joint_position_rmse_m", w.ours_joint.position_rmse_m},
+                                     {"joint_rotation_rmse_deg", w.ours_joint.rotation_rmse_rad / kDeg},
+                                     {"alignment95_cm", w.ours.alignment95_m * 100.0},
+                                     {"depth95_cm", w.ours.depth95_m * 100.0}}},
+                                   {"over_seeds", spread_json(arm_runs)}};
+    }
     std::cout << j.dump(2) << "\n";
     return kExitOk;
   }
@@ -202,6 +290,19 @@ int run_eval(const EvalArgs& a) {
               "rotation RMSE %.4f deg (ratio %.3f): %s 10%% of the bound.  (%.1f s)\n",
               all.ours_joint.position_rmse_m * 1e3, jpos_ratio, all.ours_joint.rotation_rmse_rad / kDeg, jrot_ratio,
               jpos_ratio <= 1.1 && jrot_ratio <= 1.1 ? "within" : "NOT within", elapsed_s);
+  std::printf("The arm model is exact in these tables (no link-length error)%s.\n",
+              arm_error ? "; with the arm-model error below" : "; --arm-error-mm adds one");
+  if (a.seeds > 1) print_spread(runs, "Exact arm model");
+  if (arm_error) {
+    char title[96];
+    std::snprintf(title, sizeof title, "Arm-model error (link lengths off by %.1f mm sd)", a.arm_error_mm);
+    print_spread(arm_runs, title);
+    const ComboStats& w = arm_runs.front().combos.back();
+    std::printf("Four views with the arm-model error (seed %u): position RMSE %.3f mm (bound without it %.3f mm), "
+                "95%% alignment %.2f cm, depth %.2f cm.\n",
+                a.seed, w.ours.position_rmse_m * 1e3, w.crlb_position_m * 1e3, w.ours.alignment95_m * 100,
+                w.ours.depth95_m * 100);
+  }
   return kExitOk;
 }
 
@@ -211,7 +312,12 @@ std::function<int()> setup(CLI::App& sub) {
   CLI::App* loc = sub.add_subcommand("localization", "Monte Carlo localization accuracy (the paper's Tables 1-3)");
   loc->add_option("--trials", a->trials, "Monte Carlo trials")->capture_default_str();
   loc->add_option("--noise-px", a->noise_px, "click noise standard deviation (px)")->capture_default_str();
-  loc->add_option("--seed", a->seed, "random seed")->capture_default_str();
+  loc->add_option("--seed", a->seed, "random seed (the first, with --seeds)")->capture_default_str();
+  loc->add_option("--seeds", a->seeds, "repeat the study with this many seeds and report the spread")
+      ->capture_default_str();
+  loc->add_option("--arm-error-mm", a->arm_error_mm,
+                  "also run it with an arm-model error: link lengths off by this standard deviation (mm)")
+      ->capture_default_str();
   loc->add_option("--scene", a->scene, "scene (cameras, ORU pose)")->capture_default_str();
   loc->add_option("--object", a->object, "object model")->capture_default_str();
   loc->add_option("--robot", a->robot, "robot URDF (the calibration fixture)")->capture_default_str();

@@ -153,6 +153,20 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   for (const auto& p : {pts, p2, p3}) std::remove(p.c_str());
 }
 
+TEST(CliCalibrate, AFailedComputationExitsOne) {
+  // The fit cannot converge in one iteration on noisy clicks: a computation
+  // failure (EstimationError, a ComputationError), exit 1, not bad input (2).
+  const std::string pts = write_file(calibration_csv(scene_cameras().at("side"), 30, 1.0, 21));
+  const CliRun r = run("calibrate " + pts + " --camera side --max-iterations 1");
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("foresight calibrate: error: camera 'side': the nonlinear fit did not converge after 1 iterations"),
+            std::string::npos)
+      << r.err;
+  const CliRun ok = run("calibrate " + pts + " --camera side");
+  EXPECT_EQ(ok.status, 0) << ok.err;
+  std::remove(pts.c_str());
+}
+
 TEST(CliCalibrate, BadInputsExitTwoWithTheirMessage) {
   const Camera side = scene_cameras().at("side");
   const CliRun missing = run("calibrate /nonexistent/pts.csv --camera side");
@@ -284,6 +298,29 @@ TEST(CliEval, LocalizationJsonAndProgressOnStderr) {
   EXPECT_GT(j["four_view"]["crlb_position_m"].get<double>(), 0.0);
   EXPECT_GT(j["four_view"]["position_rmse_m"].get<double>(), 0.0);
   EXPECT_NE(r.err.find("100%"), std::string::npos);
+  EXPECT_EQ(j["seeds"], 1);
+  EXPECT_EQ(j["over_seeds"].size(), 15u);
+  EXPECT_FALSE(j.contains("with_arm_model_error"));
+
+  // Several seeds and the arm-model error: both studies, their spread.
+  const CliRun both = run("eval localization --trials 3 --seeds 2 --arm-error-mm 2 --json");
+  ASSERT_EQ(both.status, 0) << both.err;
+  const auto k = nlohmann::json::parse(both.out);
+  EXPECT_EQ(k["seeds"], 2);
+  ASSERT_EQ(k["over_seeds"].size(), 15u);
+  EXPECT_GT(k["over_seeds"][14]["position_rmse_mm"]["sd"].get<double>(), 0.0);
+  EXPECT_EQ(k["with_arm_model_error"]["link_length_sd_mm"], 2.0);
+  EXPECT_EQ(k["with_arm_model_error"]["over_seeds"].size(), 15u);
+  EXPECT_GT(k["with_arm_model_error"]["four_view"]["position_rmse_m"].get<double>(), 0.0);
+  const CliRun text = run("eval localization --trials 2 --seeds 2 --arm-error-mm 2");
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("Arm-model error (link lengths off by 2.0 mm sd): RMSE over 2 seeds x 2 trials"),
+            std::string::npos)
+      << text.out;
+  const CliRun neg = run("eval localization --arm-error-mm -1");
+  EXPECT_EQ(neg.status, 2);
+  EXPECT_NE(neg.err.find("--arm-error-mm must be a non-negative number"), std::string::npos) << neg.err;
+
   const CliRun bad = run("eval localization --trials 0");
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.err.find("--trials must be at least 1"), std::string::npos) << bad.err;
