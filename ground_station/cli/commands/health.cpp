@@ -1,0 +1,148 @@
+// foresight health: calibration health per video frame (issue 16): how well
+// the reported arm's model edges match the video through the calibrated
+// camera, and a warning when the camera has moved or zoomed.
+//
+//   foresight health --cameras cameras.yaml --camera NAME --video SOURCE
+//                    --joints-from FILE|telemetry [--object-pose localize.json]
+//                    [--max-frames N] [--gl osmesa|egl] [--robot robot.urdf]
+//                    [--object oru.yaml] [--json]
+// SOURCE: a video file, an image sequence (OpenCV pattern, e.g. f_%03d.png)
+// or one image. FILE: one joint vector per line (radians, comma-separated;
+// '#' comments), either one line for a still arm or one per frame.
+// `telemetry` needs the ground link (not wired to this command yet).
+// Exit: 0 (warnings are reported, not errors), 2 bad input, 1 GL failure.
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <opencv2/videoio.hpp>
+
+#include "command.hpp"
+#include "foresight/align/health.hpp"
+#include "foresight/common/error.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/common/object_model.hpp"
+#include "foresight/render/overlay_inputs.hpp"
+#include "foresight/render/video_frame.hpp"
+#include "json_util.hpp"
+
+namespace foresight::cli {
+namespace {
+
+struct HealthArgs {
+  std::string cameras, camera, video, joints_from, object_pose, gl = "osmesa";
+  std::string robot = default_config("robot.urdf");
+  std::string object = default_config("oru.yaml");
+  int max_frames = 100000;
+  bool json = false;
+};
+
+std::vector<Eigen::VectorXd> read_joint_lines(const std::string& path, const RobotModel& model) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot open joints file");
+  std::vector<Eigen::VectorXd> out;
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    try {
+      out.push_back(parse_joints(line, "joints", model));
+    } catch (const std::exception& e) {
+      throw InputError(path, n, e.what());
+    }
+  }
+  if (out.empty()) throw InputError(path, "no joint vectors");
+  return out;
+}
+
+int run_health(const HealthArgs& a) {
+  using namespace foresight::render;
+  using namespace foresight::align;
+  const GlBackend backend = parse_gl_backend(a.gl);
+  if (a.joints_from == "telemetry")
+    throw std::invalid_argument(
+        "--joints-from telemetry needs the ground link to the remote, not wired to this command yet: give a joints file");
+  const Camera camera = load_camera(a.cameras, a.camera);
+  const RobotModel model = RobotModel::from_file(a.robot);
+  const auto joints = read_joint_lines(a.joints_from, model);
+  std::optional<ObjectModel> object;
+  std::optional<Pose> base_T_object;
+  if (!a.object_pose.empty()) {
+    base_T_object = read_object_pose_json(a.object_pose);
+    object = ObjectModel::from_file(a.object);
+  }
+  cv::VideoCapture cap(a.video);
+  if (!cap.isOpened()) throw InputError(a.video, "cannot read video or image");
+
+  auto context = GlContext::create(backend);
+  ModelAligner aligner(*context, model, object ? &*object : nullptr, camera.viewport);
+  HealthMonitor monitor;
+  nlohmann::json frames = nlohmann::json::array(), warnings = nlohmann::json::array();
+  bool moved = false;
+  int k = 0;
+  cv::Mat img;
+  for (; k < a.max_frames && cap.read(img); ++k) {
+    if (joints.size() > 1 && k >= static_cast<int>(joints.size()))
+      throw InputError(a.joints_from, "has " + std::to_string(joints.size()) + " joint vectors but the video has more frames");
+    if (img.cols != camera.viewport.width_px || img.rows != camera.viewport.height_px)
+      throw InputError(a.video, "frame " + std::to_string(k) + " is " + std::to_string(img.cols) + "x" +
+                                    std::to_string(img.rows) + " but camera '" + camera.name + "' has a " +
+                                    std::to_string(camera.viewport.width_px) + "x" +
+                                    std::to_string(camera.viewport.height_px) + " viewport");
+    const Eigen::VectorXd& q = joints[joints.size() == 1 ? 0 : k];
+    const auto s = aligner.score(camera, {img, q}, base_T_object);
+    if (s.visible_samples == 0)
+      throw InputError(a.video, "frame " + std::to_string(k) + ": the arm model is not in view of camera '" +
+                                    camera.name + "'");
+    const HealthVerdict v = monitor.update(s);
+    frames.push_back({{"frame", k},
+                      {"matched_fraction", s.matched_fraction},
+                      {"score_px", s.score_px},
+                      {"visible_samples", s.visible_samples},
+                      {"bad", v.bad},
+                      {"warning", v.warning}});
+    if (v.warning && !moved) warnings.push_back({{"frame", k}, {"reason", v.reason}});
+    moved = moved || v.warning;
+    if (!a.json)
+      std::printf("frame %4d: %3.0f%% of the arm's edges within 1 px, edge distance %.2f px%s%s\n", k,
+                  100.0 * s.matched_fraction, s.score_px, v.in_baseline ? " (baseline)" : v.bad ? " BAD" : "",
+                  v.warning ? "  WARNING" : "");
+  }
+  if (k == 0) throw InputError(a.video, "no frames");
+  if (a.json) {
+    std::cout << nlohmann::json{{"camera", camera.name},
+                                {"frames", frames},
+                                {"baseline_fraction", monitor.baseline_fraction()},
+                                {"baseline_score_px", monitor.baseline_score_px()},
+                                {"camera_moved", moved},
+                                {"warnings", warnings}}
+                     .dump()
+              << "\n";
+  } else {
+    std::printf("health: camera %s, %d frames, baseline %.0f%% matched / %.2f px\n", camera.name.c_str(), k,
+                100.0 * monitor.baseline_fraction(), monitor.baseline_score_px());
+    for (const auto& w : warnings) std::printf("  WARNING at frame %d: %s\n", w["frame"].get<int>(), w["reason"].get<std::string>().c_str());
+    if (!moved) std::printf("  calibration healthy\n");
+  }
+  return kExitOk;
+}
+
+const bool registered = register_command(
+    {"health", "per-frame calibration health: the arm's silhouette against the video, camera-moved warning",
+     [](CLI::App& sub) -> std::function<int()> {
+       auto a = std::make_shared<HealthArgs>();
+       sub.add_option("--cameras", a->cameras, "cameras.yaml")->required();
+       sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
+       sub.add_option("--video", a->video, "video file, image sequence pattern or image")->required();
+       sub.add_option("--joints-from", a->joints_from, "joints file (one q per line, rad) or telemetry")->required();
+       sub.add_option("--object-pose", a->object_pose, "JSON with base_T_object (the object occludes the arm)");
+       sub.add_option("--max-frames", a->max_frames, "stop after N frames")->check(CLI::PositiveNumber);
+       add_render_options(sub, a->gl, a->robot, a->object, a->json);
+       return [a] { return run_health(*a); };
+     }});
+
+}  // namespace
+}  // namespace foresight::cli
