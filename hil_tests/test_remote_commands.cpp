@@ -355,3 +355,72 @@ TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHold
   }
   EXPECT_TRUE(disabled);
 }
+
+TEST_F(RemoteCommands, LinkLossMidMotionFinishesTheMotionThenRefusesNewOnesUntilTheLinkReturns) {
+  // config/remote.yaml: controller.link {loss_timeout_s: 3, loss_policy: finish_and_hold}
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t id = start_slow_motion(0.25);
+  ground_->pause_heartbeat();  // the remote hears nothing from the ground from now on
+  bool lost = false;
+  for (int i = 0; i < 1000 && !lost; ++i) {
+    if (auto s = ground_->status(); s && (s->value.fault_bits & 2u)) lost = true;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(lost) << "the ground never saw the remote report the link lost";
+  const auto moved = ground_->wait_final(id, 30s);
+  EXPECT_EQ(moved.state, AckState::Completed) << moved.reason;  // the committed motion ran to its end
+  ASSERT_EQ(moved.final_q_rad.size(), 7u);
+  EXPECT_NEAR(moved.final_q_rad[0], q0[0] + 0.25, 2e-3);
+  control::GotoJoint back;
+  back.q_rad.assign(q0.data(), q0.data() + 7);
+  auto r = run(CommandKind::GotoJoint, back, 5.0);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.code, Reason::NotInControl);
+  EXPECT_EQ(r.reason, "the link to the ground is lost: no new motion");
+  ground_->resume_heartbeat();
+  bool back_up = false;
+  for (int i = 0; i < 1000 && !back_up; ++i) {
+    if (auto s = ground_->status(); s && !(s->value.fault_bits & 2u) && s->age_s < 1.0) back_up = true;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(back_up);
+  r = run(CommandKind::GotoJoint, back, 8.0);
+  EXPECT_TRUE(r.succeeded()) << r.reason;
+}
+
+TEST(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
+  protocol::use_loopback_if_unconfigured();
+  const std::string dir = test::temp_path(".sec");
+  const int rc = std::system(("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir + " > /dev/null 2>&1").c_str());
+  ASSERT_EQ(rc, 0) << "make_dds_security.sh failed";
+  const int domain = static_cast<int>(protocol::unique_test_domain());
+  test::RemoteProcess::Options o;
+  o.domain = domain;
+  o.extra_args = {"--security", dir};
+  test::RemoteProcess remote(o);
+  ASSERT_TRUE(remote.ready()) << remote.log();
+  ground_link::Config c;
+  c.domain = domain;
+  c.security_dir = dir;
+  c.security_identity = "ground";
+  {
+    ground_link::GroundLink ground(c);
+    ASSERT_TRUE(ground.wait_for_remote(30s));
+    EXPECT_TRUE(ground.execute(CommandKind::TakeControl, control::NoPayload{}, 1.0).succeeded());
+    EXPECT_TRUE(ground.execute(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+  }
+  ground_link::Config w = c;
+  w.security_identity = "observer";
+  w.read_only = true;
+  ground_link::GroundLink observer(w);
+  bool watching = false;
+  for (int i = 0; i < 1000 && !watching; ++i) {
+    watching = observer.joint_state().has_value() && observer.status().has_value();
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(watching);
+  EXPECT_THROW(observer.send(CommandKind::TakeControl), std::logic_error);
+  EXPECT_EQ(remote.stop(SIGTERM), 0);
+  std::filesystem::remove_all(dir);
+}

@@ -149,6 +149,9 @@ struct Options {
   int domain = default_domain();
   std::string estop_file;
   std::string sim_faults;
+  std::string security_dir;
+  std::string security_identity = "remote";
+  bool ros2 = false;
   int loop_cpu = -1;      ///< pin the control loop thread (an isolated CPU); -1: not pinned
   int rt_priority = 80;   ///< the control loop's SCHED_FIFO priority
 };
@@ -253,6 +256,10 @@ int run_daemon(const Options& o) {
   lc.domain = o.domain;
   lc.link_loss_s = config.link_loss_timeout_s;
   lc.trajectory_limits = TrajectoryLimits::from_model(model);
+  lc.security_dir = o.security_dir;
+  lc.security_identity = o.security_identity;
+  lc.ros2 = o.ros2;
+  lc.ros2_joint_names = model.joint_names();
   remote_link::Handlers handlers;
   handlers.on_command = [&](const remote_link::CommandEvent& e) { supervisor.submit(e); };
   handlers.on_upload = [&](const remote_link::UploadEvent& e) { supervisor.upload(e); };
@@ -331,6 +338,11 @@ int main(int argc, char** argv) {
   app.add_option("--journal", o.journal, "journal database (overrides controller.journal.path)");
   app.add_option("--domain", o.domain, "DDS domain id (default $FORESIGHT_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
   app.add_option("--estop-file", o.estop_file, "E-stop (category 0) while this file exists (HIL tests, --sim)");
+  app.add_option("--security", o.security_dir,
+                 "DDS Security: the folder made by scripts/make_dds_security.sh (authentication, access control, "
+                 "encryption; docs/protocol.md)");
+  app.add_option("--identity", o.security_identity, "DDS Security identity in that folder (default remote)");
+  app.add_flag("--ros2", o.ros2, "also publish rt/joint_states and rt/wrench as ROS 2 types");
   app.add_option("--sim-faults", o.sim_faults,
                  "with --sim: fault injection folder (tool_jam, ft_fault, oru_stuck, drive_emcy_J files; HIL tests)");
 
