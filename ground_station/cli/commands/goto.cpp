@@ -76,6 +76,7 @@ int run(const Options& o) {
   } catch (const PlanError& e) {
     throw LinkFailure(std::string("not sent: the move to ") + target + " cannot be planned: " + e.what());
   }
+  const ControlGuard control_guard(*link);
   const auto r = send_and_wait(*link, kind, payload, final_ack_timeout(*link, expected_s, o.link.timeout_s));
   if (o.link.json) {
     auto j = result_json(kind, r);

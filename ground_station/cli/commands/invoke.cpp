@@ -50,6 +50,7 @@ int run(const Options& o) {
   const auto kind = control::CommandKind::InvokeAlgorithm;
   // The algorithm's own timeout bounds it; 60 s when it uses its default.
   const double expected = o.algorithm_timeout_s > 0 ? o.algorithm_timeout_s : 60.0;
+  const ControlGuard control_guard(*link);
   const auto r = send_and_wait(*link, kind, inv, final_ack_timeout(*link, expected, o.link.timeout_s));
   if (o.link.json) {
     auto j = result_json(kind, r);

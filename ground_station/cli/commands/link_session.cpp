@@ -78,6 +78,18 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control:
   return r;
 }
 
+ControlGuard::ControlGuard(ground_link::GroundLink& link) : link_(link) {
+  const auto r = send_and_wait(link_, control::CommandKind::TakeControl, control::NoPayload{}, link_.timeout_for(0.0));
+  if (!r.succeeded()) throw LinkFailure("cannot take control: " + result_line(control::CommandKind::TakeControl, r));
+}
+
+ControlGuard::~ControlGuard() {
+  try {
+    send_and_wait(link_, control::CommandKind::ReleaseControl, control::NoPayload{}, link_.timeout_for(0.0));
+  } catch (const std::exception&) {
+  }
+}
+
 nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r) {
   nlohmann::json acks = nlohmann::json::array();
   for (const auto& a : r.acks)

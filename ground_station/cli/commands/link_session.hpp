@@ -49,6 +49,20 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control:
                                          const control::Payload& payload, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted = {});
 
+/// Each CLI process is its own ground session: a command that moves the arm
+/// takes control first (LinkFailure when refused, e.g. another station holds
+/// it) and gives it back when the guard goes out of scope.
+class ControlGuard {
+ public:
+  explicit ControlGuard(ground_link::GroundLink& link);
+  ~ControlGuard();
+  ControlGuard(const ControlGuard&) = delete;
+  ControlGuard& operator=(const ControlGuard&) = delete;
+
+ private:
+  ground_link::GroundLink& link_;
+};
+
 /// {"command", "command_id", "state", "code", "reason", "finished", "elapsed_s", "final_q_rad", "acks"}.
 nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r);
 /// One line: "goto_joint 12: completed in 3.2 s" or "... rejected (busy): reason"

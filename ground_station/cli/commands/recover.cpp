@@ -17,6 +17,7 @@ const bool registered = register_command(
        return [o] {
          auto link = connect_remote(resolve_domain(o->domain), o->connect_timeout_s);
          const auto kind = control::CommandKind::Recover;
+         const ControlGuard control_guard(*link);
          const auto r = send_and_wait(*link, kind, control::NoPayload{}, final_ack_timeout(*link, 0.0, o->timeout_s));
          if (o->json) std::cout << result_json(kind, r).dump(2) << "\n";
          else std::cout << result_line(kind, r) << "\n";

@@ -56,6 +56,7 @@ int run(const Options& o) {
                 up.elapsed_s, local.c_str(), to_hex(up.remote_hash).c_str());
   int status = kExitOk;
   if (o.run) {
+    const ControlGuard control_guard(*link);
     control::RunTrajectory run;
     run.trajectory_id = up.trajectory_id;
     run.content_hash = up.remote_hash;
