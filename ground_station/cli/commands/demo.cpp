@@ -31,6 +31,7 @@
 
 #include "command.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/protocol/loopback.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/script/executor.hpp"
 #include "foresight/script/script.hpp"
@@ -439,6 +440,9 @@ int demo(Options& o) {
                   "), so NO emulated delay";
     }
   }
+  // Loopback: Cyclone on `lo` with unicast discovery (no multicast here); the
+  // daemon and the ground's children inherit it. A user's CYCLONEDDS_URI wins.
+  if (emu <= 0) protocol::use_loopback_if_unconfigured();
   say("foresight demo: link " + link_text + "; outputs in " + out);
 
   // The daemon.
