@@ -239,6 +239,15 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
     reject(c, Reason::Busy, "the controller is shutting down");
     return;
   }
+  if (link_lost_) {
+    // A command that arrived proves the link works again, even before the
+    // ground's first heartbeat (best effort, it may be lost or still in
+    // flight when a new ground process sends its first command).
+    link_lost_ = false;
+    p_.loop->set_link_lost(false);
+    journal_event("link_regained", "a command arrived from session " + std::to_string(c.session_id));
+    publish_reports(true);
+  }
   if (c.session_id == commander_) commander_active_ = Clock::now();
   last_sequence_ = std::max(last_sequence_, c.sequence_number);
   dispatch(c);
