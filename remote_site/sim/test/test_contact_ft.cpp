@@ -108,11 +108,11 @@ TEST(ContactThroughFtSensor, PressingTheFaceReadsTheModelForceOverCan) {
   EXPECT_LT(rel_err(w[2], F_s.z()), 0.05) << w[2] << " vs " << F_s.z();
   EXPECT_LT(rel_err(w[1], F_s.y()), 0.05) << w[1] << " vs " << F_s.y();
   EXPECT_LT(rel_err(w[3], M_s.x()), 0.05) << w[3] << " vs " << M_s.x();
-  // Quantisation of the CAN frames (100 counts/N, 1000 counts/N*m) is the
-  // only difference left.
+  // Quantisation of the CAN frames (the configured counts per N and per N*m)
+  // is the only difference left: within 1.1 counts.
   for (int i = 0; i < 3; ++i) {
-    EXPECT_NEAR(w[i], F_s[i], 0.011) << "force " << i;
-    EXPECT_NEAR(w[3 + i], M_s[i], 0.0011) << "torque " << i;
+    EXPECT_NEAR(w[i], F_s[i], 1.1 / config.ft.force_counts_per_n) << "force " << i;
+    EXPECT_NEAR(w[3 + i], M_s[i], 1.1 / config.ft.torque_counts_per_nm) << "torque " << i;
   }
   EXPECT_EQ(rig.ft.saturated_mask, 0);
   RecordProperty("force_z_n", std::to_string(w[2]));

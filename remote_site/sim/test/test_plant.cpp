@@ -192,8 +192,12 @@ TEST(Plant, WrenchThroughTheCanPathIsContactPlusWeightPlusBias) {
   const auto& got = rig.ft.wrench_ft;
   for (int i = 0; i < 3; ++i) {
     const auto k = static_cast<std::size_t>(i);
-    EXPECT_NEAR(got[k], c.sensor.force_n[i] + weight.force_n[i] + bias[k], 0.011) << "force " << i;
-    EXPECT_NEAR(got[k + 3], c.sensor.torque_nm[i] + weight.torque_nm[i] + bias[k + 3], 0.0011) << "torque " << i;
+    // Within the F/T quantization (1.1 counts of the configured scales).
+    EXPECT_NEAR(got[k], c.sensor.force_n[i] + weight.force_n[i] + bias[k], 1.1 / config.ft.force_counts_per_n)
+        << "force " << i;
+    EXPECT_NEAR(got[k + 3], c.sensor.torque_nm[i] + weight.torque_nm[i] + bias[k + 3],
+                1.1 / config.ft.torque_counts_per_nm)
+        << "torque " << i;
   }
   EXPECT_LT(got[2], -150.0);  // ~200 N pressing: the contact dominates
   EXPECT_EQ(rig.ft.saturated_mask, 0);
