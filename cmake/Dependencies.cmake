@@ -32,7 +32,7 @@ pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 # foresight_add_test(NAME SOURCES... LIBS ...): one gtest executable, its tests
 # discovered into ctest. Tests see FORESIGHT_CONFIG_DIR and FORESIGHT_BIN_DIR.
 function(foresight_add_test name)
-  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "" "TIMEOUT;LOCK" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
   # Shared test helpers (foresight/test/cli.hpp: run the CLI, scratch files).
@@ -44,8 +44,14 @@ function(foresight_add_test name)
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  # LOCK: tests holding the same lock never run at the same time (e.g. the
+  # ones that each start a real-time daemon: two FIFO loops on 2 cores would
+  # stretch each other's motions).
+  set(T_PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  if(T_LOCK)
+    list(APPEND T_PROPERTIES RESOURCE_LOCK ${T_LOCK})
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${T_PROPERTIES})
 endfunction()
 
 # foresight_add_benchmark(NAME SOURCES... LIBS ...): bench/bench_<area>.

@@ -21,8 +21,8 @@ inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = tru
       ->capture_default_str();
   if (final_ack)
     sub.add_option("--timeout", o.timeout_s,
-                   "seconds to wait for the final acknowledgement (default: the expected duration + 3 x the "
-                   "measured p99 round trip + 2 s)")
+                   "seconds to wait for the final acknowledgement (default: 1.5 x the expected duration + 3 x the "
+                   "measured p99 round trip + 5 s)")
         ->check(CLI::PositiveNumber);
   sub.add_flag("--json", o.json, "print one JSON object");
 }

@@ -105,7 +105,7 @@ TEST(AlignCli, WrongFrameSizeIsBadInputAndWritesNothing) {
                                f.q_text + " --out " + out);
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(r.err, "foresight align: error: " + small +
-                       ": image is 120x100 but camera 'side' has a 646x486 viewport\n");
+                       ": image is 120x100 but camera 'side' has a 646x486 viewport (pass --scale-image to resize it)\n");
   EXPECT_FALSE(std::filesystem::exists(out));
 }
 

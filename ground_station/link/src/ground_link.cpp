@@ -306,7 +306,9 @@ CommandResult GroundLink::wait_final(std::uint64_t command_id, std::chrono::nano
 std::chrono::nanoseconds GroundLink::timeout_for(double expected_duration_s) const {
   const auto stats = impl_->delay.stats();
   const double p99 = stats.count > 0 ? stats.p99_s : impl_->config.default_rtt_s;
-  return seconds(std::max(0.0, expected_duration_s) + 3.0 * p99 + impl_->config.timeout_margin_s);
+  // 1.5 x the expected duration: a remote on a loaded machine may overrun
+  // control cycles, which stretches a motion's wall time.
+  return seconds(1.5 * std::max(0.0, expected_duration_s) + 3.0 * p99 + impl_->config.timeout_margin_s);
 }
 
 CommandResult GroundLink::execute(control::CommandKind kind, const control::Payload& payload,

@@ -240,7 +240,7 @@ TEST_F(LinkLoopback, EveryCommandKindRoundTripsWithItsAckSequence) {
   // execute(): the timeout derives from the measured delay.
   const auto timeout = ground_->timeout_for(2.0);
   const auto p99 = ground_->delay().stats().p99_s;
-  EXPECT_NEAR(std::chrono::duration<double>(timeout).count(), 2.0 + 3.0 * p99 + 2.0, 1e-6);
+  EXPECT_NEAR(std::chrono::duration<double>(timeout).count(), 1.5 * 2.0 + 3.0 * p99 + 5.0, 1e-6);
   const auto done = ground_->execute(control::CommandKind::Request, control::Request{}, 0.0);
   EXPECT_TRUE(done.succeeded());
   EXPECT_GT(done.elapsed_s, 0.0);

@@ -39,7 +39,7 @@ struct Config {
   /// worst one-way delay.
   double command_lifetime_s = 0.0;
   std::size_t ack_history = 1024;       ///< commands whose acks are remembered (oldest dropped)
-  double timeout_margin_s = 2.0;        ///< added to every derived timeout
+  double timeout_margin_s = 5.0;        ///< added to every derived timeout
   /// Round trip assumed before any pong arrived (for derived timeouts).
   double default_rtt_s = 1.0;
   /// DDS Security: the folder made by scripts/make_dds_security.sh ("" =
@@ -112,8 +112,8 @@ class GroundLink {
   /// send() then wait_final() with timeout_for(expected_duration_s).
   CommandResult execute(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
                         double expected_duration_s = 0.0);
-  /// expected_duration_s + 3 x the window's p99 round trip (default_rtt_s
-  /// before any) + timeout_margin_s.
+  /// 1.5 x expected_duration_s + 3 x the window's p99 round trip
+  /// (default_rtt_s before any) + timeout_margin_s.
   std::chrono::nanoseconds timeout_for(double expected_duration_s) const;
 
   /// Splits, writes every chunk and waits for COMMITTED or REJECTED of this
