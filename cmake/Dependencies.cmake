@@ -47,7 +47,10 @@ function(foresight_add_test name)
   # LOCK: tests holding the same lock never run at the same time (e.g. the
   # ones that each start a real-time daemon: two FIFO loops on 2 cores would
   # stretch each other's motions).
-  set(T_PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  set(T_PROPERTIES TIMEOUT ${T_TIMEOUT})
+  if(T_LABELS)
+    list(APPEND T_PROPERTIES LABELS "${T_LABELS}")
+  endif()
   if(T_LOCK)
     list(APPEND T_PROPERTIES RESOURCE_LOCK ${T_LOCK})
   endif()
