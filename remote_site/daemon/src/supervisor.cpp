@@ -620,11 +620,13 @@ void Supervisor::start_next() {
 
 void Supervisor::finish_running(AckState state, Reason code, const std::string& reason, std::vector<double> final_q) {
   if (!running_) return;
-  ack(running_->command, state, code, reason, std::move(final_q));
+  // The plant's truth is journaled before the final ack leaves, so a ground
+  // that reads the journal after the ack finds it.
   if (p_.sim_truth)
     journal_event("sim_truth", "after command " + std::to_string(running_->command.command_id) + " (" +
                                    control::to_string(running_->command.kind) + ", " + control::to_string(state) + ")",
                   p_.sim_truth());
+  ack(running_->command, state, code, reason, std::move(final_q));
   running_.reset();
   start_next();
 }
