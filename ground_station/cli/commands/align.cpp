@@ -40,7 +40,7 @@ struct AlignArgs {
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
   int frame = 0;
-  bool json = false;
+  bool json = false, scale_image = false;
 };
 
 std::string utc_now_iso() {
@@ -99,12 +99,7 @@ int run_align(const AlignArgs& a) {
     AlignView& view = views[views.size() == 1 ? 0 : i];
     const std::string& jt = joint_texts[joint_texts.size() == 1 ? 0 : i];
     const Eigen::VectorXd q = parse_joints(jt, joint_option, model, !a.joints_deg.empty());
-    cv::Mat img = read_video_frame(a.image[i], a.frame);
-    if (img.cols != view.camera.viewport.width_px || img.rows != view.camera.viewport.height_px)
-      throw InputError(a.image[i], "image is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
-                                       " but camera '" + view.camera.name + "' has a " +
-                                       std::to_string(view.camera.viewport.width_px) + "x" +
-                                       std::to_string(view.camera.viewport.height_px) + " viewport");
+    const cv::Mat img = fit_to_viewport(read_video_frame(a.image[i], a.frame), a.image[i], view.camera, a.scale_image);
     view.frames.push_back({img, q});
   }
   for (const auto& v : views)
@@ -218,6 +213,7 @@ const bool registered = register_command(
        sub.add_option("--camera", a->camera, "camera name in cameras.yaml (repeat for several views)")->required();
        sub.add_option("--image", a->image, "video frame of the camera: image or video file (repeatable)")->required();
        sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+       sub.add_flag("--scale-image", a->scale_image, "resize an image whose size differs from the camera viewport");
        sub.add_option("--joints", a->joints, "arm joint angles q1,...,qN in radians (once, or once per image)");
        sub.add_option("--joints-deg", a->joints_deg, "arm joint angles in degrees (instead of --joints)");
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)");

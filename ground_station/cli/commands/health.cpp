@@ -34,7 +34,7 @@ struct HealthArgs {
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
   int max_frames = 100000;
-  bool json = false;
+  bool json = false, scale_image = false;
 };
 
 std::vector<Eigen::VectorXd> read_joint_lines(const std::string& path, const RobotModel& model) {
@@ -87,11 +87,7 @@ int run_health(const HealthArgs& a) {
   for (; k < a.max_frames && cap.read(img); ++k) {
     if (joints.size() > 1 && k >= static_cast<int>(joints.size()))
       throw InputError(a.joints_from, "has " + std::to_string(joints.size()) + " joint vectors but the video has more frames");
-    if (img.cols != camera.viewport.width_px || img.rows != camera.viewport.height_px)
-      throw InputError(a.video, "frame " + std::to_string(k) + " is " + std::to_string(img.cols) + "x" +
-                                    std::to_string(img.rows) + " but camera '" + camera.name + "' has a " +
-                                    std::to_string(camera.viewport.width_px) + "x" +
-                                    std::to_string(camera.viewport.height_px) + " viewport");
+    img = fit_to_viewport(img, a.video + " frame " + std::to_string(k), camera, a.scale_image);
     const Eigen::VectorXd& q = joints[joints.size() == 1 ? 0 : k];
     const auto s = aligner.score(camera, {img, q}, base_T_object);
     if (s.visible_samples == 0)
@@ -140,6 +136,7 @@ const bool registered = register_command(
        sub.add_option("--joints-from", a->joints_from, "joints file (one q per line, rad) or telemetry")->required();
        sub.add_option("--object-pose", a->object_pose, "JSON with base_T_object (the object occludes the arm)");
        sub.add_option("--max-frames", a->max_frames, "stop after N frames")->check(CLI::PositiveNumber);
+       sub.add_flag("--scale-image", a->scale_image, "resize frames whose size differs from the camera viewport");
        add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_health(*a); };
      }});

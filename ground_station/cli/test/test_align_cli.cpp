@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "foresight/camera/camera.hpp"
 #include "foresight/camera/projection.hpp"
@@ -107,6 +108,23 @@ TEST(AlignCli, WrongFrameSizeIsBadInputAndWritesNothing) {
   EXPECT_EQ(r.err, "foresight align: error: " + small +
                        ": image is 120x100 but camera 'side' has a 646x486 viewport (pass --scale-image to resize it)\n");
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+TEST(AlignCli, ScaleImageResizesAFrameOfAnotherResolution) {
+  auto& f = fixture();
+  const std::string big = temp_path(".png"), out = temp_path(".yaml");
+  cv::Mat frame = cv::imread(f.frame), twice;
+  cv::resize(frame, twice, cv::Size(), 2.0, 2.0, cv::INTER_LINEAR);
+  cv::imwrite(big, twice);
+  const std::string base = "align --cameras " + f.start_yaml + " --camera side --image " + big + " --joints " +
+                           f.q_text + " --out " + out + " --json";
+  EXPECT_EQ(run_foresight(base).status, 2);
+  const auto r = run_foresight(base + " --scale-image");
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["status"], "aligned");
+  EXPECT_LT(j["final_score_px"].get<double>(), j["start_score_px"].get<double>());
+  EXPECT_TRUE(load_cameras(out).at("side").calibration);
 }
 
 TEST(AlignCli, UnknownCameraIsBadInput) {
