@@ -18,6 +18,7 @@ PACKAGES=(
   libsqlite3-dev sqlite3
   libsystemd-dev
   fastddsgen libfastrtps-dev
+  xvfb xdotool x11-apps
 )
 
 missing=()
