@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <system_error>
 
+#include <spdlog/spdlog.h>
+
 #include "sqlite.hpp"
 
 namespace foresight::journal {
@@ -351,8 +353,7 @@ bool Journal::drain() {
 void Journal::write_batch(std::size_t n) {
   std::lock_guard lk(db_mu_);
   if (!db_) {
-    stats_.write_errors += 1;
-    stats_.last_error = options_.path + ": journal is closed; " + std::to_string(n) + " telemetry rows lost";
+    note_write_error(options_.path + ": journal is closed; " + std::to_string(n) + " telemetry rows lost");
     return;
   }
   Db& d = *db_;
@@ -384,9 +385,17 @@ void Journal::write_batch(std::size_t n) {
     ++stats_.telemetry_batches;
     maybe_rotate();
   } catch (const std::exception& e) {
-    stats_.write_errors += 1;
-    stats_.last_error = e.what();
+    note_write_error(std::string(e.what()) + " (" + std::to_string(n) + " telemetry rows lost)");
   }
+}
+
+void Journal::note_write_error(std::string what) {
+  // The writer thread: counted in stats() and logged, the first and then every
+  // 100th, so a full disk does not flood the log at the telemetry rate.
+  stats_.write_errors += 1;
+  stats_.last_error = std::move(what);
+  if (stats_.write_errors == 1 || stats_.write_errors % 100 == 0)
+    spdlog::error("journal: {} ({} telemetry batch failures so far)", stats_.last_error, stats_.write_errors);
 }
 
 void Journal::close() {

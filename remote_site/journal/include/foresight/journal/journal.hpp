@@ -134,6 +134,7 @@ class Journal {
   void writer_loop();
   bool drain();  ///< true when rows may remain (round limit reached)
   void write_batch(std::size_t n);
+  void note_write_error(std::string what);  ///< writer thread, under db_mu_
   void require_open() const;
 
   JournalOptions options_;
