@@ -42,6 +42,7 @@ const char* to_string(CanIo io) noexcept {
     case CanIo::ErrorFrame: return "error frame";
     case CanIo::Malformed: return "malformed datagram (not a struct can_frame)";
     case CanIo::BusOff: return "bus-off";
+    case CanIo::NetDown: return "interface down (ENETDOWN)";
     case CanIo::Closed: return "bus closed";
     case CanIo::SysError: return "system error";
   }
@@ -104,12 +105,9 @@ CanIo CanBus::read(can_frame& frame) noexcept {
     if (n < 0) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) return CanIo::WouldBlock;
       if (errno == EINTR) continue;
-      if (errno == ENETDOWN) {
-        health_.bus_off = true;
-        return CanIo::BusOff;
-      }
-      last_errno_ = errno;
-      return CanIo::SysError;
+      const CanIo io = detail::io_from_errno(errno, health_);
+      if (io == CanIo::SysError) last_errno_ = errno;
+      return io == CanIo::BusOff ? CanIo::WouldBlock : io;  // nothing to read: not a read error
     }
     if (n == 0) return CanIo::Closed;
     if (static_cast<std::size_t>(n) != sizeof frame || frame.can_dlc > CAN_MAX_DLEN) {
@@ -137,17 +135,26 @@ CanIo CanBus::write(const can_frame& frame) noexcept {
     if (n == static_cast<ssize_t>(sizeof frame)) return CanIo::Ok;
     if (n >= 0) return CanIo::SysError;
     if (errno == EINTR) continue;
-    if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) return CanIo::WouldBlock;
-    if (errno == ENETDOWN) {
-      health_.bus_off = true;
-      return CanIo::BusOff;
-    }
-    if (errno == EPIPE || errno == ECONNRESET || errno == ENXIO) return CanIo::Closed;
-    last_errno_ = errno;
-    return CanIo::SysError;
+    const CanIo io = detail::io_from_errno(errno, health_);
+    if (io == CanIo::SysError) last_errno_ = errno;
+    return io;
   }
-  return CanIo::WouldBlock;
+  return health_.bus_off ? CanIo::BusOff : CanIo::WouldBlock;
 }
+
+namespace detail {
+CanIo io_from_errno(int err, const BusHealth& health) noexcept {
+  if (err == EAGAIN || err == EWOULDBLOCK || err == ENOBUFS) return health.bus_off ? CanIo::BusOff : CanIo::WouldBlock;
+  if (err == ENETDOWN) return CanIo::NetDown;  // interface not up; bus-off comes as an error frame
+  if (err == EPIPE || err == ECONNRESET || err == ENXIO) return CanIo::Closed;
+  return CanIo::SysError;
+}
+
+std::vector<can_filter> kernel_filters(std::span<const can_filter> filters) {
+  if (filters.empty()) return {can_filter{0, 0}};  // mask 0: every data frame passes
+  return {filters.begin(), filters.end()};
+}
+}  // namespace detail
 
 // ---- SocketCAN --------------------------------------------------------------
 
@@ -195,8 +202,9 @@ int open_can_socket(const std::string& interface) {
 SocketCanBus::SocketCanBus(const std::string& interface) : CanBus(interface, open_can_socket(interface)) {}
 
 void SocketCanBus::set_filters(std::span<const can_filter> filters) {
-  if (::setsockopt(fd(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.empty() ? nullptr : filters.data(),
-                   static_cast<socklen_t>(filters.size() * sizeof(can_filter))) < 0) {
+  const std::vector<can_filter> k = detail::kernel_filters(filters);
+  if (::setsockopt(fd(), SOL_CAN_RAW, CAN_RAW_FILTER, k.data(),
+                   static_cast<socklen_t>(k.size() * sizeof(can_filter))) < 0) {
     const int err = errno;
     throw CanError("SocketCAN interface '" + name() + "': CAN_RAW_FILTER failed: " + errno_text(err));
   }

@@ -42,7 +42,12 @@ const char* sdo_abort_text(std::uint32_t code) noexcept {
 
 EmcyFault classify_emcy(std::uint16_t c) noexcept {
   if (c == 0x0000) return EmcyFault::None;
-  switch (c) {
+  switch (c) {  // codes known by name (CiA 301 / CiA 402)
+    case 0x2310: return EmcyFault::OverCurrent;
+    case 0x2320: return EmcyFault::ShortCircuit;
+    case 0x3210: return EmcyFault::OverVoltage;
+    case 0x3220: return EmcyFault::UnderVoltage;
+    case 0x7121: return EmcyFault::MotorBlocked;
     case 0x8110: return EmcyFault::CanOverrun;
     case 0x8120: return EmcyFault::CanErrorPassive;
     case 0x8130: return EmcyFault::HeartbeatError;
@@ -51,54 +56,85 @@ EmcyFault classify_emcy(std::uint16_t c) noexcept {
     case 0x8700: return EmcyFault::SyncLost;
     case 0x8611: return EmcyFault::FollowingError;
     case 0x8612: return EmcyFault::PositionLimit;
-    case 0x7121: return EmcyFault::MotorBlocked;
-    case 0x2320: return EmcyFault::ShortCircuit;
     default: break;
   }
-  switch (c >> 12) {  // error code classes (CiA 301 table 21)
-    case 0x1: return EmcyFault::Generic;
-    case 0x2: return EmcyFault::OverCurrent;
+  const std::uint16_t group = c & 0xFF00;
+  switch (c >> 12) {  // error code groups (CiA 301 table 21)
+    case 0x0: return EmcyFault::Unknown;  // 0x00xx other than 0x0000 is not a group
+    case 0x1: return group == 0x1000 ? EmcyFault::Generic : EmcyFault::Unknown;
+    case 0x2: return group == 0x2300 ? EmcyFault::OverCurrent : EmcyFault::Current;
     case 0x3:
-      if ((c & 0xFF00) == 0x3200 || (c & 0xFF00) == 0x3100) {
-        const std::uint16_t sub = c & 0x00F0;
-        if (sub == 0x0010) return EmcyFault::OverVoltage;
-        if (sub == 0x0020) return EmcyFault::UnderVoltage;
-      }
-      return EmcyFault::OverVoltage;
+      if (group == 0x3100) return EmcyFault::MainsVoltage;
+      if (group == 0x3300) return EmcyFault::OutputVoltage;
+      return EmcyFault::Voltage;
     case 0x4: return EmcyFault::OverTemperature;
     case 0x5: return EmcyFault::DeviceHardware;
-    case 0x6: return (c & 0xFF00) == 0x6300 ? EmcyFault::ParameterError : EmcyFault::Software;
-    case 0x7: return (c & 0xFF00) == 0x7300 ? EmcyFault::EncoderFault : EmcyFault::DeviceHardware;
-    case 0x8: return EmcyFault::Generic;  // other monitoring errors
+    case 0x6: return group == 0x6300 ? EmcyFault::ParameterError : EmcyFault::Software;
+    case 0x7: return group == 0x7300 ? EmcyFault::EncoderFault : EmcyFault::AdditionalModules;
+    case 0x8:
+      if (group == 0x8100) return EmcyFault::Communication;
+      if (group == 0x8200) return EmcyFault::ProtocolError;
+      return EmcyFault::Monitoring;
     case 0x9: return EmcyFault::External;
-    case 0xF: return EmcyFault::DeviceSpecific;
-    default: return EmcyFault::Unknown;
+    case 0xF:
+      if (group == 0xF000) return EmcyFault::AdditionalFunctions;
+      if (group == 0xFF00) return EmcyFault::DeviceSpecific;
+      return EmcyFault::Unknown;
+    default: return EmcyFault::Unknown;  // 0xA000..0xEFFF: no group
   }
+}
+
+std::uint8_t emcy_error_register_bits(std::uint16_t c) noexcept {
+  if (c == 0x0000) return 0x00;
+  std::uint8_t r = 0x01;  // generic error: set with every error
+  switch (c >> 12) {
+    case 0x2: r |= 0x02; break;
+    case 0x3: r |= 0x04; break;
+    case 0x4: r |= 0x08; break;
+    case 0x8:
+      if ((c & 0xFF00) == 0x8100 || (c & 0xFF00) == 0x8200) r |= 0x10;
+      else if ((c & 0xFF00) == 0x8600) r |= 0x20;  // CiA 402: position control monitoring
+      break;
+    case 0xF:
+      if ((c & 0xFF00) == 0xFF00) r |= 0x80;
+      break;
+    default: break;
+  }
+  return r;
 }
 
 const char* to_string(EmcyFault f) noexcept {
   switch (f) {
     case EmcyFault::None: return "error reset / no error";
     case EmcyFault::Generic: return "generic error";
+    case EmcyFault::Current: return "current";
     case EmcyFault::OverCurrent: return "over-current";
     case EmcyFault::ShortCircuit: return "short circuit / earth leakage";
+    case EmcyFault::Voltage: return "voltage";
+    case EmcyFault::MainsVoltage: return "mains voltage";
     case EmcyFault::OverVoltage: return "DC link over-voltage";
     case EmcyFault::UnderVoltage: return "DC link under-voltage";
+    case EmcyFault::OutputVoltage: return "output voltage";
     case EmcyFault::OverTemperature: return "over-temperature";
     case EmcyFault::DeviceHardware: return "device hardware";
     case EmcyFault::Software: return "device software";
     case EmcyFault::ParameterError: return "parameter error";
+    case EmcyFault::AdditionalModules: return "additional modules";
     case EmcyFault::EncoderFault: return "position sensor (encoder) fault";
     case EmcyFault::MotorBlocked: return "motor blocked";
+    case EmcyFault::Monitoring: return "monitoring";
+    case EmcyFault::Communication: return "communication";
     case EmcyFault::CanOverrun: return "CAN overrun (objects lost)";
     case EmcyFault::CanErrorPassive: return "CAN in error passive mode";
     case EmcyFault::HeartbeatError: return "life guard or heartbeat error";
     case EmcyFault::RecoveredFromBusOff: return "recovered from bus off";
+    case EmcyFault::ProtocolError: return "protocol error";
     case EmcyFault::PdoLength: return "PDO not processed due to length error";
     case EmcyFault::SyncLost: return "SYNC lost";
     case EmcyFault::FollowingError: return "following error";
     case EmcyFault::PositionLimit: return "position (reference) limit";
     case EmcyFault::External: return "external error";
+    case EmcyFault::AdditionalFunctions: return "additional functions";
     case EmcyFault::DeviceSpecific: return "device specific";
     case EmcyFault::Unknown: return "unknown error code";
   }

@@ -223,7 +223,7 @@ can_frame DriveSystem::sdo_exchange(std::size_t bus, std::uint8_t node, const ca
       handle_frame(bus, f, now);
       continue;
     }
-    if (io == CanIo::Closed || io == CanIo::SysError || io == CanIo::BusOff)
+    if (io == CanIo::Closed || io == CanIo::SysError || io == CanIo::BusOff || io == CanIo::NetDown)
       throw HwError(label + ": bus " + config_.buses[bus].name + ": " + to_string(io));
     if (now >= deadline) {
       can_frame abort = make_frame(kSdoRxBase + node, {0x80, 0, 0, 0, 0, 0, 0, 0});
@@ -345,7 +345,17 @@ std::string DriveSystem::sdo_read_string(std::size_t bus, std::uint8_t node, std
 }
 
 void DriveSystem::configure() {
-  // 1. NMT reset node, then wait for every node's boot-up message.
+  // 1. NMT reset node, then wait for every node's boot-up message. Frames
+  // already queued (a power-on boot-up, heartbeats) are drained first: a
+  // boot-up sent before the reset must not count as its answer, or the first
+  // SDO reaches a node that is still booting.
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+    can_frame f{};
+    for (std::size_t k = 0; k < 4 * kMaxFramesPerRead; ++k) {
+      const CanIo io = buses_[bi]->read(f);
+      if (io != CanIo::Ok && io != CanIo::ErrorFrame && io != CanIo::Malformed) break;
+    }
+  }
   for (Drive& d : drives_) d.booted = false;
   if (ft_) ft_->booted = false;
   configured_ = false;
@@ -603,7 +613,20 @@ void DriveSystem::disable() {
     run_cycle_blocking(deadline, fb, status);
     bool all = true;
     for (const Drive& d : drives_) all = all && d.have_actual && d.st.state != PowerState::OperationEnabled;
-    if (all || Clock::now() > end) break;
+    if (all) break;
+    if (Clock::now() > end) {
+      // Not silently: a drive that never answered may still be enabled.
+      std::string msg = "disable(): not confirmed after " +
+                        std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
+      for (const Drive& d : drives_) {
+        if (!d.have_actual)
+          msg += " " + node_label(d.bus, d.node) + " never answered (no TPDO; state unknown, may still be enabled);";
+        else if (d.st.state == PowerState::OperationEnabled)
+          msg += " " + node_label(d.bus, d.node) + " stayed in 'Operation enabled' (statusword " +
+                 hex(d.st.statusword, 4) + ");";
+      }
+      throw HwError(msg);  // enabled_ stays true: the destructor still sends quick stop
+    }
   }
   enabled_ = false;
 }

@@ -4,7 +4,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <vector>
 #include <thread>
 
 #include "foresight/hw/can_bus.hpp"
@@ -169,4 +171,49 @@ TEST(MockCanBus, FarEndInAnotherProcess) {
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+}
+
+// Issue 12: SocketCanBus::set_filters({}) gave the kernel an empty list, and
+// an empty CAN_RAW_FILTER list delivers no data frame at all. "Empty means
+// everything" must reach the kernel as one pass-all filter.
+TEST(SocketCanBus, EmptyFilterListReachesTheKernelAsPassAll) {
+  const std::vector<can_filter> k = detail::kernel_filters({});
+  ASSERT_EQ(k.size(), 1u);
+  for (canid_t id : {0x000u, 0x080u, 0x181u, 0x7FFu, 0x1FFFFFFFu})
+    EXPECT_EQ(id & k[0].can_mask, k[0].can_id & k[0].can_mask) << id;
+  const can_filter two[] = {{0x180, 0x780}, {0x700, 0x7FF}};
+  const std::vector<can_filter> same = detail::kernel_filters(two);
+  ASSERT_EQ(same.size(), 2u);
+  EXPECT_EQ(same[1].can_id, 0x700u);
+  // The mock bus agrees: an empty list passes everything.
+  auto [a, b] = MockCanBus::create_pair("t");
+  b->set_filters({});
+  ASSERT_EQ(a->write(make_frame(0x555, {1})), CanIo::Ok);
+  can_frame f{};
+  EXPECT_EQ(b->read(f), CanIo::Ok);
+}
+
+// Issue 12: ENETDOWN is "interface not up", not bus-off; bus-off is learned
+// only from a CAN_ERR_BUSOFF error frame.
+TEST(CanBus, EnetdownIsInterfaceDownNotBusOff) {
+  BusHealth healthy;
+  EXPECT_EQ(detail::io_from_errno(ENETDOWN, healthy), CanIo::NetDown);
+  EXPECT_STREQ(to_string(CanIo::NetDown), "interface down (ENETDOWN)");
+  EXPECT_EQ(detail::io_from_errno(ENOBUFS, healthy), CanIo::WouldBlock);
+  EXPECT_EQ(detail::io_from_errno(EAGAIN, healthy), CanIo::WouldBlock);
+  BusHealth off;
+  off.bus_off = true;
+  EXPECT_EQ(detail::io_from_errno(ENETDOWN, off), CanIo::NetDown);
+  EXPECT_EQ(detail::io_from_errno(ENOBUFS, off), CanIo::BusOff);  // queue full because the controller is off
+  EXPECT_EQ(detail::io_from_errno(EPIPE, healthy), CanIo::Closed);
+  EXPECT_EQ(detail::io_from_errno(EIO, healthy), CanIo::SysError);
+  // On a bus whose controller reported bus-off, a full queue is BusOff.
+  auto [a, b] = MockCanBus::create_pair("t");
+  ASSERT_EQ(b->write(make_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0})), CanIo::Ok);
+  can_frame f{};
+  ASSERT_EQ(a->read(f), CanIo::ErrorFrame);
+  ASSERT_TRUE(a->health().bus_off);
+  CanIo io = CanIo::Ok;
+  for (int i = 0; i < 100000 && io == CanIo::Ok; ++i) io = a->write(make_frame(0x181, {1, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(io, CanIo::BusOff);
 }

@@ -56,6 +56,42 @@ TEST(CanOpen, EmcyCodesMapToNamedFaults) {
   EXPECT_STREQ(to_string(classify_emcy(0x8611)), "following error");
 }
 
+// Issue 12: an unmatched 0x3xxx code was "DC link over-voltage"; codes are
+// classified by their CiA 301 group, and the raw code is never lost.
+TEST(CanOpen, EmcyCodesOutsideTheNamedOnesFallIntoTheirCiA301Group) {
+  EXPECT_EQ(classify_emcy(0x3100), EmcyFault::MainsVoltage);
+  EXPECT_EQ(classify_emcy(0x3130), EmcyFault::MainsVoltage);
+  EXPECT_EQ(classify_emcy(0x3310), EmcyFault::OutputVoltage);
+  EXPECT_EQ(classify_emcy(0x3000), EmcyFault::Voltage);
+  EXPECT_EQ(classify_emcy(0x3230), EmcyFault::Voltage);
+  EXPECT_STREQ(to_string(classify_emcy(0x3310)), "output voltage");
+  EXPECT_EQ(classify_emcy(0x2110), EmcyFault::Current);
+  EXPECT_EQ(classify_emcy(0x2350), EmcyFault::OverCurrent);
+  EXPECT_EQ(classify_emcy(0x8100), EmcyFault::Communication);
+  EXPECT_EQ(classify_emcy(0x8250), EmcyFault::ProtocolError);  // RPDO timeout
+  EXPECT_EQ(classify_emcy(0x8400), EmcyFault::Monitoring);
+  EXPECT_EQ(classify_emcy(0x1000), EmcyFault::Generic);
+  EXPECT_EQ(classify_emcy(0x1234), EmcyFault::Unknown);
+  EXPECT_EQ(classify_emcy(0x0001), EmcyFault::Unknown);
+  EXPECT_EQ(classify_emcy(0xA000), EmcyFault::Unknown);
+  EXPECT_EQ(classify_emcy(0xF001), EmcyFault::AdditionalFunctions);
+  EXPECT_EQ(classify_emcy(0xF101), EmcyFault::Unknown);
+  EXPECT_EQ(classify_emcy(0x7000), EmcyFault::AdditionalModules);
+}
+
+TEST(CanOpen, ErrorRegisterBitsFollowTheCodeGroup) {
+  EXPECT_EQ(emcy_error_register_bits(0x0000), 0x00);
+  EXPECT_EQ(emcy_error_register_bits(0x2310), 0x03);  // generic + current
+  EXPECT_EQ(emcy_error_register_bits(0x3210), 0x05);  // generic + voltage
+  EXPECT_EQ(emcy_error_register_bits(0x4310), 0x09);  // generic + temperature
+  EXPECT_EQ(emcy_error_register_bits(0x8130), 0x11);  // generic + communication
+  EXPECT_EQ(emcy_error_register_bits(0x8210), 0x11);
+  EXPECT_EQ(emcy_error_register_bits(0x8611), 0x21);  // generic + device profile: not communication
+  EXPECT_EQ(emcy_error_register_bits(0x8612), 0x21);
+  EXPECT_EQ(emcy_error_register_bits(0xFF01), 0x81);
+  EXPECT_EQ(emcy_error_register_bits(0x6320), 0x01);
+}
+
 TEST(BusLoad, WorstCaseFrameBits) {
   EXPECT_EQ(worst_case_frame_bits(0), 55);   // SYNC
   EXPECT_EQ(worst_case_frame_bits(1), 65);   // heartbeat

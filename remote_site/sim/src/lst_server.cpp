@@ -263,6 +263,21 @@ void LstServer::serve_one(int rc) {
     const int count = word_at(q + h + 3);
     for (int i = 0; i < count && rc >= h + 6 + 2 * (i + 1); ++i)
       refuse = refuse || out_of_range(address + i, word_at(q + h + 6 + 2 * i));
+  } else if (fc == MODBUS_FC_MASK_WRITE_REGISTER && rc >= h + 7) {
+    // FC 22: result = (current AND and_mask) OR (or_mask AND NOT and_mask).
+    const int address = word_at(q + h + 1);
+    const std::uint16_t and_mask = word_at(q + h + 3);
+    const std::uint16_t or_mask = word_at(q + h + 5);
+    if (address >= 0 && address < impl_->map->nb_registers) {
+      const std::uint16_t current = impl_->map->tab_registers[address];
+      refuse = out_of_range(address, static_cast<std::uint16_t>((current & and_mask) | (or_mask & ~and_mask)));
+    }
+  } else if (fc == MODBUS_FC_WRITE_AND_READ_REGISTERS && rc >= h + 10) {
+    // FC 23: read address, read count, write address, write count, byte count, values.
+    const int address = word_at(q + h + 5);
+    const int count = word_at(q + h + 7);
+    for (int i = 0; i < count && rc >= h + 10 + 2 * (i + 1); ++i)
+      refuse = refuse || out_of_range(address + i, word_at(q + h + 10 + 2 * i));
   }
   if (refuse) {
     modbus_reply_exception(ctx, q, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);

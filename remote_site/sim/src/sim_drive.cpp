@@ -176,8 +176,7 @@ void SimDrive::fault(std::uint16_t emcy_code, FrameSink& out) {
   state_ = PowerState::Fault;
   v_ = a_ = 0.0;  // brake
   demand_ = demand_prev_ = x_;
-  emit_emcy(emcy_code, 0x01 | ((emcy_code >> 12) == 0x8 ? 0x10 : 0x00) | ((emcy_code >> 12) == 0x2 ? 0x02 : 0x00),
-            out);
+  emit_emcy(emcy_code, emcy_error_register_bits(emcy_code), out);
 }
 
 void SimDrive::apply_command(std::uint16_t cw, FrameSink& out) {

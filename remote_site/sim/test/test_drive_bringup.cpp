@@ -197,3 +197,44 @@ TEST(DriveBringUp, UrdfLimitsAreWrittenToTheDrives) {
   // joint1: +-2.96706 rad x 131072 x 160 / 2 pi = +-9903333 counts (direction +1)
   EXPECT_NEAR(static_cast<std::int32_t>(rig.drives->sdo_read(0, 1, 0x607D, 2)), 2.967060 * 131072 * 160 / (2 * std::numbers::pi), 0.6);
 }
+
+// Issue 12: configure() must drain frames queued before its NMT reset. Here
+// every node's power-on boot-up is already waiting on the master's side when
+// joint7 falls silent: its stale boot-up must not count as the reset's answer.
+TEST(DriveBringUp, BootUpQueuedBeforeTheResetIsNotItsAnswer) {
+  hw::RemoteConfig c = project_config();
+  c.enable_timeout_s = 0.3;
+  SimRig rig(c);
+  const auto until = Clock::now() + std::chrono::seconds(5);
+  while (rig.sim->frames_sent() < 8 && Clock::now() < until)  // 7 drives + F/T booted
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  ASSERT_GE(rig.sim->frames_sent(), 8u);
+  rig.sim->drive(6).stop_answering(true);
+  try {
+    rig.drives->configure();
+    FAIL() << "configure() took the boot-up sent before the reset as its answer";
+  } catch (const hw::SdoError& e) {
+    FAIL() << "the stale boot-up was taken as the answer; then: " << e.what();
+  } catch (const hw::HwError& e) {
+    EXPECT_EQ(std::string(e.what()), "no boot-up message after NMT reset node within 300 ms from: "
+                                     "joint7 (bus arm_b node 7) (powered? node id right? bus wired?)");
+  }
+}
+
+// Issue 12: disable() gave up silently when a drive never answered.
+TEST(DriveBringUp, DisableReportsDrivesThatNeverAnswered) {
+  hw::RemoteConfig c = project_config();
+  c.enable_timeout_s = 0.3;
+  SimRig rig(c);
+  rig.bring_up();
+  rig.sim->drive(3).stop_answering(true);
+  try {
+    rig.drives->disable();
+    FAIL() << "disable() returned although joint4 never answered";
+  } catch (const hw::HwError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "disable(): not confirmed after 300 ms: joint4 (bus arm_a node 4) never answered (no TPDO; state "
+              "unknown, may still be enabled);");
+  }
+  for (std::size_t j : {0u, 1u, 2u, 4u, 5u, 6u}) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::ReadyToSwitchOn) << j;
+}

@@ -76,6 +76,7 @@ TEST(DriveFaults, FollowingErrorFaultsTheDrive) {
   const HwEvent* e = find_event(s, HwFault::Emergency);
   ASSERT_NE(e, nullptr);
   EXPECT_EQ(e->code, 0x8611u);
+  EXPECT_EQ(e->detail, 0x21u);  // error register: generic + device profile specific (not communication)
   EXPECT_EQ(hw::canopen::classify_emcy(0x8611), hw::canopen::EmcyFault::FollowingError);
   rig.run_until([&](const CycleStatus&) { return rig.fb.joints[0].state == PowerState::Fault; }, 500);
   EXPECT_EQ(rig.fb.joints[0].state, PowerState::Fault);
@@ -92,6 +93,7 @@ TEST(DriveFaults, UrdfLimitIsEnforcedByTheDrive) {
   const HwEvent* e = find_event(s, HwFault::Emergency);
   ASSERT_NE(e, nullptr);
   EXPECT_EQ(e->code, 0x8612u);
+  EXPECT_EQ(e->detail, 0x21u);  // error register: generic + device profile specific
   EXPECT_EQ(e->joint, 1);
   EXPECT_NE(rig.drives->describe(*e).find("position (reference) limit"), std::string::npos);
 }

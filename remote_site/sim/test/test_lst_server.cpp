@@ -12,7 +12,10 @@
 #include <numbers>
 #include <thread>
 
+#include <modbus.h>
+
 #include "foresight/hw/lst_tool.hpp"
+#include "foresight/hw/lst_tool_registers.hpp"
 #include "foresight/sim/lst_server.hpp"
 
 using namespace foresight;
@@ -399,4 +402,57 @@ TEST(LstServer, GarbageOnTheLinkIsDroppedAndTheNextRequestAnswered) {
   EXPECT_EQ(r[8], 16);
   EXPECT_EQ(r[10] & lst::kStatusReady, lst::kStatusReady);  // STATUS low byte
   EXPECT_TRUE(server.running());
+}
+
+// Every Modbus write function code is range-checked: FC 06, 16, 22 (mask
+// write) and 23 (read/write multiple) refuse an out-of-range speed or torque
+// limit with exception 03 and leave the register as it was (issue 12).
+TEST(LstServer, EveryWriteFunctionCodeIsRangeChecked) {
+  LstServer server(server_options());
+  modbus_t* ctx = modbus_new_tcp("127.0.0.1", server.port());
+  ASSERT_NE(ctx, nullptr);
+  modbus_set_response_timeout(ctx, 1, 0);
+  ASSERT_EQ(modbus_connect(ctx), 0);
+  const auto speed_counts = [](double rad_s) { return static_cast<std::uint16_t>(std::lround(rad_s / lst::kSpeedRadSPerCount)); };
+  const auto torque_counts = [](double nm) { return static_cast<std::uint16_t>(std::lround(nm / lst::kTorqueNmPerCount)); };
+  const std::uint16_t ok_speed = speed_counts(10.0), bad_speed = speed_counts(25.0);     // tool max 20 rad/s
+  const std::uint16_t ok_torque = torque_counts(30.0), bad_torque = torque_counts(70.0);  // tool max 60 N m
+  std::uint16_t regs[2] = {};
+  auto read_back = [&] {
+    EXPECT_EQ(modbus_read_registers(ctx, lst::kHoldSpeedCmd, 2, regs), 2);
+  };
+  // In range: accepted by each function code.
+  ASSERT_EQ(modbus_write_register(ctx, lst::kHoldSpeedCmd, ok_speed), 1);
+  const std::uint16_t both[2] = {ok_speed, ok_torque};
+  ASSERT_EQ(modbus_write_registers(ctx, lst::kHoldSpeedCmd, 2, both), 2);
+  ASSERT_EQ(modbus_mask_write_register(ctx, lst::kHoldTorqueLimit, 0x0000, ok_torque), 1);
+  ASSERT_EQ(modbus_write_and_read_registers(ctx, lst::kHoldSpeedCmd, 1, &ok_speed, lst::kHoldSpeedCmd, 2, regs), 2);
+  read_back();
+  EXPECT_EQ(regs[0], ok_speed);
+  EXPECT_EQ(regs[1], ok_torque);
+  // Out of range: exception 03 (EMBXILVAL) from every write function code.
+  errno = 0;
+  EXPECT_EQ(modbus_write_register(ctx, lst::kHoldSpeedCmd, bad_speed), -1);  // FC 06
+  EXPECT_EQ(errno, EMBXILVAL);
+  const std::uint16_t bad_both[2] = {ok_speed, bad_torque};
+  errno = 0;
+  EXPECT_EQ(modbus_write_registers(ctx, lst::kHoldSpeedCmd, 2, bad_both), -1);  // FC 16
+  EXPECT_EQ(errno, EMBXILVAL);
+  errno = 0;
+  EXPECT_EQ(modbus_mask_write_register(ctx, lst::kHoldSpeedCmd, 0x0000, bad_speed), -1);  // FC 22
+  EXPECT_EQ(errno, EMBXILVAL);
+  errno = 0;
+  EXPECT_EQ(modbus_mask_write_register(ctx, lst::kHoldTorqueLimit, 0x0000, bad_torque), -1);  // FC 22
+  EXPECT_EQ(errno, EMBXILVAL);
+  errno = 0;
+  EXPECT_EQ(modbus_write_and_read_registers(ctx, lst::kHoldSpeedCmd, 1, &bad_speed, lst::kHoldSpeedCmd, 2, regs), -1);  // FC 23
+  EXPECT_EQ(errno, EMBXILVAL);
+  errno = 0;
+  EXPECT_EQ(modbus_write_and_read_registers(ctx, lst::kHoldSpeedCmd, 2, bad_both, lst::kHoldSpeedCmd, 2, regs), -1);  // FC 23
+  EXPECT_EQ(errno, EMBXILVAL);
+  read_back();  // nothing changed
+  EXPECT_EQ(regs[0], ok_speed);
+  EXPECT_EQ(regs[1], ok_torque);
+  modbus_close(ctx);
+  modbus_free(ctx);
 }

@@ -39,13 +39,17 @@ enum class CanIo : std::uint8_t {
   WouldBlock,  ///< nothing to read / transmit queue full (frame not sent)
   ErrorFrame,  ///< read: a controller error frame; health() updated, frame returned
   Malformed,   ///< read: a datagram that is not one struct can_frame (size wrong, dlc > 8)
-  BusOff,      ///< write refused: the controller is bus-off (ENETDOWN)
+  BusOff,      ///< write refused: the transmit queue is full while the controller is
+               ///< bus-off (learned from a CAN_ERR_BUSOFF error frame, never from errno)
+  NetDown,     ///< ENETDOWN: the interface is not up (`ip link set can0 up`); not bus-off
   Closed,      ///< the peer closed the bus (mock) or the interface went away
   SysError,    ///< any other errno (see last_errno())
 };
 const char* to_string(CanIo io) noexcept;
 
-/// Controller state as learned from error frames and write errors.
+/// Controller state as learned from error frames (CAN_ERR_BUSOFF,
+/// CAN_ERR_CRTL, CAN_ERR_RESTARTED). errno never sets bus_off: ENETDOWN means
+/// the interface is down (CanIo::NetDown), which is a different fault.
 struct BusHealth {
   bool bus_off = false;
   bool error_passive = false;
@@ -96,6 +100,16 @@ class CanBus {
   BusHealth health_;
   std::vector<can_filter> filters_;
 };
+
+namespace detail {
+/// What a failed send()/recv() with `err` means (EAGAIN/ENOBUFS: WouldBlock,
+/// or BusOff when health says the controller is bus-off; ENETDOWN: NetDown;
+/// EPIPE/ECONNRESET/ENXIO: Closed; else SysError). Real-time safe.
+CanIo io_from_errno(int err, const BusHealth& health) noexcept;
+/// The list given to CAN_RAW_FILTER: the kernel delivers no data frame for an
+/// empty list, so "everything" (empty) becomes one filter {0, 0}. Set-up only.
+std::vector<can_filter> kernel_filters(std::span<const can_filter> filters);
+}  // namespace detail
 
 /// A real SocketCAN interface. The bit rate is set outside the program
 /// (`ip link set can0 type can bitrate 1000000`); the constructor checks that

@@ -89,34 +89,51 @@ enum class SdoAbort : std::uint32_t {
 const char* sdo_abort_text(std::uint32_t code) noexcept;
 
 // ---- EMCY -----------------------------------------------------------------------
-/// Named faults that EMCY error codes (CiA 301 / CiA 402) decode into.
+/// Named faults that EMCY error codes decode into: the CiA 402 / CiA 301 codes
+/// the master knows by name, else the CiA 301 error code group (table 21:
+/// the high byte, or the high nibble) the code belongs to. A classification
+/// never replaces the code: events and JointState keep the raw 16-bit code.
 enum class EmcyFault : std::uint8_t {
   None,  ///< 0x0000: error reset / no error
-  Generic,
-  OverCurrent,
-  ShortCircuit,
-  OverVoltage,
-  UnderVoltage,
-  OverTemperature,
-  DeviceHardware,
-  Software,
-  ParameterError,
-  EncoderFault,
-  MotorBlocked,
+  Generic,         ///< 0x10xx generic error
+  Current,         ///< 0x2xxx current (other)
+  OverCurrent,     ///< 0x2310 continuous over-current (and 0x23xx output side)
+  ShortCircuit,    ///< 0x2320 short circuit / earth leakage
+  Voltage,         ///< 0x3xxx voltage (other)
+  MainsVoltage,    ///< 0x31xx mains voltage
+  OverVoltage,     ///< 0x3210 DC link over-voltage
+  UnderVoltage,    ///< 0x3220 DC link under-voltage
+  OutputVoltage,   ///< 0x33xx output voltage
+  OverTemperature, ///< 0x4xxx temperature
+  DeviceHardware,  ///< 0x5xxx device hardware
+  Software,        ///< 0x61xx/0x62xx/0x6xxx device software
+  ParameterError,  ///< 0x63xx data set / parameter error
+  AdditionalModules,  ///< 0x7xxx additional modules (other)
+  EncoderFault,    ///< 0x73xx sensor (position encoder)
+  MotorBlocked,    ///< 0x7121
+  Monitoring,      ///< 0x8xxx monitoring (other)
+  Communication,   ///< 0x81xx communication (other)
   CanOverrun,
   CanErrorPassive,
   HeartbeatError,  ///< the node lost its heartbeat/life guarding consumer
   RecoveredFromBusOff,
+  ProtocolError,   ///< 0x82xx protocol error (other)
   PdoLength,       ///< PDO not processed due to length error
   SyncLost,
   FollowingError,  ///< 0x8611
   PositionLimit,   ///< 0x8612 reference limit
-  External,
-  DeviceSpecific,
-  Unknown,
+  External,        ///< 0x9xxx external error
+  AdditionalFunctions,  ///< 0xF0xx
+  DeviceSpecific,  ///< 0xFFxx
+  Unknown,         ///< outside every CiA 301 group
 };
 EmcyFault classify_emcy(std::uint16_t error_code) noexcept;
 const char* to_string(EmcyFault f) noexcept;
+/// The error register (0x1001) bits a device sets with `error_code` (CiA 301
+/// 7.5.2.2): bit 0 generic (always), 1 current, 2 voltage, 3 temperature,
+/// 4 communication (0x81xx, 0x82xx), 5 device profile specific (the CiA 402
+/// drive codes 0x86xx: following error, reference limit), 7 manufacturer.
+std::uint8_t emcy_error_register_bits(std::uint16_t error_code) noexcept;
 
 // ---- CiA 402 ----------------------------------------------------------------------
 enum class PowerState : std::uint8_t {
