@@ -18,6 +18,7 @@ PACKAGES=(
   libsqlite3-dev sqlite3
   libsystemd-dev
   fastddsgen libfastrtps-dev
+  clang libclang-rt-14-dev   # scripts/fuzz.sh (libFuzzer); the build itself stays GCC
   xvfb xdotool x11-apps
 )
 

@@ -166,8 +166,13 @@ void ControlLoop::setup_thread() noexcept {
     else
       warnings_.push_back(std::string("SCHED_FIFO not permitted (") + std::strerror(rc) +
                           "): running as a normal thread");
+#ifdef FORESIGHT_SANITIZER
+    // ASan/TSan map terabytes of shadow memory: mlockall would try to fault it all in.
+    if (options_.lock_memory) warnings_.push_back("mlockall skipped in a sanitizer build (cmake/Sanitizers.cmake)");
+#else
     if (options_.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
       warnings_.push_back(std::string("mlockall not permitted (") + std::strerror(errno) + ")");
+#endif
     if (options_.cpu >= 0) {
       cpu_set_t set;
       CPU_ZERO(&set);

@@ -9,6 +9,20 @@
 //
 // Only the thread that armed an AllocationCounter is counted: a simulator
 // thread beside the cycle allocates freely (it is not real-time code).
+//
+// Under ASan or TSan (cmake/Sanitizers.cmake) nothing is replaced: the
+// sanitizer owns malloc (a replacement forwarding to __libc_malloc crashes
+// inside ASan's start-up), and the count comes from the sanitizer's own
+// allocation hook (__sanitizer_install_malloc_and_free_hooks), which sees
+// malloc, calloc, realloc, the aligned forms and operator new alike.
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define FORESIGHT_ALLOC_COUNT_BY_HOOK 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define FORESIGHT_ALLOC_COUNT_BY_HOOK 1
+#endif
+#endif
 
 #include <malloc.h>     // memalign, as glibc declares it
 #include <mm_malloc.h>  // posix_memalign as GCC declares it: before the definitions below
@@ -18,7 +32,9 @@
 #include <cstddef>
 #include <cstdlib>
 #include <new>
+#include <stdexcept>
 
+#ifndef FORESIGHT_ALLOC_COUNT_BY_HOOK
 extern "C" {
 void* __libc_malloc(std::size_t);
 void* __libc_calloc(std::size_t, std::size_t);
@@ -26,6 +42,7 @@ void* __libc_realloc(void*, std::size_t);
 void* __libc_memalign(std::size_t, std::size_t);
 void __libc_free(void*);
 }
+#endif
 
 namespace foresight::test::alloc_detail {
 inline thread_local bool counting = false;  // zero-initialized static TLS: no allocation to read it
@@ -38,6 +55,22 @@ inline void* checked(void* p) {
   return p;
 }
 }  // namespace foresight::test::alloc_detail
+
+#ifdef FORESIGHT_ALLOC_COUNT_BY_HOOK
+// Declared by <sanitizer/allocator_interface.h> (Clang); GCC ships the symbol
+// in libasan/libtsan without that header.
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
+                                                         void (*free_hook)(const volatile void*));
+namespace foresight::test::alloc_detail {
+inline void malloc_hook(const volatile void*, std::size_t) { count(); }
+inline void free_hook(const volatile void*) {}
+/// Installs the hook once (the sanitizer takes at most 5 hooks); true when installed.
+inline bool install_hook() {
+  static const bool installed = __sanitizer_install_malloc_and_free_hooks(&malloc_hook, &free_hook) != 0;
+  return installed;
+}
+}  // namespace foresight::test::alloc_detail
+#else
 
 // ---- the C allocator (noexcept, as glibc declares them) ----
 extern "C" {
@@ -104,6 +137,7 @@ void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
 void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+#endif  // FORESIGHT_ALLOC_COUNT_BY_HOOK
 
 namespace foresight::test {
 
@@ -111,6 +145,9 @@ namespace foresight::test {
 class AllocationCounter {
  public:
   AllocationCounter() {
+#ifdef FORESIGHT_ALLOC_COUNT_BY_HOOK
+    if (!alloc_detail::install_hook()) throw std::runtime_error("cannot install the sanitizer malloc hook");
+#endif
     alloc_detail::allocations = 0;
     alloc_detail::counting = true;
   }
