@@ -32,7 +32,9 @@ int ObjectModel::point_index(const std::string& point_name) const {
   return -1;
 }
 
-ObjectModel ObjectModel::from_file(const std::string& path) {
+namespace {
+
+ObjectModel read_object_model(const std::string& path) {
   const YAML::Node root = yaml::load_file(path, "cannot open object model file");
   if (!root.IsMap()) throw InputError(path, "expected a map at the top level");
   ObjectModel m;
@@ -94,6 +96,18 @@ ObjectModel ObjectModel::from_file(const std::string& path) {
     m.tags[name] = yaml::read_pose(kv.second, path, "tags." + name);
   }
   return m;
+}
+
+}  // namespace
+
+/// Any yaml-cpp conversion failure left ("bad conversion") becomes bad input
+/// naming the file and line (it escaped as exit 1 with no file named).
+ObjectModel ObjectModel::from_file(const std::string& path) {
+  try {
+    return read_object_model(path);
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, e.mark.line >= 0 ? e.mark.line + 1 : 0, std::string("bad value: ") + e.msg);
+  }
 }
 
 }  // namespace foresight

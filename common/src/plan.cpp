@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/kinematics.hpp"
 
 namespace foresight {
@@ -20,14 +22,39 @@ std::string mm_deg(double m, double rad) {
   return buf;
 }
 
-/// Samples per segment for a duration: at least 2, duration rounded up to the sample period.
-int sample_count(double duration_s, double rate_hz) {
-  return std::max(2, static_cast<int>(std::ceil(duration_s * rate_hz - 1e-9)));
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+/// Samples per segment for a duration: at least 2, duration rounded up to the
+/// sample period. InputError naming the goal and the options behind it when
+/// the segment is longer than a trajectory may be (a tiny limit fraction or
+/// tool speed; the count would overflow an int).
+int sample_count(double duration_s, double rate_hz, const std::string& goal, const char* options) {
+  const TrajectoryLimits longest;
+  const std::optional<int> n = limits::sample_count(duration_s - 1e-9 / rate_hz, rate_hz);
+  if (!(duration_s <= longest.max_duration_s) || !n || *n > limits::kMaxTrajectorySamples)
+    throw InputError("goal '" + goal + "': the move would last " + num(duration_s) + " s, longer than a trajectory may (" +
+                     num(longest.max_duration_s) + " s): " + options + " too small");
+  return std::max(2, *n);
+}
+
+/// InputError unless lo < v <= hi (or lo <= v when lo_inclusive).
+void check_option(double v, double lo, double hi, bool lo_inclusive, const char* name, const char* unit) {
+  if ((lo_inclusive ? v >= lo : v > lo) && v <= hi) return;
+  const std::string u = *unit != '\0' ? std::string(" ") + unit : std::string();
+  throw InputError(std::string("plan option ") + name + " = " + num(v) + u + " is not in " +
+                   (lo_inclusive ? "[" : "(") + num(lo) + ", " + num(hi) + "]" + u);
 }
 
 /// Appends samples k = 1..n (k/n of the segment) produced by q_at(tau).
 template <typename F>
 void append(Trajectory& traj, std::vector<Eigen::VectorXd>& rows, double t0, int n, double rate_hz, F q_at) {
+  if (traj.samples() + static_cast<long long>(n) > limits::kMaxTrajectorySamples)
+    throw InputError("the plan would have more than " + std::to_string(limits::kMaxTrajectorySamples) +
+                     " samples (the most a trajectory may have): fewer goals, a lower rate_hz or a shorter dwell_s");
   for (int k = 1; k <= n; ++k) {
     traj.time_s.push_back(t0 + k / rate_hz);
     rows.push_back(q_at(static_cast<double>(k) / n));
@@ -55,10 +82,15 @@ double min_jerk(double tau) {
 
 Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const std::vector<Goal>& goals,
                  const PlanOptions& o) {
-  if (!(o.rate_hz > 0.0) || !(o.limit_fraction > 0.0 && o.limit_fraction <= 1.0) || !(o.tool_speed_m_s > 0.0) ||
-      !(o.tool_accel_m_s2 > 0.0) || !(o.tool_rate_rad_s > 0.0) || !(o.dwell_s >= 0.0) || !(o.min_segment_s > 0.0))
-    throw PlanError("plan options: rate, limit fraction (0, 1], tool speed/acceleration/rate and segment time must "
-                    "be positive, dwell not negative");
+  // Options are input: each in its physical range (InputError, the CLI exits 2).
+  const double longest_s = TrajectoryLimits{}.max_duration_s;
+  check_option(o.rate_hz, 0.0, 1000.0, false, "rate_hz", "Hz");
+  check_option(o.limit_fraction, 0.0, 1.0, false, "limit_fraction", "");
+  check_option(o.tool_speed_m_s, 0.0, 10.0, false, "tool_speed_m_s", "m/s");
+  check_option(o.tool_accel_m_s2, 0.0, 100.0, false, "tool_accel_m_s2", "m/s^2");
+  check_option(o.tool_rate_rad_s, 0.0, 10.0, false, "tool_rate_rad_s", "rad/s");
+  check_option(o.dwell_s, 0.0, longest_s, true, "dwell_s", "s");
+  check_option(o.min_segment_s, 0.0, longest_s, false, "min_segment_s", "s");
   if (q_start.size() != model.dof())
     throw PlanError("start joints: " + std::to_string(q_start.size()) + " values, the arm has " +
                     std::to_string(model.dof()));
@@ -110,7 +142,7 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
         T = std::max({T, kPeakVel * d / (o.limit_fraction * lim[j].velocity_rad_s),
                       std::sqrt(kPeakAcc * d / (o.limit_fraction * lim[j].acceleration_rad_s2))});
       }
-      const int n = sample_count(T, o.rate_hz);
+      const int n = sample_count(T, o.rate_hz, g.name, "limit_fraction");
       const Eigen::VectorXd q0 = q;
       append(plan.trajectory, rows, t, n, o.rate_hz, [&](double tau) -> Eigen::VectorXd {
         return tau >= 1.0 ? q_goal : Eigen::VectorXd(q0 + dq * min_jerk(tau));  // the goal exactly
@@ -128,7 +160,7 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
                            kPeakVel * theta / o.tool_rate_rad_s});
       std::vector<Eigen::VectorXd> path;
       for (int attempt = 0;; ++attempt) {
-        const int n = sample_count(T, o.rate_hz);
+        const int n = sample_count(T, o.rate_hz, g.name, "tool_speed_m_s / tool_accel_m_s2 / tool_rate_rad_s");
         path.clear();
         Eigen::VectorXd qk = q;
         for (int k = 1; k <= n; ++k) {
@@ -171,6 +203,9 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
         }
         T *= std::max({worst_v, std::sqrt(worst_a), 1.05});
       }
+      if (plan.trajectory.samples() + static_cast<long long>(path.size()) > limits::kMaxTrajectorySamples)
+        throw InputError("the plan would have more than " + std::to_string(limits::kMaxTrajectorySamples) +
+                         " samples (the most a trajectory may have): fewer goals or a lower rate_hz");
       for (std::size_t k = 0; k < path.size(); ++k) {
         plan.trajectory.time_s.push_back(t + static_cast<double>(k + 1) / o.rate_hz);
         rows.push_back(path[k]);
@@ -180,7 +215,7 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
     }
     t += seg.duration_s;
     if (o.dwell_s > 0.0) {
-      const int n = static_cast<int>(std::ceil(o.dwell_s * o.rate_hz - 1e-9));
+      const int n = sample_count(o.dwell_s, o.rate_hz, g.name, "dwell_s");
       const Eigen::VectorXd hold = q;
       append(plan.trajectory, rows, t, n, o.rate_hz, [&](double) -> Eigen::VectorXd { return hold; });
       t += n / o.rate_hz;

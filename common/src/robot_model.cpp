@@ -14,6 +14,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -21,6 +22,8 @@
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
+#include "foresight/common/text_file.hpp"
 
 namespace foresight {
 
@@ -46,6 +49,93 @@ std::string format_number(double v) {
   return os.str();
 }
 
+/// 1-based line of byte `pos` in `text`.
+int line_at(const std::string& text, std::size_t pos) {
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(pos), '\n'));
+}
+
+/// Refuses XML nested deeper than limits::kMaxXmlDepth before any recursive
+/// parser sees it (tinyxml and urdfdom recurse per level: 100,000 nested
+/// elements exhausted the stack). A linear scan of tags that skips comments,
+/// CDATA, declarations, processing instructions and quoted attribute values.
+void check_xml_depth(const std::string& xml, const std::string& source) {
+  int depth = 0;
+  std::size_t i = 0;
+  const std::size_t n = xml.size();
+  while (i < n) {
+    const std::size_t lt = xml.find('<', i);
+    if (lt == std::string::npos) break;
+    auto skip_to = [&](const char* end_marker) {
+      const std::size_t e = xml.find(end_marker, lt);
+      return e == std::string::npos ? n : e + std::strlen(end_marker);
+    };
+    if (xml.compare(lt, 4, "<!--") == 0) { i = skip_to("-->"); continue; }
+    if (xml.compare(lt, 9, "<![CDATA[") == 0) { i = skip_to("]]>"); continue; }
+    if (xml.compare(lt, 2, "<?") == 0) { i = skip_to("?>"); continue; }
+    if (xml.compare(lt, 2, "<!") == 0) { i = skip_to(">"); continue; }
+    const bool closing = lt + 1 < n && xml[lt + 1] == '/';
+    std::size_t j = lt + 1;
+    char quote = 0;
+    for (; j < n; ++j) {  // the end of the tag, outside quoted attribute values
+      const char c = xml[j];
+      if (quote != 0) {
+        if (c == quote) quote = 0;
+      } else if (c == '"' || c == '\'') {
+        quote = c;
+      } else if (c == '>') {
+        break;
+      }
+    }
+    if (j >= n) break;  // unterminated: tinyxml reports it
+    const bool self_closing = xml[j - 1] == '/';
+    if (closing) {
+      depth = std::max(0, depth - 1);
+    } else if (!self_closing && ++depth > limits::kMaxXmlDepth) {
+      throw InputError(source, line_at(xml, lt),
+                       "XML nested deeper than " + std::to_string(limits::kMaxXmlDepth) + " elements");
+    }
+    i = j + 1;
+  }
+}
+
+/// A URDF's links must form a tree: every link the child of at most one
+/// joint, no loop. urdfdom does not check this (a link with two parents made
+/// the walk from the tip to the base loop forever).
+void check_tree(const TiXmlElement* robot, const std::string& source) {
+  struct Parent {
+    std::string joint;
+    std::string link;
+    int line;
+  };
+  std::map<std::string, Parent> parent_of;  // child link -> its joint
+  for (const TiXmlElement* e = robot->FirstChildElement("joint"); e; e = e->NextSiblingElement("joint")) {
+    const TiXmlElement* parent = e->FirstChildElement("parent");
+    const TiXmlElement* child = e->FirstChildElement("child");
+    const char* name = e->Attribute("name");
+    if (parent == nullptr || child == nullptr || parent->Attribute("link") == nullptr ||
+        child->Attribute("link") == nullptr || name == nullptr)
+      continue;  // urdfdom reports these
+    const std::string c = child->Attribute("link");
+    const auto [it, fresh] = parent_of.emplace(c, Parent{name, parent->Attribute("link"), e->Row()});
+    if (!fresh)
+      throw InputError(source, e->Row(),
+                       "joint " + quoted(name) + ": link " + quoted(c) + " already has a parent (joint " +
+                           quoted(it->second.joint) + " at line " + std::to_string(it->second.line) +
+                           "): the links must form a tree");
+  }
+  for (const auto& [link, first] : parent_of) {  // every walk up ends within as many steps as there are joints
+    std::string at = link;
+    for (std::size_t steps = 0;; ++steps) {
+      const auto up = parent_of.find(at);
+      if (up == parent_of.end()) break;
+      if (steps > parent_of.size())
+        throw InputError(source, first.line,
+                         "link " + quoted(link) + " is its own ancestor (a loop of joints): the links must form a tree");
+      at = up->second.link;
+    }
+  }
+}
+
 /// Parse the XML, check the things urdfdom does not (or reports without a
 /// line), and index joints and links by name.
 XmlIndex check_xml(const TiXmlDocument& doc, const std::string& source) {
@@ -53,6 +143,7 @@ XmlIndex check_xml(const TiXmlDocument& doc, const std::string& source) {
   if (robot == nullptr) throw InputError(source, "malformed XML: no root element");
   if (std::string(robot->Value()) != "robot")
     throw InputError(source, robot->Row(), "root element is <" + std::string(robot->Value()) + ">, expected <robot>");
+  check_tree(robot, source);
   XmlIndex index;
   for (const TiXmlElement* e = robot->FirstChildElement("link"); e; e = e->NextSiblingElement("link")) {
     const char* name = e->Attribute("name");
@@ -95,7 +186,9 @@ urdf::ModelInterfaceSharedPtr parse_with_urdfdom(const std::string& xml, const s
     capture.first_error = e.what();
   }
   console_bridge::useOutputHandler(previous);
-  if (!model) {
+  // urdfdom logs some errors and carries on (mass="nan": "Could not parse
+  // inertial element", then a model with mass 0): an error logged is a refusal.
+  if (!model || !capture.first_error.empty()) {
     std::string why = capture.first_error;
     while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
     throw InputError(source, "URDF rejected by urdfdom: " + (why.empty() ? std::string("(no reason given)") : why));
@@ -178,6 +271,50 @@ double positive_attribute(const XmlJoint& xj, const std::string& joint, const ch
   return v;
 }
 
+/// Physical ranges urdfdom does not check, for every link and joint in the
+/// file (not only the chain): masses finite and in [0, kMaxMass_kg],
+/// inertias finite, origins finite and within kMaxOffset_m.
+void check_physical_ranges(const urdf::ModelInterface& model, const XmlIndex& xml, const std::string& source) {
+  auto origin_ok = [](const urdf::Pose& p) {
+    const double c[] = {p.position.x, p.position.y, p.position.z, p.rotation.x, p.rotation.y, p.rotation.z, p.rotation.w};
+    for (double v : c)
+      if (!std::isfinite(v)) return false;
+    return std::abs(p.position.x) <= limits::kMaxOffset_m && std::abs(p.position.y) <= limits::kMaxOffset_m &&
+           std::abs(p.position.z) <= limits::kMaxOffset_m;
+  };
+  auto xyz = [](const urdf::Pose& p) {
+    return "(" + format_number(p.position.x) + ", " + format_number(p.position.y) + ", " +
+           format_number(p.position.z) + ")";
+  };
+  const std::string sane = " (finite, each within " + format_number(limits::kMaxOffset_m) + " m)";
+  for (const auto& [name, link] : model.links_) {
+    if (!link || !link->inertial) continue;
+    const int line = xml.link_lines.count(name) ? xml.link_lines.at(name) : 0;
+    const urdf::Inertial& in = *link->inertial;
+    if (!std::isfinite(in.mass) || in.mass < 0.0 || in.mass > limits::kMaxMass_kg)
+      throw InputError(source, line,
+                       "link " + quoted(name) + ": mass " + format_number(in.mass) + " kg is not in [0, " +
+                           format_number(limits::kMaxMass_kg) + "] kg");
+    const double I[] = {in.ixx, in.ixy, in.ixz, in.iyy, in.iyz, in.izz};
+    for (double v : I)
+      if (!std::isfinite(v)) throw InputError(source, line, "link " + quoted(name) + ": <inertia> has a non-finite value");
+    if (!origin_ok(in.origin))
+      throw InputError(source, line,
+                       "link " + quoted(name) + ": <inertial> origin " + xyz(in.origin) + " out of range" + sane);
+  }
+  for (const auto& [name, joint] : model.joints_) {
+    if (!joint) continue;
+    const int line = xml.joints.count(name) ? xml.joints.at(name).line : 0;
+    if (!origin_ok(joint->parent_to_joint_origin_transform))
+      throw InputError(source, line,
+                       "joint " + quoted(name) + ": origin " + xyz(joint->parent_to_joint_origin_transform) +
+                           " m out of range" + sane);
+    const double axis[] = {joint->axis.x, joint->axis.y, joint->axis.z};
+    for (double v : axis)
+      if (!std::isfinite(v)) throw InputError(source, line, "joint " + quoted(name) + ": <axis> has a non-finite value");
+  }
+}
+
 /// Model identities: unique per built model, in any thread.
 std::uint64_t next_model_id() {
   static std::atomic<std::uint64_t> next{1};
@@ -187,22 +324,19 @@ std::uint64_t next_model_id() {
 }  // namespace
 
 RobotModel RobotModel::from_file(const std::string& urdf_path, const RobotModelOptions& options) {
-  std::ifstream in(urdf_path, std::ios::binary);
-  if (!in) throw InputError(urdf_path, "cannot open URDF file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError(urdf_path, "cannot read URDF file");
-  return from_xml(text.str(), urdf_path, options);
+  return from_xml(read_text_file(urdf_path, "cannot open URDF file"), urdf_path, options);
 }
 
 RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& source_name,
                                 const RobotModelOptions& options) {
+  check_xml_depth(urdf_xml, source_name);
   TiXmlDocument doc;
   doc.Parse(urdf_xml.c_str());
   if (doc.Error())
     throw InputError(source_name, doc.ErrorRow(), std::string("malformed XML: ") + doc.ErrorDesc());
   const XmlIndex xml = check_xml(doc, source_name);
   const urdf::ModelInterfaceSharedPtr urdf_model = parse_with_urdfdom(urdf_xml, source_name);
+  check_physical_ranges(*urdf_model, xml, source_name);
 
   const urdf::LinkConstSharedPtr base = urdf_model->getLink(options.base_link);
   if (!base) throw InputError(source_name, "base link " + quoted(options.base_link) + " not found (no <link name=\"" +
@@ -213,7 +347,7 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
 
   // Walk up from the tip to the base.
   std::vector<urdf::LinkConstSharedPtr> path;  // tip ... base
-  for (urdf::LinkConstSharedPtr l = tip; l; l = l->getParent()) {
+  for (urdf::LinkConstSharedPtr l = tip; l && path.size() <= urdf_model->links_.size(); l = l->getParent()) {
     path.push_back(l);
     if (l == base) break;
   }

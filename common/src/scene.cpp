@@ -3,13 +3,16 @@
 #include <cmath>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/yaml_util.hpp"
 
 namespace foresight {
 
+namespace {
+
 using yaml::line_of;
 
-Scene Scene::from_file(const std::string& path) {
+Scene read_scene(const std::string& path) {
   const YAML::Node root = yaml::load_file(path, "cannot open scene file");
   if (!root.IsMap()) throw InputError(path, "expected a map at the top level");
   Scene s;
@@ -28,6 +31,9 @@ Scene Scene::from_file(const std::string& path) {
 
   const YAML::Node cams = root["cameras"];
   if (!cams || !cams.IsMap() || cams.size() == 0) throw InputError(path, "missing or empty map 'cameras'");
+  if (cams.size() > static_cast<std::size_t>(limits::kMaxCameras))
+    throw InputError(path, line_of(cams), std::to_string(cams.size()) + " cameras, at most " +
+                                               std::to_string(limits::kMaxCameras) + " allowed");
   for (const auto& kv : cams) {
     const std::string name = kv.first.as<std::string>();
     const std::string key = "cameras." + name;
@@ -36,8 +42,9 @@ Scene Scene::from_file(const std::string& path) {
     if (s.cameras.count(name)) throw InputError(path, line_of(kv.first), "duplicate camera '" + name + "'");
     SceneCamera cam;
     const Eigen::Vector2d vp = yaml::read_vector<2>(c["viewport"], path, key + ".viewport");
-    if (vp.x() < 1.0 || vp.y() < 1.0 || vp.x() != std::floor(vp.x()) || vp.y() != std::floor(vp.y()))
-      throw InputError(path, line_of(c["viewport"]), "'" + key + ".viewport' must be two positive integers [W, H]");
+    if (vp.x() < 1.0 || vp.y() < 1.0 || vp.x() > 32768.0 || vp.y() > 32768.0 || vp.x() != std::floor(vp.x()) ||
+        vp.y() != std::floor(vp.y()))
+      throw InputError(path, line_of(c["viewport"]), "'" + key + ".viewport' must be two integers [W, H] in [1, 32768]");
     cam.width_px = static_cast<int>(vp.x());
     cam.height_px = static_cast<int>(vp.y());
     if (!c["f_px"]) throw InputError(path, line_of(c), "missing key '" + key + ".f_px'");
@@ -53,6 +60,18 @@ Scene Scene::from_file(const std::string& path) {
     s.camera_order.push_back(name);
   }
   return s;
+}
+
+}  // namespace
+
+/// Any yaml-cpp conversion failure left ("bad conversion") becomes bad input
+/// naming the file and line (it escaped as exit 1 with no file named).
+Scene Scene::from_file(const std::string& path) {
+  try {
+    return read_scene(path);
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, e.mark.line >= 0 ? e.mark.line + 1 : 0, std::string("bad value: ") + e.msg);
+  }
 }
 
 }  // namespace foresight

@@ -13,6 +13,8 @@
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/atomic_file.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/text_file.hpp"
 
 namespace foresight {
@@ -50,15 +52,18 @@ std::string fmt(double v) {
 
 }  // namespace
 
-Trajectory parse_trajectory_csv(const std::string& text, const std::string& source) {
-  std::istringstream in(text);
+namespace {
+
+/// Parses a trajectory CSV line by line (bounded line length and row count,
+/// limits::kMaxTrajectorySamples), so a file is never held whole in memory.
+Trajectory parse_trajectory_stream(std::istream& in, const std::string& source) {
+  LineReader reader(in, source);
   std::string line;
-  int line_no = 0;
   int joints = -1;
   std::vector<double> values;
   Trajectory traj;
-  while (std::getline(in, line)) {
-    ++line_no;
+  while (reader.next(line)) {
+    const int line_no = reader.line_no();
     const std::string_view l = trim(line);
     if (l.empty() || l.front() == '#') continue;
     const auto fields = split_commas(l);
@@ -77,6 +82,10 @@ Trajectory parse_trajectory_csv(const std::string& text, const std::string& sour
       throw InputError(source, line_no,
                        "expected " + std::to_string(joints + 1) + " columns (t,q1..q" + std::to_string(joints) +
                            "), found " + std::to_string(fields.size()));
+    if (traj.samples() >= limits::kMaxTrajectorySamples)
+      throw InputError(source, line_no,
+                       "more than " + std::to_string(limits::kMaxTrajectorySamples) +
+                           " samples (the most a trajectory may have)");
     for (std::size_t j = 0; j < fields.size(); ++j) {
       double v = 0.0;
       if (!parse_double(fields[j], v))
@@ -95,8 +104,17 @@ Trajectory parse_trajectory_csv(const std::string& text, const std::string& sour
   return traj;
 }
 
+}  // namespace
+
+Trajectory parse_trajectory_csv(const std::string& text, const std::string& source) {
+  std::istringstream in(text);
+  return parse_trajectory_stream(in, source);
+}
+
 Trajectory read_trajectory_csv(const std::string& path) {
-  return parse_trajectory_csv(read_text_file(path, "cannot open trajectory file"), path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open trajectory file");
+  return parse_trajectory_stream(in, path);
 }
 
 std::string to_csv(const Trajectory& traj) {
@@ -116,12 +134,7 @@ std::string to_csv(const Trajectory& traj) {
   return out;
 }
 
-void write_trajectory_csv(const std::string& path, const Trajectory& traj) {
-  std::ofstream f(path);
-  if (!f) throw InputError(path, "cannot write trajectory file");
-  f << to_csv(traj);
-  if (!f) throw InputError(path, "write failed");
-}
+void write_trajectory_csv(const std::string& path, const Trajectory& traj) { write_file_atomic(path, to_csv(traj)); }
 
 TrajectoryLimits TrajectoryLimits::from_model(const RobotModel& model) {
   TrajectoryLimits l;
@@ -146,96 +159,118 @@ const char* to_string(Violation::Rule rule) {
   return "unknown";
 }
 
-std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim) {
+std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim, std::size_t* total) {
   using R = Violation::Rule;
   std::vector<Violation> out;
+  std::size_t count = 0;
   const int n = traj.samples();
   const int dof = traj.joints();
-  auto add = [&](R rule, int row, int joint, double value, double limit, std::string msg) {
-    out.push_back({rule, row, joint, value, limit, std::move(msg)});
+  // Every violation is counted; only the first max_listed_violations are kept,
+  // and their messages are built only then (7e6 violations took minutes).
+  auto add = [&](R rule, int row, int joint, double value, double limit, auto&& message) {
+    ++count;
+    if (out.size() < lim.max_listed_violations) out.push_back({rule, row, joint, value, limit, message()});
+  };
+  auto finish = [&] {
+    std::stable_sort(out.begin(), out.end(), [](const Violation& x, const Violation& y) { return x.row < y.row; });
+    if (total != nullptr) *total = count;
+    return out;
   };
   if (static_cast<int>(traj.positions_rad.rows()) != n)
-    add(R::JointCount, -1, -1, static_cast<double>(traj.positions_rad.rows()), n,
-        "position rows (" + std::to_string(traj.positions_rad.rows()) + ") differ from time samples (" +
-            std::to_string(n) + ")");
+    add(R::JointCount, -1, -1, static_cast<double>(traj.positions_rad.rows()), n, [&] {
+      return "position rows (" + std::to_string(traj.positions_rad.rows()) + ") differ from time samples (" +
+             std::to_string(n) + ")";
+    });
   if (dof != lim.joints) {
-    add(R::JointCount, -1, -1, dof, lim.joints,
-        "trajectory has " + std::to_string(dof) + " joints, the robot has " + std::to_string(lim.joints));
-    return out;  // nothing else can be checked joint by joint
+    add(R::JointCount, -1, -1, dof, lim.joints, [&] {
+      return "trajectory has " + std::to_string(dof) + " joints, the robot has " + std::to_string(lim.joints);
+    });
+    return finish();  // nothing else can be checked joint by joint
   }
-  if (!out.empty()) return out;
+  if (count > 0) return finish();
   if (static_cast<int>(lim.joint_limits.size()) != dof)
     throw std::invalid_argument("TrajectoryLimits: joint_limits has " + std::to_string(lim.joint_limits.size()) +
                                 " entries for " + std::to_string(dof) + " joints");
   if (n < lim.min_samples)
-    add(R::TooFewSamples, -1, -1, n, lim.min_samples,
-        "trajectory has " + std::to_string(n) + " samples, at least " + std::to_string(lim.min_samples) + " needed");
+    add(R::TooFewSamples, -1, -1, n, lim.min_samples, [&] {
+      return "trajectory has " + std::to_string(n) + " samples, at least " + std::to_string(lim.min_samples) +
+             " needed";
+    });
   if (n > lim.max_samples)
-    add(R::TooManySamples, -1, -1, n, lim.max_samples,
-        "trajectory has " + std::to_string(n) + " samples, at most " + std::to_string(lim.max_samples) + " allowed");
+    add(R::TooManySamples, -1, -1, n, lim.max_samples, [&] {
+      return "trajectory has " + std::to_string(n) + " samples, at most " + std::to_string(lim.max_samples) +
+             " allowed";
+    });
   if (n > 0 && std::isfinite(traj.duration_s()) && traj.duration_s() > lim.max_duration_s)
-    add(R::Duration, -1, -1, traj.duration_s(), lim.max_duration_s,
-        "duration " + fmt(traj.duration_s()) + " s exceeds " + fmt(lim.max_duration_s) + " s");
+    add(R::Duration, -1, -1, traj.duration_s(), lim.max_duration_s, [&] {
+      return "duration " + fmt(traj.duration_s()) + " s exceeds " + fmt(lim.max_duration_s) + " s";
+    });
 
+  // One pass over the rows: the row's own checks, then the rates of the
+  // interval ending at it (only across rows that are finite and strictly
+  // increasing in time).
   std::vector<bool> row_ok(n, true);  // finite t and q
+  auto interval_ok = [&](int i) {     // interval (i-1, i)
+    return i > 0 && row_ok[i] && row_ok[i - 1] && traj.time_s[i] > traj.time_s[i - 1];
+  };
+  const double slack = 1.0 + lim.rate_tolerance;
   for (int i = 0; i < n; ++i) {
     auto row = [i] { return "row " + std::to_string(i + 1); };  // built only for a violation
     if (!std::isfinite(traj.time_s[i])) {
-      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, row() + ": t is not finite");
+      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, [&] { return row() + ": t is not finite"; });
       row_ok[i] = false;
     }
     for (int j = 0; j < dof; ++j) {
       const double q = traj.positions_rad(i, j);
       auto where = [&] { return row() + ", joint " + qname(j + 1); };
       if (!std::isfinite(q)) {
-        add(R::NonFinite, i + 1, j + 1, q, 0.0, where() + ": position is not finite");
+        add(R::NonFinite, i + 1, j + 1, q, 0.0, [&] { return where() + ": position is not finite"; });
         row_ok[i] = false;
         continue;
       }
       const JointLimits& jl = lim.joint_limits[j];
       if (q < jl.lower_rad || q > jl.upper_rad)
-        add(R::PositionLimit, i + 1, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad,
-            where() + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) + "] rad");
+        add(R::PositionLimit, i + 1, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad, [&] {
+          return where() + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) +
+                 "] rad";
+        });
     }
     if (i > 0 && row_ok[i] && row_ok[i - 1]) {
       const double dt = traj.time_s[i] - traj.time_s[i - 1];
       if (!(dt > 0.0))
-        add(R::TimeNotIncreasing, i + 1, 0, traj.time_s[i], traj.time_s[i - 1],
-            row() + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " + fmt(traj.time_s[i - 1]) + " s)");
+        add(R::TimeNotIncreasing, i + 1, 0, traj.time_s[i], traj.time_s[i - 1], [&] {
+          return row() + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " +
+                 fmt(traj.time_s[i - 1]) + " s)";
+        });
       else if (dt > lim.max_sample_interval_s)
-        add(R::SampleGap, i + 1, 0, dt, lim.max_sample_interval_s,
-            row() + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) + " s");
+        add(R::SampleGap, i + 1, 0, dt, lim.max_sample_interval_s, [&] {
+          return row() + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) +
+                 " s";
+        });
     }
-  }
-
-  // Rates, only across rows that are finite and strictly increasing in time.
-  auto interval_ok = [&](int i) {  // interval (i-1, i)
-    return i > 0 && row_ok[i] && row_ok[i - 1] && traj.time_s[i] > traj.time_s[i - 1];
-  };
-  const double slack = 1.0 + lim.rate_tolerance;
-  for (int i = 1; i < n; ++i) {
     if (!interval_ok(i)) continue;
     const double dt = traj.time_s[i] - traj.time_s[i - 1];
     for (int j = 0; j < dof; ++j) {
       const JointLimits& jl = lim.joint_limits[j];
       const double v = (traj.positions_rad(i, j) - traj.positions_rad(i - 1, j)) / dt;
-      auto where = [&] { return "row " + std::to_string(i + 1) + ", joint " + qname(j + 1); };
       if (std::abs(v) > jl.velocity_rad_s * slack)
-        add(R::VelocityLimit, i + 1, j + 1, v, jl.velocity_rad_s,
-            where() + ": velocity " + fmt(v) + " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s");
+        add(R::VelocityLimit, i + 1, j + 1, v, jl.velocity_rad_s, [&] {
+          return "row " + std::to_string(i + 1) + ", joint " + qname(j + 1) + ": velocity " + fmt(v) +
+                 " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s";
+        });
       if (i >= 2 && interval_ok(i - 1)) {
         const double dt0 = traj.time_s[i - 1] - traj.time_s[i - 2];
         const double v0 = (traj.positions_rad(i - 1, j) - traj.positions_rad(i - 2, j)) / dt0;
         const double a = (v - v0) / (0.5 * (dt + dt0));
-        auto mid = [&] { return "row " + std::to_string(i) + ", joint " + qname(j + 1); };
         if (std::abs(a) > jl.acceleration_rad_s2 * slack)
-          add(R::AccelerationLimit, i, j + 1, a, jl.acceleration_rad_s2,
-              mid() + ": acceleration " + fmt(a) + " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2");
+          add(R::AccelerationLimit, i, j + 1, a, jl.acceleration_rad_s2, [&] {
+            return "row " + std::to_string(i) + ", joint " + qname(j + 1) + ": acceleration " + fmt(a) +
+                   " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2";
+          });
       }
     }
   }
-  std::stable_sort(out.begin(), out.end(), [](const Violation& a, const Violation& b) { return a.row < b.row; });
-  return out;
+  return finish();
 }
 
 TrajectoryHash trajectory_hash(const Trajectory& traj) {

@@ -2,15 +2,16 @@
 
 #include <numbers>
 
+#include "foresight/common/text_file.hpp"
+
 namespace foresight::yaml {
 
 int line_of(const YAML::Node& n) { return n && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
 
 YAML::Node load_file(const std::string& path, const std::string& cannot_open) {
+  const std::string text = read_text_file(path, cannot_open);  // bounded size (input_limits.hpp)
   try {
-    return YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw InputError(path, cannot_open);
+    return YAML::Load(text);
   } catch (const YAML::Exception& e) {
     throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
   }

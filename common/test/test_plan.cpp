@@ -171,6 +171,6 @@ TEST(PlanBadInput, EachFailureNamesTheGoal) {
   }
   PlanOptions bad;
   bad.limit_fraction = 1.5;
-  EXPECT_THROW(plan_motion(s.robot, start_q(), {s.tag("approach_20cm", SegmentKind::Joint)}, bad), PlanError);
+  EXPECT_THROW(plan_motion(s.robot, start_q(), {s.tag("approach_20cm", SegmentKind::Joint)}, bad), InputError);
   EXPECT_THROW(plan_motion(s.robot, start_q(), {}), PlanError);
 }

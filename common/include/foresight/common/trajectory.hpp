@@ -10,10 +10,12 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/robot_model.hpp"
 
 namespace foresight {
@@ -30,13 +32,15 @@ struct Trajectory {
 /// Parse CSV text; `source` names the file in errors. Throws InputError with
 /// the line number: missing/invalid header, wrong column count, a field that
 /// is not a number (non-finite numbers such as "nan" parse, and are left for
-/// validate() to report with row and joint), no samples.
+/// validate() to report with row and joint), no samples, more than
+/// limits::kMaxTrajectorySamples samples, a line longer than kMaxLineBytes.
 Trajectory parse_trajectory_csv(const std::string& text, const std::string& source);
-/// Read a CSV file. Throws InputError (file cannot be opened, or as above).
+/// Read a CSV file, streamed line by line (memory bounded by the samples
+/// kept). Throws InputError (file cannot be opened, or as above).
 Trajectory read_trajectory_csv(const std::string& path);
 /// CSV text with full double precision (round-trips exactly).
 std::string to_csv(const Trajectory& trajectory);
-/// Write CSV. Throws InputError when the file cannot be written.
+/// Write CSV atomically (write_file_atomic: the old file survives a failed write).
 void write_trajectory_csv(const std::string& path, const Trajectory& trajectory);
 
 /// What a trajectory must respect.
@@ -49,6 +53,8 @@ struct TrajectoryLimits {
   double max_sample_interval_s = 1.0;     ///< no long gaps between samples
   /// Relative slack on velocity/acceleration limits for finite differencing.
   double rate_tolerance = 1e-9;
+  /// validate() keeps the first this many violations (counting the rest).
+  std::size_t max_listed_violations = limits::kMaxListedViolations;
 
   /// Joint count and limits from the URDF model.
   static TrajectoryLimits from_model(const RobotModel& model);
@@ -77,12 +83,16 @@ struct Violation {
 
 const char* to_string(Violation::Rule rule);
 
-/// Every violation, in row order (an empty result means the trajectory passes).
+/// The violations, in row order (an empty result means the trajectory
+/// passes): the first limits.max_listed_violations of them; `total`, when
+/// given, receives how many there are in all (say "and N more"). Linear in
+/// the samples, whatever the number of violations.
 /// Velocities are finite differences between consecutive samples (reported at
 /// the later row); accelerations are differences of consecutive velocities
 /// over the mean interval (reported at the middle row). Rate rules are
 /// skipped for rows whose times or values are non-finite or not increasing.
-std::vector<Violation> validate(const Trajectory& trajectory, const TrajectoryLimits& limits);
+std::vector<Violation> validate(const Trajectory& trajectory, const TrajectoryLimits& limits,
+                                std::size_t* total = nullptr);
 
 using TrajectoryHash = std::array<std::uint8_t, 32>;
 
