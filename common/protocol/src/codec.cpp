@@ -1,6 +1,64 @@
 #include "foresight/protocol/codec.hpp"
 
+#include <cstdio>
+#include <cstring>
+
 namespace foresight::protocol {
+
+namespace {
+
+/// "<field> <raw>" into buf when the raw value is past `last`, else nullptr.
+template <class E>
+const char* past(const E& field, E last, const char* name, char* buf, std::size_t size) noexcept {
+  const std::uint32_t v = raw(field);
+  if (v <= static_cast<std::uint32_t>(last)) return nullptr;
+  if (std::strcmp(name, "kind") == 0)
+    std::snprintf(buf, size, "unknown kind %u", static_cast<unsigned>(v));
+  else
+    std::snprintf(buf, size, "%s %u is unknown", name, static_cast<unsigned>(v));
+  return buf;
+}
+
+}  // namespace
+
+const char* enum_error(const msg::Command& c, char* buf, std::size_t size) noexcept {
+  if (const char* e = past(c.payload._d, foresight_msg_CMD_RECOVER, "kind", buf, size)) return e;
+  const auto& u = c.payload._u;
+  switch (raw(c.payload._d)) {
+    case foresight_msg_CMD_REQUEST:
+      return past(u.request.what, foresight_msg_REQUEST_TRAJECTORIES, "request.what", buf, size);
+    case foresight_msg_CMD_CAMERA:
+      return past(u.camera.action, foresight_msg_CAMERA_GRAB, "camera.action", buf, size);
+    case foresight_msg_CMD_ABORT:
+      return past(u.abort.category, foresight_msg_STOP_CAT2, "abort.category", buf, size);
+    default:
+      return nullptr;
+  }
+}
+
+const char* enum_error(const msg::CommandAck& a, char* buf, std::size_t size) noexcept {
+  if (const char* e = past(a.kind, foresight_msg_CMD_RECOVER, "kind", buf, size)) return e;
+  if (const char* e = past(a.state, foresight_msg_ACK_CANCELED, "state", buf, size)) return e;
+  return past(a.code, foresight_msg_REASON_NOT_IN_CONTROL, "code", buf, size);
+}
+
+const char* enum_error(const msg::TrajectoryStatus& s, char* buf, std::size_t size) noexcept {
+  if (const char* e = past(s.state, foresight_msg_UPLOAD_DISCARDED, "state", buf, size)) return e;
+  return past(s.code, foresight_msg_REASON_NOT_IN_CONTROL, "code", buf, size);
+}
+
+const char* enum_error(const msg::ToolState& t, char* buf, std::size_t size) noexcept {
+  return past(t.direction, foresight_msg_TOOL_LOOSEN, "direction", buf, size);
+}
+
+const char* enum_error(const msg::ControllerStatus& s, char* buf, std::size_t size) noexcept {
+  if (const char* e = past(s.mode, foresight_msg_MODE_FAULT, "mode", buf, size)) return e;
+  return past(s.stop_category, foresight_msg_STOP_CAT2, "stop_category", buf, size);
+}
+
+const char* enum_error(const msg::Heartbeat& h, char* buf, std::size_t size) noexcept {
+  return past(h.side, foresight_msg_SIDE_REMOTE, "side", buf, size);
+}
 
 const char* to_string(msg::CommandKind value) noexcept {
   switch (value) {

@@ -41,9 +41,12 @@ CommandChecker::Verdict CommandChecker::check(const msg::Command& c, std::int64_
                std::to_string(msg::kProtocolVersion);
     return v;
   }
-  if (static_cast<unsigned>(c.payload._d) > static_cast<unsigned>(foresight_msg_CMD_RECOVER)) {
+  // Every enum field checked as a raw integer before anything reads it as an
+  // enum (a hostile participant can send any value: loading it is UB).
+  char why[96];
+  if (const char* bad = enum_error(c, why, sizeof why)) {
     v.code = foresight_msg_REASON_BAD_ARGUMENT;
-    v.reason = name + "unknown kind " + std::to_string(static_cast<unsigned>(c.payload._d));
+    v.reason = name + bad;
     return v;
   }
   const bool same_session = c.session_id == session_id_;
@@ -69,7 +72,7 @@ void fill_ack(msg::CommandAck& ack, const msg::Command& c, msg::AckState state, 
   ack.session_id = c.session_id;
   ack.command_id = c.command_id;
   ack.sequence_number = c.sequence_number;
-  ack.kind = c.payload._d;
+  set_raw(ack.kind, raw(c.payload._d));  // echoed raw: it may be an unknown kind being rejected
   ack.state = state;
   ack.code = code;
   set_text_truncated(ack.reason, reason);

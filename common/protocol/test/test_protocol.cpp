@@ -544,7 +544,7 @@ TEST(ProtocolCommands, CheckerRejectsVersionReplayExpiryAndUnknownKind) {
   EXPECT_EQ(e.code, foresight_msg_REASON_EXPIRED);
   EXPECT_EQ(e.reason, "command 4: expired 0.250000 s ago");
   auto c5 = ground.next(foresight_msg_CMD_REQUEST);
-  c5->payload._d = static_cast<msg::CommandKind>(42);
+  fp::set_raw(c5->payload._d, 42);  // as a hostile participant's sample holds it (no enum value formed)
   auto k = remote.check(*c5, now);
   EXPECT_EQ(k.code, foresight_msg_REASON_BAD_ARGUMENT);
   EXPECT_EQ(k.reason, "command 5: unknown kind 42");
@@ -623,4 +623,61 @@ TEST_F(ProtocolDds, TakeReusesTheSamplesBuffers) {
     if (i == 0) first_buffer = got->q_rad._buffer;
     EXPECT_EQ(got->q_rad._buffer, first_buffer) << "take " << i << " reallocated q_rad";
   }
+}
+
+// Issue 13 (UBSan): a received sample's enum fields hold whatever a hostile
+// participant wrote; each is checked as a raw integer before it is loaded as
+// an enum, for every sample type either side decodes.
+TEST(ProtocolEnums, EveryEnumFieldOfAReceivedSampleIsCheckedAsARawInteger) {
+  char buf[96];
+  fp::CommandSequencer ground(5);
+  auto c = ground.next(foresight_msg_CMD_ABORT);
+  EXPECT_EQ(fp::enum_error(*c, buf, sizeof buf), nullptr);
+  fp::set_raw(c->payload._u.abort.category, 7);
+  EXPECT_STREQ(fp::enum_error(*c, buf, sizeof buf), "abort.category 7 is unknown");
+  fp::set_raw(c->payload._d, 42);
+  EXPECT_EQ(fp::raw(c->payload._d), 42u);
+  EXPECT_STREQ(fp::enum_error(*c, buf, sizeof buf), "unknown kind 42");
+  auto r = ground.next(foresight_msg_CMD_REQUEST);
+  fp::set_raw(r->payload._u.request.what, 200);
+  EXPECT_STREQ(fp::enum_error(*r, buf, sizeof buf), "request.what 200 is unknown");
+  auto cam = ground.next(foresight_msg_CMD_CAMERA);
+  fp::set_raw(cam->payload._u.camera.action, 3);
+  EXPECT_STREQ(fp::enum_error(*cam, buf, sizeof buf), "camera.action 3 is unknown");
+
+  // The rejected command's ack echoes the raw kind without forming an enum value.
+  fp::Sample<msg::CommandAck> ack;
+  fp::fill_ack(*ack, *c, foresight_msg_ACK_REJECTED, foresight_msg_REASON_BAD_ARGUMENT, "unknown kind 42");
+  EXPECT_EQ(fp::raw(ack->kind), 42u);
+  EXPECT_STREQ(fp::enum_error(*ack, buf, sizeof buf), "unknown kind 42");  // and the ground refuses to trust it
+  fp::set_raw(ack->kind, foresight_msg_CMD_ABORT);
+  EXPECT_EQ(fp::enum_error(*ack, buf, sizeof buf), nullptr);
+  fp::set_raw(ack->state, 9);
+  EXPECT_STREQ(fp::enum_error(*ack, buf, sizeof buf), "state 9 is unknown");
+  fp::set_raw(ack->state, foresight_msg_ACK_COMPLETED);
+  fp::set_raw(ack->code, 65535);
+  EXPECT_STREQ(fp::enum_error(*ack, buf, sizeof buf), "code 65535 is unknown");
+
+  fp::Sample<msg::TrajectoryStatus> up;
+  EXPECT_EQ(fp::enum_error(*up, buf, sizeof buf), nullptr);
+  fp::set_raw(up->state, 4);
+  EXPECT_STREQ(fp::enum_error(*up, buf, sizeof buf), "state 4 is unknown");
+  fp::Sample<msg::ToolState> tool;
+  fp::set_raw(tool->direction, 3);
+  EXPECT_STREQ(fp::enum_error(*tool, buf, sizeof buf), "direction 3 is unknown");
+  fp::Sample<msg::ControllerStatus> status;
+  fp::set_raw(status->mode, 8);
+  EXPECT_STREQ(fp::enum_error(*status, buf, sizeof buf), "mode 8 is unknown");
+  fp::set_raw(status->mode, foresight_msg_MODE_IDLE);
+  fp::set_raw(status->stop_category, 4);
+  EXPECT_STREQ(fp::enum_error(*status, buf, sizeof buf), "stop_category 4 is unknown");
+  fp::Sample<msg::Heartbeat> hb;
+  fp::set_raw(hb->side, 2);
+  EXPECT_STREQ(fp::enum_error(*hb, buf, sizeof buf), "side 2 is unknown");
+
+  // The remote's envelope check refuses it first, with the same words.
+  fp::CommandChecker remote;
+  const auto v = remote.check(*c, fp::now_ns());
+  EXPECT_EQ(v.code, foresight_msg_REASON_BAD_ARGUMENT);
+  EXPECT_EQ(v.reason, "command 1: unknown kind 42");
 }

@@ -92,6 +92,7 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
                                double rank_tolerance, bool* cross_product) {
   check_points(pts, name);
   const std::string who = "camera '" + name + "': ";
+  check_in_viewport(pts, vp, "camera '" + name + "'");
   const int n = static_cast<int>(pts.size());
   // Normalise: points centred at their centroid and scaled to unit RMS,
   // pixels centred at the principal point and scaled by H/2 (the paper's s_y).
@@ -207,6 +208,7 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
                                    const CalibrationOptions& opt) {
   check_points(pts, name);
   const std::string who = "camera '" + name + "': ";
+  check_in_viewport(pts, vp, "camera '" + name + "'");
   const int n = static_cast<int>(pts.size());
   const Eigen::Vector2d pp(vp.width_px / 2.0, vp.height_px / 2.0);
 

@@ -4,9 +4,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/text_file.hpp"
 
@@ -45,11 +47,12 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
                                                       const LinkPointResolver* robot) {
   std::vector<Correspondence> out;
   std::istringstream in(text);
+  LineReader reader(in, source);
   std::string raw;
-  int line_no = 0;
   bool header_seen = false;
-  while (std::getline(in, raw)) {
-    ++line_no;
+  int header_q = -1;  // joint angles the header names (link form), -1: base form
+  while (reader.next(raw)) {
+    const int line_no = reader.line_no();
     const std::string line = trim(raw);
     if (line.empty() || line[0] == '#') continue;
     const std::vector<std::string> f = split(line);
@@ -62,8 +65,12 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
       for (std::size_t i = 6; link_form && i + 2 < f.size(); ++i)
         link_form = f[i] == "q" + std::to_string(i - 5);
       if (!base_form && !link_form) throw InputError(source, line_no, kHeaderHelp + std::string(", got '") + line + "'");
+      if (link_form) header_q = static_cast<int>(f.size()) - 8;
       continue;
     }
+    if (static_cast<int>(out.size()) >= limits::kMaxPointRows)
+      throw InputError(source, line_no,
+                       "more than " + std::to_string(limits::kMaxPointRows) + " points (the most a points file may have)");
     Correspondence c;
     c.line = line_no;
     double number = 0.0;
@@ -71,8 +78,8 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
       throw InputError(source, line_no,
                        "expected 7 fields n,cam,x,y,z,u,v (or n,cam,link,lx,ly,lz,q1..qN,u,v), got " +
                            std::to_string(f.size()));
-    if (!to_double(f[0], number) || number != std::floor(number) || !std::isfinite(number))
-      throw InputError(source, line_no, "field 'n' must be an integer point number, got '" + f[0] + "'");
+    if (!to_double(f[0], number) || !limits::fits_int(number))
+      throw InputError(source, line_no, "field 'n' must be an integer point number that fits an int, got '" + f[0] + "'");
     c.n = static_cast<int>(number);
     if (f[1].empty()) throw InputError(source, line_no, "field 'cam' is empty");
     c.cam = f[1];
@@ -98,6 +105,10 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
         throw InputError(source, line_no, "unknown link '" + c.link + "' (the robot's links: " + robot->link_list() + ")");
       const int dof = robot->dof();
       const int n_q = static_cast<int>(f.size()) - 8;
+      if (header_q >= 0 && header_q != dof)
+        throw InputError(source, line_no,
+                         "the header names " + std::to_string(header_q) + " joint angles, the robot has " +
+                             std::to_string(dof) + " joints (q1..q" + std::to_string(dof) + ")");
       if (n_q != dof)
         throw InputError(source, line_no,
                          "point on link '" + c.link + "' needs " + std::to_string(dof) + " joint angles q1..q" +
@@ -105,6 +116,8 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
       const Eigen::Vector3d p_link(num(3, "lx"), num(4, "ly"), num(5, "lz"));
       Eigen::VectorXd q(dof);
       for (int i = 0; i < dof; ++i) q[i] = num(6 + i, "q" + std::to_string(i + 1));
+      if (const std::optional<std::string> why = robot->joints_out_of_range(q))
+        throw InputError(source, line_no, "point on link '" + c.link + "': " + *why);
       c.uv_px = {num(6 + dof, "u"), num(7 + dof, "v")};
       c.p_m = robot->to_base(c.link, p_link, q);
     }
@@ -117,6 +130,18 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
 
 std::vector<Correspondence> read_correspondences_csv(const std::string& path, const LinkPointResolver* robot) {
   return parse_correspondences_csv(read_text_file(path, "cannot open points file"), path, robot);
+}
+
+void check_in_viewport(const std::vector<Correspondence>& points, const Viewport& vp, const std::string& source) {
+  const double m = limits::kViewportMarginFraction * std::max(vp.width_px, vp.height_px);
+  for (const auto& c : points) {
+    const double u = c.uv_px.x(), v = c.uv_px.y();
+    if (u >= -m && v >= -m && u <= vp.width_px + m && v <= vp.height_px + m) continue;
+    std::ostringstream m;
+    m << "point n=" << c.n << ": pixel (" << u << ", " << v << ") is outside the " << vp.width_px << "x"
+      << vp.height_px << " viewport of camera '" << c.cam << "'";
+    throw InputError(source, c.line, m.str());
+  }
 }
 
 std::vector<Correspondence> select_camera(const std::vector<Correspondence>& points, const std::string& cam) {

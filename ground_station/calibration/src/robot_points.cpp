@@ -1,5 +1,9 @@
 #include "foresight/calibration/robot_points.hpp"
 
+#include <cstdio>
+
+#include "foresight/common/input_limits.hpp"
+
 namespace foresight {
 
 RobotLinkPoints::RobotLinkPoints(std::string urdf_path) : path_(std::move(urdf_path)) {}
@@ -29,6 +33,21 @@ std::string RobotLinkPoints::link_list() const {
   std::string s;
   for (const auto& l : model().links()) s += (s.empty() ? "" : ", ") + l.name;
   return s;
+}
+
+std::optional<std::string> RobotLinkPoints::joints_out_of_range(const Eigen::VectorXd& q) const {
+  const RobotModel& m = model();
+  const double margin = limits::kJointLimitMargin_rad;
+  for (int i = 0; i < m.dof() && i < q.size(); ++i) {
+    const JointLimits& l = m.limits()[static_cast<std::size_t>(i)];
+    if (!(q[i] >= l.lower_rad - margin && q[i] <= l.upper_rad + margin)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "q%d = %g rad is outside the joint's limits [%g, %g] rad (+- %g)", i + 1, q[i],
+                    l.lower_rad, l.upper_rad, margin);
+      return std::string(buf);
+    }
+  }
+  return std::nullopt;
 }
 
 Eigen::Vector3d RobotLinkPoints::to_base(const std::string& link, const Eigen::Vector3d& p_link,

@@ -76,7 +76,7 @@ TEST(PointsCsv, BadInputsNameFileAndLine) {
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,side,1,2,3,nan,5\n"), "pts.csv:2: field 'u' is not finite: 'nan'");
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,side,1,2,3,4,inf\n"), "pts.csv:2: field 'v' is not finite: 'inf'");
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1.5,side,1,2,3,4,5\n"),
-            "pts.csv:2: field 'n' must be an integer point number, got '1.5'");
+            "pts.csv:2: field 'n' must be an integer point number that fits an int, got '1.5'");
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,,1,2,3,4,5\n"), "pts.csv:2: field 'cam' is empty");
   EXPECT_EQ(error_of("n,cam,link,lx,ly,lz,q1,q2,u,v\n1,side,l9,0,0,0,0,0,1,2\n", &arm),
             "pts.csv:2: unknown link 'l9' (the robot's links: base, l1, l2)");

@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 
 #include "foresight/protocol/messages.hpp"
 
@@ -132,7 +133,45 @@ inline DelaySample delay_from_pong(const msg::Pong& pong, std::int64_t ground_re
   return s;
 }
 
+// ---- enums in received samples ----
+// A received sample is hostile until checked: its enum fields can hold any
+// integer, and loading a value outside the enumerators as the enum type is
+// undefined behaviour (the generated C enums have no fixed underlying type).
+// Read them as raw integers, check them with enum_error() before anything
+// else looks at the sample, and only then use them as enums. Real-time safe:
+// noexcept, no allocation.
+
+/// The raw integer stored in an enum field, read without loading the enum.
+template <class E>
+  requires std::is_enum_v<E>
+std::uint32_t raw(const E& field) noexcept {
+  static_assert(sizeof(E) <= sizeof(std::uint32_t));
+  std::underlying_type_t<E> v{};
+  std::memcpy(&v, &field, sizeof v);
+  return static_cast<std::uint32_t>(v);
+}
+
+/// Stores `value` in an enum field without forming an enum value (to echo a
+/// received raw value, e.g. an unknown command kind in its REJECTED ack).
+template <class E>
+  requires std::is_enum_v<E>
+void set_raw(E& field, std::uint32_t value) noexcept {
+  const auto v = static_cast<std::underlying_type_t<E>>(value);
+  std::memcpy(&field, &v, sizeof v);
+}
+
+/// The first enum field of a received sample whose raw value is not one of
+/// its enumerators ("unknown kind 42", "abort.category 7 is unknown"),
+/// nullptr when all are valid. Written into `buf` (64 bytes are enough).
+const char* enum_error(const msg::Command& sample, char* buf, std::size_t size) noexcept;
+const char* enum_error(const msg::CommandAck& sample, char* buf, std::size_t size) noexcept;
+const char* enum_error(const msg::TrajectoryStatus& sample, char* buf, std::size_t size) noexcept;
+const char* enum_error(const msg::ToolState& sample, char* buf, std::size_t size) noexcept;
+const char* enum_error(const msg::ControllerStatus& sample, char* buf, std::size_t size) noexcept;
+const char* enum_error(const msg::Heartbeat& sample, char* buf, std::size_t size) noexcept;
+
 /// Names of enum values, for logs and error messages ("ACK_COMPLETED", ...).
+/// Only for checked values (enum_error() returned nullptr).
 const char* to_string(msg::CommandKind kind) noexcept;
 const char* to_string(msg::AckState state) noexcept;
 const char* to_string(msg::ReasonCode code) noexcept;

@@ -55,6 +55,8 @@ struct OutlierOptions {
   double floor_px = 2.0;
   /// At most this fraction of the points is flagged (the worst first).
   double max_fraction = 0.3;
+  /// Flagging rounds, each one refit (the cost stays linear in the points).
+  int max_rounds = 8;
 };
 
 struct CalibrationOptions {

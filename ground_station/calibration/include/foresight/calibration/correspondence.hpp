@@ -18,8 +18,11 @@
 // Set-up code: allocates, throws InputError with the file and line.
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "foresight/camera/camera.hpp"
 
 namespace foresight {
 
@@ -43,6 +46,12 @@ class LinkPointResolver {
   virtual bool has_link(const std::string& link) const = 0;
   /// Comma-separated link names, for error messages.
   virtual std::string link_list() const = 0;
+  /// Why the joint angles `q` cannot be a pose of the arm (a joint beyond its
+  /// limits by more than limits::kJointLimitMargin_rad), nullopt when they can.
+  virtual std::optional<std::string> joints_out_of_range(const Eigen::VectorXd& q) const {
+    (void)q;
+    return std::nullopt;
+  }
   /// base_T_link(q) * p_link.
   virtual Eigen::Vector3d to_base(const std::string& link, const Eigen::Vector3d& p_link,
                                   const Eigen::VectorXd& q) const = 0;
@@ -52,14 +61,23 @@ class LinkPointResolver {
 /// `robot` (nullptr: such a row is an error naming its line). Throws
 /// InputError("source", line, ...) on: a missing or wrong header, a row with
 /// the wrong number of fields, a field that is not a number, a non-finite
-/// number, an unknown link, the wrong number of joint angles, a negative or
-/// empty camera name; and InputError(source, "no points") for a file without
-/// data rows.
+/// number, an unknown link, the wrong number of joint angles (in the header
+/// or the row), joint angles beyond the arm's limits (joints_out_of_range), a
+/// point number that does not fit an int, an empty camera name, more than
+/// limits::kMaxPointRows rows; and InputError(source, "no points") for a file
+/// without data rows.
 std::vector<Correspondence> parse_correspondences_csv(const std::string& text, const std::string& source,
                                                       const LinkPointResolver* robot = nullptr);
 /// Read a file (InputError when it cannot be opened), then as above.
 std::vector<Correspondence> read_correspondences_csv(const std::string& path,
                                                      const LinkPointResolver* robot = nullptr);
+
+/// Refuses a click outside the viewport (0 <= u <= width, 0 <= v <= height,
+/// each widened by limits::kViewportMarginFraction of the larger side):
+/// InputError "<source>:<line>: point n=N: pixel (u, v) is outside the WxH
+/// viewport of camera 'C'". `source` names the points file.
+void check_in_viewport(const std::vector<Correspondence>& points, const Viewport& viewport,
+                       const std::string& source);
 
 /// The rows whose camera is `cam`, in file order.
 std::vector<Correspondence> select_camera(const std::vector<Correspondence>& points, const std::string& cam);

@@ -25,6 +25,7 @@ class RobotLinkPoints : public LinkPointResolver {
   int dof() const override;
   bool has_link(const std::string& link) const override;
   std::string link_list() const override;
+  std::optional<std::string> joints_out_of_range(const Eigen::VectorXd& q) const override;
   Eigen::Vector3d to_base(const std::string& link, const Eigen::Vector3d& p_link,
                           const Eigen::VectorXd& q) const override;
 
