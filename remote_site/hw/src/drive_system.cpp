@@ -3,6 +3,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cinttypes>
 #include <cstdio>
 #include <thread>
@@ -19,16 +20,7 @@ enum RouteKind : std::uint8_t {
 };
 constexpr std::size_t kMaxFramesPerRead = 512;
 
-std::string hex(std::uint32_t v, int digits) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "0x%0*" PRIX32, digits, v);
-  return buf;
-}
-std::string od_name(std::uint16_t index, std::uint8_t sub) {
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "0x%04X:%02X", index, sub);
-  return buf;
-}
+std::string hex(std::uint32_t v, int digits) { return hex_text(v, digits); }
 }  // namespace
 
 struct DriveSystem::Drive {
@@ -46,6 +38,8 @@ struct DriveSystem::Drive {
   bool miss_reported = false;
   bool booted = false;
   Clock::time_point last_hb{};
+  DriveInfo info;
+  std::int64_t fe_counts = 0;  // following-error window, counts
 };
 
 struct DriveSystem::Ft {
@@ -128,6 +122,7 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
     d.bus = static_cast<std::size_t>(d.cfg.bus_index);
     d.node = d.cfg.node_id;
     d.name = d.cfg.joint;
+    d.fe_counts = static_cast<std::int64_t>(std::lround(std::abs(d.cfg.following_error_limit_rad * d.cfg.counts_per_rad())));
     if (!limits_.empty() && !limits_.count(d.cfg.joint))
       throw InputError(config_.source, d.cfg.line,
                        "drives[" + std::to_string(j) + "]: joint '" + d.cfg.joint + "' is not in the robot model");
@@ -149,6 +144,11 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
     b.routes[kHeartbeatBase + n] = {kFtHb, 0};
     b.routes[kSdoTxBase + n] = {kFtSdo, 0};
   }
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi)
+    sdo_.push_back(std::make_unique<SdoClient>(
+        *buses_[bi], config_.buses[bi].name, config_.sdo_timeout_s,
+        [this, bi](const can_frame& f) { handle_frame(bi, f, Clock::now()); },
+        [this, bi](std::uint8_t node) { return node_label(bi, node); }));
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
   master_hb_period_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_producer_s * 1e9));
 }
@@ -183,172 +183,26 @@ std::size_t DriveSystem::joint_count() const noexcept { return drives_.size(); }
 
 const std::string& DriveSystem::device_name(std::size_t joint) const { return drives_.at(joint).device_name; }
 double DriveSystem::rated_torque_nm(std::size_t joint) const { return drives_.at(joint).rated_torque_nm; }
-
-void DriveSystem::write_setup(std::size_t bus, const can_frame& f) {
-  CanBus& b = *buses_[bus];
-  const auto deadline = Clock::now() + std::chrono::milliseconds(100);
-  for (;;) {
-    const CanIo io = b.write(f);
-    if (io == CanIo::Ok) return;
-    if (io != CanIo::WouldBlock || Clock::now() > deadline)
-      throw HwError("bus " + config_.buses[bus].name + ": cannot send COB-ID " + hex(f.can_id, 3) + ": " +
-                    to_string(io));
-    pollfd p{b.fd(), POLLOUT, 0};
-    ::poll(&p, 1, 5);
-  }
-}
+const DriveInfo& DriveSystem::drive_info(std::size_t joint) const { return drives_.at(joint).info; }
 
 void DriveSystem::nmt(std::size_t bus, NmtCommand cmd, std::uint8_t node) {
-  write_setup(bus, make_frame(kNmt, {static_cast<std::uint8_t>(cmd), node}));
+  write_setup_frame(*buses_[bus], config_.buses[bus].name, make_frame(kNmt, {static_cast<std::uint8_t>(cmd), node}));
 }
-
-can_frame DriveSystem::sdo_exchange(std::size_t bus, std::uint8_t node, const can_frame& request, const char* what,
-                                    std::uint16_t index, std::uint8_t sub) {
-  CanBus& b = *buses_[bus];
-  const std::string label = std::string("SDO ") + what + " " + od_name(index, sub) + " of " + node_label(bus, node);
-  write_setup(bus, request);
-  const auto timeout = std::chrono::duration<double>(config_.sdo_timeout_s);
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(timeout);
-  for (;;) {
-    can_frame f{};
-    const CanIo io = b.read(f);
-    const auto now = Clock::now();
-    if (io == CanIo::Ok) {
-      if ((f.can_id & CAN_SFF_MASK) == kSdoTxBase + node && !(f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG))) {
-        if (f.can_dlc != 8)
-          throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::BadCommand),
-                         label + ": malformed response (DLC " + std::to_string(f.can_dlc) + ", expected 8)");
-        return f;
-      }
-      handle_frame(bus, f, now);
-      continue;
-    }
-    if (io == CanIo::Closed || io == CanIo::SysError || io == CanIo::BusOff || io == CanIo::NetDown)
-      throw HwError(label + ": bus " + config_.buses[bus].name + ": " + to_string(io));
-    if (now >= deadline) {
-      can_frame abort = make_frame(kSdoRxBase + node, {0x80, 0, 0, 0, 0, 0, 0, 0});
-      put_u16(abort.data + 1, index);
-      abort.data[3] = sub;
-      put_u32(abort.data + 4, static_cast<std::uint32_t>(SdoAbort::Timeout));
-      (void)b.write(abort);
-      throw SdoError(SdoError::Kind::Timeout, static_cast<std::uint32_t>(SdoAbort::Timeout),
-                     label + ": timed out after " + std::to_string(static_cast<int>(config_.sdo_timeout_s * 1000)) +
-                         " ms (no response)");
-    }
-    pollfd p{b.fd(), POLLIN, 0};
-    const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count() + 1;
-    ::poll(&p, 1, static_cast<int>(left_ms));
-  }
-}
-
-namespace {
-[[noreturn]] void throw_sdo_response_error(const can_frame& r, const std::string& label, std::uint16_t index,
-                                           std::uint8_t sub) {
-  const std::uint8_t cs = r.data[0] >> 5;
-  if (cs == sdo::kCsAbort) {
-    const std::uint32_t code = get_u32(r.data + 4);
-    throw SdoError(SdoError::Kind::Abort, code,
-                   label + ": aborted by the node: " + hex(code, 8) + " " + sdo_abort_text(code));
-  }
-  const std::uint16_t ri = get_u16(r.data + 1);
-  if (ri != index || r.data[3] != sub)
-    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::General),
-                   label + ": response is for " + od_name(ri, r.data[3]));
-  throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::BadCommand),
-                 label + ": unexpected response command byte " + hex(r.data[0], 2));
-}
-}  // namespace
 
 std::uint32_t DriveSystem::sdo_read(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
-  can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
-  put_u16(req.data + 1, index);
-  req.data[3] = sub;
-  const can_frame r = sdo_exchange(bus, node, req, "read", index, sub);
-  const std::string label = "SDO read " + od_name(index, sub) + " of " + node_label(bus, node);
-  const std::uint8_t cmd = r.data[0];
-  const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
-  if ((cmd >> 5) == sdo::kScsUploadInitiate && ok_echo) {
-    if (!(cmd & 0x02))
-      throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::LengthTooHigh),
-                     label + ": node answered with a segmented transfer for a numeric object");
-    const int size = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : 4;
-    std::uint32_t v = 0;
-    for (int i = 0; i < size; ++i) v |= static_cast<std::uint32_t>(r.data[4 + i]) << (8 * i);
-    return v;
-  }
-  throw_sdo_response_error(r, label, index, sub);
+  return sdo_.at(bus)->read(node, index, sub);
 }
 
 void DriveSystem::sdo_write(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub,
                             std::uint32_t value, int size) {
-  if (size < 1 || size > 4) throw HwError("sdo_write: size must be 1..4 bytes");
-  can_frame req = make_frame(kSdoRxBase + node, {sdo::expedited_download(size), 0, 0, 0, 0, 0, 0, 0});
-  put_u16(req.data + 1, index);
-  req.data[3] = sub;
-  for (int i = 0; i < size; ++i) req.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
-  const can_frame r = sdo_exchange(bus, node, req, "write", index, sub);
-  const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
-  if (r.data[0] == 0x60 && ok_echo) return;
-  throw_sdo_response_error(r, "SDO write " + od_name(index, sub) + " of " + node_label(bus, node), index, sub);
+  sdo_.at(bus)->write(node, index, sub, value, size);
 }
 
 std::string DriveSystem::sdo_read_string(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
-  const std::string label = "SDO read " + od_name(index, sub) + " of " + node_label(bus, node);
-  can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
-  put_u16(req.data + 1, index);
-  req.data[3] = sub;
-  const can_frame r = sdo_exchange(bus, node, req, "read", index, sub);
-  const std::uint8_t cmd = r.data[0];
-  if ((cmd >> 5) != sdo::kScsUploadInitiate || get_u16(r.data + 1) != index || r.data[3] != sub)
-    throw_sdo_response_error(r, label, index, sub);
-  if (cmd & 0x02) {  // expedited
-    const int size = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : 4;
-    std::string s(reinterpret_cast<const char*>(r.data + 4), static_cast<std::size_t>(size));
-    return s.substr(0, s.find('\0'));
-  }
-  constexpr std::uint32_t kMaxString = 1024;
-  const bool size_known = cmd & 0x01;
-  const std::uint32_t size = size_known ? get_u32(r.data + 4) : 0;
-  auto abort_with = [&](SdoAbort code, const std::string& why) {
-    can_frame a = make_frame(kSdoRxBase + node, {0x80, 0, 0, 0, 0, 0, 0, 0});
-    put_u16(a.data + 1, index);
-    a.data[3] = sub;
-    put_u32(a.data + 4, static_cast<std::uint32_t>(code));
-    (void)buses_[bus]->write(a);
-    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(code),
-                   label + ": " + why + " (sent abort " + hex(static_cast<std::uint32_t>(code), 8) + " " +
-                       sdo_abort_text(static_cast<std::uint32_t>(code)) + ")");
-  };
-  if (size > kMaxString) abort_with(SdoAbort::OutOfMemory, "announced size " + std::to_string(size) + " is too long");
-  std::string out;
-  std::uint8_t toggle = 0;
-  for (;;) {
-    const can_frame seg_req = make_frame(kSdoRxBase + node, {static_cast<std::uint8_t>(0x60 | (toggle << 4)), 0, 0, 0, 0, 0, 0, 0});
-    const can_frame s = sdo_exchange(bus, node, seg_req, "read (segment)", index, sub);
-    const std::uint8_t c = s.data[0];
-    if ((c >> 5) == sdo::kCsAbort) throw_sdo_response_error(s, label, index, sub);
-    if ((c >> 5) != sdo::kScsUploadSegment)
-      abort_with(SdoAbort::BadCommand, "unexpected segment command byte " + hex(c, 2));
-    if (((c >> 4) & 1) != toggle)
-      abort_with(SdoAbort::ToggleBit, "segment " + std::to_string(out.size() / 7) + " has toggle bit " +
-                                          std::to_string((c >> 4) & 1) + ", expected " + std::to_string(toggle));
-    const int n = 7 - ((c >> 1) & 0x07);
-    out.append(reinterpret_cast<const char*>(s.data + 1), static_cast<std::size_t>(n));
-    if (out.size() > kMaxString) abort_with(SdoAbort::OutOfMemory, "string longer than 1024 bytes");
-    if (c & 0x01) break;
-    toggle ^= 1;
-  }
-  if (size_known && out.size() != size)
-    throw SdoError(SdoError::Kind::Protocol, static_cast<std::uint32_t>(SdoAbort::LengthMismatch),
-                   label + ": received " + std::to_string(out.size()) + " bytes, announced " + std::to_string(size));
-  return out.substr(0, out.find('\0'));
+  return sdo_.at(bus)->read_string(node, index, sub);
 }
 
-void DriveSystem::configure() {
-  // 1. NMT reset node, then wait for every node's boot-up message. Frames
-  // already queued (a power-on boot-up, heartbeats) are drained first: a
-  // boot-up sent before the reset must not count as its answer, or the first
-  // SDO reaches a node that is still booting.
+void DriveSystem::drain_buses() {
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     can_frame f{};
     for (std::size_t k = 0; k < 4 * kMaxFramesPerRead; ++k) {
@@ -356,6 +210,46 @@ void DriveSystem::configure() {
       if (io != CanIo::Ok && io != CanIo::ErrorFrame && io != CanIo::Malformed) break;
     }
   }
+}
+
+void DriveSystem::poll_and_handle(std::vector<pollfd>& fds, int timeout_ms) {
+  ::poll(fds.data(), fds.size(), timeout_ms);
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
+    can_frame f{};
+    for (std::size_t k = 0; k < 4 * kMaxFramesPerRead && buses_[bi]->read(f) == CanIo::Ok; ++k)
+      handle_frame(bi, f, Clock::now());
+  }
+}
+
+DriveSetup DriveSystem::drive_setup(std::size_t j) const {
+  const Drive& d = drives_[j];
+  DriveSetup s;
+  s.node = d.node;
+  s.period_us = static_cast<std::uint32_t>(std::lround(1e6 / config_.cycle_rate_hz));
+  s.interpolation_exponent = config_.interpolation_exponent;
+  s.producer_heartbeat_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3));
+  s.master_node_id = config_.master_node_id;
+  s.consumer_heartbeat_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_consumer_s * 1e3) & 0xFFFF);
+  s.following_error_counts = static_cast<std::uint32_t>(std::lround(std::abs(d.cfg.following_error_limit_rad * d.cfg.counts_per_rad())));
+  s.following_error_timeout_ms = static_cast<std::uint16_t>(std::lround(d.cfg.following_error_timeout_s * 1e3));
+  if (auto it = limits_.find(d.name); it != limits_.end()) {
+    std::int32_t c1 = 0, c2 = 0;
+    if (!d.cfg.to_counts(it->second.lower_rad, c1) || !d.cfg.to_counts(it->second.upper_rad, c2))
+      throw HwError(node_label(d.bus, d.node) + ": URDF limits do not fit the drive's int32 counts");
+    s.limits_counts = std::make_pair(std::min(c1, c2), std::max(c1, c2));
+    const double v = std::abs(it->second.velocity_rad_s * d.cfg.counts_per_rad());
+    if (v > 0.0 && v < 4.29e9) s.max_velocity_counts_s = static_cast<std::uint32_t>(std::lround(v));
+  }
+  s.file_entries = d.cfg.sdo_entries;
+  return s;
+}
+
+void DriveSystem::configure() {
+  // 1. NMT reset node, then wait for every node's boot-up message. Frames
+  // already queued (a power-on boot-up, heartbeats) are drained first: a
+  // boot-up sent before the reset must not count as its answer, or the first
+  // SDO reaches a node that is still booting.
+  drain_buses();
   for (Drive& d : drives_) d.booted = false;
   if (ft_) ft_->booted = false;
   configured_ = false;
@@ -384,74 +278,22 @@ void DriveSystem::configure() {
                     std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms from: " + missing +
                     " (powered? node id right? bus wired?)");
     }
-    ::poll(fds.data(), fds.size(), 10);
-    for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
-      can_frame f{};
-      while (buses_[bi]->read(f) == CanIo::Ok) handle_frame(bi, f, Clock::now());
-    }
+    poll_and_handle(fds, 10);
   }
 
-  // 2. SDO configuration of every drive (pre-operational).
-  const auto period_us = static_cast<std::uint32_t>(std::lround(1e6 / config_.cycle_rate_hz));
-  const auto hb_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3));
-  for (Drive& d : drives_) {
-    const std::size_t b = d.bus;
-    const std::uint8_t n = d.node;
-    const std::uint32_t type = sdo_read(b, n, od::kDeviceType, 0);
-    if ((type & 0xFFFF) != kProfileDrive)
-      throw HwError(node_label(b, n) + ": device type " + hex(type, 8) + " is not a CiA 402 drive (profile " +
-                    std::to_string(type & 0xFFFF) + ", expected 402)");
-    d.device_name = sdo_read_string(b, n, od::kDeviceName, 0);
-    sdo_write(b, n, od::kProducerHeartbeat, 0, hb_ms, 2);
-    // The drive watches the master's heartbeat: a silent master faults it
-    // (EMCY 0x8130) instead of leaving it following a stale target.
-    const auto consumer_ms = static_cast<std::uint32_t>(std::lround(config_.heartbeat_consumer_s * 1e3));
-    sdo_write(b, n, od::kConsumerHeartbeat, 1,
-              (static_cast<std::uint32_t>(config_.master_node_id) << 16) | (consumer_ms & 0xFFFF), 4);
-    // RPDO1: controlword + target position, applied at the next SYNC.
-    sdo_write(b, n, od::kRpdo1Comm, 1, od::kCobIdInvalid | (kRpdo1Base + n), 4);
-    sdo_write(b, n, od::kRpdo1Comm, 2, 1, 1);
-    sdo_write(b, n, od::kRpdo1Map, 0, 0, 1);
-    sdo_write(b, n, od::kRpdo1Map, 1, od::map_entry(od::kControlword, 0, 16), 4);
-    sdo_write(b, n, od::kRpdo1Map, 2, od::map_entry(od::kTargetPosition, 0, 32), 4);
-    sdo_write(b, n, od::kRpdo1Map, 0, 2, 1);
-    sdo_write(b, n, od::kRpdo1Comm, 1, kRpdo1Base + n, 4);
-    // TPDO1: statusword + position actual + torque actual, on every SYNC.
-    sdo_write(b, n, od::kTpdo1Comm, 1, od::kCobIdInvalid | (kTpdo1Base + n), 4);
-    sdo_write(b, n, od::kTpdo1Comm, 2, 1, 1);
-    sdo_write(b, n, od::kTpdo1Map, 0, 0, 1);
-    sdo_write(b, n, od::kTpdo1Map, 1, od::map_entry(od::kStatusword, 0, 16), 4);
-    sdo_write(b, n, od::kTpdo1Map, 2, od::map_entry(od::kPositionActual, 0, 32), 4);
-    sdo_write(b, n, od::kTpdo1Map, 3, od::map_entry(od::kTorqueActual, 0, 16), 4);
-    sdo_write(b, n, od::kTpdo1Map, 0, 3, 1);
-    sdo_write(b, n, od::kTpdo1Comm, 1, kTpdo1Base + n, 4);
-    // Cyclic synchronous position, its interpolation period (100 us units).
-    sdo_write(b, n, od::kModesOfOperation, 0, static_cast<std::uint8_t>(kModeCyclicSyncPosition), 1);
-    sdo_write(b, n, od::kCommCyclePeriod, 0, period_us, 4);
-    sdo_write(b, n, od::kInterpolationPeriod, 1, period_us / 100, 1);
-    sdo_write(b, n, od::kInterpolationPeriod, 2, static_cast<std::uint8_t>(static_cast<std::int8_t>(-4)), 1);
-    // Following error window and software limits, in counts.
-    const double fe_counts = std::abs(d.cfg.following_error_limit_rad * d.cfg.counts_per_rad());
-    sdo_write(b, n, od::kFollowingErrorWindow, 0, static_cast<std::uint32_t>(std::lround(fe_counts)), 4);
-    if (auto it = limits_.find(d.name); it != limits_.end()) {
-      std::int32_t c1 = 0, c2 = 0;
-      if (!d.cfg.to_counts(it->second.lower_rad, c1) || !d.cfg.to_counts(it->second.upper_rad, c2))
-        throw HwError(node_label(b, n) + ": URDF limits do not fit the drive's int32 counts");
-      sdo_write(b, n, od::kSoftwareLimits, 1, static_cast<std::uint32_t>(std::min(c1, c2)), 4);
-      sdo_write(b, n, od::kSoftwareLimits, 2, static_cast<std::uint32_t>(std::max(c1, c2)), 4);
-    }
-    const std::uint32_t rated_mnm = sdo_read(b, n, od::kRatedTorque, 0);
-    if (rated_mnm == 0) throw HwError(node_label(b, n) + ": rated torque 0x6076 is 0");
-    d.rated_torque_nm = rated_mnm * 1e-3;
+  // 2. SDO configuration of every node (pre-operational): node_config.hpp.
+  for (std::size_t j = 0; j < drives_.size(); ++j) {
+    Drive& d = drives_[j];
+    NodeConfigurator nc(*sdo_[d.bus], [this, b = d.bus](std::uint8_t node) { return node_label(b, node); });
+    const DriveInfo info = nc.configure_drive(drive_setup(j));
+    d.device_name = info.device_name;
+    d.rated_torque_nm = info.rated_torque_nm;
+    d.info = info;
   }
   if (ft_) {
     const auto b = static_cast<std::size_t>(ft_->cfg.bus_index);
-    const std::uint8_t n = ft_->cfg.node_id;
-    const std::uint32_t type = sdo_read(b, n, od::kDeviceType, 0);
-    if ((type & 0xFFFF) != kProfileMeasuring)
-      throw HwError(node_label(b, n) + ": device type " + hex(type, 8) + " is not the F/T sensor (profile " +
-                    std::to_string(type & 0xFFFF) + ", expected 404)");
-    sdo_write(b, n, od::kProducerHeartbeat, 0, hb_ms, 2);
+    NodeConfigurator nc(*sdo_[b], [this, b](std::uint8_t node) { return node_label(b, node); });
+    nc.configure_ft(ft_->cfg.node_id, static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3)));
   }
 
   // 3. NMT start: PDOs flow from the next SYNC. Heartbeat monitoring starts now.
@@ -495,11 +337,7 @@ void DriveSystem::configure() {
                     std::to_string(static_cast<int>(config_.heartbeat_consumer_s * 1000)) +
                     " ms after NMT start from: " + missing);
     }
-    ::poll(fds.data(), fds.size(), 5);
-    for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
-      can_frame f{};
-      while (buses_[bi]->read(f) == CanIo::Ok) handle_frame(bi, f, Clock::now());
-    }
+    poll_and_handle(fds, 5);
   }
   for (BusState& b : bus_state_) {
     b.sync_sent = false;
@@ -659,10 +497,16 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
     for (std::size_t j : bs.drives) {
       Drive& d = drives_[j];
       std::int32_t counts = 0;
-      if (d.cfg.to_counts(targets.position_rad[j], counts))
-        d.target_counts = counts;
-      else
+      if (!d.cfg.to_counts(targets.position_rad[j], counts)) {
         push_event({HwFault::InvalidTarget, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j), 0, 0});
+      } else if (const std::int64_t step = static_cast<std::int64_t>(counts) - d.target_counts;
+                 enabled_ && (step > d.fe_counts || -step > d.fe_counts)) {
+        // Refused here, before the drive: it would fault on its following error.
+        push_event({HwFault::InvalidTarget, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
+                    static_cast<std::uint32_t>(step < 0 ? -step : step), 1});
+      } else {
+        d.target_counts = counts;
+      }
       if (quick_stop && enabled_) d.controlword = controlword::kQuickStop;
       can_frame f{};
       f.can_id = kRpdo1Base + d.node;
@@ -699,8 +543,11 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
 void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_point now) noexcept {
   const auto bus8 = static_cast<std::uint8_t>(bi);
   ++frames_this_cycle_;
+  BusState& bs = bus_state_[bi];
   if (f.can_id & CAN_EFF_FLAG) {
-    push_event({HwFault::UnknownCobId, bus8, 0, -1, f.can_id & CAN_EFF_MASK, f.can_dlc});
+    ++bs.unknown_frames;
+    if (!bs.unknown_ext_seen) push_event({HwFault::UnknownCobId, bus8, 0, -1, f.can_id & CAN_EFF_MASK, f.can_dlc});
+    bs.unknown_ext_seen = true;
     return;
   }
   const std::uint32_t id = f.can_id & CAN_SFF_MASK;
@@ -788,9 +635,14 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
     case kFtSdo:
       push_event({HwFault::UnexpectedSdo, bus8, node_of(id), -1, id, f.data[0]});
       return;
-    default:
-      push_event({HwFault::UnknownCobId, bus8, node_of(id), -1, id, f.can_dlc});
+    default: {
+      ++bs.unknown_frames;
+      std::uint64_t& word = bs.unknown_seen[id / 64];
+      const std::uint64_t bit = std::uint64_t{1} << (id % 64);
+      if (!(word & bit)) push_event({HwFault::UnknownCobId, bus8, node_of(id), -1, id, f.can_dlc});
+      word |= bit;
       return;
+    }
   }
 }
 
@@ -927,7 +779,10 @@ std::string DriveSystem::describe(const HwEvent& e) const {
     case HwFault::MalformedFrame:
       msg += " COB-ID " + hex(e.code, 3) + " with DLC " + std::to_string(e.detail);
       break;
-    case HwFault::UnknownCobId: msg += " " + hex(e.code, 3); break;
+    case HwFault::UnknownCobId: msg += " " + hex(e.code, 3) + " (further frames counted, not reported)"; break;
+    case HwFault::InvalidTarget:
+      if (e.detail == 1) msg += ": a step of " + std::to_string(e.code) + " counts exceeds the following-error window";
+      break;
     case HwFault::TxFailed:
     case HwFault::RxFailed: msg += std::string(": ") + to_string(static_cast<CanIo>(e.code)); break;
     case HwFault::TpdoMissing:

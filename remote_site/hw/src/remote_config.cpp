@@ -93,7 +93,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "buses", "drives", "ft_sensor", "tool", "controller"});
+                "max_bus_load", "interpolation_exponent", "buses", "drives", "ft_sensor", "tool", "controller"});
 
   RemoteConfig c;
   c.source = source_name;
@@ -113,6 +113,12 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   c.enable_timeout_s = p.get_or<double>(root, "enable_timeout_ms", "top level", 2000.0) * 1e-3;
   c.tpdo_miss_limit = p.get_or<int>(root, "tpdo_miss_limit", "top level", 3);
   c.max_bus_load = p.get_or<double>(root, "max_bus_load", "top level", 0.70);
+  c.interpolation_exponent = p.get_or<int>(root, "interpolation_exponent", "top level", -4);
+  if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
+    p.fail(root["interpolation_exponent"], "top level: interpolation_exponent " +
+                                               std::to_string(c.interpolation_exponent) + " is outside -6..0");
+  std::string base_dir;
+  if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 
   const YAML::Node buses = root["buses"];
   if (!buses || !buses.IsSequence() || buses.size() == 0)
@@ -141,7 +147,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     const std::string where = drive_name(i, dc.joint);
     p.check_keys(d, where,
                  {"joint", "bus", "node_id", "counts_per_rev", "gear_ratio", "direction", "offset_rad",
-                  "following_error_limit_rad"});
+                  "following_error_limit_rad", "following_error_timeout_ms", "sdo_file"});
     if (dc.joint.empty()) p.fail(d, where + ": missing 'joint' (URDF joint name)");
     dc.bus = p.get<std::string>(d, "bus", where);
     const int node = p.get<int>(d, "node_id", where);
@@ -153,6 +159,14 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     dc.direction = p.get_or<int>(d, "direction", where, 1);
     dc.offset_rad = p.get_or<double>(d, "offset_rad", where, 0.0);
     dc.following_error_limit_rad = p.get<double>(d, "following_error_limit_rad", where);
+    dc.following_error_timeout_s = p.get_or<double>(d, "following_error_timeout_ms", where, 0.0) * 1e-3;
+    if (dc.following_error_timeout_s < 0.0 || dc.following_error_timeout_s > 65.535)
+      p.fail(d["following_error_timeout_ms"], where + ": following_error_timeout_ms must be in 0..65535");
+    if (d["sdo_file"]) {
+      const std::string f = p.get<std::string>(d, "sdo_file", where);
+      dc.sdo_file = (!f.empty() && f[0] == '/') ? f : base_dir + f;
+      dc.sdo_entries = load_sdo_list(dc.sdo_file);  // InputError names the list's own file and line
+    }
     dc.line = line_of(d);
     c.drives.push_back(dc);
   }

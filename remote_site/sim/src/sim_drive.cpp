@@ -93,6 +93,26 @@ void SimDrive::reset_application() {
   define(od::kSoftwareLimits, 2, 4, true, static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max()));
   define(od::kInterpolationPeriod, 1, 1, true, 1);
   define(od::kInterpolationPeriod, 2, 1, true, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)));
+  define(od::kIdentity, 0, 1, false, 4);
+  define(od::kIdentity, 1, 4, false, p_.vendor_id);
+  define(od::kIdentity, 2, 4, false, p_.product_code);
+  define(od::kIdentity, 3, 4, false, p_.revision);
+  define(od::kIdentity, 4, 4, false, 0x5100u + node_id_);
+  define(od::kSupportedModes, 0, 4, false, (1u << 7) | (1u << 5));  // csp, homing
+  define(od::kAbortConnection, 0, 2, true, 1);
+  define(od::kQuickStopOption, 0, 2, true, 2);
+  define(od::kFaultReaction, 0, 2, true, 0);
+  define(0x6084, 0, 4, true, 2000000);                  // profile (slow-down) deceleration, counts/s^2
+  define(od::kQuickStopDeceleration, 0, 4, true, 100000000);
+  define(od::kFollowingErrorTimeout, 0, 2, true, 0);
+  define(od::kMaxProfileVelocity, 0, 4, true, 0xFFFFFFFFu);
+  define(od::kVelocityActual, 0, 4, false, 0);
+  for (std::uint16_t i = 1; i < 4; ++i) {  // predefined connection set: PDOs 2-4 valid at boot
+    define(static_cast<std::uint16_t>(od::kRpdo1Comm + i), 1, 4, true, kRpdo1Base + 0x100u * i + node_id_);
+    define(static_cast<std::uint16_t>(od::kRpdo1Comm + i), 2, 1, true, 255);
+    define(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 1, 4, true, kTpdo1Base + 0x100u * i + node_id_);
+    define(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 2, 1, true, 1);  // on every SYNC: statusword
+  }
   state_ = PowerState::NotReadyToSwitchOn;
   v_ = a_ = 0.0;
   demand_ = demand_prev_ = x_;
@@ -126,9 +146,27 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
     if (get(index, 0) != 0) return static_cast<std::uint32_t>(SdoAbort::DeviceState);
     return 0;
   }
-  if ((index == od::kRpdo1Comm || index == od::kTpdo1Comm) && sub == 1) {
+  const bool pdo_comm = (index >= od::kRpdo1Comm && index <= od::kRpdo1Comm + 3) ||
+                        (index >= od::kTpdo1Comm && index <= od::kTpdo1Comm + 3);
+  if (pdo_comm && sub == 1) {
     if ((value & 0x7FF) == 0 || (value & 0x3FFFF800u)) return static_cast<std::uint32_t>(SdoAbort::ValueRange);
     return 0;
+  }
+  if (index == od::kQuickStopOption) {
+    const auto v = static_cast<std::int16_t>(value);
+    return (v >= 0 && v <= 2) || v == 5 || v == 6 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  }
+  if (index == od::kFaultReaction) {
+    const auto v = static_cast<std::int16_t>(value);
+    return v >= 0 && v <= 2 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  }
+  if (index == od::kAbortConnection) {
+    const auto v = static_cast<std::int16_t>(value);
+    return v >= 0 && v <= 3 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  }
+  if (index == od::kInterpolationPeriod && sub == 2) {
+    const auto e = static_cast<std::int8_t>(value);
+    return e >= -6 && e <= 0 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
   }
   if ((index == od::kRpdo1Comm || index == od::kTpdo1Comm) && sub == 2)
     return (value >= 1 && value <= 240) || value >= 254 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
@@ -140,13 +178,62 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
   return 0;
 }
 
+void SimDrive::on_sdo_written(std::uint16_t index, std::uint8_t) {
+  if (index == od::kModesOfOperation) set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
+}
+
+void SimDrive::ramp(double dt, double decel) {
+  const double dv = decel * dt;
+  if (std::abs(ramp_v_) <= dv) ramp_v_ = 0.0;
+  else ramp_v_ -= ramp_v_ > 0 ? dv : -dv;
+  x_ += ramp_v_ * dt;
+  v_ = ramp_v_;
+  a_ = 0.0;
+  demand_ = demand_prev_ = x_;
+}
+
+void SimDrive::quick_stop() {
+  const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
+  if (option == 0) {  // disable drive function: the motor coasts, power off
+    state_ = PowerState::SwitchOnDisabled;
+    v_ = a_ = 0.0;
+    demand_ = demand_prev_ = x_;
+    return;
+  }
+  state_ = PowerState::QuickStopActive;
+  ramp_v_ = v_;
+}
+
 void SimDrive::on_tick(Clock::time_point now, FrameSink& out) {
+  const double dt = last_tick_ == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(now - last_tick_).count();
+  last_tick_ = now;
+  if (state_ == PowerState::FaultReactionActive) {  // the ramp runs on the drive's own clock, SYNC or not
+    const auto reaction = static_cast<std::int16_t>(get(od::kFaultReaction, 0));
+    ramp(std::min(dt, 0.01), static_cast<double>(get(reaction == 1 ? 0x6084 : od::kQuickStopDeceleration, 0)));
+    if (ramp_v_ == 0.0) state_ = PowerState::Fault;
+    update_statusword();
+  }
   const std::uint32_t consumer = get(od::kConsumerHeartbeat, 1);
   const auto ms = std::chrono::milliseconds(consumer & 0xFFFF);
   if (master_hb_armed_ && ms.count() > 0 && now - master_hb_ > ms) {
     master_hb_armed_ = false;  // re-armed by the next heartbeat
-    if (state_ != PowerState::Fault) fault(0x8130, out);
-    else emit_emcy(0x8130, 0x11, out);
+    // Abort connection option code (0x6007): what a lost master means here.
+    const auto option = static_cast<std::int16_t>(get(od::kAbortConnection, 0));
+    const bool active = state_ == PowerState::OperationEnabled || state_ == PowerState::SwitchedOn ||
+                        state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::QuickStopActive;
+    if (option == 1 && state_ != PowerState::Fault && state_ != PowerState::FaultReactionActive) {
+      fault(0x8130, out);
+      return;
+    }
+    if (option == 2 && active) {
+      state_ = PowerState::SwitchOnDisabled;
+      v_ = a_ = 0.0;
+      demand_ = demand_prev_ = x_;
+    } else if (option == 3 && state_ == PowerState::OperationEnabled) {
+      quick_stop();
+    }
+    emit_emcy(0x8130, emcy_error_register_bits(0x8130), out);
+    update_statusword();
   }
 }
 
@@ -172,9 +259,18 @@ void SimDrive::on_frame(const can_frame& f, FrameSink& out) {
 }
 
 void SimDrive::fault(std::uint16_t emcy_code, FrameSink& out) {
-  if (state_ == PowerState::Fault) return;
-  state_ = PowerState::Fault;
-  v_ = a_ = 0.0;  // brake
+  if (state_ == PowerState::Fault || state_ == PowerState::FaultReactionActive) return;
+  // Fault reaction option code (0x605E): 0 coast (power off at once), 1/2 ramp
+  // down in Fault reaction active first.
+  const auto reaction = static_cast<std::int16_t>(get(od::kFaultReaction, 0));
+  const bool was_moving = state_ == PowerState::OperationEnabled || state_ == PowerState::QuickStopActive;
+  if (reaction != 0 && was_moving && v_ != 0.0) {
+    state_ = PowerState::FaultReactionActive;
+    ramp_v_ = v_;
+  } else {
+    state_ = PowerState::Fault;
+    v_ = a_ = 0.0;
+  }
   demand_ = demand_prev_ = x_;
   emit_emcy(emcy_code, emcy_error_register_bits(emcy_code), out);
 }
@@ -206,19 +302,16 @@ void SimDrive::apply_command(std::uint16_t cw, FrameSink& out) {
       if (c == DriveCommand::SwitchOn) state_ = PowerState::SwitchedOn;
       else if (c == DriveCommand::Shutdown) state_ = PowerState::ReadyToSwitchOn;
       else if (c == DriveCommand::DisableVoltage) state_ = PowerState::SwitchOnDisabled;
-      else if (c == DriveCommand::QuickStop) {
-        state_ = PowerState::QuickStopActive;
-        demand_ = demand_prev_ = x_;
-      }
+      else if (c == DriveCommand::QuickStop) quick_stop();
       break;
     case PowerState::QuickStopActive:
       if (c == DriveCommand::DisableVoltage) state_ = PowerState::SwitchOnDisabled;
-      else if (c == DriveCommand::EnableOperation) {
+      else if (c == DriveCommand::EnableOperation && ramp_v_ == 0.0) {
         state_ = PowerState::OperationEnabled;
         demand_ = demand_prev_ = x_;
       }
       break;
-    case PowerState::FaultReactionActive: state_ = PowerState::Fault; break;
+    case PowerState::FaultReactionActive: break;  // the ramp ends it (on_tick)
     case PowerState::Fault:
       if (c == DriveCommand::FaultReset) {
         state_ = PowerState::SwitchOnDisabled;
@@ -227,7 +320,8 @@ void SimDrive::apply_command(std::uint16_t cw, FrameSink& out) {
       }
       break;
   }
-  if (state_ != PowerState::OperationEnabled && state_ != PowerState::QuickStopActive) {
+  if (state_ != PowerState::OperationEnabled && state_ != PowerState::QuickStopActive &&
+      state_ != PowerState::FaultReactionActive) {
     demand_ = demand_prev_ = x_;
   }
 }
@@ -247,7 +341,7 @@ void SimDrive::step_physics(double dt) {
     // the demand is interpolated linearly over the cycle (CSP interpolation)
     const double r = demand_prev_ + (demand_ - demand_prev_) * (i + 1) / substeps;
     const double a = wn * wn * (r - x_) + 2.0 * p_.damping * wn * (demand_v - v_);
-    v_ += a * h;
+    v_ = std::clamp(v_ + a * h, -p_.max_motor_speed_counts_s, p_.max_motor_speed_counts_s);
     x_ += v_ * h;
     a_sum += a;
   }
@@ -268,6 +362,8 @@ void SimDrive::update_statusword() {
   set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
   const double xr = std::clamp(std::round(x_), -2147483648.0, 2147483647.0);
   set(od::kPositionActual, 0, static_cast<std::uint32_t>(static_cast<std::int32_t>(xr)));
+  const double vr = std::clamp(std::round(v_), -2147483648.0, 2147483647.0);
+  set(od::kVelocityActual, 0, static_cast<std::uint32_t>(static_cast<std::int32_t>(vr)));
   const double motor_acc = a_ * 2.0 * std::numbers::pi / p_.counts_per_rev;
   const double torque = p_.rotor_inertia_kgm2 * motor_acc + load_torque_nm_;
   const double pm = std::clamp(std::round(torque / (p_.rated_torque_mnm * 1e-3) * 1000.0), -32768.0, 32767.0);
@@ -310,17 +406,32 @@ void SimDrive::on_sync(Clock::time_point, FrameSink& out) {
     } else {
       demand_ = target;
     }
-  } else if (state_ == PowerState::QuickStopActive) {
-    demand_prev_ = demand_;  // hold where the quick stop began
   }
-  step_physics(dt);
+  if (state_ == PowerState::QuickStopActive) {
+    const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
+    ramp(dt, static_cast<double>(get(option == 1 || option == 5 ? 0x6084 : od::kQuickStopDeceleration, 0)));
+    if (ramp_v_ == 0.0 && (option == 1 || option == 2)) state_ = PowerState::SwitchOnDisabled;  // then power off
+  } else if (state_ != PowerState::FaultReactionActive) {
+    step_physics(dt);
+  }
   const std::uint32_t window = get(od::kFollowingErrorWindow, 0);
   if (state_ == PowerState::OperationEnabled && window != 0xFFFFFFFFu && std::abs(demand_ - x_) > window) {
     following_error_ = true;
     fault(0x8611, out);
   }
   update_statusword();
-  // 4. synchronous TPDO
+  // 4. synchronous TPDOs: 2-4 carry the statusword while still enabled (the
+  // predefined set's default; a master that forgets them sees extra COB-IDs).
+  for (std::uint16_t i = 1; i < 4; ++i) {
+    const std::uint32_t cob = get(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 1);
+    const std::uint32_t t = get(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 2);
+    if ((cob & od::kCobIdInvalid) || t < 1 || t > 240 || syncs_ % t != 0) continue;
+    can_frame extra{};
+    extra.can_id = cob & 0x7FF;
+    extra.can_dlc = 2;
+    hw::put_u16(extra.data, static_cast<std::uint16_t>(get(od::kStatusword, 0)));
+    out.send(extra);
+  }
   const std::uint32_t tpdo_cob = get(od::kTpdo1Comm, 1);
   const std::uint32_t type = get(od::kTpdo1Comm, 2);
   if ((tpdo_cob & od::kCobIdInvalid) || type < 1 || type > 240 || syncs_ % type != 0) return;

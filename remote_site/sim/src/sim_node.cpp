@@ -102,6 +102,7 @@ void SimNode::emit_emcy(std::uint16_t code, std::uint8_t error_register, FrameSi
 void SimNode::on_frame(const can_frame&, FrameSink&) {}
 void SimNode::on_tick(Clock::time_point, FrameSink&) {}
 std::uint32_t SimNode::check_sdo_write(std::uint16_t, std::uint8_t, std::uint32_t) { return 0; }
+void SimNode::on_sdo_written(std::uint16_t, std::uint8_t) {}
 
 void SimNode::handle(const can_frame& f, Clock::time_point now, FrameSink& out) {
   std::lock_guard lock(mu_);
@@ -243,6 +244,7 @@ void SimNode::sdo(const can_frame& f, FrameSink& out) {
     for (int i = 0; i < size; ++i) v |= static_cast<std::uint32_t>(f.data[4 + i]) << (8 * i);
     if (const std::uint32_t abort = check_sdo_write(index, sub, v)) return sdo_abort(index, sub, abort, out);
     e.value = v;
+    on_sdo_written(index, sub);
     r.data[0] = 0x60;
     out.send(r);
     return;

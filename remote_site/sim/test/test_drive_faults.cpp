@@ -71,7 +71,10 @@ TEST(DriveFaults, EmcyIsMappedToItsFaultAndFaultResetRecovers) {
 TEST(DriveFaults, FollowingErrorFaultsTheDrive) {
   SimRig rig(project_config());
   rig.bring_up();
-  rig.targets.position_rad[0] += 0.3;  // a step far beyond the 0.02 rad window
+  // The shaft is pushed 0.3 rad away (far beyond the 0.02 rad window) while
+  // the target stays: the drive cannot follow. (A target step that large is
+  // refused by the master before it reaches the drive: InvalidTarget.)
+  rig.sim->drive(0).set_position_counts(rig.sim->drive(0).position_counts() + 0.3 * rig.config.drives[0].counts_per_rad());
   const CycleStatus s = rig.run_until(has(HwFault::Emergency), 500);
   const HwEvent* e = find_event(s, HwFault::Emergency);
   ASSERT_NE(e, nullptr);

@@ -2,6 +2,10 @@
 // The CANopen master for the arm: every CiA 402 drive and the F/T sensor, on
 // one or more CAN buses, driven in cyclic synchronous position mode.
 //
+// The SDO client (sdo_client.hpp) and what is written to each node
+// (node_config.hpp) live in their own files; this class keeps the boot
+// sequence, the power state machine and the cycle.
+//
 // Two phases (../../../../../shared/STYLE.md):
 //  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
 //      constructor (validates the config and bus load; sends nothing),
@@ -22,6 +26,8 @@
 // Set-up calls and cycle calls must not overlap: run set-up before the
 // real-time thread starts, or from it while it is not cycling.
 
+#include <poll.h>
+
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -37,34 +43,14 @@
 #include "foresight/hw/can_bus.hpp"
 #include "foresight/hw/canopen.hpp"
 #include "foresight/hw/ft_sensor.hpp"
+#include "foresight/hw/node_config.hpp"
+#include "foresight/hw/sdo_client.hpp"
 #include "foresight/hw/remote_config.hpp"
 
 namespace foresight::hw {
 
 inline constexpr std::size_t kMaxJoints = 16;
 inline constexpr std::size_t kMaxBuses = 8;
-
-/// Set-up failure (configure/enable): says which bus, node and joint. A
-/// ComputationError (foresight/common/error.hpp): an operation failed.
-class HwError : public ComputationError {
- public:
-  using ComputationError::ComputationError;
-};
-
-/// An SDO transfer failed. kind says how; abort_code is the CiA 301 code
-/// (received from the server for Abort, sent by us for Timeout/Protocol).
-class SdoError : public HwError {
- public:
-  enum class Kind { Abort, Timeout, Protocol };
-  SdoError(Kind kind, std::uint32_t abort_code, const std::string& message)
-      : HwError(message), kind_(kind), abort_code_(abort_code) {}
-  Kind kind() const noexcept { return kind_; }
-  std::uint32_t abort_code() const noexcept { return abort_code_; }
-
- private:
-  Kind kind_;
-  std::uint32_t abort_code_;
-};
 
 /// Joint position targets, radians, in config drive order (= joint index).
 struct JointTargets {
@@ -108,9 +94,11 @@ enum class HwFault : std::uint8_t {
   TxFailed,           ///< a frame could not be queued; code = CanIo; once per episode (stop)
   RxFailed,           ///< read error / bus closed; code = CanIo (stop)
   MalformedFrame,     ///< wrong DLC / RTR / not a can_frame; code = COB-ID, detail = DLC (notice)
-  UnknownCobId,       ///< a frame nobody on this bus should send; code = COB-ID (notice)
+  UnknownCobId,       ///< a frame nobody on this bus should send; code = COB-ID; once per COB-ID (notice)
   UnexpectedSdo,      ///< SDO traffic during the cycle (notice)
-  InvalidTarget,      ///< NaN or out-of-range target; previous target kept (stop)
+  InvalidTarget,      ///< NaN or out-of-range target (detail 0), or a step from the last target larger
+                      ///< than the following-error window (detail 1, code = step in counts):
+                      ///< refused before it reaches the drive, previous target kept (stop)
 };
 const char* to_string(HwFault f) noexcept;
 /// True for faults that require the controller to stop the arm.
@@ -187,8 +175,9 @@ class DriveSystem {
   // ---- real-time cycle -------------------------------------------------------
   /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.
   /// Does nothing before configure() has succeeded. After enable(), start
-  /// from the positions in the feedback: a jump beyond the following-error
-  /// window faults the drive (EMCY 0x8611).
+  /// from held_targets(): a target step beyond the following-error window is
+  /// refused here (InvalidTarget, the previous target is kept) before it can
+  /// fault the drive.
   void cycle_write(const JointTargets& targets) noexcept;
   /// Drain the buses and decode; fills `joints` and `ft`.
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;
@@ -207,7 +196,12 @@ class DriveSystem {
   /// Device name (0x1008) read at configure().
   const std::string& device_name(std::size_t joint) const;
   double rated_torque_nm(std::size_t joint) const;
+  /// Identity, device name, rated torque and how many objects were verified, read at configure().
+  const DriveInfo& drive_info(std::size_t joint) const;
   const CanBus& bus(std::size_t i) const { return *buses_.at(i); }
+  /// Frames with a COB-ID nobody on bus `i` should send, counted since
+  /// construction (each COB-ID is reported as an UnknownCobId event once).
+  std::uint32_t unexpected_frames(std::size_t i) const { return bus_state_.at(i).unknown_frames; }
 
   // ---- SDO (set-up only; blocking with the configured timeout) ---------------------
   std::uint32_t sdo_read(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub);
@@ -231,19 +225,23 @@ class DriveSystem {
     bool passive_reported = false;
     bool closed_reported = false;
     bool tx_fail_reported = false;
+    std::array<std::uint64_t, 32> unknown_seen{};  // one bit per 11-bit COB-ID: reported once
+    bool unknown_ext_seen = false;
+    std::uint32_t unknown_frames = 0;
   };
 
   void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;
   void push_event(const HwEvent& e) noexcept;
   void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
-  can_frame sdo_exchange(std::size_t bus, std::uint8_t node, const can_frame& request, const char* what,
-                         std::uint16_t index, std::uint8_t sub);
   void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
-  void write_setup(std::size_t bus, const can_frame& f);
   std::string node_label(std::size_t bus, std::uint8_t node) const;
+  DriveSetup drive_setup(std::size_t joint) const;
+  void drain_buses();
+  void poll_and_handle(std::vector<pollfd>& fds, int timeout_ms);
 
   RemoteConfig config_;
   std::vector<std::unique_ptr<CanBus>> buses_;
+  std::vector<std::unique_ptr<SdoClient>> sdo_;
   std::map<std::string, JointLimits> limits_;
   std::vector<Drive> drives_;
   std::unique_ptr<Ft> ft_;

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "foresight/hw/sdo_list.hpp"
+
 namespace foresight::hw {
 
 struct BusConfig {
@@ -35,6 +37,9 @@ struct DriveConfig {
   int direction = 1;            ///< +1 or -1: sign of joint angle vs counts
   double offset_rad = 0.0;      ///< joint angle at 0 counts
   double following_error_limit_rad = 0.0;  ///< drive faults above this |target - actual|
+  double following_error_timeout_s = 0.0;  ///< 0x6066 (0: leave the drive's own)
+  std::string sdo_file;                    ///< the drive's SDO list (resolved path), "" = none
+  std::vector<SdoEntry> sdo_entries;       ///< parsed from sdo_file at load (sdo_list.hpp)
   int line = 0;
 
   /// Counts per radian of joint angle (signed by direction).
@@ -63,6 +68,7 @@ struct RemoteConfig {
   double sdo_timeout_s = 0.1;
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
   int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
+  int interpolation_exponent = -4;    ///< 0x60C2:02, the unit of 0x60C2:01 (10^exp s); -3 where the drive requires ms
   double max_bus_load = 0.70;
   std::vector<BusConfig> buses;
   std::vector<DriveConfig> drives;

@@ -7,6 +7,14 @@
 // master over SDO (a wrong mapping gives wrong frames), heartbeat, and fault
 // injection. Positions are drive counts (motor encoder); physics advances one
 // communication cycle period (0x1006) per SYNC, so runs are deterministic.
+// Stop reactions follow the codes the master writes: quick stop option 0x605A
+// (0 coast, 1/2 ramp then Switch on disabled, 5/6 ramp and hold in Quick stop
+// active; ramps at 0x6084 slow-down / 0x6085 quick-stop deceleration), fault
+// reaction 0x605E (0 coast, 1/2 ramp in Fault reaction active, then Fault),
+// abort connection 0x6007 on a lost master heartbeat (0 nothing but the EMCY,
+// 1 fault, 2 disable voltage, 3 quick stop). Identity 0x1018, supported
+// modes 0x6502 (CSP), and RPDO2-4 / TPDO2-4 enabled by default as the
+// predefined connection set has them (the master must switch them off).
 
 #include <array>
 #include <cstdint>
@@ -25,6 +33,10 @@ struct SimDriveParams {
   std::uint32_t rated_torque_mnm = 2000;   ///< 0x6076, motor side
   double rotor_inertia_kgm2 = 2e-4;        ///< motor side, reflected load included
   std::int32_t initial_counts = 0;          ///< power-on position
+  double max_motor_speed_counts_s = 6000.0 / 60.0 * 131072.0;  ///< the motor's speed limit (6000 rpm)
+  std::uint32_t vendor_id = 0x00F0E5E7;     ///< 0x1018:01 (the identity a drive file expects)
+  std::uint32_t product_code = 0x00000402;  ///< 0x1018:02
+  std::uint32_t revision = 0x00010000;      ///< 0x1018:03
 };
 
 class SimDrive final : public SimNode {
@@ -54,10 +66,13 @@ class SimDrive final : public SimNode {
   void on_frame(const can_frame& f, FrameSink& out) override;
   void on_tick(Clock::time_point now, FrameSink& out) override;
   std::uint32_t check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value) override;
+  void on_sdo_written(std::uint16_t index, std::uint8_t sub) override;
 
  private:
   void apply_command(std::uint16_t cw, FrameSink& out);
   void fault(std::uint16_t emcy_code, FrameSink& out);
+  void quick_stop();                 // enter Quick stop active per 0x605A
+  void ramp(double dt_s, double decel);  // decelerate v_ toward 0, move x_
   void step_physics(double dt_s);
   void update_statusword();
   std::uint32_t check_mapping(std::uint16_t map_index, std::uint8_t count) const;
@@ -79,6 +94,8 @@ class SimDrive final : public SimNode {
   std::uint8_t rpdo_len_ = 0;
   bool master_hb_armed_ = false;  // heartbeat consumer (0x1016): armed by the first heartbeat
   Clock::time_point master_hb_{};
+  double ramp_v_ = 0.0;  // velocity of the quick-stop / fault-reaction ramp, counts/s
+  Clock::time_point last_tick_{};
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };

@@ -86,6 +86,8 @@ class SimNode {
   virtual void on_tick(Clock::time_point now, FrameSink& out);  ///< time-driven device behaviour
   /// Validate an SDO download; 0 to accept, else the abort code.
   virtual std::uint32_t check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value);
+  /// After an accepted SDO download (e.g. 0x6060 shows in 0x6061 at once).
+  virtual void on_sdo_written(std::uint16_t index, std::uint8_t sub);
   void emit_emcy(std::uint16_t code, std::uint8_t error_register, FrameSink& out);
 
   mutable std::mutex mu_;

@@ -1,0 +1,196 @@
+// Configuration from files (issue 12): each drive configured from its SDO
+// list (config/drives/simdrive.sdo) at boot, every value read back; identity
+// check; stop and fault reactions as configured, implemented by the simulated
+// drive per code; unused PDOs off; unexpected COB-IDs reported once; the
+// master refuses a target step beyond the following-error window.
+
+#include <cmath>
+
+#include "foresight/common/robot_model.hpp"
+#include "sim_fixture.hpp"
+
+using namespace foresight;
+using namespace foresight::test;
+using hw::canopen::PowerState;
+
+namespace {
+auto has = [](HwFault f) { return [f](const CycleStatus& s) { return find_event(s, f) != nullptr; }; };
+
+hw::RemoteConfig with_entry(hw::RemoteConfig c, std::uint16_t index, std::int32_t value) {
+  for (hw::DriveConfig& d : c.drives)
+    for (hw::SdoEntry& e : d.sdo_entries)
+      if (e.index == index) e.value = static_cast<std::uint32_t>(value) & (e.size == 4 ? 0xFFFFFFFFu : (1u << (8 * e.size)) - 1);
+  return c;
+}
+
+/// Poll `pred` with a deadline (the simulator runs on its own thread).
+template <class Pred>
+bool eventually(Pred pred, double timeout_s = 3.0) {
+  const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  while (Clock::now() < until) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return pred();
+}
+}  // namespace
+
+TEST(DriveConfigFile, EveryDriveIsConfiguredFromItsFileAndReadBack) {
+  const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  SimRig rig(project_config(), hw::joint_limits_by_name(model));
+  rig.drives->configure();
+  for (std::size_t j = 0; j < 7; ++j) {
+    const hw::DriveConfig& d = rig.config.drives[j];
+    const std::size_t bus = static_cast<std::size_t>(d.bus_index);
+    const std::uint8_t n = d.node_id;
+    const hw::DriveInfo& info = rig.drives->drive_info(j);
+    EXPECT_EQ(info.vendor_id, 0x00F0E5E7u);
+    EXPECT_EQ(info.product_code, 0x402u);
+    EXPECT_EQ(info.revision, 0x00010000u);
+    EXPECT_EQ(info.pdos_disabled, 6u);  // RPDO2-4, TPDO2-4
+    EXPECT_GE(info.verified, 5u + 12u);  // the file's 5 writes + the master's own objects
+    for (const hw::SdoEntry& e : d.sdo_entries) {
+      const std::uint32_t mask = e.size == 4 ? 0xFFFFFFFFu : (1u << (8 * e.size)) - 1;
+      EXPECT_EQ(rig.drives->sdo_read(bus, n, e.index, e.sub) & mask, e.value) << e.origin;
+    }
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x6061, 0), 8u);     // CSP, read back
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x60C2, 1), 2u);     // 2 ms ...
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x60C2, 2), 0xFDu);  // ... in 10^-3 s
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x6066, 0), 20u);
+    const double vmax = model.limits()[j].velocity_rad_s * std::abs(d.counts_per_rad());
+    EXPECT_NEAR(rig.drives->sdo_read(bus, n, 0x607F, 0), vmax, 0.6) << d.joint;  // from the URDF
+    for (std::uint16_t i = 1; i < 4; ++i) {
+      EXPECT_TRUE(rig.drives->sdo_read(bus, n, static_cast<std::uint16_t>(0x1400 + i), 1) & 0x80000000u);
+      EXPECT_TRUE(rig.drives->sdo_read(bus, n, static_cast<std::uint16_t>(0x1800 + i), 1) & 0x80000000u);
+    }
+  }
+  // ... and runs CSP with no stray frames on the bus.
+  rig.drives->enable();
+  rig.drives->held_targets(rig.targets);
+  rig.deadline = Clock::now();
+  const double q0 = rig.targets.position_rad[2];
+  for (int i = 1; i <= 100; ++i) {
+    rig.targets.position_rad[2] = q0 + 0.02 * i / 100.0;
+    const CycleStatus s = rig.cycle();
+    EXPECT_EQ(find_event(s, HwFault::UnknownCobId), nullptr);
+  }
+  rig.run_until([](const CycleStatus&) { return false; }, 25);
+  EXPECT_NEAR(rig.fb.joints[2].position_rad, q0 + 0.02, 1e-4);
+  EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
+  EXPECT_EQ(rig.drives->unexpected_frames(1), 0u);
+}
+
+TEST(DriveConfigFile, ADriveOfAnotherIdentityIsRefusedBeforeAnythingIsWritten) {
+  hw::RemoteConfig c = project_config();
+  for (hw::SdoEntry& e : c.drives[2].sdo_entries)
+    if (e.index == 0x1018 && e.sub == 2) e.value = 0x403;
+  SimRig rig(c);
+  try {
+    rig.drives->configure();
+    FAIL();
+  } catch (const hw::HwError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "joint3 (bus arm_a node 3): 0x1018:02 is 0x00000402, expected 0x00000403 (" FORESIGHT_CONFIG_DIR
+              "/drives/simdrive.sdo:12): not the drive this configuration is for");
+  }
+  EXPECT_EQ(rig.sim->drive(2).following_error_window(), 0xFFFFFFFFu);  // untouched
+}
+
+TEST(DriveConfigFile, AValueTheDriveRefusesNamesTheFileLine) {
+  SimRig rig(with_entry(project_config(), 0x605A, 3));  // 3 is not a quick stop option code
+  try {
+    rig.drives->configure();
+    FAIL();
+  } catch (const hw::SdoError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "SDO write 0x605A:00 of joint1 (bus arm_a node 1): aborted by the node: 0x06090030 value range of "
+              "parameter exceeded");
+  }
+}
+
+// Quick stop option 6 (the shipped file) holds in Quick stop active
+// (DriveFaults.QuickStopHoldsPosition); 2 ramps down, then powers off.
+TEST(DriveConfigFile, QuickStopOption2RampsThenDisables) {
+  SimRig rig(with_entry(project_config(), 0x605A, 2));
+  rig.bring_up();
+  rig.drives->request_quick_stop();
+  rig.run_until([&](const CycleStatus&) { return rig.fb.joints[0].state == PowerState::SwitchOnDisabled; }, 500);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.fb.joints[j].state, PowerState::SwitchOnDisabled) << j;
+}
+
+// Abort connection option (0x6007) when the master falls silent: 1 (shipped)
+// faults (DriveFaults.DrivesFaultWhenTheMasterStopsCycling), 3 quick-stops,
+// 2 disables the voltage; each with EMCY 0x8130.
+TEST(DriveConfigFile, AbortConnectionOptionsActAsConfigured) {
+  for (const auto& [option, expected] : {std::pair{3, PowerState::QuickStopActive}, std::pair{2, PowerState::SwitchOnDisabled}}) {
+    SimRig rig(with_entry(project_config(), 0x6007, option));
+    rig.bring_up();
+    rig.run_until([](const CycleStatus&) { return false; }, 10);
+    // The master stops cycling (no SYNC, no heartbeat).
+    EXPECT_TRUE(eventually([&] {
+      for (std::size_t j = 0; j < 7; ++j)
+        if (rig.sim->drive(j).power_state() != expected) return false;
+      return true;
+    })) << "option " << option;
+    for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), expected) << option << " " << j;
+  }
+}
+
+// Fault reaction (0x605E) 2: a drive faulting while moving ramps down in
+// Fault reaction active before Fault; 0: Fault at once.
+TEST(DriveConfigFile, FaultReactionRampsOrCoastsAsConfigured) {
+  for (const int reaction : {2, 0}) {
+    SimRig rig(with_entry(project_config(), 0x605E, reaction));
+    rig.bring_up();
+    const double q0 = rig.targets.position_rad[0];
+    for (int i = 1; i <= 50; ++i) {  // moving at 0.5 rad/s
+      rig.targets.position_rad[0] = q0 + 0.001 * i;
+      rig.cycle();
+    }
+    rig.sim->drive(0).inject_fault(0x2310);
+    bool saw_reaction = false;
+    for (int i = 0; i < 500 && rig.fb.joints[0].state != PowerState::Fault; ++i) {
+      rig.targets.position_rad[0] = rig.fb.joints[0].position_rad;
+      rig.cycle();
+      saw_reaction = saw_reaction || rig.fb.joints[0].state == PowerState::FaultReactionActive;
+    }
+    EXPECT_EQ(rig.fb.joints[0].state, PowerState::Fault) << reaction;
+    EXPECT_EQ(saw_reaction, reaction == 2) << reaction;
+  }
+}
+
+TEST(DriveConfigFile, UnexpectedCobIdsAreCountedAndReportedOnce) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  int reported = 0;
+  for (int i = 0; i < 20; ++i) {
+    if (i < 10) rig.sim->inject(1, hw::make_frame(0x2A5, {1, 2}));  // a TPDO2 nobody configured
+    const CycleStatus s = rig.cycle();
+    for (std::size_t k = 0; k < s.event_count; ++k) reported += s.events[k].fault == HwFault::UnknownCobId;
+  }
+  rig.run_until([&](const CycleStatus&) { return rig.drives->unexpected_frames(1) >= 10; }, 200);
+  EXPECT_EQ(reported, 1);
+  EXPECT_EQ(rig.drives->unexpected_frames(1), 10u);
+  EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
+}
+
+TEST(DriveConfigFile, TheMasterRefusesATargetStepBeyondTheFollowingErrorWindow) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  const double q0 = rig.targets.position_rad[0];
+  rig.targets.position_rad[0] = q0 + 0.05;  // window 0.02 rad
+  const CycleStatus s = rig.run_until(has(HwFault::InvalidTarget), 10);
+  const HwEvent* e = find_event(s, HwFault::InvalidTarget);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(e->joint, 0);
+  EXPECT_EQ(e->detail, 1u);
+  EXPECT_TRUE(s.stop_required);
+  const double counts = 0.05 * rig.config.drives[0].counts_per_rad();
+  EXPECT_NEAR(e->code, counts, 1.0);
+  EXPECT_NE(rig.drives->describe(*e).find("joint1 (bus arm_a node 1): invalid joint target (not finite or out of range): a step of "),
+            std::string::npos) << rig.drives->describe(*e);
+  // The drive never saw it: still enabled, holding.
+  rig.run_until([](const CycleStatus&) { return false; }, 20);
+  EXPECT_EQ(rig.sim->drive(0).power_state(), PowerState::OperationEnabled);
+  EXPECT_NEAR(rig.fb.joints[0].position_rad, q0, 1e-4);
+}
