@@ -56,7 +56,9 @@ step() { step_start=$(date +%s); echo "== sanitize: $* ($(date -u +%H:%M:%S) UTC
 step_done() { echo "== sanitize: done in $(( $(date +%s) - step_start )) s"; }
 
 configure() {  # dir sanitizers
+  # -O1 (the sanitizers' recommendation): a third less compile time than -O3.
   cmake -S . -B "$1" -G Ninja -DCMAKE_BUILD_TYPE=Release -DFORESIGHT_WERROR=OFF \
+    -DCMAKE_CXX_FLAGS_RELEASE="-O1 -DNDEBUG" -DCMAKE_C_FLAGS_RELEASE="-O1 -DNDEBUG" \
     -DFORESIGHT_SANITIZE="$2" -DPython3_EXECUTABLE=/usr/bin/python3 "${LAUNCHER[@]}" >/dev/null
 }
 
