@@ -194,6 +194,14 @@ int open_can_socket(const std::string& interface) {
     ::close(fd);
     throw CanError(what + ": cannot enable error frames: " + errno_text(err));
   }
+  // Our own frames come back in bus order: the master uses its own SYNC as a
+  // marker to tell a TPDO answering this SYNC from a late one (DriveSystem).
+  const int own = 1;
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &own, sizeof own) < 0) {
+    const int err = errno;
+    ::close(fd);
+    throw CanError(what + ": cannot enable CAN_RAW_RECV_OWN_MSGS: " + errno_text(err));
+  }
   set_nonblocking(fd, what);
   return fd;
 }

@@ -16,7 +16,7 @@ using namespace canopen;
 
 namespace {
 enum RouteKind : std::uint8_t {
-  kNone = 0, kDriveTpdo, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
+  kNone = 0, kOwn, kDriveTpdo, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
 };
 constexpr std::size_t kMaxFramesPerRead = 512;
 
@@ -133,6 +133,8 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
     b.routes[kEmcyBase + d.node] = {kDriveEmcy, slot};
     b.routes[kHeartbeatBase + d.node] = {kDriveHb, slot};
     b.routes[kSdoTxBase + d.node] = {kDriveSdo, slot};
+    b.routes[kRpdo1Base + d.node] = {kOwn, slot};  // our own frames, when the controller loops them back
+    b.routes[kSdoRxBase + d.node] = {kOwn, slot};
   }
   if (config_.ft.present) {
     ft_ = std::make_unique<Ft>(config_.ft);
@@ -149,6 +151,10 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
         *buses_[bi], config_.buses[bi].name, config_.sdo_timeout_s,
         [this, bi](const can_frame& f) { handle_frame(bi, f, Clock::now()); },
         [this, bi](std::uint8_t node) { return node_label(bi, node); }));
+  for (BusState& b : bus_state_) {
+    b.routes[kNmt] = {kOwn, 0};
+    b.routes[kHeartbeatBase + config_.master_node_id] = {kOwn, 0};
+  }
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
   master_hb_period_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_producer_s * 1e9));
 }
@@ -227,6 +233,7 @@ DriveSetup DriveSystem::drive_setup(std::size_t j) const {
   s.node = d.node;
   s.period_us = static_cast<std::uint32_t>(std::lround(1e6 / config_.cycle_rate_hz));
   s.interpolation_exponent = config_.interpolation_exponent;
+  s.sync_counter_overflow = static_cast<std::uint8_t>(config_.sync_counter_overflow);
   s.producer_heartbeat_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3));
   s.master_node_id = config_.master_node_id;
   s.consumer_heartbeat_ms = static_cast<std::uint16_t>(std::lround(config_.heartbeat_consumer_s * 1e3) & 0xFFFF);
@@ -342,6 +349,7 @@ void DriveSystem::configure() {
   for (BusState& b : bus_state_) {
     b.sync_sent = false;
     b.bus_off_reported = b.passive_reported = b.closed_reported = b.tx_fail_reported = false;
+    b.sync_seen = b.sync_counter;
   }
   pending_count_ = 0;
   configured_ = true;
@@ -493,6 +501,27 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     CanBus& bus = *buses_[bi];
     BusState& bs = bus_state_[bi];
+    // SYNC first: the drives sample and answer with their TPDOs at once; the
+    // RPDOs that follow take effect at the next SYNC (CiA 301 synchronous window).
+    can_frame sync{};
+    sync.can_id = kSync;
+    sync.can_dlc = 0;
+    if (config_.sync_counter_overflow > 0) {  // CiA 301 counter 1..overflow
+      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter >= config_.sync_counter_overflow ? 1 : bs.sync_counter + 1);
+      sync.can_dlc = 1;
+      sync.data[0] = bs.sync_counter;
+    } else {
+      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter + 1);  // echo matching without a counter on the wire
+    }
+    const CanIo sync_io = bus.write(sync);
+    const bool sync_ok = sync_io == CanIo::Ok;
+    if (!sync_ok) {
+      if (!bs.tx_fail_reported)
+        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(sync_io), kSync});
+      bs.tx_fail_reported = true;
+    } else {
+      bs.sync_sent = true;
+    }
     bool all_sent = true;
     for (std::size_t j : bs.drives) {
       Drive& d = drives_[j];
@@ -524,18 +553,7 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
     }
     if (send_heartbeat)  // the master's own heartbeat (NMT state operational)
       (void)bus.write(make_frame(kHeartbeatBase + config_.master_node_id, {static_cast<std::uint8_t>(NmtState::Operational)}));
-    can_frame sync{};
-    sync.can_id = kSync;
-    sync.can_dlc = 0;
-    const CanIo io = bus.write(sync);
-    if (io != CanIo::Ok) {
-      if (!bs.tx_fail_reported)
-        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(io), kSync});
-      bs.tx_fail_reported = true;
-    } else {
-      bs.sync_sent = true;
-      if (all_sent) bs.tx_fail_reported = false;  // reported once per episode, not every cycle
-    }
+    if (sync_ok && all_sent) bs.tx_fail_reported = false;  // reported once per episode, not every cycle
   }
   ++cycle_;
 }
@@ -555,6 +573,11 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
     push_event({HwFault::MalformedFrame, bus8, node_of(id), -1, id, f.can_dlc});
     return;
   }
+  if (id == kSync) {  // our own SYNC, looped back by the controller (or the simulator): a marker in the stream
+    bs.sync_echo_active = true;
+    bs.sync_seen = f.can_dlc >= 1 && config_.sync_counter_overflow > 0 ? f.data[0] : static_cast<std::uint8_t>(bs.sync_seen + 1);
+    return;
+  }
   const Route r = bus_state_[bi].routes[id];
   auto malformed = [&](std::int8_t joint) {
     push_event({HwFault::MalformedFrame, bus8, node_of(id), joint, id, f.can_dlc});
@@ -564,6 +587,12 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       Drive& d = drives_[r.slot];
       const auto j = static_cast<std::int8_t>(r.slot);
       if (f.can_dlc != 8) return malformed(j);
+      if (bs.sync_echo_active && bs.sync_seen != bs.sync_counter) {
+        // Read before the echo of the last SYNC we sent: it answers an earlier
+        // SYNC (late, or that SYNC was lost). Not taken as fresh.
+        ++bs.stale_tpdos;
+        return;
+      }
       const PowerState before = d.st.state;
       d.st.statusword = get_u16(f.data);
       d.st.position_counts = static_cast<std::int32_t>(get_u32(f.data + 2));
@@ -631,6 +660,7 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       }
       return;
     }
+    case kOwn: return;
     case kDriveSdo:
     case kFtSdo:
       push_event({HwFault::UnexpectedSdo, bus8, node_of(id), -1, id, f.data[0]});

@@ -127,6 +127,7 @@ DriveInfo NodeConfigurator::configure_drive(const DriveSetup& s) {
     throw HwError(label_(n) + ": modes of operation display 0x6061 is " + std::to_string(display) +
                   " after selecting 8 (cyclic synchronous position) in 0x6060");
   write_checked(n, od::kCommCyclePeriod, 0, s.period_us, 4, false, info);
+  if (s.sync_counter_overflow) write_checked(n, od::kSyncCounterOverflow, 0, s.sync_counter_overflow, 1, false, info);
   const std::optional<std::uint8_t> ip = interpolation_period_value(s.period_us, s.interpolation_exponent);
   if (!ip)
     throw HwError(label_(n) + ": a " + std::to_string(s.period_us) + " us cycle is not a whole number (1..255) of 10^" +

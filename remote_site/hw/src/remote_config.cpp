@@ -93,7 +93,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "interpolation_exponent", "buses", "drives", "ft_sensor", "tool", "controller"});
+                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "buses", "drives", "ft_sensor", "tool", "controller"});
 
   RemoteConfig c;
   c.source = source_name;
@@ -117,6 +117,10 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
     p.fail(root["interpolation_exponent"], "top level: interpolation_exponent " +
                                                std::to_string(c.interpolation_exponent) + " is outside -6..0");
+  c.sync_counter_overflow = p.get_or<int>(root, "sync_counter_overflow", "top level", 0);
+  if (c.sync_counter_overflow != 0 && (c.sync_counter_overflow < 2 || c.sync_counter_overflow > 240))
+    p.fail(root["sync_counter_overflow"], "top level: sync_counter_overflow " + std::to_string(c.sync_counter_overflow) +
+                                              " is outside 2..240 (CiA 301 0x1019), or 0 for no counter");
   std::string base_dir;
   if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 
@@ -309,7 +313,7 @@ std::vector<BusLoad> compute_bus_loads(const RemoteConfig& c) {
     const int nodes = l.drives + (l.ft ? 1 : 0);
     if (nodes > 0) {
       l.frames_per_cycle = 1 + 2 * l.drives + (l.ft ? 2 : 0);
-      l.bits_per_cycle = worst_case_frame_bits(0) +
+      l.bits_per_cycle = worst_case_frame_bits(c.sync_counter_overflow > 0 ? 1 : 0) +
                          l.drives * (worst_case_frame_bits(kRpdoBytes) + worst_case_frame_bits(kTpdoBytes)) +
                          (l.ft ? 2 * worst_case_frame_bits(kFtBytes) : 0);
       l.heartbeat_bits_per_s = (nodes + 1) * worst_case_frame_bits(1) / c.heartbeat_producer_s;  // + master

@@ -41,16 +41,22 @@ TEST(RemoteConfig, LoadsTheProjectFile) {
   EXPECT_TRUE(c.ft.present);
   EXPECT_EQ(c.ft.bus_index, 1);
   EXPECT_DOUBLE_EQ(c.heartbeat_consumer_s, 0.15);
-  // Known loads: arm_a 4 drives: (55 + 4*(115+135)) * 500 + (4+1 master)*65/0.05 = 534000 bit/s
+  // Known loads (SYNC with its 1-byte counter: 65 bits): arm_a 4 drives:
+  // (65 + 4*(115+135)) * 500 + (4+1 master)*65/0.05 = 539000 bit/s
+  EXPECT_EQ(c.sync_counter_overflow, 240);
   const auto loads = compute_bus_loads(c);
   ASSERT_EQ(loads.size(), 2u);
   EXPECT_EQ(loads[0].frames_per_cycle, 9);
-  EXPECT_EQ(loads[0].bits_per_cycle, 1055);
-  EXPECT_NEAR(loads[0].load, 0.5340, 1e-6);
-  // arm_b 3 drives + F/T: (55 + 3*250 + 2*135) * 500 + (4+1)*65/0.05 = 544000 bit/s
+  EXPECT_EQ(loads[0].bits_per_cycle, 1065);
+  EXPECT_NEAR(loads[0].load, 0.5390, 1e-6);
+  // arm_b 3 drives + F/T: (65 + 3*250 + 2*135) * 500 + (4+1)*65/0.05 = 549000 bit/s
   EXPECT_EQ(loads[1].frames_per_cycle, 9);
-  EXPECT_EQ(loads[1].bits_per_cycle, 1075);
-  EXPECT_NEAR(loads[1].load, 0.5440, 1e-6);
+  EXPECT_EQ(loads[1].bits_per_cycle, 1085);
+  EXPECT_NEAR(loads[1].load, 0.5490, 1e-6);
+  // Without the counter, SYNC is 0 bytes (55 bits).
+  RemoteConfig no_counter = c;
+  no_counter.sync_counter_overflow = 0;
+  EXPECT_EQ(compute_bus_loads(no_counter)[0].bits_per_cycle, 1055);
   EXPECT_EQ(c.master_node_id, 127);
 }
 

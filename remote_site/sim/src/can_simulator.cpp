@@ -1,5 +1,6 @@
 #include "foresight/sim/can_simulator.hpp"
 
+#include <linux/can/error.h>
 #include <poll.h>
 
 #include <numbers>
@@ -12,8 +13,48 @@ struct CanSimulator::Bus final : FrameSink {
   std::vector<SimNode*> nodes;
   std::mutex write_mu;
   CanSimulator* owner = nullptr;
+  // impairment (guarded by write_mu)
+  BusImpairment imp;
+  std::mt19937_64 rng{1};
+  bool bus_off = false;
+  struct Timed {
+    Clock::time_point due;
+    can_frame f;
+  };
+  std::deque<Timed> queue;
+
+  bool lose(double p) { return p > 0.0 && std::uniform_real_distribution<double>(0.0, 1.0)(rng) < p; }
+  /// A node's frame onto the bus: lost, delayed, or written now.
   void send(const can_frame& f) override {
     std::lock_guard lock(write_mu);
+    if (bus_off) return;
+    if (!(f.can_id & CAN_ERR_FLAG) && lose(imp.loss)) {
+      ++owner->frames_lost_;
+      return;
+    }
+    if (imp.delay_s > 0.0 || imp.jitter_s > 0.0) {
+      const double d = imp.delay_s + (imp.jitter_s > 0.0 ? std::uniform_real_distribution<double>(0.0, imp.jitter_s)(rng) : 0.0);
+      Clock::time_point due = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(d));
+      if (!queue.empty() && due < queue.back().due) due = queue.back().due;  // FIFO
+      queue.push_back({due, f});
+      return;
+    }
+    write_now(f);
+  }
+  /// Loopback of the master's own frame (never on the wire: not impaired).
+  void echo(const can_frame& f) {
+    std::lock_guard lock(write_mu);
+    if (queue.empty()) write_now(f);
+    else queue.push_back({queue.back().due, f});  // stays in bus order behind delayed frames
+  }
+  void flush(Clock::time_point now) {
+    std::lock_guard lock(write_mu);
+    for (std::size_t k = 0; k < 4096 && !queue.empty() && queue.front().due <= now; ++k) {
+      write_now(queue.front().f);
+      queue.pop_front();
+    }
+  }
+  void write_now(const can_frame& f) {
     // A full queue on the master side drops the frame, like a CAN controller
     // whose receiver overflowed; bounded retries keep the sim from stalling.
     for (int i = 0; i < 50; ++i) {
@@ -121,11 +162,58 @@ void CanSimulator::power_on() {
     for (SimNode* n : b->nodes) n->power_on(*b);
 }
 
-void CanSimulator::inject(std::size_t bus, const can_frame& f) { buses_.at(bus)->send(f); }
+void CanSimulator::inject(std::size_t bus, const can_frame& f) {
+  Bus& b = *buses_.at(bus);
+  std::lock_guard lock(b.write_mu);
+  b.write_now(f);  // injected frames bypass loss, delay and bus-off
+}
+
+void CanSimulator::set_impairment(std::size_t bus, const BusImpairment& imp) {
+  Bus& b = *buses_.at(bus);
+  std::lock_guard lock(b.write_mu);
+  b.imp = imp;
+  b.rng.seed(imp.seed);
+}
+
+void CanSimulator::inject_bus_off(std::size_t bus) {
+  Bus& b = *buses_.at(bus);
+  std::lock_guard lock(b.write_mu);
+  b.write_now(hw::make_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  b.bus_off = true;
+  b.queue.clear();
+}
+
+void CanSimulator::inject_error_passive(std::size_t bus) {
+  Bus& b = *buses_.at(bus);
+  std::lock_guard lock(b.write_mu);
+  b.write_now(hw::make_frame(CAN_ERR_FLAG | CAN_ERR_CRTL,
+                             {0, CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0}));
+}
+
+void CanSimulator::recover_bus(std::size_t bus) {
+  Bus& b = *buses_.at(bus);
+  std::lock_guard lock(b.write_mu);
+  b.bus_off = false;
+  b.write_now(hw::make_frame(CAN_ERR_FLAG | CAN_ERR_RESTARTED, {0, 0, 0, 0, 0, 0, 0, 0}));
+}
 
 void CanSimulator::dispatch(std::size_t bus, const can_frame& f, Clock::time_point now) {
   ++frames_in_;
   Bus& b = *buses_[bus];
+  // A CAN controller with own-message reception loops the master's SYNC back
+  // in bus order, before the TPDOs that answer it (SocketCAN
+  // CAN_RAW_RECV_OWN_MSGS); DriveSystem uses it to spot late TPDOs.
+  const bool sync = (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 &&
+                    (f.can_id & CAN_SFF_MASK) == hw::canopen::kSync;
+  {
+    std::lock_guard lock(b.write_mu);
+    if (b.bus_off) return;  // nothing reaches the nodes
+    if (b.lose(b.imp.loss) || (sync && b.lose(b.imp.sync_loss))) {
+      ++frames_lost_;
+      return;
+    }
+  }
+  if (sync) b.echo(f);
   for (SimNode* n : b.nodes) n->handle(f, now, b);
 }
 
@@ -138,6 +226,7 @@ void CanSimulator::process(int timeout_ms) {
     ::poll(fds.data(), fds.size(), timeout_ms);
   }
   const auto now = Clock::now();
+  for (auto& b : buses_) b->flush(now);
   for (std::size_t i = 0; i < buses_.size(); ++i) {
     can_frame f{};
     for (int k = 0; k < 4096; ++k) {

@@ -93,6 +93,7 @@ void SimDrive::reset_application() {
   define(od::kSoftwareLimits, 2, 4, true, static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max()));
   define(od::kInterpolationPeriod, 1, 1, true, 1);
   define(od::kInterpolationPeriod, 2, 1, true, static_cast<std::uint8_t>(static_cast<std::int8_t>(-3)));
+  define(od::kSyncCounterOverflow, 0, 1, true, 0);
   define(od::kIdentity, 0, 1, false, 4);
   define(od::kIdentity, 1, 4, false, p_.vendor_id);
   define(od::kIdentity, 2, 4, false, p_.product_code);
@@ -114,6 +115,7 @@ void SimDrive::reset_application() {
     define(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 2, 1, true, 1);  // on every SYNC: statusword
   }
   state_ = PowerState::NotReadyToSwitchOn;
+  last_sync_ = Clock::time_point{};
   v_ = a_ = 0.0;
   demand_ = demand_prev_ = x_;
   prev_cw_ = 0;
@@ -152,6 +154,8 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
     if ((value & 0x7FF) == 0 || (value & 0x3FFFF800u)) return static_cast<std::uint32_t>(SdoAbort::ValueRange);
     return 0;
   }
+  if (index == od::kSyncCounterOverflow)
+    return value == 0 || (value >= 2 && value <= 240) ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
   if (index == od::kQuickStopOption) {
     const auto v = static_cast<std::int16_t>(value);
     return (v >= 0 && v <= 2) || v == 5 || v == 6 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
@@ -370,7 +374,7 @@ void SimDrive::update_statusword() {
   set(od::kTorqueActual, 0, static_cast<std::uint16_t>(static_cast<std::int16_t>(pm)));
 }
 
-void SimDrive::on_sync(Clock::time_point, FrameSink& out) {
+void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
   ++syncs_;
   // 1. synchronous RPDO received since the last SYNC takes effect now
   if (have_rpdo_) {
@@ -394,7 +398,13 @@ void SimDrive::on_sync(Clock::time_point, FrameSink& out) {
   // 3. motion: csp target with limit and following-error supervision
   std::uint32_t period_us = get(od::kCommCyclePeriod, 0);
   if (period_us == 0) period_us = 1000;
-  const double dt = period_us * 1e-6;
+  // Physics advances by the wall time since the previous SYNC, so late, lost
+  // or irregular SYNCs show (bounded: a drive interpolates at most 5 periods).
+  const double period_s = period_us * 1e-6;
+  double dt = period_s;
+  if (last_sync_ != Clock::time_point{})
+    dt = std::clamp(std::chrono::duration<double>(now - last_sync_).count(), 0.1 * period_s, 5.0 * period_s);
+  last_sync_ = now;
   if (state_ == PowerState::OperationEnabled) {
     const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
     const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));

@@ -193,6 +193,7 @@ inline constexpr std::uint16_t kCommCyclePeriod = 0x1006;  // us
 inline constexpr std::uint16_t kDeviceName = 0x1008;       // visible string (segmented upload)
 inline constexpr std::uint16_t kConsumerHeartbeat = 0x1016;  // sub 1: node id << 16 | ms
 inline constexpr std::uint16_t kProducerHeartbeat = 0x1017;  // ms
+inline constexpr std::uint16_t kSyncCounterOverflow = 0x1019;  // u8: SYNC counter 1..this; 0 = no counter
 inline constexpr std::uint16_t kIdentity = 0x1018;           // sub 1 vendor, 2 product, 3 revision, 4 serial
 inline constexpr std::uint16_t kAbortConnection = 0x6007;    // i16: 0 none, 1 fault, 2 disable voltage, 3 quick stop
 inline constexpr std::uint16_t kRpdo1Comm = 0x1400;

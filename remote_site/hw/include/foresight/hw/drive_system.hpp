@@ -16,8 +16,9 @@
 //      cycle_read() then cycle_write() once per period, from one thread:
 //        cycle_read:  drain every bus; TPDOs -> feedback; heartbeats, EMCY,
 //                     error frames -> events; heartbeat/TPDO timeouts.
-//        cycle_write: one RPDO (controlword + target position) per drive,
-//                     then SYNC, on every bus; the master's own heartbeat
+//        cycle_write: SYNC first (with the CiA 301 counter when
+//                     sync_counter_overflow > 0), then one RPDO (controlword +
+//                     target position) per drive, on every bus; the master's own heartbeat
 //                     (0x700 + heartbeat.master_node_id) every producer period,
 //                     which the drives consume (0x1016): a master that stops
 //                     cycling faults the drives (EMCY 0x8130).
@@ -202,6 +203,9 @@ class DriveSystem {
   /// Frames with a COB-ID nobody on bus `i` should send, counted since
   /// construction (each COB-ID is reported as an UnknownCobId event once).
   std::uint32_t unexpected_frames(std::size_t i) const { return bus_state_.at(i).unknown_frames; }
+  /// TPDOs read before the echo of the last SYNC sent on bus `i` (they answer
+  /// an earlier SYNC: late, or that SYNC was lost), not taken as fresh.
+  std::uint32_t stale_tpdos(std::size_t i) const { return bus_state_.at(i).stale_tpdos; }
 
   // ---- SDO (set-up only; blocking with the configured timeout) ---------------------
   std::uint32_t sdo_read(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub);
@@ -228,6 +232,10 @@ class DriveSystem {
     std::array<std::uint64_t, 32> unknown_seen{};  // one bit per 11-bit COB-ID: reported once
     bool unknown_ext_seen = false;
     std::uint32_t unknown_frames = 0;
+    std::uint8_t sync_counter = 0;   // of the last SYNC sent
+    std::uint8_t sync_seen = 0;      // of the last SYNC echo read
+    bool sync_echo_active = false;   // this bus loops our SYNCs back
+    std::uint32_t stale_tpdos = 0;
   };
 
   void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;

@@ -30,6 +30,7 @@ namespace foresight::hw {
 struct DriveSetup {
   std::uint8_t node = 0;
   std::uint32_t period_us = 2000;          ///< 0x1006
+  std::uint8_t sync_counter_overflow = 0;  ///< 0x1019 (0: SYNC without counter)
   int interpolation_exponent = -4;         ///< 0x60C2:02 (0x60C2:01 = period in 10^exp s)
   std::uint16_t producer_heartbeat_ms = 50;
   std::uint8_t master_node_id = 127;

@@ -11,6 +11,8 @@
 //   drives.configure(); drives.enable(); ... cycle_read / cycle_write ...
 
 #include <atomic>
+#include <deque>
+#include <random>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -32,6 +34,18 @@ struct MockBuses {
   std::vector<std::unique_ptr<hw::CanBus>> far;
 };
 MockBuses make_mock_buses(const hw::RemoteConfig& config);
+
+/// What one simulated bus does to frames (seeded: a run is reproducible up to
+/// thread timing). Loss applies both ways; delay and jitter to frames the
+/// nodes send (FIFO: CAN does not reorder); SYNC loss to the master's SYNCs
+/// (a lost SYNC is not looped back either).
+struct BusImpairment {
+  double loss = 0.0;           ///< probability a data frame is lost, each way
+  double sync_loss = 0.0;      ///< extra probability a SYNC is lost
+  double delay_s = 0.0;        ///< added to every node frame
+  double jitter_s = 0.0;       ///< + uniform [0, jitter_s)
+  std::uint64_t seed = 1;
+};
 
 class CanSimulator {
  public:
@@ -61,6 +75,17 @@ class CanSimulator {
   /// Send a raw frame on a bus from the far end (malformed-frame injection,
   /// error frames: can_id | CAN_ERR_FLAG). Any thread.
   void inject(std::size_t bus, const can_frame& f);
+  /// Frame loss, delay and jitter on one bus from now on. Any thread.
+  void set_impairment(std::size_t bus, const BusImpairment& imp);
+  /// The master's controller goes bus-off: a CAN_ERR_BUSOFF error frame, then
+  /// nothing passes either way until recover_bus(). Any thread.
+  void inject_bus_off(std::size_t bus);
+  /// Error passive (CAN_ERR_CRTL, TX and RX passive); traffic still passes.
+  void inject_error_passive(std::size_t bus);
+  /// Controller restarted: CAN_ERR_RESTARTED, traffic passes again.
+  void recover_bus(std::size_t bus);
+  /// Frames lost by the impairment so far (both directions, all buses).
+  std::uint64_t frames_lost() const { return frames_lost_.load(); }
 
   SimDrive& drive(std::size_t i) { return *drives_.at(i).node; }
   /// Simulated joint angles (rad) of the drives built by from_config, in
@@ -97,7 +122,7 @@ class CanSimulator {
   bool powered_ = false;
   std::thread thread_;
   std::atomic<bool> running_{false};
-  std::atomic<std::uint64_t> frames_in_{0}, frames_out_{0}, frames_dropped_{0};
+  std::atomic<std::uint64_t> frames_in_{0}, frames_out_{0}, frames_dropped_{0}, frames_lost_{0};
 };
 
 }  // namespace foresight::sim

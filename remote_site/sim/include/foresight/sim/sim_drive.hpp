@@ -5,8 +5,9 @@
 // position-limit faults with their EMCY codes, a consumer of the master's
 // heartbeat (0x1016; a silent master faults the drive, EMCY 0x8130), PDOs exactly as mapped by the
 // master over SDO (a wrong mapping gives wrong frames), heartbeat, and fault
-// injection. Positions are drive counts (motor encoder); physics advances one
-// communication cycle period (0x1006) per SYNC, so runs are deterministic.
+// injection. Positions are drive counts (motor encoder); physics advances by
+// the wall time between SYNCs (the first: one period 0x1006; bounded to
+// 0.1..5 periods), so late, lost or irregular SYNCs show in the motion.
 // Stop reactions follow the codes the master writes: quick stop option 0x605A
 // (0 coast, 1/2 ramp then Switch on disabled, 5/6 ramp and hold in Quick stop
 // active; ramps at 0x6084 slow-down / 0x6085 quick-stop deceleration), fault
@@ -96,6 +97,7 @@ class SimDrive final : public SimNode {
   Clock::time_point master_hb_{};
   double ramp_v_ = 0.0;  // velocity of the quick-stop / fault-reaction ramp, counts/s
   Clock::time_point last_tick_{};
+  Clock::time_point last_sync_{};  // wall time of the previous SYNC (physics dt)
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };
