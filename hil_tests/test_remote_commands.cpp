@@ -302,6 +302,46 @@ TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
   EXPECT_TRUE(run(CommandKind::GotoJoint, g, 3.0).succeeded());
 }
 
+// CAMERA runs on the video switch's own thread: a hung switch fails its
+// command after the client's retries, and meanwhile the supervisor answers
+// (a second CAMERA is refused as busy at once instead of queuing behind it).
+TEST_F(RemoteCommands, CameraCommandsRunOffTheSupervisorThreadAndAHungSwitchFailsCleanly) {
+  ASSERT_TRUE(run(CommandKind::TakeControl).succeeded());
+  control::CameraCommand cam;
+  cam.camera = "oblique";
+  auto r = run(CommandKind::Camera, cam);
+  EXPECT_TRUE(r.succeeded()) << r.reason;
+  EXPECT_EQ(r.reason, "camera oblique");
+  cam.camera = "nowhere";
+  r = run(CommandKind::Camera, cam);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.reason, "unknown camera 'nowhere' (expected one of: side, oblique, overhead_wide, overhead_zoom)");
+
+  fault_file("video_silent");
+  bool applied = false;
+  for (int i = 0; i < 500 && !applied; ++i) {
+    applied = remote_->log().find("simulated fault video_silent: on") != std::string::npos;
+    if (!applied) std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_TRUE(applied) << remote_->log();
+  cam.camera = "side";
+  const std::uint64_t hung = ground_->send(CommandKind::Camera, cam);
+  const std::uint64_t second = ground_->send(CommandKind::Camera, cam);
+  const auto busy = ground_->wait_final(second, 20s);
+  EXPECT_EQ(busy.state, AckState::Rejected);
+  EXPECT_EQ(busy.code, Reason::Busy);
+  EXPECT_EQ(busy.reason, "the video switch is busy with command " + std::to_string(hung));
+  const auto failed = ground_->wait_final(hung, 20s);
+  EXPECT_EQ(failed.state, AckState::Failed);
+  EXPECT_EQ(failed.code, Reason::Internal);
+  EXPECT_EQ(failed.reason.rfind("video switch: ", 0), 0u) << failed.reason;
+
+  std::filesystem::remove(faults_ + "/video_silent");
+  bool back = false;
+  for (int i = 0; i < 20 && !back; ++i) back = run(CommandKind::Camera, cam).succeeded();
+  EXPECT_TRUE(back) << "the switch did not come back after the fault cleared";
+}
+
 TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidence) {
   take_and_recover();
   const std::uint64_t id = start_slow_motion(0.5);

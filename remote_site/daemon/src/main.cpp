@@ -209,8 +209,8 @@ int run_daemon(const Options& o) {
   for (const auto& w : loop.warnings()) spdlog::warn("control loop: {}", w);
 
   remote::ToolWorker tool(site.tool_config, config.tool_poll_hz);
-  std::unique_ptr<hw::VideoSwitch> video;
-  if (!site.camera_names.empty()) video = std::make_unique<hw::VideoSwitch>(site.video_config);
+  std::unique_ptr<remote::CameraWorker> camera;
+  if (!site.camera_names.empty()) camera = std::make_unique<remote::CameraWorker>(site.video_config);
 
   remote_link::RemoteLink* link_ptr = nullptr;
   remote::SupervisorParts parts;
@@ -219,7 +219,7 @@ int run_daemon(const Options& o) {
   parts.loop = &loop;
   parts.journal = &journal;
   parts.tool = &tool;
-  parts.video = video.get();
+  parts.camera = camera.get();
   parts.camera_names = site.camera_names;
   parts.outbox.ack = [&](const control::Ack& a) { if (link_ptr) link_ptr->ack(a); };
   parts.outbox.joints = [&](const control::JointReport& r) { if (link_ptr) link_ptr->publish(r); };

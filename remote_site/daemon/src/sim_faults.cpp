@@ -10,6 +10,7 @@
 #include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/lst_server.hpp"
 #include "foresight/sim/plant.hpp"
+#include "foresight/sim/video_switch_server.hpp"
 
 namespace foresight::remote {
 
@@ -43,6 +44,9 @@ void SimFaultWatcher::run() {
       if (sim.can->ft_sensor()) sim.can->ft_sensor()->inject_sensor_fault(on);
     });
     level("oru_stuck", stuck_, [&](bool on) { sim.plant->set_oru_stuck(on); });
+    level("video_silent", video_silent_, [&](bool on) {
+      if (sim.video) sim.video->set_silent(on);
+    });
     for (std::size_t j = 0; j < emcy_present_.size(); ++j) {
       const fs::path p = fs::path(dir_) / ("drive_emcy_" + std::to_string(j + 1));
       std::error_code ec;

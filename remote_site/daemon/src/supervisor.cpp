@@ -155,6 +155,7 @@ void Supervisor::run_once() {
   }
   for (const auto& item : batch) std::visit([this](const auto& e) { handle(e); }, item);
   poll_tool();
+  poll_camera();
   poll_loop();
   check_inputs();
   publish_reports(false);
@@ -706,7 +707,7 @@ void Supervisor::do_request(const control::Command& c) {
 
 void Supervisor::do_camera(const control::Command& c) {
   const auto& cam = std::get<control::CameraCommand>(c.payload);
-  if (p_.video == nullptr) {
+  if (p_.camera == nullptr) {
     reject(c, Reason::BadArgument, "no video switch configured");
     return;
   }
@@ -717,35 +718,38 @@ void Supervisor::do_camera(const control::Command& c) {
     reject(c, Reason::BadArgument, "unknown camera '" + cam.camera + "' (expected one of: " + list + ")");
     return;
   }
-  const int index = static_cast<int>(it - p_.camera_names.begin());
-  ack(c, AckState::Queued);
-  ack(c, AckState::Executing);
-  std::error_code ec;
-  switch (cam.action) {
-    case control::CameraAction::Select: ec = p_.video->select(index); break;
-    case control::CameraAction::Point: {
-      hw::CameraView v;
-      v.camera = index;
-      v.pan_rad = cam.pan_rad;
-      v.tilt_rad = cam.tilt_rad;
-      v.focal_px = cam.focal_px;
-      if (cam.focal_px <= 0.0) {
-        hw::CameraView now;
-        if (!p_.video->read_view(now)) v.focal_px = now.focal_px;
-      }
-      ec = p_.video->set_view(v);
-      break;
-    }
-    case control::CameraAction::Grab:
-      if (!(ec = p_.video->select(index))) ec = p_.video->grab();
-      break;
-  }
-  if (ec) {
-    ack(c, AckState::Failed, ec.value() == 3 ? Reason::BadArgument : Reason::Internal,
-        "video switch: " + p_.video->last_error_message(), current_q());
+  CameraJob job;
+  job.command_id = c.command_id;
+  job.action = cam.action;
+  job.camera = static_cast<int>(it - p_.camera_names.begin());
+  job.pan_rad = cam.pan_rad;
+  job.tilt_rad = cam.tilt_rad;
+  job.focal_px = cam.focal_px;
+  if (camera_command_ || !p_.camera->start(job)) {
+    reject(c, Reason::Busy,
+           "the video switch is busy with command " +
+               std::to_string(camera_command_ ? camera_command_->command_id : p_.camera->running_command()));
     return;
   }
-  ack(c, AckState::Completed, Reason::None, "camera " + cam.camera, current_q());
+  // Runs on the camera thread beside any motion; poll_camera acks the end.
+  camera_command_ = c;
+  ack(c, AckState::Queued);
+  ack(c, AckState::Executing);
+}
+
+void Supervisor::poll_camera() {
+  if (p_.camera == nullptr || !camera_command_) return;
+  const auto r = p_.camera->poll_result();
+  if (!r) return;
+  const control::Command c = *camera_command_;
+  camera_command_.reset();
+  if (r->ok) {
+    ack(c, AckState::Completed, Reason::None, "camera " + std::get<control::CameraCommand>(c.payload).camera,
+        current_q());
+  } else {
+    ack(c, AckState::Failed, r->refused ? Reason::BadArgument : Reason::Internal, "video switch: " + r->error,
+        current_q());
+  }
 }
 
 void Supervisor::handle(const remote_link::UploadEvent& e) {
@@ -1040,6 +1044,12 @@ void Supervisor::shutdown(const std::string& why) {
   p_.loop->stop();  // category 1: controlled stop, then the drives off
   poll_loop();
   poll_tool();
+  poll_camera();
+  if (camera_command_) {
+    ack(*camera_command_, AckState::Canceled, Reason::Aborted,
+        "the controller shut down while the video switch was answering: its outcome is unknown: " + why, current_q());
+    camera_command_.reset();
+  }
   if (running_)
     finish_running(AckState::Canceled, Reason::Aborted, "the controller shut down: " + why, current_q());
   for (auto& [id, c] : aborts_) ack(c, AckState::Completed, Reason::None, "shut down", current_q());

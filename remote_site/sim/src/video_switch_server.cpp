@@ -131,6 +131,7 @@ void VideoSwitchServer::apply_outputs() {
 }
 
 void VideoSwitchServer::serve_one(int rc) {
+  if (silent_) return;
   modbus_t* ctx = impl_->ctx;
   modbus_mapping_t* m = impl_->map;
   const std::uint8_t* q = impl_->query;

@@ -7,6 +7,7 @@
 //   tool_jam        the LST's output cannot turn while the file exists
 //   ft_fault        the F/T sensor reports a sensor fault while it exists
 //   oru_stuck       the ORU stays fastened in its slot while it exists
+//   video_silent    the video switch reads requests and never answers while it exists
 //   drive_emcy_J    joint J (1-based) faults once, with EMCY code = the file's
 //                   text in hex (default 2310, over-current), each time the
 //                   file appears
@@ -35,7 +36,7 @@ class SimFaultWatcher {
   Site& site_;
   std::string dir_;
   std::vector<bool> emcy_present_;
-  bool jam_ = false, ft_fault_ = false, stuck_ = false;
+  bool jam_ = false, ft_fault_ = false, stuck_ = false, video_silent_ = false;
   std::atomic<bool> quit_{false};
   std::thread thread_;
 };

@@ -48,9 +48,9 @@
 #include "foresight/control/control_loop.hpp"
 #include "foresight/control/trajectory_executor.hpp"
 #include "foresight/hw/lst_tool.hpp"
-#include "foresight/hw/video_switch.hpp"
 #include "foresight/journal/journal.hpp"
 #include "foresight/remote/daemon_config.hpp"
+#include "foresight/remote/camera_worker.hpp"
 #include "foresight/remote/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
 
@@ -72,7 +72,7 @@ struct SupervisorParts {
   control::ControlLoop* loop = nullptr;
   journal::Journal* journal = nullptr;
   ToolWorker* tool = nullptr;                  ///< may be null: tool steps are then refused
-  hw::VideoSwitch* video = nullptr;            ///< may be null: CAMERA is then refused
+  CameraWorker* camera = nullptr;              ///< may be null: CAMERA is then refused
   std::vector<std::string> camera_names;       ///< video switch index = position
   Outbox outbox;
   /// --sim only: the simulated plant's ground truth as JSON (the ORU's state
@@ -153,6 +153,7 @@ class Supervisor {
 
   void poll_loop();
   void poll_tool();
+  void poll_camera();
   void publish_reports(bool force_status);
   void check_inputs();
   std::uint64_t internal_id() noexcept { return (1ull << 63) | ++internal_counter_; }
@@ -175,6 +176,7 @@ class Supervisor {
   std::map<CommandKey, control::Ack> last_ack_;  ///< the last ack of each command (bounded)
   std::deque<CommandKey> last_ack_order_;
   std::map<std::uint64_t, control::Command> aborts_;  ///< Stop sent for these ABORT commands
+  std::optional<control::Command> camera_command_;   ///< the CAMERA command the camera thread runs
 
   std::deque<std::unique_ptr<Job>> queue_;
   std::unique_ptr<Job> running_;

@@ -73,6 +73,8 @@ class VideoSwitchServer {
   int camera_index(const std::string& name) const;
   const VideoSwitchServerOptions& options() const { return options_; }
   std::uint64_t requests_answered() const { return answered_; }
+  /// Fault injection: requests are read and never answered (a hung switch).
+  void set_silent(bool silent) { silent_ = silent; }
 
  private:
   void loop();
@@ -88,6 +90,7 @@ class VideoSwitchServer {
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> answered_{0};
+  std::atomic<bool> silent_{false};
   mutable std::mutex mutex_;
   VideoSwitchState state_;
 };
