@@ -147,6 +147,9 @@ constexpr Level kScoreLevel{8.0, 1.0};
 struct Sample {
   int view = 0, frame = 0;
   bool on_object = false;
+  bool silhouette = false;
+  double length_px = 0.0;  // contour length it stands for
+  int cluster = 0;  // the model edge (per frame) it lies on: samples of one edge share their errors
   Eigen::Vector3d p_local, dir_local;  // object frame when on_object, else base
 };
 
@@ -169,7 +172,7 @@ inline bool bilinear(const cv::Mat& m, double u, double v, float& out) {
 // The nearest strong gradient maximum along n within +-R of uv; the signed
 // offset along n (sub-pixel), or false when none.
 bool search_edge(const Gradient& g, const Eigen::Vector2d& uv, const Eigen::Vector2d& n, double R, double threshold,
-                 double& t_out) {
+                 double& t_out, bool correct_ramp = false) {
   constexpr int kMax = 64;
   const int half = std::min(kMax / 2 - 1, static_cast<int>(std::ceil(R)));
   const int N = 2 * half + 1;
@@ -200,6 +203,42 @@ bool search_edge(const Gradient& g, const Eigen::Vector2d& uv, const Eigen::Vect
   double off = den < -1e-9 ? 0.5 * (a - c) / den : 0.0;
   off = std::clamp(off, -0.5, 0.5);
   t_out = best - half + off;
+  if (correct_ramp) {
+    // Shading ramps beside an edge (a cylinder darkening towards its
+    // silhouette) shift the gradient peak by ~sigma^2 x slope / step: up to
+    // 0.3 px here. The signed gradient G(t) = A phi(t - t0) + b- Phi(t0 - t)
+    // + b+ Phi(t - t0) for a blurred step between two linear ramps; b-, b+
+    // are read 3 sigma either side, their blurred sum subtracted, and the
+    // peak of the remainder re-located (twice).
+    const double sigma = den < -1e-9 ? std::clamp(std::sqrt(-1.0 / den), 0.6, 2.5) : 1.0;
+    auto G = [&](double t, double& out) {
+      float gx = 0, gy = 0;
+      if (!bilinear(g.gx, uv.x() + t * n.x(), uv.y() + t * n.y(), gx) ||
+          !bilinear(g.gy, uv.x() + t * n.x(), uv.y() + t * n.y(), gy))
+        return false;
+      out = n.x() * gx + n.y() * gy;
+      return true;
+    };
+    double t0 = t_out;
+    for (int pass = 0; pass < 2; ++pass) {
+      double bm1, bm2, bp1, bp2, g0, gm, gp;
+      const double d = 3.0 * sigma;
+      if (!G(t0 - d, bm1) || !G(t0 - d - 0.5, bm2) || !G(t0 + d, bp1) || !G(t0 + d + 0.5, bp2) || !G(t0, g0) ||
+          !G(t0 - 1.0, gm) || !G(t0 + 1.0, gp))
+        break;
+      const double bm = 0.5 * (bm1 + bm2), bp = 0.5 * (bp1 + bp2);
+      auto ramp = [&](double dt) { return bm + (bp - bm) * 0.5 * std::erfc(-dt / (sigma * std::sqrt(2.0))); };
+      const double sgn = g0 >= 0.0 ? 1.0 : -1.0;
+      const double c0 = sgn * (g0 - ramp(t0 - t_out)), cm = sgn * (gm - ramp(t0 - 1.0 - t_out)),
+                   cp = sgn * (gp - ramp(t0 + 1.0 - t_out));
+      if (c0 <= 0.0 || cm <= 0.0 || cp <= 0.0) break;
+      const double la = std::log(cm), lb = std::log(c0), lc = std::log(cp);
+      const double dd = la - 2.0 * lb + lc;
+      if (!(dd < -1e-9)) break;
+      t0 += std::clamp(0.5 * (la - lc) / dd, -0.5, 0.5);
+    }
+    t_out = t0;
+  }
   return std::abs(t_out) <= R;
 }
 
@@ -221,6 +260,7 @@ struct ModelAligner::Impl {
   std::vector<Primitive> prims;
   render::DrawList list;
   cv::Mat layer;
+  int next_cluster = 0;
 
   Impl(render::GlContext& ctx, const RobotModel& a, const ObjectModel* o, const Viewport& v)
       : arm(a), object(o), vp(v), renderer(ctx, v, 1), ws(a) {
@@ -343,6 +383,7 @@ struct ModelAligner::Impl {
     const double spacing = std::max(o.sample_spacing_px, total_len / std::max(1, o.max_samples_per_frame));
     const double margin = 3.0;
     for (const auto& c : cands) {
+      ++next_cluster;
       const Eigen::Vector2d d = (c.ub - c.ua).normalized();
       const Eigen::Vector2d n(-d.y(), d.x());
       const int ns = std::clamp(static_cast<int>((c.ub - c.ua).norm() / spacing), 1, 400);
@@ -367,6 +408,9 @@ struct ModelAligner::Impl {
         s.view = view;
         s.frame = frame_index;
         s.on_object = c.prim->link < 0;
+        s.silhouette = c.silhouette;
+        s.cluster = next_cluster;
+        s.length_px = (c.ub - c.ua).norm() / ns;
         const Eigen::Vector3d dir = (c.b - c.a).normalized();
         if (s.on_object) {
           s.p_local = base_T_object->inverse() * p;
@@ -478,7 +522,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       const Eigen::Vector2d n(-d2.y(), d2.x());
       double t = 0.0;
       const Gradient& g = I.gradient(data[s.view][s.frame], level_index, L.blur_px);
-      if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t)) continue;
+      if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t, L.blur_px <= 1.0)) continue;
       e.r[i] = t;
       e.matched[i] = 1;
       if (jac) {
@@ -527,7 +571,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   }
   res.start_score_px = score_of(samples, nullptr);
 
-  Eigen::MatrixXd H_last;
+  Eigen::MatrixXd H_last, sandwich;
   double s2_last = 0.0;
   Eval e;
   for (int li = 0; li < static_cast<int>(kLevels.size()); ++li) {
@@ -601,8 +645,63 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     }
   }
 
-  // Final residuals at the finest level.
-  evaluate(samples, static_cast<int>(kLevels.size()) - 1, kLevels.back(), e, false);
+  // Final residuals at the finest level, and the covariance: a sandwich
+  // estimator H^-1 B H^-1 with B summed over model edges (clusters), since
+  // the samples of one edge share their localisation error (appearance,
+  // blur, the edge's own noise); s^2 H^-1 alone was 3-5x optimistic.
+  evaluate(samples, static_cast<int>(kLevels.size()) - 1, kLevels.back(), e, true);
+  {
+    std::vector<double> absr;
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      if (e.matched[i]) absr.push_back(std::abs(e.r[i]));
+    if (absr.size() >= 10 && H_last.size() > 0) {
+      std::nth_element(absr.begin(), absr.begin() + absr.size() / 2, absr.end());
+      const double sigma = std::max(1.4826 * absr[absr.size() / 2], 0.1);
+      const double c = std::clamp(4.685 * sigma, 0.5, kLevels.back().search_px);
+      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
+      std::map<int, Eigen::VectorXd> score;
+      Eigen::VectorXd row(P);
+      int n = 0;
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!e.matched[i]) continue;
+        const double u = e.r[i] / c;
+        if (std::abs(u) >= 1.0) continue;
+        const double w = (1 - u * u) * (1 - u * u);
+        row.setZero();
+        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
+        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
+        auto it = score.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first;
+        it->second += w * e.r[i] * row;
+        ++n;
+      }
+      H = H.selfadjointView<Eigen::Lower>();
+      Eigen::MatrixXd B = Eigen::MatrixXd::Zero(P, P);
+      for (const auto& [k, g] : score) B.selfadjointView<Eigen::Lower>().rankUpdate(g);
+      B = B.selfadjointView<Eigen::Lower>();
+      const double G = static_cast<double>(score.size());
+      const double correction = G > 1 ? G / (G - 1) * (n - 1.0) / std::max(1.0, n - 1.0 - P) : 1.0;
+      const Eigen::MatrixXd Hinv = H.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
+      sandwich = correction * Hinv * B * Hinv;
+      sandwich = 0.5 * (sandwich + sandwich.transpose());
+      // The second estimator: s^2 H^-1 with the samples counted as the
+      // number of model edges (the effective number of independent
+      // samples, n / G). The reported covariance is the larger of the two
+      // (by trace): the sandwich misses a bias shared by most edges.
+      double wr2 = 0.0, wsum = 0.0;
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        if (!e.matched[i]) continue;
+        const double u = e.r[i] / c;
+        if (std::abs(u) >= 1.0) continue;
+        const double w = (1 - u * u) * (1 - u * u);
+        wr2 += w * e.r[i] * e.r[i];
+        wsum += w;
+      }
+      const double s2 = wr2 / std::max(1.0, wsum - P);
+      const Eigen::MatrixXd effective = s2 * (n / std::max(1.0, G - P > 1 ? G : 1.0)) * Hinv;
+      if (effective.trace() > sandwich.trace()) sandwich = effective;
+    }
+  }
   if (const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG")) {
     cv::Mat img;
     cv::cvtColor(views[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
@@ -636,7 +735,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     res.visible_samples = static_cast<int>(final_samples.size());
   }
   res.matched_samples = n_in;
-  if (H_last.size() > 0) {
+  if (sandwich.size() > 0) {
+    res.covariance = sandwich;
+  } else if (H_last.size() > 0) {
     Eigen::MatrixXd Hinv = H_last.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
     res.covariance = s2_last * Hinv;
   }
@@ -680,6 +781,19 @@ ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFr
   const double thr = o.gradient_threshold * 0.7 / std::max(0.7, kScoreLevel.blur_px);
   double s2 = 0.0;
   int m1 = 0;
+  // The silhouette IoU: the arm's rendered area A (label image of this
+  // frame), and the area between the model's silhouette and the image's
+  // edges, D = sum over silhouette samples of |offset| x the contour length
+  // each stands for (a miss counts as the cap): IoU = (A - D/2) / (A + D/2).
+  double area = 0.0;
+  for (int y = 0; y < I.layer.rows; ++y) {
+    const std::uint8_t* p = I.layer.ptr<std::uint8_t>(y);
+    for (int x = 0; x < I.layer.cols; ++x, p += 4) {
+      const int label = p[2] + 256 * p[1];
+      if (label > 0 && label <= static_cast<int>(I.prims.size()) && I.prims[label - 1].link >= 0) area += 1.0;
+    }
+  }
+  double between = 0.0;
   for (const auto& s : samples) {
     const Projection pr = project_with_jacobians(camera, s.p_local);
     Eigen::Vector2d d2 = (pr.d_point * s.dir_local).normalized();
@@ -691,9 +805,11 @@ ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFr
       if (std::abs(t) < 1.0) ++m1;
     }
     s2 += d * d;
+    if (s.silhouette) between += d * s.length_px;
   }
   out.score_px = std::sqrt(s2 / samples.size());
   out.matched_fraction = static_cast<double>(m1) / samples.size();
+  out.iou = area > 0.0 ? std::clamp((area - 0.5 * between) / (area + 0.5 * between), 0.0, 1.0) : 0.0;
   return out;
 }
 

@@ -38,7 +38,7 @@ TEST(Health, CameraBumpOfPointThreeDegreesIsFlaggedNoFalseAlarm) {
     HealthMonitor monitor;
     constexpr int kNormal = 40, kBump = 10;
     int false_alarms = 0, detected_at = -1;
-    double min_normal = 1.0, max_bumped = 0.0;
+    double min_normal = 1.0, max_bumped = 0.0, min_iou = 1.0, max_bumped_iou = 0.0;
     for (int k = 0; k < kNormal + kBump; ++k) {
       Eigen::VectorXd q = ik.q;
       q[0] += 0.08 * std::sin(0.3 * k);
@@ -50,9 +50,11 @@ TEST(Health, CameraBumpOfPointThreeDegreesIsFlaggedNoFalseAlarm) {
       const HealthVerdict v = monitor.update(s);
       if (!is_bumped) {
         min_normal = std::min(min_normal, s.matched_fraction);
+        min_iou = std::min(min_iou, s.iou);
         if (v.warning) ++false_alarms;
       } else {
         max_bumped = std::max(max_bumped, s.matched_fraction);
+        max_bumped_iou = std::max(max_bumped_iou, s.iou);
         if (v.warning && detected_at < 0) {
           detected_at = k - kNormal;
           std::printf("%s: %s\n", name.c_str(), v.reason.c_str());
@@ -61,6 +63,9 @@ TEST(Health, CameraBumpOfPointThreeDegreesIsFlaggedNoFalseAlarm) {
     }
     std::printf("%s: matched fraction normal >= %.2f, bumped <= %.2f; detected %d frames after the bump\n", name.c_str(),
                 min_normal, max_bumped, detected_at);
+    std::printf("%s: silhouette IoU normal >= %.3f, bumped <= %.3f\n", name.c_str(), min_iou, max_bumped_iou);
+    EXPECT_GT(min_iou, 0.9);
+    EXPECT_LT(max_bumped_iou, min_iou);
     EXPECT_EQ(false_alarms, 0);
     EXPECT_GE(detected_at, 0);
     EXPECT_LT(detected_at, 30);

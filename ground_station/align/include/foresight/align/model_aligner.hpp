@@ -99,9 +99,10 @@ struct AlignResult {
   std::vector<Eigen::Matrix<double, 7, 1>> camera_change;
   Eigen::Matrix<double, 6, 1> object_change = Eigen::Matrix<double, 6, 1>::Zero();
   /// Covariance of the refined parameters in the same order (cameras'
-  /// blocks of 7 when refined, then the object's 6), from the final
-  /// Jacobian and the residual scale. Edge samples along one edge are
-  /// correlated, so this is optimistic (see docs/estimation.md).
+  /// blocks of 7 when refined, then the object's 6): a cluster sandwich
+  /// estimator H^-1 B H^-1 at the final residuals, the scores summed per
+  /// model edge (the samples of one edge share their errors; the plain
+  /// s^2 H^-1 was 3-5x optimistic). See docs/estimation.md.
   Eigen::MatrixXd covariance;
   double time_ms = 0.0;
 };
@@ -131,6 +132,11 @@ class ModelAligner {
     double score_px = 0.0;
     double matched_fraction = 0.0;
     int visible_samples = 0;
+    /// Silhouette IoU of the model arm and the image's arm, estimated from
+    /// the edge offsets along the silhouette: (A - D/2) / (A + D/2), A the
+    /// rendered arm area, D the area between the model silhouette and the
+    /// image edges found along its normals (a miss counts as the cap).
+    double iou = 0.0;
   };
   FrameScore score(const Camera& camera, const AlignFrame& frame, const std::optional<Pose>& base_T_object,
                    const AlignOptions& options = {});

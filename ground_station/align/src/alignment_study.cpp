@@ -1,0 +1,235 @@
+#include "foresight/align/alignment_study.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <random>
+
+#include "foresight/align/model_aligner.hpp"
+#include "foresight/calibration/calibrate.hpp"
+#include "foresight/common/error.hpp"
+#include "foresight/common/kinematics.hpp"
+#include "foresight/localization/localize.hpp"
+#include "foresight/render/scene_geometry.hpp"
+#include "foresight/render/synthetic_camera.hpp"
+
+namespace foresight::align {
+namespace {
+
+// Error (x, y, z, theta) of an estimate in the true object frame.
+Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
+  Eigen::Matrix<double, 6, 1> e;
+  e.head<3>() = truth.linear().transpose() * (est.translation() - truth.translation());
+  const Eigen::AngleAxisd aa(truth.linear().transpose() * est.linear());
+  e.tail<3>() = aa.angle() * aa.axis();
+  return e;
+}
+
+struct Accumulator {
+  int n = 0;
+  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero();
+  void add(const Eigen::Matrix<double, 6, 1>& e) {
+    ++n;
+    sum += e;
+    sum_sq += e.cwiseAbs2();
+  }
+  ErrorStats stats() const {
+    ErrorStats s;
+    s.n = n;
+    if (n == 0) return s;
+    s.mean = sum / n;
+    s.rms = (sum_sq / n).cwiseSqrt();
+    const double bessel = n > 1 ? static_cast<double>(n) / (n - 1) : 1.0;
+    s.sd = ((sum_sq / n - s.mean.cwiseAbs2()) * bessel).cwiseMax(0.0).cwiseSqrt();
+    s.alignment95_m = s.mean.head<2>().norm() + 2.0 * s.sd.head<2>().norm();
+    s.depth95_m = std::abs(s.mean[2]) + 2.0 * s.sd[2];
+    s.position_rmse_m = s.rms.head<3>().norm();
+    s.rotation_rmse_rad = s.rms.tail<3>().norm();
+    return s;
+  }
+};
+
+std::string label_of(const std::vector<int>& views) {
+  std::string s;
+  for (const int v : views) s += (s.empty() ? "" : "+") + std::to_string(v + 1);
+  return s;
+}
+
+}  // namespace
+
+AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotModel& robot, const ObjectModel& object,
+                                         const Scene& scene, const AlignmentStudyOptions& opt) {
+  if (opt.trials < 1) throw InputError("--trials must be at least 1");
+  if (!(opt.noise_px > 0.0) || !std::isfinite(opt.noise_px)) throw InputError("--noise-px must be a positive number");
+  if (!(opt.arm_link_error_m >= 0.0) || !std::isfinite(opt.arm_link_error_m))
+    throw InputError("--arm-error-mm must be a non-negative number");
+  const auto t0 = std::chrono::steady_clock::now();
+  StudySetup setup = make_study_setup(scene, object, {});
+  const std::vector<ArmCalibrationPose> poses = arm_calibration_poses(robot);
+  choose_calibration_points(setup, poses);
+  const int nv = static_cast<int>(setup.views.size());
+  const Viewport vp = setup.views.front().truth.viewport;
+  for (const auto& v : setup.views)
+    if (!(v.truth.viewport == vp)) throw InputError("eval alignment: every camera of the scene needs one viewport");
+
+  AlignmentStudyResult res;
+  res.trials = opt.trials;
+  res.noise_px = opt.noise_px;
+  res.arm_link_error_m = opt.arm_link_error_m;
+  // Per view, the calibration poses it sees the arm at (a frame each).
+  std::vector<std::vector<int>> view_poses(nv);
+  for (int v = 0; v < nv; ++v) {
+    res.view_names.push_back(setup.views[v].truth.name);
+    for (const auto& f : setup.views[v].calibration_features)
+      if (view_poses[v].empty() || view_poses[v].back() != f.pose) view_poses[v].push_back(f.pose);
+    res.frames.push_back(static_cast<int>(view_poses[v].size()));
+  }
+  std::vector<AlignmentComboStats> combos;
+  for (int size = 1; size <= nv; ++size)
+    for (int mask = 1; mask < (1 << nv); ++mask) {
+      if (__builtin_popcount(static_cast<unsigned>(mask)) != size) continue;
+      AlignmentComboStats c;
+      for (int v = 0; v < nv; ++v)
+        if (mask & (1 << v)) c.views.push_back(v);
+      c.label = label_of(c.views);
+      combos.push_back(c);
+    }
+  std::vector<Accumulator> acc_clicks(combos.size()), acc_aligned(combos.size());
+  res.camera_clicks_px.assign(nv, 0.0);
+  res.camera_aligned_px.assign(nv, 0.0);
+  res.camera_refused.assign(nv, 0);
+
+  // Reprojection metric points: the ORU's box corners and the link origins.
+  std::vector<Eigen::Vector3d> metric_points;
+  {
+    KinematicsWorkspace ws(robot);
+    for (const auto& p : poses)
+      for (int k = 0; k < static_cast<int>(robot.links().size()); ++k)
+        metric_points.push_back(forward_kinematics(robot, ws, p.q, k).translation());
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::Vector3d h = object.size_m / 2.0;
+      const Eigen::Vector3d c((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y(), (k & 4) ? h.z() : -h.z());
+      metric_points.push_back(scene.base_T_object * (object.oru_T_box * c));
+    }
+  }
+
+  ModelAligner aligner(ctx, robot, &object, vp);
+  std::mt19937_64 rng(opt.seed);
+  std::normal_distribution<double> noise(0.0, opt.noise_px);
+  std::mt19937_64 arm_rng(opt.seed ^ 0x9E3779B97F4A7C15ull);
+  std::normal_distribution<double> link_error(0.0, opt.arm_link_error_m > 0.0 ? opt.arm_link_error_m : 1.0);
+  int good = 0;
+  for (int t = 0; t < opt.trials; ++t) {
+    // The true arm (rendered and clicked); the ground believes `robot`.
+    std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
+    if (opt.arm_link_error_m > 0.0)
+      for (unsigned k = 0; k < delta.size(); ++k)
+        if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(arm_rng);
+    const RobotModel truth_arm = robot.with_link_lengths_changed(delta);
+    KinematicsWorkspace tws(truth_arm);
+
+    // Clicks: calibration on the true arm, the believed points from the nominal arm.
+    std::map<std::string, Camera> cams;
+    std::vector<Correspondence> oru_clicks;
+    bool ok = true;
+    for (int v = 0; v < nv && ok; ++v) {
+      const StudyView& view = setup.views[v];
+      std::vector<Correspondence> cal;
+      for (std::size_t i = 0; i < view.calibration_points_base.size(); ++i) {
+        const ArmFeature& f = view.calibration_features[i];
+        const Eigen::Vector3d p_true = forward_kinematics(truth_arm, tws, setup.arm_q.at(f.pose), f.link) * f.p_link;
+        Correspondence c;
+        c.n = static_cast<int>(i) + 1;
+        c.cam = view.truth.name;
+        c.p_m = view.calibration_points_base[i];
+        c.uv_px = view.truth.project(p_true) + Eigen::Vector2d(noise(rng), noise(rng));
+        cal.push_back(c);
+      }
+      try {
+        cams[view.truth.name] = calibrate_camera(cal, vp, view.truth.name).camera;
+      } catch (const Error&) {
+        ok = false;
+      }
+      for (std::size_t i = 0; i < view.object_points.size(); ++i) {
+        Correspondence c;
+        c.n = static_cast<int>(i) + 1;
+        c.cam = view.truth.name;
+        c.p_m = view.object_points[i];
+        c.uv_px = view.truth.project(setup.base_T_object * c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
+        oru_clicks.push_back(c);
+      }
+    }
+    if (!ok) {
+      ++res.calibration_failures;
+      if (opt.progress) opt.progress(t + 1, opt.trials);
+      continue;
+    }
+    // Clicks localization per combination.
+    std::vector<std::optional<Pose>> clicks_pose(combos.size());
+    for (std::size_t ci = 0; ci < combos.size(); ++ci) {
+      LocalizationOptions lo;
+      std::vector<Correspondence> pts;
+      for (const int v : combos[ci].views) {
+        lo.views.push_back(setup.views[v].truth.name);
+        for (const auto& c : oru_clicks)
+          if (c.cam == setup.views[v].truth.name) pts.push_back(c);
+      }
+      try {
+        clicks_pose[ci] = localize_object(pts, cams, lo).base_T_object;
+      } catch (const Error&) {
+        ++combos[ci].clicks_failures;
+      }
+    }
+    ++good;
+
+    // Synthetic frames of the true arm (the ORU at its true pose).
+    render::SyntheticOptions so;
+    so.noise_sigma_dn = opt.sensor_noise_dn;
+    so.blur_sigma_px = opt.blur_px;
+    so.seed = static_cast<unsigned>(opt.seed * 7919u + static_cast<unsigned>(t));
+    render::SyntheticCamera synth(ctx, truth_arm, object, scene, vp, so);
+    std::vector<AlignView> views(nv);
+    const std::optional<Pose> occluder = clicks_pose.back() ? clicks_pose.back() : std::optional<Pose>(setup.base_T_object);
+    std::vector<Camera> aligned_cam(nv);
+    for (int v = 0; v < nv; ++v) {
+      const Camera& truth = setup.views[v].truth;
+      views[v].camera = cams.at(truth.name);
+      for (const int p : view_poses[v]) views[v].frames.push_back({synth.render(truth, setup.arm_q[p]).image_bgr, setup.arm_q[p]});
+      AlignOptions ao;
+      ao.refine = Refine::Camera;
+      const AlignResult r = aligner.align({views[v]}, occluder, ao);
+      if (r.status != AlignStatus::Aligned) ++res.camera_refused[v];
+      aligned_cam[v] = r.cameras[0];  // the start when refused
+      res.camera_clicks_px[v] += reprojection_rms_px(views[v].camera, truth, metric_points);
+      res.camera_aligned_px[v] += reprojection_rms_px(aligned_cam[v], truth, metric_points);
+    }
+    // The ORU over each combination with the arm-refined cameras.
+    for (std::size_t ci = 0; ci < combos.size(); ++ci) {
+      if (!clicks_pose[ci]) continue;
+      acc_clicks[ci].add(pose_error(*clicks_pose[ci], setup.base_T_object));
+      std::vector<AlignView> sub;
+      for (const int v : combos[ci].views) sub.push_back({aligned_cam[v], views[v].frames});
+      AlignOptions ao;
+      ao.refine = Refine::Object;
+      const AlignResult r = aligner.align(sub, clicks_pose[ci], ao);
+      if (r.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
+      acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
+    }
+    if (opt.progress) opt.progress(t + 1, opt.trials);
+  }
+  for (std::size_t ci = 0; ci < combos.size(); ++ci) {
+    combos[ci].clicks = acc_clicks[ci].stats();
+    combos[ci].aligned = acc_aligned[ci].stats();
+  }
+  for (int v = 0; v < nv; ++v) {
+    res.camera_clicks_px[v] /= std::max(1, good);
+    res.camera_aligned_px[v] /= std::max(1, good);
+  }
+  res.combos = std::move(combos);
+  res.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+}  // namespace foresight::align
