@@ -49,7 +49,9 @@ struct SimRig {
     sim->start();
     drives = std::make_unique<DriveSystem>(config, std::move(buses.master), std::move(limits));
   }
-  ~SimRig() { sim->stop(); }
+  ~SimRig() {
+    if (sim) sim->stop();
+  }
 
   void bring_up() {
     drives->configure();

@@ -287,7 +287,15 @@ TEST(DriveFaults, DrivesFaultWhenTheMasterStopsCycling) {
   rig.run_until([](const CycleStatus&) { return false; }, 30);
   // The master falls silent (no SYNC, no heartbeat): after heartbeat.consumer_ms
   // the drives fault on their own (0x1016 consumer), EMCY 0x8130.
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // Poll with a deadline (no fixed sleep): 150 ms consumer time, 3 s bound.
+  auto all_faulted = [&] {
+    for (std::size_t j = 0; j < 7; ++j)
+      if (rig.sim->drive(j).power_state() != PowerState::Fault) return false;
+    return true;
+  };
+  const auto until = Clock::now() + std::chrono::seconds(3);
+  while (!all_faulted() && Clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  // (A drive sends its EMCY under the same lock as it enters Fault: seen Fault, the EMCY is on the bus.)
   for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::Fault) << j;
   const CycleStatus s = rig.drives->cycle_read(rig.fb, rig.ft);
   int heartbeat_emcy = 0;

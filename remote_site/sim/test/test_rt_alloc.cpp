@@ -36,6 +36,16 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
   counter.pause();
   for (int i = 0; i < 300; ++i) {
     // faults injected from the far end while the cycle runs
+    if (i == 20) {  // late frames on arm_a (stale TPDOs behind the looped-back SYNC), loss on arm_b
+      sim::BusImpairment late;
+      late.delay_s = 0.007;
+      rig.sim->set_impairment(0, late);
+      sim::BusImpairment lossy;
+      lossy.loss = 0.05;
+      rig.sim->set_impairment(1, lossy);
+    }
+    if (i == 80) rig.sim->set_impairment(0, sim::BusImpairment{});
+    if (i == 90) rig.sim->inject_error_passive(0);                     // error frame
     if (i == 100) rig.sim->inject(0, hw::make_frame(0x181, {1, 2}));   // malformed TPDO
     if (i == 120) rig.sim->inject(1, hw::make_frame(0x555, {1}));      // unknown COB-ID
     if (i == 150) rig.sim->drive(3).inject_fault(0x4310);              // EMCY + Fault
@@ -56,4 +66,5 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
   EXPECT_EQ(counter.count(), 0);
   EXPECT_GT(frames, 300 * 9);  // the cycle did real work: 7 TPDOs + 2 F/T frames a cycle
   EXPECT_GE(events, 5);        // and reported the injected faults
+  EXPECT_GT(rig.drives->stale_tpdos(0), 0u);  // the stale-TPDO path ran inside the counted cycles
 }
