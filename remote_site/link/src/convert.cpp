@@ -87,7 +87,10 @@ std::optional<PayloadVerdict> check_non_negative(double value, const std::string
 PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits) {
   const auto& u = c.payload._u;
   std::size_t at = 0;
-  switch (c.payload._d) {
+  // Enum fields first, as raw integers (loading an unknown value as the enum is UB).
+  char why[96];
+  if (const char* e = protocol::enum_error(c, why, sizeof why)) return bad(e);
+  switch (protocol::raw(c.payload._d)) {
     case foresight_msg_CMD_TRAJECTORY: {
       const auto& p = u.trajectory;
       if (p.trajectory_id == 0) return bad("trajectory.trajectory_id is 0", control::Reason::UnknownTrajectory);
@@ -107,16 +110,10 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
       return {};
     }
     case foresight_msg_CMD_REQUEST:
-      if (static_cast<unsigned>(u.request.what) > foresight_msg_REQUEST_TRAJECTORIES) {
-        return bad("request.what " + std::to_string(static_cast<unsigned>(u.request.what)) + " is unknown");
-      }
-      return {};
+      return {};  // request.what checked by enum_error
     case foresight_msg_CMD_CAMERA: {
       const auto& p = u.camera;
       if (auto v = check_name(text(p.camera), "camera.camera", true)) return *v;
-      if (static_cast<unsigned>(p.action) > foresight_msg_CAMERA_GRAB) {
-        return bad("camera.action " + std::to_string(static_cast<unsigned>(p.action)) + " is unknown");
-      }
       if (auto v = check_number(p.pan_rad, "camera.pan_rad")) return *v;
       if (auto v = check_number(p.tilt_rad, "camera.tilt_rad")) return *v;
       if (auto v = check_non_negative(p.focal_px, "camera.focal_px")) return *v;
@@ -151,8 +148,6 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
     }
     case foresight_msg_CMD_ABORT: {
       const auto& p = u.abort;
-      const auto cat = static_cast<unsigned>(p.category);
-      if (cat > foresight_msg_STOP_CAT2) return bad("abort.category " + std::to_string(cat) + " is unknown");
       if (!printable(text(p.reason))) return bad("abort.reason has a non-printable character");
       return {};
     }
@@ -161,7 +156,7 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
     case foresight_msg_CMD_RECOVER:
       return {};
   }
-  return bad("unknown kind " + std::to_string(static_cast<unsigned>(c.payload._d)));
+  return bad("unknown kind " + std::to_string(protocol::raw(c.payload._d)));
 }
 
 control::Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
@@ -171,7 +166,7 @@ control::Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
   out.sequence_number = c.sequence_number;
   out.issued_ns = c.issued_ns;
   out.received_ns = received_ns;
-  out.kind = static_cast<control::CommandKind>(c.payload._d);
+  out.kind = static_cast<control::CommandKind>(protocol::raw(c.payload._d));  // fixed underlying type: any value
   out.payload = control::NoPayload{};
   return out;
 }
@@ -179,7 +174,7 @@ control::Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
 control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
   control::Command out = envelope_of(c, received_ns);
   const auto& u = c.payload._u;
-  switch (c.payload._d) {
+  switch (protocol::raw(c.payload._d)) {  // check_payload() has checked every enum field
     case foresight_msg_CMD_TRAJECTORY: {
       control::RunTrajectory p;
       p.trajectory_id = u.trajectory.trajectory_id;
@@ -198,12 +193,12 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_REQUEST:
-      out.payload = control::Request{static_cast<control::RequestWhat>(u.request.what)};
+      out.payload = control::Request{static_cast<control::RequestWhat>(protocol::raw(u.request.what))};
       break;
     case foresight_msg_CMD_CAMERA: {
       control::CameraCommand p;
       p.camera = std::string(text(u.camera.camera));
-      p.action = static_cast<control::CameraAction>(u.camera.action);
+      p.action = static_cast<control::CameraAction>(protocol::raw(u.camera.action));
       p.pan_rad = u.camera.pan_rad;
       p.tilt_rad = u.camera.tilt_rad;
       p.focal_px = u.camera.focal_px;
@@ -233,7 +228,7 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
     case foresight_msg_CMD_ABORT: {
       control::Abort p;
       p.target_command_id = u.abort.target_command_id;
-      p.category = static_cast<control::StopCategory>(u.abort.category);
+      p.category = static_cast<control::StopCategory>(protocol::raw(u.abort.category));
       p.reason = std::string(text(u.abort.reason));
       out.payload = std::move(p);
       break;
@@ -331,7 +326,7 @@ void to_wire(msg::CommandAck& out, const control::Ack& a) {
   out.session_id = a.session_id;
   out.command_id = a.command_id;
   out.sequence_number = a.sequence_number;
-  out.kind = static_cast<msg::CommandKind>(a.kind);
+  protocol::set_raw(out.kind, static_cast<std::uint32_t>(a.kind));  // may echo an unknown kind being rejected
   out.state = static_cast<msg::AckState>(a.state);
   out.code = static_cast<msg::ReasonCode>(a.code);
   protocol::set_text_truncated(out.reason, a.reason);
@@ -344,9 +339,11 @@ control::Ack from_wire(const msg::CommandAck& a) {
   out.session_id = a.session_id;
   out.command_id = a.command_id;
   out.sequence_number = a.sequence_number;
-  out.kind = static_cast<control::CommandKind>(a.kind);
-  out.state = static_cast<control::AckState>(a.state);
-  out.code = static_cast<control::Reason>(a.code);
+  // Raw integers into the fixed-width control enums (no UB for any value;
+  // the ground checks enum_error() before trusting them).
+  out.kind = static_cast<control::CommandKind>(protocol::raw(a.kind));
+  out.state = static_cast<control::AckState>(protocol::raw(a.state));
+  out.code = static_cast<control::Reason>(protocol::raw(a.code));
   out.reason = std::string(text(a.reason));
   out.stamp_ns = a.stamp_ns;
   const auto q = view(a.final_q_rad);
@@ -420,7 +417,7 @@ control::ToolReport from_wire(const msg::ToolState& t) noexcept {
   out.stamp_ns = t.stamp_ns;
   out.latched = t.latched;
   out.running = t.running;
-  out.direction = static_cast<int>(t.direction);
+  out.direction = static_cast<int>(protocol::raw(t.direction));
   out.turns = t.turns;
   out.torque_nm = t.torque_nm;
   out.fault_bits = t.fault_bits;
@@ -430,11 +427,11 @@ control::ToolReport from_wire(const msg::ToolState& t) noexcept {
 control::StatusReport from_wire(const msg::ControllerStatus& s) {
   control::StatusReport out;
   out.stamp_ns = s.stamp_ns;
-  out.mode = static_cast<control::ControllerMode>(s.mode);
+  out.mode = static_cast<control::ControllerMode>(protocol::raw(s.mode));
   out.active_command_id = s.active_command_id;
   out.active_trajectory_id = s.active_trajectory_id;
   out.last_sequence = s.last_sequence;
-  out.stop_category = static_cast<control::StopCategory>(s.stop_category);
+  out.stop_category = static_cast<control::StopCategory>(protocol::raw(s.stop_category));
   out.stop_reason = std::string(text(s.stop_reason));
   out.fault_bits = s.fault_bits;
   out.fault_text = std::string(text(s.fault_text));

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/remote_link/convert.hpp"
 
@@ -175,13 +176,13 @@ TEST(LinkConvert, HostilePayloadsAreRefusedWithTheirReason) {
   c->payload._u.goto_cart.position_m[1] = std::numeric_limits<double>::infinity();
   EXPECT_EQ(verdict_of(c).reason, "goto_cart.position_m[1] is not finite");
   auto r = make(control::CommandKind::Request, control::Request{});
-  r->payload._u.request.what = static_cast<foresight_msg_RequestWhat>(9);
+  fp::set_raw(r->payload._u.request.what, 9);
   EXPECT_EQ(verdict_of(r).reason, "request.what 9 is unknown");
   auto ab = make(control::CommandKind::Abort, control::Abort{});
-  ab->payload._u.abort.category = static_cast<msg::StopCategory>(7);
+  fp::set_raw(ab->payload._u.abort.category, 7);
   EXPECT_EQ(verdict_of(ab).reason, "abort.category 7 is unknown");
   auto unknown = make(control::CommandKind::Recover, control::NoPayload{});
-  unknown->payload._d = static_cast<msg::CommandKind>(42);
+  fp::set_raw(unknown->payload._d, 42);
   EXPECT_EQ(verdict_of(unknown).reason, "unknown kind 42");
 }
 
