@@ -86,10 +86,25 @@ std::vector<script::Key> parse_keys(const std::string& text) {
   std::vector<script::Key> keys;
   if (text.empty()) return keys;
   for (const std::string_view field : split_commas(text)) {
+    // wait[:N]: N polls pass with nothing pressed (0.1 s each while a remote
+    // command runs), to place a cancel or abort later in a motion.
+    if (field == "wait" || field.rfind("wait:", 0) == 0) {
+      int n = 1;
+      if (field.size() > 4) {
+        const std::string count(field.substr(5));
+        char* end = nullptr;
+        const long v = std::strtol(count.c_str(), &end, 10);
+        if (count.empty() || *end != '\0' || v < 1 || v > 100000)
+          throw std::invalid_argument("--keys: '" + std::string(field) + "': wait:N needs N in 1..100000");
+        n = static_cast<int>(v);
+      }
+      keys.insert(keys.end(), static_cast<std::size_t>(n), script::Key::None);
+      continue;
+    }
     const auto k = script::key_from_name(std::string(field));
     if (!k)
       throw std::invalid_argument("--keys: '" + std::string(field) +
-                                  "' is not a key (step, auto, cancel, abort, retry, skip, quit)");
+                                  "' is not a key (step, auto, cancel, abort, retry, skip, quit, wait[:N])");
     keys.push_back(*k);
   }
   return keys;
@@ -211,7 +226,8 @@ const bool registered = register_command(
        o->settings.scene = default_config("scene.yaml");
        sub.add_option("script", o->script, "task script (docs/operator.md, Task scripts)")->required();
        sub.add_flag("--auto", o->auto_mode, "run every command until one fails (no keyboard needed)");
-       sub.add_option("--keys", o->keys, "the operator's keys in order: step,auto,cancel,abort,retry,skip,quit");
+       sub.add_option("--keys", o->keys, "the operator's keys in order: step,auto,cancel,abort,retry,skip,quit; wait:N lets N polls "
+                      "(0.1 s each while a command runs) pass");
        sub.add_option("--from-line", o->from_line, "go on from the command at or after this line (earlier: skipped)")
            ->capture_default_str();
        sub.add_flag("--recover", o->settings.recover, "send RECOVER after taking control (drives on, holding)");

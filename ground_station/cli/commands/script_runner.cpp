@@ -213,6 +213,11 @@ Outcome ScriptRunner::run(const script::Command& c, const std::function<bool()>&
       say(result_line(control::CommandKind::Recover, r) + " (after the cancel)");
       if (!r.succeeded()) throw LinkFailure(result_line(control::CommandKind::Recover, r));
       recover_before_next_ = false;
+      // CANCELED carried the joints where the stop began; the arm came to
+      // rest a little further on. Plan the next motion from where it holds
+      // (the report after RECOVER's ack was sent once the stop had ended).
+      if (const auto j = wait_joints(*link_, 5.0); j && static_cast<int>(j->value.q_rad.size()) == model_.dof())
+        q_ = Eigen::Map<const Eigen::VectorXd>(j->value.q_rad.data(), model_.dof());
     }
     if (c.op == Op::Trajectory || c.op == Op::Preview) o = trajectory(c, c.op == Op::Trajectory, interrupted);
     else if (script::is_remote(c.op)) o = remote(c, interrupted);

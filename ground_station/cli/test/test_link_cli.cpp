@@ -102,7 +102,9 @@ TEST(RunCli, ScriptErrorsNameLineAndColumn) {
   expect_bad_input("run /nonexistent/x.task --auto", "foresight run: error: /nonexistent/x.task: cannot open script\n");
   expect_bad_input("run " + kChangeout, "foresight run: error: stdin is not a terminal: give --auto or --keys\n");
   expect_bad_input("run " + kChangeout + " --keys step,halt",
-                   "foresight run: error: --keys: 'halt' is not a key (step, auto, cancel, abort, retry, skip, quit)\n");
+                   "foresight run: error: --keys: 'halt' is not a key (step, auto, cancel, abort, retry, skip, quit, wait[:N])\n");
+  expect_bad_input("run " + kChangeout + " --keys step,wait:0",
+                   "foresight run: error: --keys: 'wait:0': wait:N needs N in 1..100000\n");
   expect_bad_input("run " + kChangeout + " --auto --dry-run",
                    "foresight run: error: --dry-run needs --joints or --joints-deg\n");
 }
