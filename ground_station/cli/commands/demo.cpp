@@ -26,10 +26,14 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <thread>
 
 #include "command.hpp"
+#include "foresight/common/error.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/render/overlay_inputs.hpp"
@@ -164,6 +168,137 @@ bool wait_for_line(const std::string& path, const std::string& needle, pid_t pid
   return false;
 }
 
+// ---- the delay over time ----------------------------------------------------------
+
+/// Samples the monitor's round trips as they arrive (time of arrival on the
+/// ground, seconds since the sampler started) on its own thread, until stopped.
+class DelaySampler {
+ public:
+  explicit DelaySampler(const ground_link::GroundLink& link) : link_(link), thread_([this] { loop(); }) {}
+  ~DelaySampler() { stop(); }
+  DelaySampler(const DelaySampler&) = delete;
+  DelaySampler& operator=(const DelaySampler&) = delete;
+  void stop() {
+    stop_.store(true);
+    if (thread_.joinable()) thread_.join();
+  }
+  /// t_s,rtt_s with a header.
+  void write_csv(const std::string& path) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::ofstream out(path);
+    out << "t_s,rtt_s\n";
+    char buf[64];
+    for (const auto& [t, rtt] : samples_) {
+      std::snprintf(buf, sizeof buf, "%.3f,%.6f\n", t, rtt);
+      out << buf;
+    }
+  }
+
+ private:
+  void loop() {
+    const auto t0 = Clock::now();
+    std::uint64_t seen = 0;
+    // Bounded by stop(): the ground stage ends within its own deadlines.
+    while (!stop_.load()) {
+      const auto st = link_.delay().stats();
+      if (st.received > seen) {
+        const auto window = link_.delay().window();
+        const std::size_t fresh = std::min<std::size_t>(st.received - seen, window.size());
+        const double t = since(t0);
+        std::lock_guard<std::mutex> lock(mutex_);
+        for (std::size_t i = window.size() - fresh; i < window.size(); ++i)
+          samples_.emplace_back(t, static_cast<double>(window[i].rtt_ns) * 1e-9);
+        seen = st.received;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  const ground_link::GroundLink& link_;
+  std::atomic<bool> stop_{false};
+  mutable std::mutex mutex_;
+  std::vector<std::pair<double, double>> samples_;
+  std::thread thread_;
+};
+
+/// Nearest-rank percentile of `v` (sorted copy); NaN when empty.
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const auto k = static_cast<std::size_t>(std::ceil(p * static_cast<double>(v.size())));
+  return v[std::min(v.size() - 1, k > 0 ? k - 1 : 0)];
+}
+
+std::string axis_label(double v) {
+  char buf[32];
+  if (v != 0.0 && std::abs(v) < 0.01) std::snprintf(buf, sizeof buf, "%.1f ms", v * 1e3);
+  else std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+/// A "nice" tick step for a span (1, 2 or 5 x 10^k), about `n` ticks.
+double tick_step(double span, int n) {
+  const double raw = span / n;
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  for (const double m : {1.0, 2.0, 5.0, 10.0})
+    if (raw <= m * mag) return m * mag;
+  return 10.0 * mag;
+}
+
+/// The round trip over time from delay.csv as a PNG: the samples, the median
+/// and p99 as horizontal lines, both axes labelled. Returns {samples, median,
+/// p99}; throws when there is nothing to draw or the PNG cannot be written.
+json draw_delay_plot(const std::string& csv, const std::string& png) {
+  std::vector<std::pair<double, double>> pts;
+  std::istringstream in(read_text(csv));
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    double t = 0, r = 0;
+    if (std::sscanf(line.c_str(), "%lf,%lf", &t, &r) == 2 && std::isfinite(t) && std::isfinite(r)) pts.emplace_back(t, r);
+  }
+  if (pts.empty()) throw std::runtime_error(csv + ": no round trips to plot");
+  std::vector<double> rtts;
+  for (const auto& p : pts) rtts.push_back(p.second);
+  const double median = percentile(rtts, 0.5), p99 = percentile(rtts, 0.99);
+  const double t_max = std::max(pts.back().first, 1.0);
+  const double y_top = *std::max_element(rtts.begin(), rtts.end()) * 1.15 + 1e-9;
+
+  const int W = 900, H = 420, left = 90, right = 30, top = 40, bottom = 60;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  const auto X = [&](double t) { return left + static_cast<int>(std::lround(t / t_max * (W - left - right))); };
+  const auto Y = [&](double r) { return H - bottom - static_cast<int>(std::lround(r / y_top * (H - top - bottom))); };
+  const cv::Scalar black(0, 0, 0), grey(200, 200, 200), blue(200, 90, 0), red(0, 0, 220), dot(60, 60, 60);
+  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  for (double t = 0; t <= t_max + 1e-9; t += tick_step(t_max, 8)) {  // x ticks
+    cv::line(img, {X(t), top}, {X(t), H - bottom}, grey, 1);
+    cv::putText(img, axis_label(t), {X(t) - 10, H - bottom + 20}, font, 0.45, black, 1, cv::LINE_AA);
+  }
+  for (double r = 0; r <= y_top + 1e-12; r += tick_step(y_top, 5)) {  // y ticks
+    cv::line(img, {left, Y(r)}, {W - right, Y(r)}, grey, 1);
+    cv::putText(img, axis_label(r), {8, Y(r) + 5}, font, 0.45, black, 1, cv::LINE_AA);
+  }
+  cv::rectangle(img, {left, top}, {W - right, H - bottom}, black, 1);
+  for (std::size_t i = 1; i < pts.size(); ++i)
+    cv::line(img, {X(pts[i - 1].first), Y(pts[i - 1].second)}, {X(pts[i].first), Y(pts[i].second)}, dot, 1, cv::LINE_AA);
+  for (const auto& p : pts) cv::circle(img, {X(p.first), Y(p.second)}, 2, dot, cv::FILLED, cv::LINE_AA);
+  cv::line(img, {left, Y(median)}, {W - right, Y(median)}, blue, 2, cv::LINE_AA);
+  cv::line(img, {left, Y(p99)}, {W - right, Y(p99)}, red, 2, cv::LINE_AA);
+  cv::putText(img, "median " + axis_label(median) + " s", {W - right - 230, Y(median) + 18}, font, 0.5, blue, 1, cv::LINE_AA);
+  cv::putText(img, "p99 " + axis_label(p99) + " s", {W - right - 230, Y(p99) - 8}, font, 0.5, red, 1, cv::LINE_AA);
+  cv::putText(img, "round trip (s) over the run: " + std::to_string(pts.size()) + " pings", {left, 25}, font, 0.55,
+              black, 1, cv::LINE_AA);
+  cv::putText(img, "time since the ground connected (s)", {left + (W - left - right) / 2 - 140, H - 15}, font, 0.5,
+              black, 1, cv::LINE_AA);
+  cv::Mat ylabel(24, H - top - bottom, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::putText(ylabel, "round trip (s)", {(H - top - bottom) / 2 - 60, 17}, font, 0.5, black, 1, cv::LINE_AA);
+  cv::Mat rotated;
+  cv::rotate(ylabel, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
+  rotated.copyTo(img(cv::Rect(left - 28, top, rotated.cols, rotated.rows)));
+  if (!cv::imwrite(png, img)) throw std::runtime_error(png + ": cannot write the delay plot");
+  return {{"file", std::filesystem::path(png).filename().string()}, {"samples", pts.size()}, {"median_s", median},
+          {"p99_s", p99}};
+}
+
 // ---- the ground half: clicks, calibration, localization, the task script -----------
 
 /// Drives the task script's commands to the remote in auto mode; Ctrl-C aborts.
@@ -252,11 +387,13 @@ int ground_stage(const Options& o, const std::string& out) {
   json report;
   int rc = kExitOk;
   std::unique_ptr<ground_link::GroundLink> monitor;  // pings the whole run: the delay figures
+  std::unique_ptr<DelaySampler> sampler;             // ... and their times (the plot)
   try {
     report = ground_chain(o, self, out);
     say("== the ORU changeout over DDS (domain " + std::to_string(o.domain) + "): " + o.script + " ==");
     auto link = connect_remote(o.domain, o.fast ? 30.0 : 60.0);
     monitor = connect_remote(o.domain, o.fast ? 30.0 : 60.0);
+    sampler = std::make_unique<DelaySampler>(*monitor);
     take_control(*link);
 
     RunSettings s;
@@ -313,6 +450,10 @@ int ground_stage(const Options& o, const std::string& out) {
     rc = kExitFailure;
   }
   // The round trip as the ground measured it over the whole run.
+  if (sampler) {
+    sampler->stop();
+    sampler->write_csv(out + "/delay.csv");
+  }
   if (monitor) report["rtt_s"] = status_json(*monitor)["rtt_s"];
   else report["rtt_s"] = {{"median", nullptr}, {"p99", nullptr}};
   std::ofstream(out + "/ground.json") << report.dump(2) << "\n";
@@ -379,6 +520,15 @@ void write_markdown(const json& r, const std::string& out) {
   md << "| " << fmt("%.3f", num(d, "median")) << " | " << fmt("%.3f", num(d, "p95")) << " | "
      << fmt("%.3f", num(d, "p99")) << " | " << fmt("%.3f", num(d, "max")) << " | " << fmt("%.0f", num(d, "count"))
      << " |\n";
+  if (r.contains("delay_plot") && r["delay_plot"].contains("file")) {
+    const auto& p = r["delay_plot"];
+    md << "\n![round trip over time, median and p99](" << p["file"].get<std::string>() << ")\n\n"
+       << "[delay.png](" << p["file"].get<std::string>() << "): " << p["samples"] << " round trips over the run (delay.csv); "
+       << "median " << fmt("%.3f", p["median_s"].get<double>()) << " s, p99 " << fmt("%.3f", p["p99_s"].get<double>())
+       << " s.\n";
+  } else if (r.contains("delay_plot")) {
+    md << "\nNo delay plot: " << r["delay_plot"].value("error", std::string("?")) << "\n";
+  }
 }
 
 /// The contact sheets from the runner's journal (run.jsonl), by script line.
@@ -402,7 +552,12 @@ int demo(Options& o) {
   std::signal(SIGTERM, on_demo_interrupt);
   if (o.domain < 0) o.domain = 100 + static_cast<int>(::getpid() % 120);
   if (o.stage == "ground") return ground_stage(o, out);
-  if (!o.stage.empty()) throw std::invalid_argument("--stage: 'ground' or nothing");
+  if (o.stage == "plot") {  // internal: (re)draw OUT/delay.png from OUT/delay.csv
+    if (!fs::exists(out + "/delay.csv")) throw InputError(out + "/delay.csv", "cannot open the delay samples");
+    std::cout << draw_delay_plot(out + "/delay.csv", out + "/delay.png").dump() << "\n";
+    return kExitOk;
+  }
+  if (!o.stage.empty()) throw std::invalid_argument("--stage: 'ground', 'plot' or nothing");
   fs::remove(out + "/run.jsonl");
   fs::remove(out + "/ground.json");
 
@@ -493,6 +648,13 @@ int demo(Options& o) {
   const auto sheets = contact_sheets(out);
   for (auto& s : report["steps"])
     if (auto it = sheets.find(s["line"].get<int>()); it != sheets.end()) s["contact_sheet"] = it->second;
+  if (fs::exists(out + "/delay.csv")) {
+    try {
+      report["delay_plot"] = draw_delay_plot(out + "/delay.csv", out + "/delay.png");
+    } catch (const std::exception& e) {
+      report["delay_plot"] = {{"error", e.what()}};
+    }
+  }
   report["total_seconds"] = since(t0);
   if (g_interrupt.load()) {
     rc = kExitFailure;

@@ -7,11 +7,55 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "foresight/test/cli.hpp"
 
 namespace {
+
+// The delay plot from known samples: round trips 0.01..1.00 s, one every 0.5 s.
+// Nearest rank: the median is the 50th (0.50 s), p99 the 99th (0.99 s); the
+// plot's y axis spans 1.15 x the largest, so on the 900 x 420 image (plot area
+// y 40..360) the median line is at row 360 - 0.50/1.15 x 320 = 221 (blue) and
+// the p99 line at row 360 - 0.99/1.15 x 320 = 85 (red).
+TEST(DemoCli, DelayPlotDrawsMedianAndP99FromTheSamples) {
+  const std::string out = foresight::test::temp_path("_plot");
+  std::filesystem::create_directories(out);
+  {
+    std::ofstream csv(out + "/delay.csv");
+    csv << "t_s,rtt_s\n";
+    for (int i = 1; i <= 100; ++i) csv << i * 0.5 << "," << i * 0.01 << "\n";
+  }
+  const auto r = foresight::test::run_foresight("demo --stage plot --out " + out);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["file"], "delay.png");
+  EXPECT_EQ(j["samples"], 100);
+  EXPECT_DOUBLE_EQ(j["median_s"].get<double>(), 0.50);
+  EXPECT_DOUBLE_EQ(j["p99_s"].get<double>(), 0.99);
+  const cv::Mat img = cv::imread(out + "/delay.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(img.empty());
+  EXPECT_EQ(img.cols, 900);
+  EXPECT_EQ(img.rows, 420);
+  const cv::Vec3b median = img.at<cv::Vec3b>(221, 200), p99 = img.at<cv::Vec3b>(85, 200);  // BGR
+  EXPECT_GT(median[0], 150) << "median line blue";
+  EXPECT_LT(median[2], 100);
+  EXPECT_GT(p99[2], 150) << "p99 line red";
+  EXPECT_LT(p99[0], 100);
+  const cv::Vec3b blank = img.at<cv::Vec3b>(150, 200);  // between the lines, away from points and grid
+  EXPECT_EQ(blank, cv::Vec3b(255, 255, 255));
+  std::filesystem::remove_all(out);
+  // No samples: the demo's report says why instead of a picture.
+  const std::string empty = foresight::test::temp_path("_plot");
+  std::filesystem::create_directories(empty);
+  std::ofstream(empty + "/delay.csv") << "t_s,rtt_s\n";
+  const auto e = foresight::test::run_foresight("demo --stage plot --out " + empty);
+  EXPECT_EQ(e.status, 1);
+  EXPECT_EQ(e.err, "foresight demo: error: " + empty + "/delay.csv: no round trips to plot\n");
+  std::filesystem::remove_all(empty);
+}
 
 TEST(DemoCli, FastRunCompletesEveryStepAndReseatsTheOru) {
   const std::string out = foresight::test::temp_path("_demo");
@@ -49,6 +93,24 @@ TEST(DemoCli, FastRunCompletesEveryStepAndReseatsTheOru) {
   EXPECT_EQ(r["remote_exit"], 0);  // the daemon stopped cleanly on SIGTERM
   EXPECT_TRUE(std::filesystem::exists(out + "/report.md"));
   EXPECT_TRUE(std::filesystem::exists(out + "/overlay_oblique.png"));
+  // The delay plot: a PNG drawn from every measured round trip, its median and
+  // p99 those of the samples (the same nearest-rank rule as the ground's
+  // statistics over a window), linked from report.md.
+  ASSERT_TRUE(r.contains("delay_plot")) << r.dump();
+  const auto& plot = r["delay_plot"];
+  ASSERT_TRUE(plot.contains("file")) << plot.dump();
+  EXPECT_EQ(plot["file"], "delay.png");
+  EXPECT_GE(plot["samples"].get<int>(), 10) << "5 pings a second over minutes";
+  EXPECT_LE(plot["median_s"].get<double>(), plot["p99_s"].get<double>());
+  EXPECT_GT(plot["median_s"].get<double>(), 0.0);
+  const std::string png = foresight::test::read_file(out + "/delay.png");
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  EXPECT_GT(png.size(), 5000u) << "axes, labels and points drawn";
+  const std::string csv = foresight::test::read_file(out + "/delay.csv");
+  EXPECT_EQ(csv.rfind("t_s,rtt_s\n", 0), 0u);
+  EXPECT_NE(foresight::test::read_file(out + "/report.md").find("![round trip over time, median and p99](delay.png)"),
+            std::string::npos);
   std::filesystem::remove_all(out);
   std::remove(log.c_str());
 }
