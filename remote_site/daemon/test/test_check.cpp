@@ -49,6 +49,7 @@ struct ConfigDir {
     dir = foresight::test::temp_path("_cfg");
     fs::create_directories(dir);
     for (const char* f : {"remote.yaml", "scene.yaml", "oru.yaml"}) fs::copy_file(kConfig + "/" + f, dir / f);
+    fs::copy(kConfig + "/drives", dir / "drives", fs::copy_options::recursive);  // the drives' SDO lists (sdo_file:)
     if (with_urdf) fs::copy_file(kConfig + "/robot.urdf", dir / "robot.urdf");
   }
   ~ConfigDir() {
