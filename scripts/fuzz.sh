@@ -24,7 +24,7 @@ SECONDS_PER_TARGET=${FUZZ_SECONDS:-20}
 JOBS=${FORESIGHT_JOBS:-2}
 
 ALL_TARGETS=(fuzz_points_csv fuzz_trajectory_csv fuzz_task_script fuzz_scene_yaml fuzz_oru_yaml
-  fuzz_cameras_yaml fuzz_remote_yaml fuzz_lst_yaml fuzz_urdf fuzz_can_frames fuzz_sdo
+  fuzz_cameras_yaml fuzz_remote_yaml fuzz_lst_yaml fuzz_sdo_list fuzz_urdf fuzz_can_frames fuzz_sdo
   fuzz_modbus_registers fuzz_dds_samples)
 TARGETS=("$@")
 ((${#TARGETS[@]})) || TARGETS=("${ALL_TARGETS[@]}")
@@ -43,6 +43,7 @@ config_seeds() {
     fuzz_oru_yaml) echo config/oru.yaml ;;
     fuzz_remote_yaml|fuzz_lst_yaml) echo config/remote.yaml ;;
     fuzz_urdf) echo config/robot.urdf ;;
+    fuzz_sdo_list) echo config/drives/*.sdo ;;
     fuzz_task_script) echo config/scripts/*.task ;;
   esac
 }
@@ -50,7 +51,7 @@ config_seeds() {
 max_len() {
   case "$1" in
     fuzz_urdf) echo 32768 ;;
-    fuzz_points_csv|fuzz_trajectory_csv|fuzz_cameras_yaml|fuzz_remote_yaml|fuzz_lst_yaml|fuzz_scene_yaml) echo 16384 ;;
+    fuzz_points_csv|fuzz_trajectory_csv|fuzz_cameras_yaml|fuzz_remote_yaml|fuzz_lst_yaml|fuzz_scene_yaml|fuzz_sdo_list) echo 16384 ;;
     fuzz_dds_samples) echo 8192 ;;
     fuzz_can_frames|fuzz_sdo) echo 2048 ;;
     fuzz_modbus_registers) echo 256 ;;
@@ -105,8 +106,8 @@ for t in "${TARGETS[@]}"; do
     result=CRASH
     failed+=("$t")
   fi
-  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1 || true)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
   line=$(printf '%-24s %-6s %4ss  execs %-9s cov %-6s corpus %s' "$t" "$result" "$(( $(date +%s) - s0 ))" \
     "${execs:-?}" "${cov:-?}" "$(find "$work" -type f | wc -l)")
   summary+=("$line")
