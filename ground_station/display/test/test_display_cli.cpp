@@ -1,0 +1,416 @@
+// The operator display commands end to end, against the synthetic camera's
+// ground truth:
+//  - `display --headless --video synthetic` along a trajectory records frames
+//    whose overlay covers the synthetic arm (silhouette IoU, measured);
+//  - a video source that cannot be opened is said on stderr and on the
+//    picture, and retried, bounded by --frames; a video file plays;
+//  - no display and no --headless: the exact error naming --headless, exit 2;
+//  - `click` under Xvfb, driven by xdotool at the true projections of the arm
+//    in synthetic frames, writes a CSV from which `calibrate` recovers the true
+//    camera (and `calibrate --plot` draws its residual picture).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <thread>
+
+#include "foresight/camera/camera.hpp"
+#include "foresight/common/kinematics.hpp"
+#include "foresight/display/click_session.hpp"
+#include "foresight/render/scene_geometry.hpp"
+#include "foresight/render/synthetic_camera.hpp"
+#include "foresight/test/cli.hpp"
+
+using namespace foresight;
+using foresight::test::read_file;
+using foresight::test::run_foresight;
+using foresight::test::temp_path;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+const std::string kConfig = FORESIGHT_CONFIG_DIR;
+const std::string kCamera = "side";
+
+bool exists(const std::string& p) {
+  struct stat st {};
+  return ::stat(p.c_str(), &st) == 0;
+}
+
+/// Polls `done` every 50 ms until it holds or `timeout_s` passed.
+template <class F>
+bool wait_until(F done, double timeout_s) {
+  const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
+  while (Clock::now() < deadline) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return done();
+}
+
+double iou(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat i, u;
+  cv::bitwise_and(a, b, i);
+  cv::bitwise_or(a, b, u);
+  return static_cast<double>(cv::countNonZero(i)) / std::max(1, cv::countNonZero(u));
+}
+
+std::vector<cv::Mat> read_all_frames(const std::string& path) {
+  cv::VideoCapture cap(path);
+  std::vector<cv::Mat> out;
+  cv::Mat f;
+  for (int i = 0; i < 1000 && cap.read(f); ++i) out.push_back(f.clone());
+  return out;
+}
+
+struct World {
+  RobotModel model = RobotModel::from_file(kConfig + "/robot.urdf");
+  ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
+  Scene scene = Scene::from_file(kConfig + "/scene.yaml");
+  Camera truth = render::scene_camera(scene, kCamera);
+};
+
+std::string joints_text(const Eigen::VectorXd& q) {
+  std::ostringstream s;
+  s.precision(17);
+  for (int i = 0; i < q.size(); ++i) s << (i ? "," : "") << q[i];
+  return s.str();
+}
+
+/// The true cameras of the scene as cameras.yaml (foresight synth --write-cameras).
+std::string true_cameras() {
+  const std::string yaml = temp_path(".yaml");
+  const auto r = run_foresight("synth --camera " + kCamera + " --out " + temp_path(".png") + " --write-cameras " + yaml);
+  EXPECT_EQ(r.status, 0) << r.err;
+  return yaml;
+}
+
+}  // namespace
+
+TEST(DisplayCli, NoDisplayWithoutHeadlessIsRefusedNamingHeadless) {
+  const std::string cams = true_cameras();
+  const std::string frame = temp_path(".png");
+  ASSERT_EQ(run_foresight("synth --camera " + kCamera + " --out " + frame).status, 0);
+  const char* saved = std::getenv("DISPLAY");
+  const std::string saved_display = saved != nullptr ? saved : "";
+  unsetenv("DISPLAY");
+  const auto r = run_foresight("display --cameras " + cams + " --camera " + kCamera + " --video synthetic --frames 2");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err,
+            "foresight display: error: no display available (DISPLAY is not set): run with --headless to record "
+            "without a window (--record out.mp4)\n");
+  const auto c = run_foresight("click --camera " + kCamera + " --image " + frame + " --model oru --out " +
+                               temp_path(".csv"));
+  EXPECT_EQ(c.status, 2);
+  EXPECT_EQ(c.err,
+            "foresight click: error: foresight click needs a display to show its windows (DISPLAY is not set); run "
+            "it on the operator's desktop or under Xvfb\n");
+  // A display that does not answer is said as such (no Qt abort).
+  setenv("DISPLAY", ":159", 1);
+  const auto d = run_foresight("display --cameras " + cams + " --camera " + kCamera + " --video synthetic --frames 2");
+  EXPECT_EQ(d.status, 2);
+  EXPECT_NE(d.err.find("no display available (cannot open display ':159'): run with --headless"), std::string::npos)
+      << d.err;
+  if (saved_display.empty())
+    unsetenv("DISPLAY");
+  else
+    setenv("DISPLAY", saved_display.c_str(), 1);
+  // --headless needs no X server at all.
+  unsetenv("DISPLAY");
+  const auto h = run_foresight("display --headless --cameras " + cams + " --camera " + kCamera +
+                               " --video synthetic --frames 2 --record " + temp_path(".avi"));
+  EXPECT_EQ(h.status, 0) << h.err;
+  if (!saved_display.empty()) setenv("DISPLAY", saved_display.c_str(), 1);
+}
+
+TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
+  World w;
+  const std::string cams = true_cameras();
+  // A 2 s trajectory between two arm poses in front of the work site.
+  Eigen::VectorXd q0 = w.model.mid_configuration(), q1 = q0;
+  q0[1] += 0.25;
+  q0[3] -= 0.5;
+  q1 = q0;
+  q1[0] += 0.4;
+  q1[3] += 0.3;
+  const std::string traj = temp_path(".csv");
+  {
+    std::ofstream f(traj);
+    f.precision(17);
+    f << "t";
+    for (int j = 1; j <= w.model.dof(); ++j) f << ",q" << j;
+    f << "\n";
+    for (int i = 0; i <= 20; ++i) {
+      const double s = i / 20.0;
+      const Eigen::VectorXd q = (1 - s) * q0 + s * q1;
+      f << 0.1 * i;
+      for (int j = 0; j < q.size(); ++j) f << "," << q[j];
+      f << "\n";
+    }
+  }
+  const double fps = 5.0;
+  const int frames = 11;
+  const std::string with = temp_path(".avi"), without = temp_path(".avi");
+  const std::string common = "display --headless --cameras " + cams + " --camera " + kCamera +
+                             " --video synthetic --trajectory " + traj + " --delay-s 0 --fps 5 --frames " +
+                             std::to_string(frames) + " --no-text --json --record ";
+  const auto r1 = run_foresight(common + with);
+  ASSERT_EQ(r1.status, 0) << r1.err;
+  const auto j = nlohmann::json::parse(r1.out);
+  EXPECT_EQ(j["frames"], frames);
+  EXPECT_EQ(j["recorded"], frames);
+  std::printf("display --headless: compose %.1f ms/frame\n", j["compose_ms_mean"].get<double>());
+  const auto r2 = run_foresight(common + without + " --no-overlay");
+  ASSERT_EQ(r2.status, 0) << r2.err;
+  const auto a = read_all_frames(with), b = read_all_frames(without);
+  ASSERT_EQ(static_cast<int>(a.size()), frames);
+  ASSERT_EQ(b.size(), a.size());
+  // The truth: the synthetic camera's arm silhouette at each frame's joints.
+  auto gl = render::GlContext::create(render::GlBackend::OSMesa);
+  render::SyntheticCamera synth(*gl, w.model, w.oru, w.scene, w.truth.viewport);
+  double worst = 1.0, sum = 0.0;
+  for (int k = 0; k < frames; ++k) {
+    const double t = std::min(k / fps, 2.0);
+    const double s = t / 2.0;
+    const Eigen::VectorXd q = (1 - s) * q0 + s * q1;
+    const cv::Mat truth = synth.render(w.truth, q).arm_mask;
+    cv::Mat d, dmax;
+    cv::absdiff(a[k], b[k], d);
+    cv::Mat ch[3];
+    cv::split(d, ch);
+    dmax = cv::max(ch[0], cv::max(ch[1], ch[2]));
+    cv::Mat overlay = dmax > 40;
+    cv::morphologyEx(overlay, overlay, cv::MORPH_OPEN, cv::Mat::ones(3, 3, CV_8U));
+    const double v = iou(overlay, truth);
+    worst = std::min(worst, v);
+    sum += v;
+    if (k == 5) cv::imwrite(temp_path("_overlay_mask.png"), overlay);
+  }
+  std::printf("display --headless recording (MJPG): overlay vs synthetic arm silhouette IoU mean %.3f, worst %.3f over %d frames\n",
+              sum / frames, worst, frames);
+  EXPECT_GT(worst, 0.85);
+  EXPECT_GT(sum / frames, 0.9);
+}
+
+TEST(DisplayCli, UnopenableVideoSourceIsSaidAndRetriedBoundedByFrames) {
+  const std::string cams = true_cameras();
+  const std::string rec = temp_path(".avi");
+  const auto r = run_foresight("display --headless --cameras " + cams + " --camera " + kCamera +
+                               " --video /nonexistent/camera.mp4 --frames 12 --fps 20 --retry-s 0.1 --json --record " +
+                               rec);
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("foresight display: video source '/nonexistent/camera.mp4' cannot be opened (attempt 1); retrying"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("(attempt 2); retrying"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("foresight display: error: video source '/nonexistent/camera.mp4' never delivered a frame"),
+            std::string::npos)
+      << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["frames"], 12);
+  EXPECT_EQ(j["video_frames"], 0);
+  EXPECT_GE(j["open_attempts"].get<int>(), 3);
+  // On screen too: red text across the middle of the recorded frames.
+  const auto frames = read_all_frames(rec);
+  ASSERT_EQ(frames.size(), 12u);
+  const cv::Mat& f = frames.back();
+  int red = 0;
+  for (int y = f.rows / 2 - 14; y < f.rows / 2 + 4; ++y)
+    for (int x = 0; x < f.cols; ++x) {
+      const cv::Vec3b p = f.at<cv::Vec3b>(y, x);
+      red += p[2] > 150 && p[1] < 110 && p[0] < 110;
+    }
+  EXPECT_GT(red, 80);
+
+  // A video file plays (the recording above as the source).
+  const auto p = run_foresight("display --headless --cameras " + cams + " --camera " + kCamera + " --video " + rec +
+                               " --frames 5 --json --snapshot " + temp_path(".png"));
+  ASSERT_EQ(p.status, 0) << p.err;
+  EXPECT_EQ(nlohmann::json::parse(p.out)["video_frames"], 5);
+}
+
+namespace {
+
+/// An Xvfb of our own on a free display number; stops it on destruction.
+class Xvfb {
+ public:
+  Xvfb() {
+    if (!exists("/usr/bin/Xvfb")) return;
+    for (int n = 91; n < 160 && display_.empty(); ++n) {
+      const std::string sock = "/tmp/.X11-unix/X" + std::to_string(n), lock = "/tmp/.X" + std::to_string(n) + "-lock";
+      if (exists(sock) || exists(lock)) continue;
+      pid_ = fork();
+      if (pid_ == 0) {
+        const std::string d = ":" + std::to_string(n);
+        if (freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
+        execl("/usr/bin/Xvfb", "Xvfb", d.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp", nullptr);
+        _exit(127);
+      }
+      if (wait_until([&] { return exists(sock); }, 15.0))
+        display_ = ":" + std::to_string(n);
+      else
+        stop();
+    }
+  }
+  ~Xvfb() { stop(); }
+  const std::string& display() const { return display_; }
+
+ private:
+  void stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    int st = 0;
+    if (!wait_until([&] { return waitpid(pid_, &st, WNOHANG) == pid_; }, 10.0)) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, &st, 0);
+    }
+    pid_ = -1;
+  }
+  pid_t pid_ = -1;
+  std::string display_;
+};
+
+int sh(const std::string& cmd) {
+  const int st = std::system(cmd.c_str());
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+std::string sh_out(const std::string& cmd) {
+  std::string out;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return out;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p) != nullptr) out += buf;
+  pclose(p);
+  while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
+  return out;
+}
+
+int csv_rows(const std::string& path) {
+  std::ifstream f(path);
+  std::string line;
+  int n = -1;  // the header
+  while (std::getline(f, line))
+    if (!line.empty()) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
+  if (!exists("/usr/bin/Xvfb")) GTEST_SKIP() << "Xvfb is not installed (Debian package xvfb; scripts/setup.sh installs it)";
+  if (!exists("/usr/bin/xdotool")) GTEST_SKIP() << "xdotool is not installed (scripts/setup.sh installs it)";
+  Xvfb x;
+  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start on any display :91-:159";
+  World w;
+  KinematicsWorkspace ws(w.model);
+  // Three arm poses in front of the work site (the tool 20-40 cm before the ORU).
+  std::vector<Eigen::VectorXd> poses;
+  for (const Eigen::Vector3d& offset : {Eigen::Vector3d(-0.20, -0.15, 0.10), Eigen::Vector3d(-0.35, 0.20, 0.35),
+                                        Eigen::Vector3d(-0.25, 0.05, -0.20)}) {
+    Pose target = w.scene.base_T_object * w.oru.tags.at("approach_20cm");
+    target.translation() += offset;
+    const auto ik = inverse_kinematics(w.model, ws, target, w.model.mid_configuration());
+    ASSERT_TRUE(ik.success);
+    poses.push_back(ik.q);
+  }
+  const std::string csv = temp_path(".csv");
+  const std::string env = "DISPLAY=" + x.display() + " ";
+  const std::string image_window = "^foresight click: image " + kCamera + "$";
+  int expected_rows = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Eigen::VectorXd& q = poses[i];
+    const std::string frame = temp_path(".png");
+    const auto s = run_foresight("synth --camera " + kCamera + " --joints " + joints_text(q) + " --out " + frame);
+    ASSERT_EQ(s.status, 0) << s.err;
+    const std::string out_path = temp_path(".json"), err_path = temp_path(".err");
+    const std::string snapshot = i == 0 ? " --snapshot " + temp_path("") : "";
+    const std::string pid_text = sh_out(env + "sh -c '" + FORESIGHT_BIN_DIR + "/foresight click --camera " + kCamera +
+                                        " --image " + frame + " --model robot --joints " + joints_text(q) + " --out " +
+                                        csv + " --append --json" + snapshot + " >" + out_path + " 2>" + err_path +
+                                        " & echo $!'");
+    const pid_t pid = std::stoi(pid_text);
+    const std::string model_win = sh_out(env + "timeout 60 xdotool search --sync --name '^foresight click: model$' | head -1");
+    const std::string image_win = sh_out(env + "timeout 60 xdotool search --sync --name '" + image_window + "' | head -1");
+    ASSERT_FALSE(model_win.empty()) << read_file(err_path);
+    ASSERT_FALSE(image_win.empty()) << read_file(err_path);
+    // The model window's points (as the command draws them) and their true image points.
+    const auto points = display::arm_model_points(w.model, q);
+    const Camera view = display::default_model_view(points, w.truth.viewport, true);
+    std::string clicks = "xdotool";
+    int here = 0;
+    for (const auto& p : points) {
+      if (!w.truth.in_front(p.p_m)) continue;
+      const Eigen::Vector2d uv = w.truth.project(p.p_m);
+      if (!(uv.x() > 2 && uv.y() > 2 && uv.x() < w.truth.viewport.width_px - 2 && uv.y() < w.truth.viewport.height_px - 2))
+        continue;
+      const Eigen::Vector2d m = view.project(p.p_m);
+      clicks += " mousemove --window " + model_win + " " + std::to_string(int(std::floor(m.x()))) + " " +
+                std::to_string(int(std::floor(m.y()))) + " click 1 mousemove --window " + image_win + " " +
+                std::to_string(int(std::floor(uv.x()))) + " " + std::to_string(int(std::floor(uv.y()))) + " click 1";
+      ++here;
+    }
+    ASSERT_GE(here, 4);
+    ASSERT_EQ(sh(env + clicks), 0);
+    expected_rows += here;
+    EXPECT_TRUE(wait_until([&] { return csv_rows(csv) == expected_rows; }, 60.0))
+        << csv_rows(csv) << " rows, expected " << expected_rows << "\n" << read_file(err_path);
+    if (i == 0) {
+      // A wrong pair (model point 1 at the image's corner), then undo it (key u).
+      const Eigen::Vector2d m = view.project(points[0].p_m);
+      ASSERT_EQ(sh(env + "xdotool mousemove --window " + model_win + " " + std::to_string(int(std::floor(m.x()))) +
+                   " " + std::to_string(int(std::floor(m.y()))) + " click 1 mousemove --window " + image_win +
+                   " 5 5 click 1"),
+                0);
+      EXPECT_TRUE(wait_until([&] { return csv_rows(csv) == expected_rows + 1; }, 30.0));
+      ASSERT_EQ(sh(env + "xdotool key --window " + image_win + " u"), 0);
+      EXPECT_TRUE(wait_until([&] { return csv_rows(csv) == expected_rows; }, 30.0));
+    }
+    ASSERT_EQ(sh(env + "xdotool key --window " + image_win + " q"), 0);
+    int st = 0;
+    if (!wait_until([&] { return waitpid(pid, &st, WNOHANG) == pid || kill(pid, 0) != 0; }, 30.0)) {
+      kill(pid, SIGKILL);
+      FAIL() << "foresight click did not quit on q";
+    }
+    const auto j = nlohmann::json::parse(read_file(out_path));
+    EXPECT_EQ(j["points"], here);
+    EXPECT_EQ(j["rows_in_file"], expected_rows);
+  }
+  // The saved CSV calibrates the true camera.
+  const std::string plot = temp_path(".png");
+  const auto c = run_foresight("calibrate " + csv + " --camera " + kCamera + " --json --plot " + plot +
+                               " --viewport 646x486");
+  ASSERT_EQ(c.status, 0) << c.err;
+  const auto r = nlohmann::json::parse(c.out);
+  Eigen::Matrix4d T;
+  for (int i = 0; i < 4; ++i)
+    for (int k = 0; k < 4; ++k) T(i, k) = r["base_T_camera"][i][k];
+  const Eigen::Vector3d dp = T.block<3, 1>(0, 3) - w.truth.base_T_camera.translation();
+  const Eigen::Matrix3d dR = w.truth.base_T_camera.linear().transpose() * T.block<3, 3>(0, 0);
+  const double angle_deg = std::acos(std::clamp((dR.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
+  const double df = r["f_px"].get<double>() - w.truth.f_px;
+  std::printf("click -> calibrate (%d points, rms %.3f px): position error %.2f mm, rotation %.4f deg, f %+.2f px "
+              "(sigma %.2f px, position sigma %.2f %.2f %.2f mm)\n",
+              r["n_points"].get<int>(), r["rms_px"].get<double>(), dp.norm() * 1000, angle_deg, df,
+              r["sigma"]["f_px"].get<double>(), r["sigma"]["position_m"][0].get<double>() * 1000,
+              r["sigma"]["position_m"][1].get<double>() * 1000, r["sigma"]["position_m"][2].get<double>() * 1000);
+  // Clicks land on whole pixels (their centres): about 0.3 px of quantization.
+  EXPECT_LT(r["rms_px"].get<double>(), 0.6);
+  EXPECT_LT(dp.norm(), 0.02);
+  EXPECT_LT(angle_deg, 0.25);
+  EXPECT_LT(std::abs(df), 0.01 * w.truth.f_px);
+  EXPECT_LT(std::abs(df), 4.0 * r["sigma"]["f_px"].get<double>() + 1.0);
+  EXPECT_TRUE(exists(plot));
+  const cv::Mat pic = cv::imread(plot);
+  EXPECT_EQ(pic.size(), cv::Size(646, 486));
+}

@@ -1,0 +1,111 @@
+// The display's picture against the synthetic camera's truth: with the true
+// camera, the actual arm's overlay covers the arm the synthetic video shows
+// (silhouette IoU), the ghost draws where the commanded arm is, the overlay
+// switch leaves the video untouched, and the text says what is wrong.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "foresight/common/kinematics.hpp"
+#include "foresight/display/display_frame.hpp"
+#include "foresight/render/scene_geometry.hpp"
+#include "foresight/render/synthetic_camera.hpp"
+
+using namespace foresight;
+using namespace foresight::display;
+
+namespace {
+
+const std::string kConfig = FORESIGHT_CONFIG_DIR;
+
+double iou(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat i, u;
+  cv::bitwise_and(a, b, i);
+  cv::bitwise_or(a, b, u);
+  return static_cast<double>(cv::countNonZero(i)) / std::max(1, cv::countNonZero(u));
+}
+
+cv::Mat changed(const cv::Mat& a, const cv::Mat& b, int threshold) {
+  cv::Mat d, g;
+  cv::absdiff(a, b, d);
+  cv::cvtColor(d, g, cv::COLOR_BGR2GRAY);
+  return g > threshold;
+}
+
+struct World {
+  RobotModel model = RobotModel::from_file(kConfig + "/robot.urdf");
+  ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
+  Scene scene = Scene::from_file(kConfig + "/scene.yaml");
+  std::unique_ptr<render::GlContext> gl = render::GlContext::create(render::GlBackend::OSMesa);
+};
+
+}  // namespace
+
+TEST(DisplayFrame, ActualArmOverlayCoversTheSyntheticArm) {
+  World w;
+  const Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
+  render::SyntheticCamera synth(*w.gl, w.model, w.oru, w.scene, cam.viewport);
+  DisplayComposer composer(*w.gl, w.model, &w.oru, w.scene.base_T_object);
+  Eigen::VectorXd q = w.model.mid_configuration();
+  q[1] += 0.3;
+  q[3] -= 0.4;
+  const render::SyntheticFrame f = synth.render(cam, q);
+  DisplayState s;
+  s.q_actual = q;
+  s.text = false;
+  // The overlay alone (without the ORU): no composer object here.
+  DisplayComposer arm_only(*w.gl, w.model, nullptr, std::nullopt);
+  const cv::Mat shown = arm_only.compose(cam, f.image_bgr, s);
+  const cv::Mat overlay = changed(shown, f.image_bgr, 12);
+  // The synthetic arm mask is the visible arm; the overlay draws the whole
+  // arm: compare with the part not hidden by the ORU or the panel.
+  const double i = iou(overlay, f.arm_mask);
+  std::printf("display overlay vs synthetic arm: IoU %.4f (%d vs %d pixels)\n", i, cv::countNonZero(overlay),
+              cv::countNonZero(f.arm_mask));
+  EXPECT_GT(i, 0.95);
+  EXPECT_GT(iou(arm_only.arm_silhouette(cam, q), f.arm_mask), 0.95);
+
+  // Overlay off: the video as it is.
+  s.overlay = false;
+  EXPECT_EQ(cv::countNonZero(changed(arm_only.compose(cam, f.image_bgr, s), f.image_bgr, 0)), 0);
+
+  // The ghost runs ahead: drawn where the commanded arm's silhouette is.
+  Eigen::VectorXd q_cmd = q;
+  q_cmd[0] += 0.35;
+  s.overlay = true;
+  s.q_commanded = q_cmd;
+  s.mode = render::RenderMode::Wire;
+  const cv::Mat with_ghost = composer.compose(cam, f.image_bgr, s);
+  cv::Mat ghost_only = composer.arm_silhouette(cam, q_cmd) & ~composer.arm_silhouette(cam, q);
+  cv::Mat ghost_changed = changed(with_ghost, f.image_bgr, 12) & ghost_only;
+  EXPECT_GT(cv::countNonZero(ghost_changed), 0.9 * cv::countNonZero(ghost_only));
+}
+
+TEST(DisplayFrame, TextSaysTheVideoProblemAndTheFault) {
+  World w;
+  const Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
+  DisplayComposer composer(*w.gl, w.model, nullptr, std::nullopt);
+  DisplayState s;
+  s.q_actual = w.model.mid_configuration();
+  s.overlay = false;
+  const cv::Mat blank = composer.compose(cam, cv::Mat(), s);
+  ASSERT_EQ(blank.size(), cv::Size(cam.viewport.width_px, cam.viewport.height_px));
+  s.video_problem = "video source 'nowhere.mp4' cannot be opened (attempt 1); retrying";
+  s.fault_text = "drive 3 EMCY";
+  const cv::Mat said = composer.compose(cam, cv::Mat(), s);
+  // Red text in the middle band (the video problem) and in the header (the fault).
+  auto red_pixels = [](const cv::Mat& img, cv::Rect r) {
+    int n = 0;
+    for (int y = r.y; y < r.y + r.height; ++y)
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
+        n += p[2] > 150 && p[1] < 120;
+      }
+    return n;
+  };
+  EXPECT_GT(red_pixels(said, cv::Rect(0, said.rows / 2 - 15, said.cols, 30)), 50);
+  EXPECT_GT(red_pixels(said, cv::Rect(0, 0, said.cols, 60)), 30);
+  EXPECT_EQ(red_pixels(blank, cv::Rect(0, 0, blank.cols, blank.rows)), 0);
+  cv::Mat wrong(10, 10, CV_8UC3);
+  EXPECT_THROW(composer.compose(cam, wrong, s), std::invalid_argument);
+}
