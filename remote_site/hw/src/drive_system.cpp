@@ -75,6 +75,8 @@ const char* to_string(HwFault f) noexcept {
     case HwFault::FtFrameMismatch: return "F/T frames of different samples";
     case HwFault::BusOff: return "CAN bus-off";
     case HwFault::BusErrorPassive: return "CAN error passive";
+    case HwFault::BusRestarted: return "CAN controller restarted after bus-off";
+    case HwFault::BusOffRepeated: return "CAN bus-off again and again (restart limit reached)";
     case HwFault::TxFailed: return "CAN transmit failed";
     case HwFault::RxFailed: return "CAN receive failed";
     case HwFault::MalformedFrame: return "malformed frame";
@@ -91,6 +93,7 @@ bool requires_stop(HwFault f) noexcept {
     case HwFault::EmergencyCleared:
     case HwFault::FtFrameMismatch:
     case HwFault::BusErrorPassive:
+    case HwFault::BusRestarted:
     case HwFault::MalformedFrame:
     case HwFault::UnknownCobId:
     case HwFault::UnexpectedSdo:
@@ -350,6 +353,8 @@ void DriveSystem::configure() {
     b.sync_sent = false;
     b.bus_off_reported = b.passive_reported = b.closed_reported = b.tx_fail_reported = false;
     b.sync_seen = b.sync_counter;
+    b.restarts = 0;
+    b.restart_limit_hit = false;
   }
   pending_count_ = 0;
   configured_ = true;
@@ -710,6 +715,14 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
     }
     const BusHealth& h = bus.health();
     if (h.bus_off && !bs.bus_off_reported) push_event({HwFault::BusOff, bus8, 0, -1, h.error_frames, 0});
+    if (!h.bus_off && bs.bus_off_reported) {  // restarted (the interface's restart-ms, or by hand)
+      ++bs.restarts;
+      push_event({HwFault::BusRestarted, bus8, 0, -1, bs.restarts, 0});
+      if (bs.restarts > config_.bus_off_restart_limit && !bs.restart_limit_hit) {
+        bs.restart_limit_hit = true;
+        push_event({HwFault::BusOffRepeated, bus8, 0, -1, bs.restarts, static_cast<std::uint32_t>(config_.bus_off_restart_limit)});
+      }
+    }
     bs.bus_off_reported = h.bus_off;
     if (h.error_passive && !bs.passive_reported) push_event({HwFault::BusErrorPassive, bus8, 0, -1, h.error_frames, 0});
     bs.passive_reported = h.error_passive;
@@ -764,7 +777,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   }
   for (BusState& bs : bus_state_) {
     bs.sync_sent = false;
-    if (bs.bus_off_reported || bs.closed_reported) ++active;
+    if (bs.bus_off_reported || bs.closed_reported || bs.restart_limit_hit) ++active;
   }
 
   joints.count = drives_.size();
@@ -817,6 +830,11 @@ std::string DriveSystem::describe(const HwEvent& e) const {
     case HwFault::RxFailed: msg += std::string(": ") + to_string(static_cast<CanIo>(e.code)); break;
     case HwFault::TpdoMissing:
     case HwFault::FtMissing: msg += " for " + std::to_string(e.code) + " cycles"; break;
+    case HwFault::BusRestarted: msg += " (" + std::to_string(e.code) + " since configure)"; break;
+    case HwFault::BusOffRepeated:
+      msg += " (" + std::to_string(e.code) + " restarts, limit " + std::to_string(e.detail) +
+             "): check wiring, termination and bit rate";
+      break;
     case HwFault::FtSaturated: msg += " (mask " + hex(e.code, 2) + ", bits Fx Fy Fz Tx Ty Tz)"; break;
     case HwFault::NodeNotOperational:
       msg += std::string(" (now ") + to_string(static_cast<NmtState>(e.code)) + ")";

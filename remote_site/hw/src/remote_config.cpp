@@ -93,7 +93,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "buses", "drives", "ft_sensor", "tool", "controller"});
+                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "buses", "drives", "ft_sensor", "tool", "controller"});
 
   RemoteConfig c;
   c.source = source_name;
@@ -121,6 +121,10 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (c.sync_counter_overflow != 0 && (c.sync_counter_overflow < 2 || c.sync_counter_overflow > 240))
     p.fail(root["sync_counter_overflow"], "top level: sync_counter_overflow " + std::to_string(c.sync_counter_overflow) +
                                               " is outside 2..240 (CiA 301 0x1019), or 0 for no counter");
+  c.bus_off_restart_limit = p.get_or<int>(root, "bus_off_restart_limit", "top level", 3);
+  if (c.bus_off_restart_limit < 0 || c.bus_off_restart_limit > 100)
+    p.fail(root["bus_off_restart_limit"], "top level: bus_off_restart_limit " + std::to_string(c.bus_off_restart_limit) +
+                                              " is outside 0..100");
   std::string base_dir;
   if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 

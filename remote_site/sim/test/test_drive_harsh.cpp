@@ -264,3 +264,47 @@ TEST(DriveSystemEvents, InvalidTargetKeepsThePreviousOne) {
   EXPECT_NEAR(rig.fb.joints[6].position_rad, q, 1e-4);
   EXPECT_EQ(rig.sim->drive(6).power_state(), PowerState::OperationEnabled);
 }
+
+// Bus-off recovery is the controller's (the interface's restart-ms; the
+// simulator's recover_bus): the master counts the restarts and, beyond
+// bus_off_restart_limit (3), keeps the bus faulted until configure().
+TEST(HarshBus, BusOffRestartsAreBoundedByTheConfiguredLimit) {
+  SimRig rig(project_config());
+  ASSERT_EQ(rig.config.bus_off_restart_limit, 3);
+  rig.bring_up();
+  int restarted = 0, repeated = 0;
+  CycleStatus last;
+  for (int episode = 1; episode <= 4; ++episode) {
+    rig.sim->inject_bus_off(0);
+    rig.run_until([&](const CycleStatus&) { return rig.drives->bus(0).health().bus_off; }, 100);
+    ASSERT_TRUE(rig.drives->bus(0).health().bus_off) << episode;
+    rig.sim->recover_bus(0);
+    for (int i = 0; i < 100; ++i) {
+      last = rig.cycle();
+      for (std::size_t k = 0; k < last.event_count; ++k) {
+        const HwEvent& e = last.events[k];
+        if (e.fault == HwFault::BusRestarted) {
+          ++restarted;
+          EXPECT_EQ(e.code, static_cast<std::uint32_t>(episode));
+          EXPECT_EQ(rig.drives->describe(e), "bus arm_a: CAN controller restarted after bus-off (" +
+                                                 std::to_string(episode) + " since configure)");
+        }
+        if (e.fault == HwFault::BusOffRepeated) {
+          ++repeated;
+          EXPECT_EQ(episode, 4);
+          EXPECT_EQ(rig.drives->describe(e), "bus arm_a: CAN bus-off again and again (restart limit reached) "
+                                             "(4 restarts, limit 3): check wiring, termination and bit rate");
+        }
+      }
+      if (restarted == episode) break;
+    }
+  }
+  EXPECT_EQ(restarted, 4);
+  EXPECT_EQ(repeated, 1);
+  EXPECT_FALSE(hw::requires_stop(HwFault::BusRestarted));
+  EXPECT_TRUE(hw::requires_stop(HwFault::BusOffRepeated));
+  // It persists: every later cycle still requires a stop, until configure().
+  last = rig.run_until([](const CycleStatus&) { return false; }, 5);
+  EXPECT_TRUE(last.stop_required);
+  EXPECT_GE(last.active_faults, 1);
+}

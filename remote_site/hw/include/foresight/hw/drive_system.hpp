@@ -92,6 +92,8 @@ enum class HwFault : std::uint8_t {
   FtFrameMismatch,    ///< frames A and B of different samples (notice)
   BusOff,             ///< controller bus-off (stop)
   BusErrorPassive,    ///< controller error passive (notice)
+  BusRestarted,       ///< the controller left bus-off (CAN_ERR_RESTARTED: restart-ms); code = restarts so far (notice)
+  BusOffRepeated,     ///< more bus-off restarts than bus_off_restart_limit: stays a fault until configure() (stop)
   TxFailed,           ///< a frame could not be queued; code = CanIo; once per episode (stop)
   RxFailed,           ///< read error / bus closed; code = CanIo (stop)
   MalformedFrame,     ///< wrong DLC / RTR / not a can_frame; code = COB-ID, detail = DLC (notice)
@@ -236,6 +238,8 @@ class DriveSystem {
     std::uint8_t sync_seen = 0;      // of the last SYNC echo read
     bool sync_echo_active = false;   // this bus loops our SYNCs back
     std::uint32_t stale_tpdos = 0;
+    std::uint16_t restarts = 0;      // bus-off -> restarted, since configure()
+    bool restart_limit_hit = false;
   };
 
   void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;

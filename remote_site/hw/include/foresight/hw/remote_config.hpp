@@ -68,6 +68,7 @@ struct RemoteConfig {
   double sdo_timeout_s = 0.1;
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
   int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
+  int bus_off_restart_limit = 3;      ///< controller restarts after bus-off (restart-ms) tolerated per configure()
   int sync_counter_overflow = 0;      ///< 0x1019: SYNC carries a counter 1..this (CiA 301: 2..240), 0 = none
   int interpolation_exponent = -4;    ///< 0x60C2:02, the unit of 0x60C2:01 (10^exp s); -3 where the drive requires ms
   double max_bus_load = 0.70;
