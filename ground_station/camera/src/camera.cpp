@@ -7,10 +7,16 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/yaml_util.hpp"
 
 namespace foresight {
+
+namespace {
+constexpr int kMaxViewportPx = 1 << 15;  ///< a viewport side (pixels)
+}  // namespace
 
 Viewport parse_viewport(const std::string& text) {
   const auto x = text.find('x');
@@ -19,7 +25,8 @@ Viewport parse_viewport(const std::string& text) {
     std::size_t end_w = 0, end_h = 0;
     const int w = std::stoi(text.substr(0, x), &end_w);
     const int h = std::stoi(text.substr(x + 1), &end_h);
-    if (end_w != x || end_h != text.size() - x - 1 || w <= 0 || h <= 0) throw std::invalid_argument("bad");
+    if (end_w != x || end_h != text.size() - x - 1 || w <= 0 || h <= 0 || w > kMaxViewportPx || h > kMaxViewportPx)
+      throw std::invalid_argument("bad");
     return {w, h};
   } catch (const std::exception&) {
     throw std::invalid_argument("viewport '" + text + "' is not WIDTHxHEIGHT in positive pixels (e.g. 646x486)");
@@ -75,13 +82,21 @@ template <int R, int C>
 Eigen::Matrix<double, R, C> read_matrix(const YAML::Node& n, const std::string& file, const std::string& what) {
   Eigen::Matrix<double, R, C> M;
   if (!n || !n.IsSequence() || static_cast<int>(n.size()) != R)
-    throw InputError(file, what + " must be a list of " + std::to_string(R) + " rows");
+    throw InputError(file, yaml::line_of(n), what + " must be a list of " + std::to_string(R) + " rows");
   for (int r = 0; r < R; ++r) {
     if (!n[r].IsSequence() || static_cast<int>(n[r].size()) != C)
-      throw InputError(file, what + " row " + std::to_string(r + 1) + " must have " + std::to_string(C) + " numbers");
+      throw InputError(file, yaml::line_of(n[r]),
+                       what + " row " + std::to_string(r + 1) + " must have " + std::to_string(C) + " numbers");
     for (int c = 0; c < C; ++c) {
-      M(r, c) = n[r][c].as<double>();
-      if (!std::isfinite(M(r, c))) throw InputError(file, what + " has a non-finite number");
+      try {
+        M(r, c) = n[r][c].as<double>();
+      } catch (const YAML::Exception&) {
+        throw InputError(file, yaml::line_of(n[r]),
+                         what + " row " + std::to_string(r + 1) + " element " + std::to_string(c + 1) +
+                             " is not a number");
+      }
+      if (!std::isfinite(M(r, c)))
+        throw InputError(file, yaml::line_of(n[r]), what + " row " + std::to_string(r + 1) + " has a non-finite number");
     }
   }
   return M;
@@ -104,26 +119,40 @@ YAML::Node write_matrix(const Eigen::Matrix<double, R, C>& M) {
 std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
   const YAML::Node root = yaml::load_file(path, "cannot open camera file");
   if (!root.IsMap()) throw InputError(path, "expected a map from camera name to camera");
+  if (root.size() > static_cast<std::size_t>(limits::kMaxCameras))
+    throw InputError(path, std::to_string(root.size()) + " cameras, at most " + std::to_string(limits::kMaxCameras) +
+                               " allowed");
   std::map<std::string, CameraRecord> out;
   for (const auto& kv : root) {
-    const std::string name = kv.first.as<std::string>();
+    if (!kv.first.IsScalar() || kv.first.Scalar().empty())
+      throw InputError(path, yaml::line_of(kv.first), "a camera name must be a non-empty string");
+    const std::string name = kv.first.Scalar();
     const YAML::Node& n = kv.second;
     const std::string where = "camera '" + name + "'";
+    if (!n.IsMap()) throw InputError(path, yaml::line_of(n), where + ": expected a map (viewport, f_px, base_T_camera)");
     try {
       CameraRecord rec;
       rec.camera.name = name;
       if (!n["viewport"] || n["viewport"].size() != 2) throw InputError(path, where + ": viewport must be [W, H]");
       rec.camera.viewport = {n["viewport"][0].as<int>(), n["viewport"][1].as<int>()};
-      if (rec.camera.viewport.width_px <= 0 || rec.camera.viewport.height_px <= 0)
-        throw InputError(path, where + ": viewport must be positive");
+      if (rec.camera.viewport.width_px <= 0 || rec.camera.viewport.height_px <= 0 ||
+          rec.camera.viewport.width_px > kMaxViewportPx || rec.camera.viewport.height_px > kMaxViewportPx)
+        throw InputError(path, yaml::line_of(n["viewport"]),
+                         where + ": viewport must be positive and at most " + std::to_string(kMaxViewportPx) + " px");
       if (!n["f_px"]) throw InputError(path, where + ": missing f_px");
       rec.camera.f_px = n["f_px"].as<double>();
       if (!(rec.camera.f_px > 0.0) || !std::isfinite(rec.camera.f_px))
         throw InputError(path, where + ": f_px must be a positive number");
       const Eigen::Matrix4d T = read_matrix<4, 4>(n["base_T_camera"], path, where + ": base_T_camera");
       const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+      const int t_line = yaml::line_of(n["base_T_camera"]);
       if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0)
-        throw InputError(path, where + ": base_T_camera rotation is not orthonormal");
+        throw InputError(path, t_line, where + ": base_T_camera rotation is not orthonormal");
+      if (T.row(3) != Eigen::RowVector4d(0.0, 0.0, 0.0, 1.0))
+        throw InputError(path, t_line, where + ": base_T_camera last row must be [0, 0, 0, 1]");
+      if (T.topRightCorner<3, 1>().cwiseAbs().maxCoeff() > limits::kMaxOffset_m)
+        throw InputError(path, t_line, where + ": base_T_camera position is farther than " +
+                                           std::to_string(static_cast<int>(limits::kMaxOffset_m)) + " m from the base");
       rec.camera.base_T_camera.matrix() = T;
       if (const YAML::Node c = n["calibration"]) {
         CameraCalibrationInfo info;
@@ -136,8 +165,8 @@ std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
         rec.calibration = info;
       }
       out.emplace(name, std::move(rec));
-    } catch (const YAML::Exception& e) {
-      throw InputError(path, e.mark.line + 1, where + ": " + e.msg);
+    } catch (const YAML::Exception& e) {  // "bad conversion": name the line (the node's, when the mark has none)
+      throw InputError(path, e.mark.line >= 0 ? e.mark.line + 1 : yaml::line_of(n), where + ": " + e.msg);
     }
   }
   return out;
@@ -172,13 +201,11 @@ void save_cameras(const std::string& path, const std::map<std::string, CameraRec
     }
     root[name] = n;
   }
-  std::ofstream f(path);
-  if (!f) throw InputError(path, "cannot write camera file");
   YAML::Emitter em;
   em.SetDoublePrecision(12);
   em << root;
-  f << "# Foresight calibrated cameras (camera frame: x right, y down, z forward)\n" << em.c_str() << "\n";
-  if (!f) throw InputError(path, "write failed");
+  write_file_atomic(path, std::string("# Foresight calibrated cameras (camera frame: x right, y down, z forward)\n") +
+                              em.c_str() + "\n");
 }
 
 }  // namespace foresight

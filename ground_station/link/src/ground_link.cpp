@@ -166,6 +166,11 @@ void GroundLink::Impl::take_all() {
   bool any = false;
   for (int i = 0; i < kTakeBatch && acks.take(ack); ++i) {
     if (ack->session_id != sequencer.session_id()) continue;  // another ground station's command
+    char why[96];
+    if (const char* bad = protocol::enum_error(*ack, why, sizeof why)) {  // raw integers checked before any enum load
+      spdlog::warn("ground link: ack of command {} ignored: {}", ack->command_id, bad);
+      continue;
+    }
     control::Ack a = remote_link::from_wire(*ack);
     std::lock_guard lock(mutex);
     auto [it, fresh] = ack_log.try_emplace(a.command_id);
@@ -181,12 +186,17 @@ void GroundLink::Impl::take_all() {
     any = true;
   }
   for (int i = 0; i < kTakeBatch && uploads.take(up); ++i) {
+    char why[96];
+    if (const char* bad = protocol::enum_error(*up, why, sizeof why)) {
+      spdlog::warn("ground link: upload status of trajectory {} ignored: {}", up->trajectory_id, bad);
+      continue;
+    }
     UploadSeen seen;
-    seen.state = static_cast<control::UploadState>(up->state);
+    seen.state = static_cast<control::UploadState>(protocol::raw(up->state));
     seen.chunks_received = up->chunks_received;
     seen.chunk_count = up->chunk_count;
     seen.hash = protocol::get_hash(up->content_hash);
-    seen.code = static_cast<control::Reason>(up->code);
+    seen.code = static_cast<control::Reason>(protocol::raw(up->code));
     seen.reason = std::string(protocol::text(up->reason));
     seen.when = Clock::now();
     std::lock_guard lock(mutex);
@@ -214,18 +224,28 @@ void GroundLink::Impl::take_all() {
     any = true;
   }
   for (int i = 0; i < kTakeBatch && tools.take(ts); ++i) {
+    char why[96];
+    if (const char* bad = protocol::enum_error(*ts, why, sizeof why)) {
+      spdlog::warn("ground link: tool state ignored: {}", bad);
+      continue;
+    }
     std::lock_guard lock(mutex);
     tool = Timed<control::ToolReport>{remote_link::from_wire(*ts), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && statuses.take(cs); ++i) {
+    char why[96];
+    if (const char* bad = protocol::enum_error(*cs, why, sizeof why)) {
+      spdlog::warn("ground link: controller status ignored: {}", bad);
+      continue;
+    }
     auto v = remote_link::from_wire(*cs);
     std::lock_guard lock(mutex);
     status = Timed<control::StatusReport>{std::move(v), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && heartbeats.take(hb); ++i) {
-    if (hb->side != foresight_msg_SIDE_REMOTE) continue;
+    if (protocol::raw(hb->side) != foresight_msg_SIDE_REMOTE) continue;  // our own (or an invalid side)
     std::lock_guard lock(mutex);
     remote_heard = Clock::now();
     remote_boot = hb->boot_id;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
 
 namespace foresight::render {
 
@@ -23,12 +24,11 @@ Camera load_camera(const std::string& path, const std::string& name) {
 }
 
 Pose read_object_pose_json(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw InputError(path, "cannot open object pose file");
+  const std::string text = read_text_file(path, "cannot open object pose file");  // bounded size
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::parse_error& e) {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e400
     throw InputError(path, std::string("malformed JSON: ") + e.what());
   }
   if (!j.is_object() || !j.contains("base_T_object")) throw InputError(path, "no key 'base_T_object'");

@@ -291,7 +291,7 @@ void RemoteLink::Impl::beat_and_watch() {
 
 void RemoteLink::Impl::serve_heartbeats() {
   for (int i = 0; i < kTakeBatch && heartbeats.take(heartbeat_in); ++i) {
-    if (heartbeat_in->side != foresight_msg_SIDE_GROUND) continue;  // our own, looped back
+    if (protocol::raw(heartbeat_in->side) != foresight_msg_SIDE_GROUND) continue;  // our own, looped back (or invalid)
     const auto now = Clock::now();
     last_ground_beat = now;
     ground_boot_id = heartbeat_in->boot_id;
