@@ -19,6 +19,7 @@
 #include "command.hpp"
 #include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/robot_points.hpp"
+#include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
 #include "json_util.hpp"
 
@@ -48,6 +49,7 @@ std::string utc_now() {
 
 int run_calibrate(const CalibrateArgs& a) {
   const Viewport vp = parse_viewport(a.viewport);
+  if (!a.out.empty()) check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
   RobotLinkPoints robot(a.robot);
   const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
   const std::vector<Correspondence> pts = select_camera(all, a.camera);
@@ -59,6 +61,7 @@ int run_calibrate(const CalibrateArgs& a) {
     throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
   }
   if (a.max_iterations < 1) throw std::invalid_argument("--max-iterations must be at least 1");
+  check_in_viewport(pts, vp, a.points);
   CalibrationOptions copt;
   copt.max_iterations = a.max_iterations;
   const CalibrationResult r = calibrate_camera(pts, vp, a.camera, copt);

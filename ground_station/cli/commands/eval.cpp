@@ -25,6 +25,8 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
@@ -108,7 +110,12 @@ int run_eval(const EvalArgs& a) {
   if (a.seeds < 1) throw std::invalid_argument("--seeds must be at least 1");
   if (!(a.arm_error_mm >= 0.0) || !std::isfinite(a.arm_error_mm))
     throw std::invalid_argument("--arm-error-mm must be a non-negative number");
-  if (!(a.noise_px > 0.0) || !std::isfinite(a.noise_px)) throw std::invalid_argument("--noise-px must be a positive number");
+  if (!(a.noise_px > 0.0 && a.noise_px <= limits::kMaxPixelNoise_px))
+    throw std::invalid_argument("--noise-px must be a number in (0, " +
+                                std::to_string(static_cast<int>(limits::kMaxPixelNoise_px)) + "] px");
+  if (a.trials > 1000000) throw std::invalid_argument("--trials must be at most 1000000");
+  if (a.seeds > 1000) throw std::invalid_argument("--seeds must be at most 1000");
+  if (!(a.arm_error_mm <= 1000.0)) throw std::invalid_argument("--arm-error-mm must be at most 1000");
   const Scene scene = Scene::from_file(a.scene);
   const ObjectModel object = ObjectModel::from_file(a.object);
   const RobotModel robot = RobotModel::from_file(a.robot);
@@ -149,6 +156,12 @@ int run_eval(const EvalArgs& a) {
       o.arm_link_error_m = a.arm_error_mm * 1e-3;
       arm_runs.push_back(run_accuracy_study(setup, o));
     }
+  for (const auto* set : {&runs, &arm_runs})
+    for (const StudyResult& run : *set)
+      if (run.calibration_failures >= run.trials)  // tables of zeros would look like perfect accuracy
+        throw ComputationError("every one of the " + std::to_string(run.trials) +
+                               " trials failed its calibration: no accuracy to report; is --noise-px " +
+                               std::to_string(a.noise_px) + " too large?");
   const StudyResult& r = runs.front();
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const ComboStats& all = r.combos.back();

@@ -71,6 +71,7 @@ int run_localize(const LocalizeArgs& a) {
   const auto records = load_cameras(a.cameras);
   for (const auto& [name, rec] : records) cameras[name] = rec.camera;
   const std::vector<Correspondence> pts = read_correspondences_csv(a.points);
+  for (const auto& [name, camera] : cameras) check_in_viewport(select_camera(pts, name), camera.viewport, a.points);
   LocalizationOptions opt;
   if (!a.views.empty()) opt.views = split_views(a.views);
   if (a.camera_uncertainty)

@@ -13,6 +13,7 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "foresight/common/atomic_file.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
@@ -71,6 +72,7 @@ std::vector<Goal> parse_goals(const std::string& text, const ObjectModel& object
 }
 
 int run(const Args& a) {
+  check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
   const RobotModel robot = RobotModel::from_file(a.robot);
   const ObjectModel object = ObjectModel::from_file(a.object);
   const Eigen::VectorXd q0 =
@@ -85,13 +87,14 @@ int run(const Args& a) {
     std::cerr << "foresight plan: " << e.what() << "\n";
     return kExitFailure;
   }
-  const auto violations = validate(plan.trajectory, TrajectoryLimits::from_model(robot));
+  std::size_t total = 0;
+  const auto violations = validate(plan.trajectory, TrajectoryLimits::from_model(robot), &total);
   if (!violations.empty()) {
     for (const auto& v : violations) std::cerr << "foresight plan: " << v.message << "\n";
-    std::cerr << "foresight plan: the planned trajectory breaks " << violations.size() << " rule(s); not written\n";
+    std::cerr << "foresight plan: the planned trajectory breaks " << total << " rule(s); not written\n";
     return kExitFailure;
   }
-  write_trajectory_csv(a.out, plan.trajectory);
+  write_trajectory_csv(a.out, plan.trajectory);  // atomic: a failed write leaves the old file whole
   const std::string hash = to_hex(trajectory_hash(plan.trajectory));
 
   if (a.json) {

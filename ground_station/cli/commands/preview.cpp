@@ -9,14 +9,19 @@
 //                     [--gl osmesa|egl] [--robot robot.urdf] [--object oru.yaml] [--json]
 // TRAJ.csv is `t,q1,...,qN` (s, rad). A trajectory that breaks the arm's
 // limits is still previewed (that is what a preview is for) and each
-// violation is reported on stderr. Exit: 0 ok, 2 bad input, 1 GL failure.
+// violation is reported on stderr; one that is malformed (a non-finite value,
+// time not increasing, too few samples) is refused: nothing that could never
+// be sent is previewed as if it could. Exit: 0 ok, 2 bad input, 1 GL failure.
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <iostream>
 
 #include "command.hpp"
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/preview/preview.hpp"
@@ -45,7 +50,8 @@ int run_preview(const PreviewArgs& a) {
   o.fps = a.fps;
   o.ghost_alpha = a.alpha;
   o.tool_path = !a.no_path;
-  if (!(a.speed > 0.0)) throw std::invalid_argument("--speed must be a positive number");
+  if (!(a.speed > 0.0) || !std::isfinite(a.speed)) throw std::invalid_argument("--speed must be a positive number");
+  if (!(a.fps <= 1000.0)) throw std::invalid_argument("--fps must be at most 1000");
   if (!(a.alpha >= 0.0 && a.alpha <= 1.0)) throw std::invalid_argument("--alpha must be in [0, 1]");
   const GlBackend backend = parse_gl_backend(a.gl);
   const Trajectory tr = read_trajectory_csv(a.trajectory);
@@ -56,8 +62,21 @@ int run_preview(const PreviewArgs& a) {
                                        std::to_string(model.dof()));
   if (a.tags && a.object_pose.empty())
     throw std::invalid_argument("--tags needs --object-pose (the tags are frames of the object)");
-  const std::vector<Violation> violations = validate(tr, TrajectoryLimits::from_model(model));
+  std::size_t total = 0;
+  const std::vector<Violation> violations = validate(tr, TrajectoryLimits::from_model(model), &total);
+  for (const auto& v : violations)
+    if (v.rule == Violation::Rule::NonFinite || v.rule == Violation::Rule::TimeNotIncreasing ||
+        v.rule == Violation::Rule::TooFewSamples)
+      throw InputError(a.trajectory, v.message + ": cannot be previewed");
   for (const auto& v : violations) std::cerr << "foresight preview: warning: " << a.trajectory << ": " << v.message << "\n";
+  if (total > violations.size())
+    std::cerr << "foresight preview: warning: " << a.trajectory << ": ... and " << total - violations.size() << " more\n";
+  // The frame count must fit before anything renders (--speed 1e-9 overflowed it).
+  const std::optional<int> frames = limits::sample_count(tr.duration_s() / a.speed, a.fps);
+  if (!frames || *frames > limits::kMaxVideoFrames)
+    throw std::invalid_argument("--speed " + std::to_string(a.speed) + " and --fps " + std::to_string(a.fps) +
+                                " give more than " + std::to_string(limits::kMaxVideoFrames) + " video frames for " +
+                                std::to_string(tr.duration_s()) + " s of trajectory");
 
   auto context = GlContext::create(backend);
   Renderer renderer(*context, camera.viewport);
@@ -87,7 +106,7 @@ int run_preview(const PreviewArgs& a) {
                         {"video_duration_s", r.video_duration_s},
                         {"sheet_times_s", r.sheet_times_s},
                         {"triangles_per_frame", r.triangles_per_frame},
-                        {"violations", violations.size()},
+                        {"violations", total},
                         {"wall_time_s", total_s}};
     std::cout << j.dump() << "\n";
   } else {
@@ -99,7 +118,7 @@ int run_preview(const PreviewArgs& a) {
     if (!a.sheet.empty()) std::printf("  contact sheet of %zu key frames: %s\n", r.sheet_times_s.size(), a.sheet.c_str());
     if (!violations.empty())
       std::printf("  WARNING: %zu limit violations (listed on stderr); the remote would reject this trajectory\n",
-                  violations.size());
+                  total);
     std::printf("  rendered in %.1f s\n", total_s);
   }
   return kExitOk;

@@ -13,9 +13,12 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <sstream>
 
 #include "command.hpp"
+#include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
+#include "foresight/common/input_limits.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
@@ -38,16 +41,18 @@ struct Args {
   bool json = false;
 };
 
-std::ofstream open_out(const std::string& path) {
-  std::ofstream f(path);
-  if (!f) throw InputError(path, "cannot write the file");
+/// The text of an output file, written atomically at the end (write_file_atomic).
+std::ostringstream open_out(const std::string& path) {
+  check_output_path(path);  // before any work
+  std::ostringstream f;
   f.precision(15);
   return f;
 }
 
 int run(const Args& a) {
-  if (!(a.noise_px >= 0.0) || !std::isfinite(a.noise_px))
-    throw std::invalid_argument("--noise-px must be a finite number >= 0");
+  if (!(a.noise_px >= 0.0 && a.noise_px <= limits::kMaxPixelNoise_px))
+    throw std::invalid_argument("--noise-px must be a number in [0, " +
+                                std::to_string(static_cast<int>(limits::kMaxPixelNoise_px)) + "] px");
   if (a.per_pose < 1) throw std::invalid_argument("--per-pose must be at least 1");
   const Scene scene = Scene::from_file(a.scene);
   const RobotModel robot = RobotModel::from_file(a.robot);
@@ -62,7 +67,7 @@ int run(const Args& a) {
   };
 
   nlohmann::json views = nlohmann::json::array();
-  std::ofstream cal, obj;
+  std::ostringstream cal, obj;
   if (!a.calibration_out.empty()) {
     cal = open_out(a.calibration_out);
     cal << "n,cam,link,lx,ly,lz";
@@ -80,7 +85,7 @@ int run(const Args& a) {
       for (const ArmFeature& f : visible_features(v.truth, pose, a.per_pose)) {
         const Eigen::Vector2d uv = click(v.truth, f.p_base);
         ++cal_here;
-        if (!cal.is_open()) continue;
+        if (a.calibration_out.empty()) continue;
         cal << ++n_cal << ',' << v.truth.name << ',' << robot.links()[f.link].name << ',' << f.p_link.x() << ','
             << f.p_link.y() << ',' << f.p_link.z();
         for (int j = 0; j < robot.dof(); ++j) cal << ',' << pose.q[j];
@@ -89,19 +94,19 @@ int run(const Args& a) {
     for (const Eigen::Vector3d& p : v.object_points) {
       const Eigen::Vector2d uv = click(v.truth, setup.base_T_object * p);
       ++obj_here;
-      if (obj.is_open())
+      if (!a.object_out.empty())
         obj << ++n_obj << ',' << v.truth.name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ','
             << uv.y() << '\n';
     }
     views.push_back({{"camera", v.truth.name}, {"calibration_clicks", cal_here}, {"object_clicks", obj_here}});
   }
-  if (cal.is_open() && !cal.flush()) throw InputError(a.calibration_out, "write failed");
-  if (obj.is_open() && !obj.flush()) throw InputError(a.object_out, "write failed");
+  if (!a.calibration_out.empty()) write_file_atomic(a.calibration_out, cal.str());
+  if (!a.object_out.empty()) write_file_atomic(a.object_out, obj.str());
   if (!a.joints_out.empty()) {
-    std::ofstream j = open_out(a.joints_out);
+    std::ostringstream j = open_out(a.joints_out);
     for (int i = 0; i < robot.dof(); ++i) j << (i ? "," : "") << poses.front().q[i];
     j << '\n';
-    if (!j.flush()) throw InputError(a.joints_out, "write failed");
+    write_file_atomic(a.joints_out, j.str());
   }
 
   nlohmann::json arm = nlohmann::json::array();

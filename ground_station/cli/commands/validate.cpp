@@ -19,11 +19,13 @@ struct Options {
 int run(const Options& o) {
   const RobotModel model = RobotModel::from_file(o.robot);
   const Trajectory traj = read_trajectory_csv(o.trajectory);
-  const auto violations = validate(traj, TrajectoryLimits::from_model(model));
+  std::size_t total = 0;  // violations in all; the first limits::kMaxListedViolations are listed
+  const auto violations = validate(traj, TrajectoryLimits::from_model(model), &total);
   const std::string hash = to_hex(trajectory_hash(traj));
   if (o.json) {
     nlohmann::json j = {{"file", o.trajectory}, {"samples", traj.samples()}, {"joints", traj.joints()},
-                        {"duration_s", traj.duration_s()}, {"sha256", hash}, {"ok", violations.empty()}};
+                        {"duration_s", traj.duration_s()}, {"sha256", hash}, {"ok", violations.empty()},
+                        {"violation_count", total}};
     j["violations"] = nlohmann::json::array();
     for (const auto& v : violations)
       j["violations"].push_back({{"rule", to_string(v.rule)}, {"row", v.row}, {"joint", v.joint},
@@ -33,13 +35,11 @@ int run(const Options& o) {
     std::cout << o.trajectory << ": " << traj.samples() << " samples x " << traj.joints() << " joints, "
               << traj.duration_s() << " s, sha256 " << hash << "\n";
     if (violations.empty()) std::cout << "ok: within every limit of " << o.robot << "\n";
-    const std::size_t shown = std::min<std::size_t>(violations.size(), 50);
-    for (std::size_t i = 0; i < shown; ++i)
-      std::cout << "  " << to_string(violations[i].rule) << ": " << violations[i].message << "\n";
-    if (violations.size() > shown) std::cout << "  ... and " << violations.size() - shown << " more\n";
+    for (const auto& v : violations) std::cout << "  " << to_string(v.rule) << ": " << v.message << "\n";
+    if (total > violations.size()) std::cout << "  ... and " << total - violations.size() << " more\n";
   }
   if (!violations.empty())
-    std::cerr << "foresight validate: " << violations.size() << " violation(s); the remote would reject this trajectory\n";
+    std::cerr << "foresight validate: " << total << " violation(s); the remote would reject this trajectory\n";
   return violations.empty() ? kExitOk : kExitFailure;
 }
 

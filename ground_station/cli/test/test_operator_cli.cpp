@@ -95,6 +95,6 @@ TEST_F(OperatorChain, PlanBadInputs) {
   EXPECT_NE(r.err.find("/nonexistent.json"), std::string::npos) << r.err;
   r = run_foresight("synth-clicks --noise-px -1");
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find("--noise-px must be a finite number >= 0"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--noise-px must be a number in [0, 1000] px"), std::string::npos) << r.err;
   EXPECT_FALSE(std::ifstream(out).good()) << "nothing written on bad input";
 }
