@@ -60,13 +60,17 @@ TEST(HarshBus, LateTpdosAreNotTakenAsFresh) {
   const HwEvent* e = find_event(s, HwFault::TpdoMissing);
   ASSERT_NE(e, nullptr);
   EXPECT_LT(e->joint, 4);  // a drive on arm_a
-  // The late frames arrive from 7 ms on, behind the looped-back SYNC of an earlier cycle.
-  rig.run_until([&](const CycleStatus&) { return rig.drives->stale_tpdos(0) >= 8; }, 200);
-  for (std::size_t j = 0; j < 4; ++j) EXPECT_FALSE(rig.fb.joints[j].fresh) << j;
-  EXPECT_GT(rig.drives->stale_tpdos(0), 0u);
-  // (arm_b may see a few too, when the simulator thread is descheduled past a cycle.)
-  EXPECT_LT(rig.drives->stale_tpdos(1), rig.drives->stale_tpdos(0));
-  for (std::size_t j = 4; j < 7; ++j) EXPECT_TRUE(rig.fb.joints[j].fresh) << j;
+  // The late frames arrive from 7 ms on, behind the looped-back SYNC of an
+  // earlier cycle: stale, never fresh, while arm_b stays fresh.
+  int fresh_a = 0, fresh_b = 0;
+  for (int i = 0; i < 100; ++i) {
+    rig.cycle();
+    for (std::size_t j = 0; j < 4; ++j) fresh_a += rig.fb.joints[j].fresh;
+    for (std::size_t j = 4; j < 7; ++j) fresh_b += rig.fb.joints[j].fresh;
+  }
+  EXPECT_GT(rig.drives->stale_tpdos(0), 4u * 80u);
+  EXPECT_LE(fresh_a, 4 * 5);  // only if this thread stalled > 5 ms in a cycle (a loaded CI machine)
+  EXPECT_GE(fresh_b, 3 * 50);
 }
 
 TEST(HarshBus, OnePercentLossAnd200usSyncJitterRunWithoutFalseFaults) {
