@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -188,6 +189,31 @@ TEST(ProtocolCodec, DelayFromPongKnownAnswer) {
   EXPECT_EQ(d.rtt_ns, 80 * ms);
   EXPECT_EQ(d.offset_ns, 5 * ms);
   EXPECT_DOUBLE_EQ(d.one_way_s(), 0.040);
+}
+
+TEST(ProtocolCodec, DelayFromHostilePongStampsIsInvalidNotOverflowed) {
+  // Stamps from a hostile remote: each subtraction would overflow int64
+  // (undefined behaviour before: UBSan, found by fuzz_dds_samples).
+  msg::Pong pong{};
+  pong.ground_send_ns = INT64_MIN;
+  pong.remote_receive_ns = 0;
+  pong.remote_send_ns = INT64_MAX;
+  fp::DelaySample d = fp::delay_from_pong(pong, INT64_MAX);
+  EXPECT_FALSE(d.valid);
+  EXPECT_EQ(d.rtt_ns, 0);
+  EXPECT_EQ(d.offset_ns, 0);
+  pong.ground_send_ns = 10;
+  pong.remote_receive_ns = INT64_MIN;
+  pong.remote_send_ns = INT64_MAX;
+  EXPECT_FALSE(fp::delay_from_pong(pong, 20).valid);
+  // Large but representable stamps stay valid and exact.
+  pong.ground_send_ns = INT64_MAX - 100;
+  pong.remote_receive_ns = INT64_MAX - 60;
+  pong.remote_send_ns = INT64_MAX - 50;
+  d = fp::delay_from_pong(pong, INT64_MAX - 10);
+  EXPECT_TRUE(d.valid);
+  EXPECT_EQ(d.rtt_ns, 80);
+  EXPECT_EQ(d.offset_ns, 0);
 }
 
 TEST(ProtocolCodec, EnumNames) {

@@ -98,7 +98,6 @@ struct DelayMonitor::Impl {
   }
 
   void record(const msg::Pong& pong, std::int64_t t4) noexcept {
-    const auto d = protocol::delay_from_pong(pong, t4);
     {
       std::lock_guard lock(mutex);
       // Only our own pings count (other ground stations ping too; ids
@@ -106,6 +105,10 @@ struct DelayMonitor::Impl {
       const auto it = outstanding.find(pong.ping_id);
       if (it == outstanding.end() || it->second.second != pong.ground_send_ns) return;
       outstanding.erase(it);
+      // The remote's stamps: a pong whose numbers overflow or give a negative
+      // round trip (remote processing longer than the round trip) is dropped.
+      const auto d = protocol::delay_from_pong(pong, t4);
+      if (!d.valid || d.rtt_ns < 0) return;
       samples.push_back(d);
       if (samples.size() > config.window) samples.pop_front();
       latest = d;

@@ -118,18 +118,29 @@ inline std::int64_t now_ns() noexcept { return dds_time(); }
 struct DelaySample {
   std::int64_t rtt_ns = 0;     ///< (t4 - t1) - (t3 - t2): network time, remote processing excluded
   std::int64_t offset_ns = 0;  ///< remote clock - ground clock: ((t2 - t1) + (t3 - t4)) / 2
+  bool valid = true;           ///< false: the stamps overflow (hostile or corrupt); the numbers are 0
   /// One-way delays assuming a symmetric path (rtt / 2 each way).
   double one_way_s() const noexcept { return static_cast<double>(rtt_ns) * 0.5e-9; }
 };
 
 /// NTP-style estimate (RFC 5905, on-wire protocol). Exact when the path is
-/// symmetric; an asymmetry a shifts the offset by a/2.
+/// symmetric; an asymmetry a shifts the offset by a/2. The stamps come from
+/// the other side: stamps whose arithmetic would overflow (hostile or
+/// corrupt) give valid = false instead of undefined behaviour.
 inline DelaySample delay_from_pong(const msg::Pong& pong, std::int64_t ground_receive_ns) noexcept {
   const std::int64_t t1 = pong.ground_send_ns, t2 = pong.remote_receive_ns, t3 = pong.remote_send_ns,
                      t4 = ground_receive_ns;
   DelaySample s;
-  s.rtt_ns = (t4 - t1) - (t3 - t2);
-  s.offset_ns = ((t2 - t1) + (t3 - t4)) / 2;
+  std::int64_t there = 0, back = 0, processing = 0, remote_ahead = 0;
+  bool overflow = __builtin_sub_overflow(t4, t1, &there);
+  overflow |= __builtin_sub_overflow(t3, t2, &processing);
+  overflow |= __builtin_sub_overflow(there, processing, &s.rtt_ns);
+  overflow |= __builtin_sub_overflow(t2, t1, &remote_ahead);
+  overflow |= __builtin_sub_overflow(t3, t4, &back);
+  std::int64_t sum = 0;
+  overflow |= __builtin_add_overflow(remote_ahead, back, &sum);
+  if (overflow) return DelaySample{0, 0, false};
+  s.offset_ns = sum / 2;
   return s;
 }
 
