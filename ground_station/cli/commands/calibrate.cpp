@@ -22,6 +22,7 @@
 #include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
 #include "json_util.hpp"
+#include "residual_plot_option.hpp"
 
 namespace foresight::cli {
 namespace {
@@ -36,6 +37,7 @@ struct CalibrateArgs {
   std::string out;
   int max_iterations = 100;
   bool json = false;
+  ResidualPlotArgs plot;
 };
 
 std::string utc_now() {
@@ -65,6 +67,7 @@ int run_calibrate(const CalibrateArgs& a) {
   CalibrationOptions copt;
   copt.max_iterations = a.max_iterations;
   const CalibrationResult r = calibrate_camera(pts, vp, a.camera, copt);
+  write_residual_plot(a.plot, pts, r.residuals, {{a.camera, vp}}, r.rms_px);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
   const Eigen::Vector3d pos = r.position_m();
   const double fovy_deg = r.camera.fovy_rad() / kDeg;
@@ -144,6 +147,7 @@ std::function<int()> setup(CLI::App& sub) {
   sub.add_option("--max-iterations", a->max_iterations, "Levenberg-Marquardt iteration limit (the fit fails, exit 1, when it "
                  "has not converged by then)")->capture_default_str();
   sub.add_flag("--json", a->json, "print one JSON object");
+  add_residual_plot_options(sub, a->plot);
   return [a] { return run_calibrate(*a); };
 }
 

@@ -20,6 +20,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/localization/localize.hpp"
 #include "json_util.hpp"
+#include "residual_plot_option.hpp"
 
 namespace foresight::cli {
 namespace {
@@ -33,6 +34,7 @@ struct LocalizeArgs {
   std::string views;
   bool camera_uncertainty = false;
   bool json = false;
+  ResidualPlotArgs plot;
 };
 
 /// The information (J^T J, pixels; body rotation, position, f) of a camera's
@@ -82,6 +84,7 @@ int run_localize(const LocalizeArgs& a) {
         opt.camera_information[name] = calibration_information(a.cameras, name, rec);
     }
   const LocalizationResult r = localize_object(pts, cameras, opt);
+  write_residual_plot(a.plot, pts, r.residuals, plot_views(r.views, cameras), r.rms_px);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
   const Eigen::Vector3d pos = r.position_m();
   const Eigen::Vector3d sigma_rpy_deg = r.sigma_rpy_rad / kDeg;
@@ -153,6 +156,7 @@ std::function<int()> setup(CLI::App& sub) {
                "refine the cameras with the pose under their calibration covariance (cameras.yaml); sigma then "
                "includes the calibration error");
   sub.add_flag("--json", a->json, "print one JSON object");
+  add_residual_plot_options(sub, a->plot);
   return [a] { return run_localize(*a); };
 }
 
