@@ -121,6 +121,7 @@ void SimDrive::reset_application() {
   prev_cw_ = 0;
   have_rpdo_ = false;
   following_error_ = internal_limit_ = false;
+  fe_time_s_ = 0.0;
   update_statusword();
 }
 
@@ -424,10 +425,16 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
   } else if (state_ != PowerState::FaultReactionActive) {
     step_physics(dt);
   }
+  // Following error: beyond the window (0x6065) for longer than the timeout (0x6066, ms).
   const std::uint32_t window = get(od::kFollowingErrorWindow, 0);
   if (state_ == PowerState::OperationEnabled && window != 0xFFFFFFFFu && std::abs(demand_ - x_) > window) {
-    following_error_ = true;
-    fault(0x8611, out);
+    fe_time_s_ += dt;
+    if (fe_time_s_ * 1e3 >= static_cast<double>(get(od::kFollowingErrorTimeout, 0))) {
+      following_error_ = true;
+      fault(0x8611, out);
+    }
+  } else {
+    fe_time_s_ = 0.0;
   }
   update_statusword();
   // 4. synchronous TPDOs: 2-4 carry the statusword while still enabled (the

@@ -194,3 +194,22 @@ TEST(DriveConfigFile, TheMasterRefusesATargetStepBeyondTheFollowingErrorWindow) 
   EXPECT_EQ(rig.sim->drive(0).power_state(), PowerState::OperationEnabled);
   EXPECT_NEAR(rig.fb.joints[0].position_rad, q0, 1e-4);
 }
+
+// Following-error timeout (0x6066): a disturbance beyond the window that the
+// drive corrects within the timeout is not a fault; with timeout 0 it is.
+TEST(DriveConfigFile, FollowingErrorTimeoutIsHonoured) {
+  for (const double timeout_s : {0.3, 0.0}) {
+    hw::RemoteConfig c = project_config();
+    for (hw::DriveConfig& d : c.drives) d.following_error_timeout_s = timeout_s;
+    SimRig rig(c);
+    rig.bring_up();
+    // Push joint1 0.1 rad (window 0.02): the position loop pulls it back in ~40 ms.
+    rig.sim->drive(0).set_position_counts(rig.sim->drive(0).position_counts() + 0.1 * c.drives[0].counts_per_rad());
+    bool faulted = false;
+    for (int i = 0; i < 150 && !faulted; ++i) {
+      const CycleStatus s = rig.cycle();
+      if (const HwEvent* e = find_event(s, HwFault::Emergency)) faulted = e->code == 0x8611;
+    }
+    EXPECT_EQ(faulted, timeout_s == 0.0) << timeout_s;
+  }
+}

@@ -97,7 +97,8 @@ class SimDrive final : public SimNode {
   Clock::time_point master_hb_{};
   double ramp_v_ = 0.0;  // velocity of the quick-stop / fault-reaction ramp, counts/s
   Clock::time_point last_tick_{};
-  Clock::time_point last_sync_{};  // wall time of the previous SYNC (physics dt)
+  Clock::time_point last_sync_{};
+  double fe_time_s_ = 0.0;  // how long the following error has been beyond the window  // wall time of the previous SYNC (physics dt)
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };
