@@ -34,6 +34,9 @@
 #include "json_util.hpp"
 
 namespace foresight::cli {
+
+std::function<int()> setup_eval_alignment(CLI::App& eval);  // eval_alignment.cpp
+
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
@@ -335,13 +338,15 @@ std::function<int()> setup(CLI::App& sub) {
   loc->add_option("--object", a->object, "object model")->capture_default_str();
   loc->add_option("--robot", a->robot, "robot URDF (the calibration fixture)")->capture_default_str();
   loc->add_flag("--json", a->json, "print one JSON object");
-  return [a, loc] {
+  auto alignment = setup_eval_alignment(sub);
+  return [a, loc, alignment] {
     if (loc->parsed()) return run_eval(*a);
-    throw std::invalid_argument("eval: choose a study (localization)");
+    if (const int rc = alignment(); rc >= 0) return rc;
+    throw std::invalid_argument("eval: choose a study (localization, alignment)");
   };
 }
 
-const bool registered = register_command({"eval", "accuracy studies (eval localization)", setup});
+const bool registered = register_command({"eval", "accuracy studies (eval localization, eval alignment)", setup});
 
 }  // namespace
 }  // namespace foresight::cli

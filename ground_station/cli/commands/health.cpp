@@ -10,6 +10,9 @@
 // or one image. FILE: one joint vector per line (radians, comma-separated;
 // '#' comments), either one line for a still arm or one per frame.
 // `telemetry` needs the ground link (not wired to this command yet).
+// Per frame (--json `frames[]`): matched_fraction, score_px, iou (the arm's
+// silhouette IoU estimated from the edge offsets, ModelAligner::FrameScore),
+// visible_samples, bad, warning.
 // Exit: 0 (warnings are reported, not errors), 2 bad input, 1 GL failure.
 
 #include <cstdio>
@@ -97,14 +100,15 @@ int run_health(const HealthArgs& a) {
     frames.push_back({{"frame", k},
                       {"matched_fraction", s.matched_fraction},
                       {"score_px", s.score_px},
+                      {"iou", s.iou},
                       {"visible_samples", s.visible_samples},
                       {"bad", v.bad},
                       {"warning", v.warning}});
     if (v.warning && !moved) warnings.push_back({{"frame", k}, {"reason", v.reason}});
     moved = moved || v.warning;
     if (!a.json)
-      std::printf("frame %4d: %3.0f%% of the arm's edges within 1 px, edge distance %.2f px%s%s\n", k,
-                  100.0 * s.matched_fraction, s.score_px, v.in_baseline ? " (baseline)" : v.bad ? " BAD" : "",
+      std::printf("frame %4d: %3.0f%% of the arm's edges within 1 px, edge distance %.2f px, IoU %.3f%s%s\n", k,
+                  100.0 * s.matched_fraction, s.score_px, s.iou, v.in_baseline ? " (baseline)" : v.bad ? " BAD" : "",
                   v.warning ? "  WARNING" : "");
   }
   if (k == 0) throw InputError(a.video, "no frames");

@@ -163,3 +163,55 @@ TEST(AlignCli, AFrameWithoutTheModelIsRefused) {
   EXPECT_NE(r.err.find("foresight align: refused: "), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(out));
 }
+
+// `foresight eval alignment`: bad input exits 2 with its message; one trial
+// gives the issue's --json contract (combinations[{views, clicks{...},
+// aligned{...}}], views written like 1+2+3+4), all 15 combinations.
+TEST(EvalAlignmentCli, BadInputIsExitTwo) {
+  const auto r = run_foresight("eval alignment --trials 0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "foresight eval: error: --trials must be at least 1\n");
+  const auto n = run_foresight("eval alignment --noise-px -1");
+  EXPECT_EQ(n.status, 2);
+  EXPECT_EQ(n.err, "foresight eval: error: --noise-px must be a positive number\n");
+}
+
+TEST(EvalAlignmentCli, OneTrialGivesTheJsonContract) {
+  const auto r = run_foresight("eval alignment --trials 1 --seed 3 --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["study"], "alignment");
+  EXPECT_EQ(j["arm_error_mm"].get<double>(), 2.0);
+  ASSERT_EQ(j["combinations"].size(), 15u);
+  EXPECT_EQ(j["combinations"][0]["views"], "1");
+  EXPECT_EQ(j["combinations"][14]["views"], "1+2+3+4");
+  for (const auto& c : j["combinations"])
+    for (const char* k : {"clicks", "aligned"}) {
+      ASSERT_TRUE(c.contains(k));
+      for (const char* f : {"position_rmse_m", "rotation_rmse_deg", "alignment95_m"}) {
+        ASSERT_TRUE(c[k].contains(f)) << k << "." << f;
+        EXPECT_GE(c[k][f].get<double>(), 0.0);
+      }
+      EXPECT_EQ(c[k]["n"], 1);
+    }
+}
+
+// `foresight health --json`: the per-frame silhouette IoU beside the edge measures.
+TEST(HealthCli, JsonHasTheIouPerFrame) {
+  auto& f = fixture();
+  const std::string joints = temp_path(".txt");
+  {
+    std::FILE* out = std::fopen(joints.c_str(), "w");
+    ASSERT_NE(out, nullptr);
+    std::fprintf(out, "%s\n", f.q_text.c_str());
+    std::fclose(out);
+  }
+  const auto r = run_foresight("health --cameras " + f.truth_yaml + " --camera side --video " + f.frame +
+                               " --joints-from " + joints + " --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["frames"].size(), 1u);
+  const double iou = j["frames"][0]["iou"].get<double>();
+  EXPECT_GT(iou, 0.85);
+  EXPECT_LE(iou, 1.0);
+}
