@@ -730,3 +730,51 @@ TEST_F(ProtocolLoopback, PingPongRoundTripAndClockOffset) {
   EXPECT_LT(std::abs(percentile(offset_us, 0.5)), std::max(500.0, median));
   EXPECT_LT(median, 20'000.0);
 }
+
+// A Command whose DHEADER ends before the payload union (what a hostile or
+// broken participant can send): Cyclone 0.10.2 accepts it and then abort()s
+// building the sample at take time. Reader<Command> checks the DHEADER first:
+// the sample is dropped and counted, the process lives, and the next
+// well-formed command is taken (fuzz/regressions/fuzz_dds_samples).
+TEST(ProtocolHostile, ACommandTruncatedBeforeItsPayloadIsDroppedNotFatal) {
+  fp::use_loopback_if_unconfigured();
+  fp::Participant participant(fp::unique_test_domain());
+  fp::Writer<msg::Command> writer(participant);
+  fp::Reader<msg::Command> reader(participant);
+  fp::Reader<msg::Command> probe(participant);  // only for its serialized sample (the type's sertype)
+  ASSERT_TRUE(writer.wait_for_readers(2, kDiscoveryTimeout));
+
+  fp::Sample<msg::Command> good;
+  good->protocol_version = msg::kProtocolVersion;
+  good->session_id = 7;
+  good->sequence_number = 1;
+  good->command_id = 41;
+  good->payload._d = foresight_msg_CMD_REQUEST;
+  writer.write(*good);
+  fp::Sample<msg::Command> got;
+  ASSERT_TRUE(reader.wait_take(got, kReplyTimeout));
+  EXPECT_EQ(got->command_id, 41u);
+  ddsi_serdata* sample = nullptr;
+  dds_sample_info_t info;
+  for (auto deadline = Clock::now() + kReplyTimeout; sample == nullptr && Clock::now() < deadline;)
+    if (dds_takecdr(probe.get(), &sample, 1, &info, DDS_ANY_STATE) <= 0) std::this_thread::sleep_for(5ms);
+  ASSERT_NE(sample, nullptr);
+
+  // D_CDR2 little endian, DHEADER 44: the envelope and no union.
+  unsigned char bytes[4 + 4 + 44] = {0x00, 0x09, 0x00, 0x00, 44, 0, 0, 0};
+  bytes[8] = static_cast<unsigned char>(msg::kProtocolVersion);
+  ddsrt_iovec_t iov;
+  iov.iov_base = bytes;
+  iov.iov_len = sizeof bytes;
+  ddsi_serdata* truncated = ddsi_serdata_from_ser_iov(sample->type, SDK_DATA, 1, &iov, sizeof bytes);
+  ddsi_serdata_unref(sample);
+  ASSERT_NE(truncated, nullptr) << "Cyclone refused the truncated sample itself (then the guard is moot)";
+  ASSERT_EQ(dds_writecdr(writer.get(), truncated), DDS_RETCODE_OK);
+
+  good->sequence_number = 2;
+  good->command_id = 42;
+  writer.write(*good);
+  ASSERT_TRUE(reader.wait_take(got, kReplyTimeout));
+  EXPECT_EQ(got->command_id, 42u);
+  EXPECT_EQ(reader.malformed_dropped(), 1u);
+}

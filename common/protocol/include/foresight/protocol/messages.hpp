@@ -5,6 +5,8 @@
 // Topic<T> take these defaults, so `Writer<msg::Command> w(participant);`
 // is all a link needs.
 
+#include <cstdint>
+
 #include "foresight/protocol/qos.hpp"
 #include "foresight/protocol/topics.hpp"
 #include "foresight_msgs.h"
@@ -55,26 +57,36 @@ inline constexpr unsigned kMaxParams = foresight_msg_MAX_PARAMS;
 template <class T>
 struct MessageTraits;  // only the specialisations below exist
 
-#define FORESIGHT_PROTOCOL_MESSAGE(TYPE, TOPIC, QOS)                                         \
+/// min_dheader: for an appendable type whose received samples Reader<T>
+/// checks before Cyclone builds them, the smallest DHEADER (serialized size
+/// of the members) it accepts; 0 = no check. Command needs it: Cyclone DDS
+/// 0.10.2 accepts (dds_stream_normalize) a Command whose DHEADER ends before
+/// the payload union, then abort()s building the sample at dds_take (it
+/// cannot default-initialise an absent union): one such sample from any
+/// participant would kill the daemon (found by fuzz/fuzz_dds_samples). In
+/// XCDR2, 8-byte members align to 4: protocol_version (2) + 2 padding + five
+/// 8-byte members = 44 bytes, then the union's 1-byte discriminator.
+#define FORESIGHT_PROTOCOL_MESSAGE(TYPE, TOPIC, QOS, MIN_DHEADER)                            \
   template <>                                                                                \
   struct MessageTraits<foresight_msg_##TYPE> {                                               \
     static const dds_topic_descriptor_t* descriptor() noexcept { return &foresight_msg_##TYPE##_desc; } \
     static constexpr const char* type_name = #TYPE;                                          \
     static constexpr const char* topic = TOPIC;                                              \
+    static constexpr std::uint32_t min_dheader = MIN_DHEADER;                                \
     static Qos qos() { return QOS; }                                                         \
   };
 
-FORESIGHT_PROTOCOL_MESSAGE(Command, topics::kCommand, qos::command())
-FORESIGHT_PROTOCOL_MESSAGE(CommandAck, topics::kCommandAck, qos::command_ack())
-FORESIGHT_PROTOCOL_MESSAGE(TrajectoryChunk, topics::kTrajectoryChunk, qos::trajectory_chunk())
-FORESIGHT_PROTOCOL_MESSAGE(TrajectoryStatus, topics::kTrajectoryStatus, qos::trajectory_status())
-FORESIGHT_PROTOCOL_MESSAGE(JointState, topics::kJointState, qos::telemetry())
-FORESIGHT_PROTOCOL_MESSAGE(Wrench, topics::kWrench, qos::telemetry())
-FORESIGHT_PROTOCOL_MESSAGE(ToolState, topics::kToolState, qos::telemetry())
-FORESIGHT_PROTOCOL_MESSAGE(ControllerStatus, topics::kControllerStatus, qos::controller_status())
-FORESIGHT_PROTOCOL_MESSAGE(Heartbeat, topics::kHeartbeat, qos::heartbeat())
-FORESIGHT_PROTOCOL_MESSAGE(Ping, topics::kPing, qos::ping())
-FORESIGHT_PROTOCOL_MESSAGE(Pong, topics::kPong, qos::ping())
+FORESIGHT_PROTOCOL_MESSAGE(Command, topics::kCommand, qos::command(), 45)
+FORESIGHT_PROTOCOL_MESSAGE(CommandAck, topics::kCommandAck, qos::command_ack(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(TrajectoryChunk, topics::kTrajectoryChunk, qos::trajectory_chunk(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(TrajectoryStatus, topics::kTrajectoryStatus, qos::trajectory_status(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(JointState, topics::kJointState, qos::telemetry(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(Wrench, topics::kWrench, qos::telemetry(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(ToolState, topics::kToolState, qos::telemetry(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(ControllerStatus, topics::kControllerStatus, qos::controller_status(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(Heartbeat, topics::kHeartbeat, qos::heartbeat(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(Ping, topics::kPing, qos::ping(), 0)
+FORESIGHT_PROTOCOL_MESSAGE(Pong, topics::kPong, qos::ping(), 0)
 
 #undef FORESIGHT_PROTOCOL_MESSAGE
 
