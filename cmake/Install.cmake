@@ -36,8 +36,12 @@ file(WRITE ${_stage}/remote.yaml
      "${_remote_yaml}")
 
 # ---- package maintainer scripts (remote) ------------------------------------------------
+# The drives' SDO lists (remote.yaml's sdo_file: paths, relative to it).
+file(GLOB _drive_files RELATIVE ${CMAKE_SOURCE_DIR}/config/drives CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/config/drives/*)
+list(TRANSFORM _drive_files PREPEND /etc/foresight/drives/ OUTPUT_VARIABLE _drive_conffiles)
 set(_remote_conffiles
     /etc/foresight/remote.yaml /etc/foresight/robot.urdf /etc/foresight/oru.yaml /etc/foresight/scene.yaml
+    ${_drive_conffiles}
     /etc/default/foresight-remote /etc/systemd/system/foresight-remote.service.d/cpu.conf)
 list(JOIN _remote_conffiles "\n" _conf)
 file(WRITE ${_stage}/remote/conffiles "${_conf}\n")
@@ -77,6 +81,7 @@ install(FILES ${_deploy}/systemd/foresight-remote.default RENAME foresight-remot
 install(FILES ${_stage}/remote.yaml ${CMAKE_SOURCE_DIR}/config/robot.urdf ${CMAKE_SOURCE_DIR}/config/oru.yaml
               ${CMAKE_SOURCE_DIR}/config/scene.yaml
         DESTINATION /etc/foresight COMPONENT remote)
+install(DIRECTORY ${CMAKE_SOURCE_DIR}/config/drives/ DESTINATION /etc/foresight/drives COMPONENT remote)
 install(PROGRAMS ${_deploy}/can/can-setup.sh DESTINATION lib/foresight COMPONENT remote)
 install(FILES ${_deploy}/can/80-foresight-can.network ${_deploy}/can/80-foresight-can.link
         DESTINATION ${CMAKE_INSTALL_DATADIR}/foresight-remote/can COMPONENT remote)
@@ -91,6 +96,7 @@ install(FILES ${CMAKE_SOURCE_DIR}/config/robot.urdf ${CMAKE_SOURCE_DIR}/config/o
               ${CMAKE_SOURCE_DIR}/config/scene.yaml ${CMAKE_SOURCE_DIR}/config/remote.yaml
         DESTINATION /etc/foresight-ground COMPONENT ground)
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/config/scripts/ DESTINATION /etc/foresight-ground/scripts COMPONENT ground)
+install(DIRECTORY ${CMAKE_SOURCE_DIR}/config/drives/ DESTINATION /etc/foresight-ground/drives COMPONENT ground)
 install(FILES ${_stage}/ground/foresight-ground.sh DESTINATION /etc/profile.d COMPONENT ground)
 install(PROGRAMS ${CMAKE_SOURCE_DIR}/scripts/make_dds_security.sh
         DESTINATION ${CMAKE_INSTALL_DATADIR}/foresight-ground/scripts COMPONENT ground)

@@ -50,11 +50,20 @@ dpkg-deb -x "$remote" "$tmp/remote"
 linked=$(ldd "$tmp/remote/usr/bin/foresight-remote")
 grep -Eiq 'GL|opencv' <<<"$linked" && fail "foresight-remote links a ground library: $(grep -Ei 'GL|opencv' <<<"$linked")"
 grep -q 'not found' <<<"$linked" && fail "foresight-remote: unresolved libraries: $linked"
+# Every drive SDO list remote.yaml names (relative to it) is in the package beside it.
+sdo_files=$(grep -o 'sdo_file: *[^,} ]*' "$tmp/remote/etc/foresight/remote.yaml" | awk '{print $2}' | sort -u)
+[[ -n $sdo_files ]] || fail "/etc/foresight/remote.yaml names no sdo_file"
+for f in $sdo_files; do
+  [[ -f $tmp/remote/etc/foresight/$f ]] || fail "/etc/foresight/remote.yaml names sdo_file $f, which the package lacks"
+done
 grep -q 'interface: can0' "$tmp/remote/etc/foresight/remote.yaml" || fail "/etc/foresight/remote.yaml does not name can0"
 grep -q 'interface: mock' "$tmp/remote/etc/foresight/remote.yaml" && fail "/etc/foresight/remote.yaml still has a mock bus"
 [[ -x $tmp/remote/usr/lib/foresight/can-setup.sh ]] || fail "can-setup.sh is not executable"
 dpkg-deb -e "$remote" "$tmp/remote.ctl"
 grep -qx /etc/foresight/remote.yaml "$tmp/remote.ctl/conffiles" || fail "remote.yaml is not a conffile"
+for f in $sdo_files; do
+  grep -qx "/etc/foresight/$f" "$tmp/remote.ctl/conffiles" || fail "/etc/foresight/$f is not a conffile"
+done
 grep -q 'systemctl daemon-reload' "$tmp/remote.ctl/postinst" || fail "postinst does not reload systemd"
 grep -Eq '^[[:space:]]*(deb-systemd-invoke|systemctl (start|enable|restart))' "$tmp/remote.ctl/postinst" &&
   fail "postinst starts or enables the daemon (the first start is the operator's, after the check)"
