@@ -50,7 +50,12 @@ class Parser {
     throw InputError(source_, line_of(at), msg);
   }
 
+  void require_map(const YAML::Node& node, const std::string& where) const {
+    if (!node.IsMap()) fail(node, where + ": must be a map");
+  }
+
   void check_keys(const YAML::Node& map, const std::string& where, std::initializer_list<const char*> allowed) {
+    require_map(map, where);
     if (const auto key = yaml::unknown_key(map, allowed))
       fail(*key, where + ": unknown key '" + key->as<std::string>() + "' (expected one of: " + yaml::key_list(allowed) +
                      ")");
@@ -58,6 +63,7 @@ class Parser {
 
   template <typename T>
   T get(const YAML::Node& map, const char* key, const std::string& where, const char* what = nullptr) {
+    require_map(map, where);
     const YAML::Node n = map[key];
     if (!n) fail(map, where + ": missing '" + key + "'" + (what ? std::string(" (") + what + ")" : ""));
     try {
@@ -69,6 +75,7 @@ class Parser {
 
   template <typename T>
   T get_or(const YAML::Node& map, const char* key, const std::string& where, T fallback) {
+    require_map(map, where);
     if (!map[key]) return fallback;
     return get<T>(map, key, where);
   }

@@ -130,6 +130,10 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_NE(malformed.find(": malformed YAML: "), std::string::npos) << malformed;
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: fast}\n"))
                 .find("'bitrate' has a value of the wrong type: 'fast'"), std::string::npos);
+  // A section that is a scalar where a map belongs (yaml-cpp threw its own
+  // BadSubscript before, without the file: fuzz_remote_yaml).
+  EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: 5\n"), "remote.yaml:2: heartbeat: must be a map");
+  EXPECT_NE(error_of("cycle_rate_hz: 500\nheartbeat:\n").find(": heartbeat: must be a map"), std::string::npos);
   try {
     load_remote_config("/nonexistent/remote.yaml");
     FAIL();
