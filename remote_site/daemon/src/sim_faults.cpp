@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,12 @@ SimFaultWatcher::SimFaultWatcher(Site& site, std::string dir) : site_(site), dir
   if (!site_.simulated) throw std::invalid_argument("--sim-faults needs --sim");
   fs::create_directories(dir_);
   emcy_present_.assign(site_.simulated->can->drive_count(), false);
+  silent_present_.assign(site_.simulated->can->drive_count(), false);
+  bus_loss_present_.assign(site_.hw_config.buses.size(), false);
+  q_.assign(site_.simulated->can->drive_count(), 0.0);
+  site_.simulated->can->joint_positions_rad(q_);
+  lo_ = q_;
+  hi_ = q_;
   thread_ = std::thread([this] { run(); });
 }
 
@@ -66,8 +73,53 @@ void SimFaultWatcher::run() {
       }
       emcy_present_[j] = now;
     }
+    for (std::size_t j = 0; j < silent_present_.size(); ++j) {
+      std::error_code ec;
+      const bool now = fs::exists(fs::path(dir_) / ("drive_silent_" + std::to_string(j + 1)), ec);
+      if (now == silent_present_[j]) continue;
+      silent_present_[j] = now;
+      spdlog::warn("simulated fault: joint {} heartbeat {}", j + 1, now ? "silent" : "back");
+      sim.can->drive(j).silence_heartbeat(now);
+    }
+    for (std::size_t b = 0; b < bus_loss_present_.size(); ++b) {
+      std::error_code ec;
+      const bool now = fs::exists(fs::path(dir_) / ("bus_loss_" + std::to_string(b)), ec);
+      if (now == bus_loss_present_[b]) continue;
+      bus_loss_present_[b] = now;
+      spdlog::warn("simulated fault: bus {} {}", b, now ? "loses every frame" : "passes frames again");
+      sim::BusImpairment imp;
+      if (now) imp.loss = 1.0;
+      sim.can->set_impairment(b, imp);
+    }
+    write_record();
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+}
+
+void SimFaultWatcher::write_record() {
+  site_.simulated->can->joint_positions_rad(q_);
+  std::error_code ec;
+  if (fs::remove(fs::path(dir_) / "drive_record_mark", ec)) {
+    lo_ = q_;
+    hi_ = q_;
+    ++marks_;
+  }
+  for (std::size_t j = 0; j < q_.size(); ++j) {
+    lo_[j] = std::min(lo_[j], q_[j]);
+    hi_[j] = std::max(hi_[j], q_[j]);
+  }
+  ++seq_;
+  const fs::path tmp = fs::path(dir_) / ".drive_record.tmp";
+  {
+    std::ofstream out(tmp);
+    out.precision(9);
+    out << seq_ << ' ' << marks_;
+    for (const auto* v : {&q_, &lo_, &hi_})
+      for (double x : *v) out << ' ' << x;
+    out << '\n';
+    if (!out) return;
+  }
+  fs::rename(tmp, fs::path(dir_) / "drive_record", ec);
 }
 
 }  // namespace foresight::remote

@@ -11,10 +11,22 @@
 //   drive_emcy_J    joint J (1-based) faults once, with EMCY code = the file's
 //                   text in hex (default 2310, over-current), each time the
 //                   file appears
+//   drive_silent_J  joint J's drive stops sending its heartbeat while it exists
+//   bus_loss_B      bus B (0-based, config order) loses every frame both ways
+//                   while it exists (CanSimulator::set_impairment, loss 1.0)
+//
+// And one output, the simulated drives' own record (not the master's view of
+// them), for tests that check no motion happened that was not commanded:
+//   drive_record    written each poll (temp file + rename): "seq marks" then
+//                   the simulated joint angles (rad), then per joint the lowest
+//                   and the highest angle since the last mark: 2 + 3 x 7 numbers
+//   drive_record_mark  create it to start a new envelope (the watcher deletes
+//                   it and counts the mark in `marks`)
 //
 // A thread polls DIR every 20 ms. Not on a real cabinet (the option needs --sim).
 
 #include <atomic>
+#include <cstdint>
 #include <string>
 #include <thread>
 #include <vector>
@@ -35,7 +47,12 @@ class SimFaultWatcher {
   void run();
   Site& site_;
   std::string dir_;
+  void write_record();
   std::vector<bool> emcy_present_;
+  std::vector<bool> silent_present_;
+  std::vector<bool> bus_loss_present_;
+  std::vector<double> q_, lo_, hi_;
+  std::uint64_t seq_ = 0, marks_ = 0;
   bool jam_ = false, ft_fault_ = false, stuck_ = false, video_silent_ = false;
   std::atomic<bool> quit_{false};
   std::thread thread_;
