@@ -64,17 +64,16 @@ bool decode(const std::uint8_t* bytes, std::size_t n, std::uint8_t encoding, Sam
   if (!dds_stream_extensibility(ops, &ext)) return false;
   const std::uint32_t xcdr = (encoding & 2) || ext != DDSI_SERTYPE_EXT_FINAL ? 2 : 1;  // CDR_ENC_VERSION_1 / _2
   if constexpr (std::is_same_v<T, msg::Command>) {
-    // KNOWN, OPEN (Cyclone DDS 0.10.2, Debian): a Command whose DHEADER ends
-    // before the payload union's discriminator (an "older version" without
-    // the payload: DHEADER <= 44) passes dds_stream_normalize_data, and then
-    // dds_stream_read abort()s default-initializing the absent union: any
-    // participant can kill a Command reader (foresight-remote) with one
-    // sample. Reproducer: fuzz/regressions/fuzz_dds_samples/open/. Skipped
-    // here so the fuzzer looks for other faults.
+    // Cyclone DDS 0.10.2 (Debian) accepts a Command whose DHEADER ends
+    // before the payload union and then abort()s in dds_stream_read: what
+    // Reader<Command> does about it (protocol/dds.hpp take_checked) is done
+    // here too: a DHEADER below MessageTraits<Command>::min_dheader is
+    // dropped before Cyclone reads it. FORESIGHT_FUZZ_KNOWN=1 skips the
+    // guard (to show Cyclone's abort: fuzz/regressions/README.md).
     std::uint32_t dheader = 0;
     if (n >= 4) std::memcpy(&dheader, bytes, 4);
     if (encoding & 1) dheader = __builtin_bswap32(dheader);
-    if (n >= 4 && dheader < 45 && !let_known_crashes_through()) return false;
+    if (n >= 4 && dheader < MessageTraits<msg::Command>::min_dheader && !let_known_crashes_through()) return false;
   }
   const bool bswap = (encoding & 1) != 0;
   // The receive path hands the normalizer a writable, 8-aligned copy.
@@ -145,20 +144,10 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t encoding) {
         (void)foresight::protocol::get_hash(v.content_hash);
         (void)std::string(foresight::protocol::text(v.reason));
       } else if constexpr (std::is_same_v<T, msg::Pong>) {
-        // KNOWN, OPEN: delay_from_pong (codec.hpp:131) subtracts the
-        // received stamps in int64_t: hostile stamps overflow (UB), and the
-        // ground's DelayMonitor::record computes it before checking that the
-        // pong answers one of its pings. Reproducer in
-        // fuzz/regressions/fuzz_dds_samples/open/. Skipped here unless
-        // FORESIGHT_FUZZ_KNOWN=1.
-        const std::int64_t t4 = foresight::protocol::now_ns();
-        std::int64_t a, b, c, d;
-        const bool overflows = __builtin_sub_overflow(t4, v.ground_send_ns, &a) ||
-                               __builtin_sub_overflow(v.remote_send_ns, v.remote_receive_ns, &b) ||
-                               __builtin_sub_overflow(a, b, &c) ||
-                               __builtin_sub_overflow(v.remote_receive_ns, v.ground_send_ns, &a) ||
-                               __builtin_sub_overflow(v.remote_send_ns, t4, &b) || __builtin_add_overflow(a, b, &d);
-        if (!overflows || let_known_crashes_through()) (void)foresight::protocol::delay_from_pong(v, t4);
+        // Hostile stamps: delay_from_pong reports overflow as valid = false
+        // (it was signed-overflow UB; fuzz/regressions/fuzz_dds_samples/).
+        const auto d = foresight::protocol::delay_from_pong(v, foresight::protocol::now_ns());
+        if (!d.valid && (d.rtt_ns != 0 || d.offset_ns != 0)) __builtin_trap();
       } else if constexpr (std::is_same_v<T, msg::Heartbeat> || std::is_same_v<T, msg::Ping>) {
         (void)v;
       } else {

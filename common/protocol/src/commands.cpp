@@ -1,5 +1,6 @@
 #include "foresight/protocol/commands.hpp"
 
+#include <cstdint>
 #include <random>
 
 #include "foresight/protocol/codec.hpp"
@@ -56,10 +57,15 @@ CommandChecker::Verdict CommandChecker::check(const msg::Command& c, std::int64_
                std::to_string(last_sequence_) + " (replayed or reordered)";
     return v;
   }
-  if (c.expires_ns != 0 && now - offset > c.expires_ns) {
+  // now and offset are ours; expires_ns is the sender's and may be anything:
+  // compared without arithmetic on it, the age computed in double (no
+  // signed overflow whatever it holds; found by fuzz_dds_samples).
+  std::int64_t ground_now = 0;
+  if (__builtin_sub_overflow(now, offset, &ground_now)) ground_now = offset < 0 ? INT64_MAX : INT64_MIN;
+  if (c.expires_ns != 0 && ground_now > c.expires_ns) {
     v.code = foresight_msg_REASON_EXPIRED;
-    v.reason = name + "expired " + std::to_string(static_cast<double>(now - offset - c.expires_ns) * 1e-9) +
-               " s ago";
+    v.reason = name + "expired " +
+               std::to_string((static_cast<double>(ground_now) - static_cast<double>(c.expires_ns)) * 1e-9) + " s ago";
     return v;
   }
   session_id_ = c.session_id;

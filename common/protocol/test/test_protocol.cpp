@@ -569,11 +569,18 @@ TEST(ProtocolCommands, CheckerRejectsVersionReplayExpiryAndUnknownKind) {
   auto e = remote.check(*c4, now + 1'250'000'000);
   EXPECT_EQ(e.code, foresight_msg_REASON_EXPIRED);
   EXPECT_EQ(e.reason, "command 4: expired 0.250000 s ago");
+  // A hostile expiry stamp far in the past: refused, no signed overflow
+  // computing its age (UBSan; found by fuzz_dds_samples).
+  auto c4b = ground.next(foresight_msg_CMD_GOTO_JOINT);
+  c4b->expires_ns = INT64_MIN + 1;
+  auto eb = remote.check(*c4b, now, -5'000'000'000);
+  EXPECT_EQ(eb.code, foresight_msg_REASON_EXPIRED);
+  EXPECT_EQ(eb.reason.rfind("command 5: expired ", 0), 0u) << eb.reason;
   auto c5 = ground.next(foresight_msg_CMD_REQUEST);
   fp::set_raw(c5->payload._d, 42);  // as a hostile participant's sample holds it (no enum value formed)
   auto k = remote.check(*c5, now);
   EXPECT_EQ(k.code, foresight_msg_REASON_BAD_ARGUMENT);
-  EXPECT_EQ(k.reason, "command 5: unknown kind 42");
+  EXPECT_EQ(k.reason, "command 6: unknown kind 42");
   EXPECT_EQ(remote.last_sequence(), 3u);
   // A restarted ground (new session) starts again at 1.
   fp::CommandSequencer restarted(78);
