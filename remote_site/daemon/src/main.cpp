@@ -344,7 +344,7 @@ int main(int argc, char** argv) {
   app.add_option("--identity", o.security_identity, "DDS Security identity in that folder (default remote)");
   app.add_flag("--ros2", o.ros2, "also publish rt/joint_states and rt/wrench as ROS 2 types");
   app.add_option("--sim-faults", o.sim_faults,
-                 "with --sim: fault injection folder (tool_jam, ft_fault, oru_stuck, drive_emcy_J files; HIL tests)");
+                 "with --sim: fault injection folder (tool_jam, ft_fault, oru_stuck, video_silent, drive_emcy_J, drive_silent_J, bus_loss_B files; drive_record out; HIL tests)");
 
   foresight::journal::JournalQuery q;
   CLI::App* jcmd = app.add_subcommand("journal", "print the journal: commands, faults, uploads, events");
