@@ -136,13 +136,16 @@ TEST(DisplayCli, NoDisplayWithoutHeadlessIsRefusedNamingHeadless) {
 TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
   World w;
   const std::string cams = true_cameras();
-  // A 2 s trajectory between two arm poses in front of the work site.
-  Eigen::VectorXd q0 = w.model.mid_configuration(), q1 = q0;
-  q0[1] += 0.25;
-  q0[3] -= 0.5;
-  q1 = q0;
-  q1[0] += 0.4;
-  q1[3] += 0.3;
+  // A 2 s trajectory between two arm poses in front of the ORU.
+  KinematicsWorkspace ws(w.model);
+  auto pose_near_oru = [&](const Eigen::Vector3d& offset) {
+    Pose target = w.scene.base_T_object * w.oru.tags.at("approach_20cm");
+    target.translation() += offset;
+    const auto ik = inverse_kinematics(w.model, ws, target, w.model.mid_configuration());
+    EXPECT_TRUE(ik.success);
+    return ik.q;
+  };
+  const Eigen::VectorXd q0 = pose_near_oru({-0.20, -0.15, 0.10}), q1 = pose_near_oru({-0.35, 0.20, 0.35});
   const std::string traj = temp_path(".csv");
   {
     std::ofstream f(traj);
@@ -189,8 +192,14 @@ TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
     cv::Mat ch[3];
     cv::split(d, ch);
     dmax = cv::max(ch[0], cv::max(ch[1], ch[2]));
-    cv::Mat overlay = dmax > 40;
+    cv::Mat overlay = dmax > 25;
     cv::morphologyEx(overlay, overlay, cv::MORPH_OPEN, cv::Mat::ones(3, 3, CV_8U));
+    // Where the overlay's colour happens to match the real arm's (its joint
+    // caps) the difference is small: fill the holes the silhouette encloses.
+    cv::Mat outside = overlay.clone();
+    cv::copyMakeBorder(outside, outside, 1, 1, 1, 1, cv::BORDER_CONSTANT, 0);
+    cv::floodFill(outside, cv::Point(0, 0), 255);
+    overlay |= ~outside(cv::Rect(1, 1, overlay.cols, overlay.rows));
     const double v = iou(overlay, truth);
     worst = std::min(worst, v);
     sum += v;
@@ -198,8 +207,11 @@ TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
   }
   std::printf("display --headless recording (MJPG): overlay vs synthetic arm silhouette IoU mean %.3f, worst %.3f over %d frames\n",
               sum / frames, worst, frames);
-  EXPECT_GT(worst, 0.85);
-  EXPECT_GT(sum / frames, 0.9);
+  // Measured mean 0.965, worst 0.952 (a difference threshold of 40 instead
+  // of 25 lost the parts where the lit overlay and the real arm have close
+  // colours: 0.82); the exact comparison without the codec is in test_display (0.996).
+  EXPECT_GT(worst, 0.9);
+  EXPECT_GT(sum / frames, 0.92);
 }
 
 TEST(DisplayCli, UnopenableVideoSourceIsSaidAndRetriedBoundedByFrames) {
