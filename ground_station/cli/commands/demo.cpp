@@ -230,8 +230,15 @@ double percentile(std::vector<double> v, double p) {
 
 std::string axis_label(double v) {
   char buf[32];
-  if (v != 0.0 && std::abs(v) < 0.01) std::snprintf(buf, sizeof buf, "%.1f ms", v * 1e3);
-  else std::snprintf(buf, sizeof buf, "%g", v);
+  std::snprintf(buf, sizeof buf, "%g", std::abs(v) < 1e-12 ? 0.0 : v);
+  return buf;
+}
+
+/// "0.21 ms" below 10 ms, else "4.001 s".
+std::string seconds_label(double v) {
+  char buf[32];
+  if (std::abs(v) < 0.01) std::snprintf(buf, sizeof buf, "%.2f ms", v * 1e3);
+  else std::snprintf(buf, sizeof buf, "%.3f s", v);
   return buf;
 }
 
@@ -262,18 +269,24 @@ json draw_delay_plot(const std::string& csv, const std::string& png) {
   const double median = percentile(rtts, 0.5), p99 = percentile(rtts, 0.99);
   const double t_max = std::max(pts.back().first, 1.0);
   const double y_top = *std::max_element(rtts.begin(), rtts.end()) * 1.15 + 1e-9;
+  // A round trip can come out a hair below 0 on loopback (four stamps from
+  // two clocks): the axis then starts below 0 so every sample is shown.
+  const double y_bottom = std::min(0.0, *std::min_element(rtts.begin(), rtts.end()) * 1.15);
 
   const int W = 900, H = 420, left = 90, right = 30, top = 40, bottom = 60;
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   const auto X = [&](double t) { return left + static_cast<int>(std::lround(t / t_max * (W - left - right))); };
-  const auto Y = [&](double r) { return H - bottom - static_cast<int>(std::lround(r / y_top * (H - top - bottom))); };
+  const auto Y = [&](double r) {
+    return H - bottom - static_cast<int>(std::lround((r - y_bottom) / (y_top - y_bottom) * (H - top - bottom)));
+  };
   const cv::Scalar black(0, 0, 0), grey(200, 200, 200), blue(200, 90, 0), red(0, 0, 220), dot(60, 60, 60);
   const int font = cv::FONT_HERSHEY_SIMPLEX;
   for (double t = 0; t <= t_max + 1e-9; t += tick_step(t_max, 8)) {  // x ticks
     cv::line(img, {X(t), top}, {X(t), H - bottom}, grey, 1);
     cv::putText(img, axis_label(t), {X(t) - 10, H - bottom + 20}, font, 0.45, black, 1, cv::LINE_AA);
   }
-  for (double r = 0; r <= y_top + 1e-12; r += tick_step(y_top, 5)) {  // y ticks
+  const double y_step = tick_step(y_top - y_bottom, 5);
+  for (double r = std::ceil(y_bottom / y_step) * y_step; r <= y_top + 1e-12; r += y_step) {  // y ticks
     cv::line(img, {left, Y(r)}, {W - right, Y(r)}, grey, 1);
     cv::putText(img, axis_label(r), {8, Y(r) + 5}, font, 0.45, black, 1, cv::LINE_AA);
   }
@@ -283,8 +296,10 @@ json draw_delay_plot(const std::string& csv, const std::string& png) {
   for (const auto& p : pts) cv::circle(img, {X(p.first), Y(p.second)}, 2, dot, cv::FILLED, cv::LINE_AA);
   cv::line(img, {left, Y(median)}, {W - right, Y(median)}, blue, 2, cv::LINE_AA);
   cv::line(img, {left, Y(p99)}, {W - right, Y(p99)}, red, 2, cv::LINE_AA);
-  cv::putText(img, "median " + axis_label(median) + " s", {W - right - 230, Y(median) + 18}, font, 0.5, blue, 1, cv::LINE_AA);
-  cv::putText(img, "p99 " + axis_label(p99) + " s", {W - right - 230, Y(p99) - 8}, font, 0.5, red, 1, cv::LINE_AA);
+  // The median's label below its line, above it when the line runs along the bottom.
+  const int median_y = Y(median) + 18 < H - bottom - 2 ? Y(median) + 18 : Y(median) - 8;
+  cv::putText(img, "median " + seconds_label(median), {W - right - 230, median_y}, font, 0.5, blue, 1, cv::LINE_AA);
+  cv::putText(img, "p99 " + seconds_label(p99), {W - right - 230, Y(p99) - 8}, font, 0.5, red, 1, cv::LINE_AA);
   cv::putText(img, "round trip (s) over the run: " + std::to_string(pts.size()) + " pings", {left, 25}, font, 0.55,
               black, 1, cv::LINE_AA);
   cv::putText(img, "time since the ground connected (s)", {left + (W - left - right) / 2 - 140, H - 15}, font, 0.5,
