@@ -79,7 +79,7 @@ TEST(Camera, LoadRejectsNonOrthonormalRotation) {
     load_cameras(path);
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_STREQ(e.what(), (path + ": camera 'side': base_T_camera rotation is not orthonormal").c_str());
+    EXPECT_STREQ(e.what(), (path + ":4: camera 'side': base_T_camera rotation is not orthonormal").c_str());
   }
   std::remove(path.c_str());
 }

@@ -261,10 +261,10 @@ TEST_F(BadInput, AUrdfWithNegativeMassOrAHugeOffsetExitsTwo) {
   auto r = run_foresight("robot --robot " + mass);
   EXPECT_EQ(r.status, 2) << r.err;
   EXPECT_TRUE(has(r.err, "kg is not in [0, 100000] kg")) << r.err;
-  const std::string far = urdf_with("<origin xyz=\"0 0 ", "<origin xyz=\"0 0 1e308 ");
+  const std::string far = urdf_with("<origin xyz=\"0 0 0.22\"", "<origin xyz=\"0 0 1e308\"");
   r = run_foresight("robot --robot " + far);
   EXPECT_EQ(r.status, 2) << r.err;
-  EXPECT_TRUE(has(r.err, " out of range (finite, each within 100 m)")) << r.err;
+  EXPECT_TRUE(has(r.err, ": joint 'joint1': origin (0, 0, 1e+308) m out of range (finite, each within 100 m)")) << r.err;
 }
 
 TEST_F(BadInput, PlanOptionsThatOverflowTheSampleCountExitTwoWithTheirCause) {
