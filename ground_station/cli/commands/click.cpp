@@ -75,7 +75,8 @@ void save_csv(const std::string& path, const std::string& text) {
 
 void on_model_mouse(int event, int x, int y, int, void* data) {
   auto& ui = *static_cast<Ui*>(data);
-  if (event != cv::EVENT_LBUTTONDOWN) return;
+  // Qt reports a quick second press near the first as a double click: a click all the same.
+  if (event != cv::EVENT_LBUTTONDOWN && event != cv::EVENT_LBUTTONDBLCLK) return;
   const int i = display::nearest_point(*ui.model_px, Eigen::Vector2d(x + 0.5, y + 0.5), kPickRadiusPx);
   if (i >= 0) {
     ui.session->select_model_point(i);
@@ -96,7 +97,8 @@ void on_image_mouse(int event, int x, int y, int flags, void* data) {
     ui.dirty = true;
     return;
   }
-  if (event != cv::EVENT_LBUTTONDOWN) return;
+  // Qt reports a quick second press near the first as a double click: a click all the same.
+  if (event != cv::EVENT_LBUTTONDOWN && event != cv::EVENT_LBUTTONDBLCLK) return;
   switch (ui.session->click_image(uv)) {
     case ClickSession::Outcome::Added: {
       const auto& r = ui.session->session_rows().back();
