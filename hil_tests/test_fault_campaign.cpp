@@ -330,13 +330,10 @@ TEST_F(FaultCampaign, ADrivesHeartbeatLostMidMotionIsACategoryZeroStop) {
 }
 
 TEST_F(FaultCampaign, ABusLosingEveryFrameMidMotionIsACategoryZeroStop) {
-  // KNOWN DEFECT (issue 12 area, hw/controller; not fixed here): after the
-  // bus passes frames again, RECOVER is first refused ("joint5 ... heartbeat
-  // lost; cannot enable"), then succeeds and a new cat-0 stop follows at once
-  // with an empty cause ("hw: none node 0 joint 0 code 0x0000"), and every
-  // later RECOVER is refused "drive power change in progress" (20 s tried).
-  // The stop half is asserted; recovery is not until that is fixed.
-  drive_side_fault("bus_loss_1", "TPDO missing node 5", /*recovers=*/false);
+  // The F/T sensor shares the bus: its heartbeat, lost during the outage,
+  // is cleared by RECOVER once heard again (it used to stay lost: a stop
+  // with no named cause right after every RECOVER).
+  drive_side_fault("bus_loss_1", "TPDO missing node 5");
 }
 
 // F/T overload during an insertion: the tool driven fast into the bottom of

@@ -84,15 +84,19 @@ void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& f
   in.hw_node = 0;
   in.hw_joint = -1;
   in.hw_code = 0;
-  for (std::size_t i = 0; i < status.event_count; ++i) {
-    const hw::HwEvent& e = status.events[i];
-    if (!hw::requires_stop(e.fault)) continue;
-    in.hw_fault = static_cast<std::uint8_t>(e.fault);
-    in.hw_node = e.node;
-    in.hw_joint = e.joint;
-    in.hw_code = e.code;
-    in.hw_drive_fault = !is_sensor_fault(e.fault);
-    break;
+  const hw::HwEvent* cause = nullptr;
+  for (std::size_t i = 0; i < status.event_count && cause == nullptr; ++i)
+    if (hw::requires_stop(status.events[i].fault)) cause = &status.events[i];
+  // No new event this cycle: the stop is a fault that persists (a drive
+  // still in Fault, a node still silent): name that one.
+  if (cause == nullptr && status.stop_required && status.first_active.fault != hw::HwFault::None)
+    cause = &status.first_active;
+  if (cause != nullptr) {
+    in.hw_fault = static_cast<std::uint8_t>(cause->fault);
+    in.hw_node = cause->node;
+    in.hw_joint = cause->joint;
+    in.hw_code = cause->code;
+    in.hw_drive_fault = !is_sensor_fault(cause->fault);
   }
 }
 

@@ -379,6 +379,15 @@ void DriveSystem::enable() {
       else
         throw HwError(node_label(d.bus, d.node) + ": heartbeat lost; cannot enable");
     }
+  // The F/T sensor the same way: a heartbeat lost while its bus was silent
+  // stays lost (a stop on every cycle) until it is heard again.
+  if (ft_ && ft_->heartbeat_lost) {
+    if (start - ft_->last_hb <= heartbeat_timeout_)
+      ft_->heartbeat_lost = false;
+    else
+      throw HwError(node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id) +
+                    " (F/T sensor): heartbeat lost; cannot enable");
+  }
   const auto end = start + std::chrono::duration_cast<Clock::duration>(
                                std::chrono::duration<double>(config_.enable_timeout_s));
   Clock::time_point deadline = start;
@@ -729,6 +738,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   }
 
   std::uint8_t active = 0;
+  HwEvent first_active{};
   for (std::size_t j = 0; j < drives_.size(); ++j) {
     Drive& d = drives_[j];
     const auto bus8 = static_cast<std::uint8_t>(d.bus);
@@ -749,8 +759,14 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
                   0});
     }
     if (d.st.heartbeat_lost || d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive ||
-        d.miss_reported)
-      ++active;
+        d.miss_reported) {
+      if (active++ == 0) {
+        const HwFault why = d.st.heartbeat_lost ? HwFault::HeartbeatLost
+                            : d.miss_reported   ? HwFault::TpdoMissing
+                                                : HwFault::DriveFault;
+        first_active = {why, bus8, d.node, static_cast<std::int8_t>(j), d.st.statusword, 0};
+      }
+    }
   }
   if (ft_) {
     const auto bus8 = static_cast<std::uint8_t>(ft_->cfg.bus_index);
@@ -769,7 +785,15 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
                   static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - ft_->last_hb).count()),
                   0});
     }
-    if (ft_->heartbeat_lost || ft_->miss_reported || ft_->reading.sensor_fault || ft_->reading.saturated_mask) ++active;
+    if (ft_->heartbeat_lost || ft_->miss_reported || ft_->reading.sensor_fault || ft_->reading.saturated_mask) {
+      if (active++ == 0) {
+        const HwFault why = ft_->heartbeat_lost        ? HwFault::HeartbeatLost
+                            : ft_->miss_reported       ? HwFault::FtMissing
+                            : ft_->reading.sensor_fault ? HwFault::FtSensorFault
+                                                        : HwFault::FtSaturated;
+        first_active = {why, bus8, ft_->cfg.node_id, -1, ft_->reading.saturated_mask, 0};
+      }
+    }
     ft_out = ft_->reading;
     ft_out.tare_in_progress = ft_->decoder.tare_in_progress();
   } else {
@@ -777,7 +801,14 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   }
   for (BusState& bs : bus_state_) {
     bs.sync_sent = false;
-    if (bs.bus_off_reported || bs.closed_reported || bs.restart_limit_hit) ++active;
+    if (bs.bus_off_reported || bs.closed_reported || bs.restart_limit_hit) {
+      if (active++ == 0) {
+        const HwFault why = bs.restart_limit_hit ? HwFault::BusOffRepeated
+                            : bs.bus_off_reported ? HwFault::BusOff
+                                                  : HwFault::RxFailed;
+        first_active = {why, static_cast<std::uint8_t>(&bs - bus_state_.data()), 0, -1, 0, 0};
+      }
+    }
   }
 
   joints.count = drives_.size();
@@ -786,6 +817,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   CycleStatus s;
   s.cycle = cycle_;
   s.active_faults = active;
+  s.first_active = first_active;
   s.frames_received = frames_this_cycle_;
   s.event_count = static_cast<std::uint8_t>(pending_count_);
   s.events_dropped = pending_dropped_;

@@ -128,6 +128,10 @@ struct CycleStatus {
   std::uint16_t events_dropped = 0;
   std::uint16_t frames_received = 0;
   std::array<HwEvent, kMaxEvents> events{};
+  /// The first persisting fault counted in active_faults (drive, F/T, then
+  /// bus order), so a stop that persists without a new event this cycle
+  /// still names its cause. fault = None when active_faults == 0.
+  HwEvent first_active{};
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
 
