@@ -51,7 +51,7 @@ linked=$(ldd "$tmp/remote/usr/bin/foresight-remote")
 grep -Eiq 'GL|opencv' <<<"$linked" && fail "foresight-remote links a ground library: $(grep -Ei 'GL|opencv' <<<"$linked")"
 grep -q 'not found' <<<"$linked" && fail "foresight-remote: unresolved libraries: $linked"
 # Every drive SDO list remote.yaml names (relative to it) is in the package beside it.
-sdo_files=$(grep -o 'sdo_file: *[^,} ]*' "$tmp/remote/etc/foresight/remote.yaml" | awk '{print $2}' | sort -u)
+sdo_files=$(sed 's/#.*//' "$tmp/remote/etc/foresight/remote.yaml" | grep -o 'sdo_file: *[^,} ]*' | awk '{print $2}' | sort -u)
 [[ -n $sdo_files ]] || fail "/etc/foresight/remote.yaml names no sdo_file"
 for f in $sdo_files; do
   [[ -f $tmp/remote/etc/foresight/$f ]] || fail "/etc/foresight/remote.yaml names sdo_file $f, which the package lacks"

@@ -110,6 +110,12 @@ Site build_site(SiteOptions options) {
                                              "(can0...), or run with --sim");
       master.push_back(std::make_unique<hw::SocketCanBus>(bus.interface));
     }
+    // The cabinet's video switch, when remote.yaml has one (CAMERA is
+    // refused "no video switch configured" otherwise).
+    if (auto video = hw::load_video_switch_section(options.remote_yaml)) {
+      site.video_config = video->link;
+      site.camera_names = video->camera_names;
+    }
   }
   site.drives = std::make_unique<hw::DriveSystem>(site.hw_config, std::move(master),
                                                   hw::joint_limits_by_name(*site.model));

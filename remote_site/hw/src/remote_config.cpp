@@ -100,7 +100,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "buses", "drives", "ft_sensor", "tool", "controller"});
+                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "buses", "drives", "ft_sensor", "tool", "video_switch", "controller"});
 
   RemoteConfig c;
   c.source = source_name;

@@ -6,6 +6,7 @@
 
 #include "foresight/common/error.hpp"
 #include "foresight/hw/remote_config.hpp"
+#include "foresight/hw/video_switch.hpp"
 
 using namespace foresight;
 using namespace foresight::hw;
@@ -140,4 +141,49 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "/nonexistent/remote.yaml: cannot open the remote configuration file");
   }
+}
+
+// ---- the optional video_switch: section ----
+
+namespace {
+std::string video_error(const std::string& yaml) {
+  try {
+    foresight::hw::parse_video_switch_section(yaml, "remote.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+}  // namespace
+
+TEST(VideoSwitchSection, TheProjectFileNamesTheSceneCamerasInSwitchOrder) {
+  const auto s = foresight::hw::load_video_switch_section(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->camera_names, (std::vector<std::string>{"side", "oblique", "overhead_wide", "overhead_zoom"}));
+  EXPECT_EQ(s->link.port, 1503);
+  EXPECT_DOUBLE_EQ(s->link.response_timeout_s, 0.1);
+  EXPECT_EQ(s->link.retries, 2);
+  // The section is a known top-level key of remote.yaml.
+  EXPECT_NO_THROW(load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml"));
+}
+
+TEST(VideoSwitchSection, AbsentIsNoneAndBadValuesAreNamed) {
+  EXPECT_FALSE(foresight::hw::parse_video_switch_section("cycle_rate_hz: 500\n", "remote.yaml").has_value());
+  const std::string head = "cycle_rate_hz: 500\nvideo_switch:\n";
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  port: 70000\n  cameras: [a]\n"),
+            "remote.yaml:4: video_switch.port: 70000 is outside 1..65535");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: []\n"),
+            "remote.yaml:4: video_switch.cameras: must be a non-empty list of camera names (index = switch input)");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: [a, b, a]\n"),
+            "remote.yaml:4: video_switch.cameras: 'a' is listed twice");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  zoom: 3\n  cameras: [a]\n"),
+            "remote.yaml:4: video_switch.zoom: unknown key (expected one of: host, port, unit_id, response_timeout_ms, "
+            "retries, cameras)");
+  EXPECT_EQ(video_error(head + "  port: 502\n  cameras: [a]\n"),
+            "remote.yaml:3: video_switch.host: missing (the switch's address)");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  retries: 11\n  cameras: [a]\n"),
+            "remote.yaml:4: video_switch.retries: 11 is outside 0..10");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  response_timeout_ms: 0\n  cameras: [a]\n"),
+            "remote.yaml:4: video_switch.response_timeout_ms: must be in (0, 10000]");
+  EXPECT_EQ(video_error("video_switch: 5\n"), "remote.yaml:1: video_switch: expected a map");
 }

@@ -46,7 +46,9 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
+#include <vector>
 #include <system_error>
 
 typedef struct _modbus modbus_t;  // libmodbus context (opaque)
@@ -110,6 +112,28 @@ struct VideoSwitchConfig {
   /// "tcp 127.0.0.1:1503 unit 1"
   std::string describe() const;
 };
+
+/// The optional `video_switch:` section of remote.yaml (a real cabinet's
+/// switch; --sim replaces the link with its simulated switch):
+///   video_switch:
+///     host: 192.168.10.21
+///     port: 502                    # default 1503
+///     unit_id: 1
+///     response_timeout_ms: 100
+///     retries: 2
+///     cameras: [side, oblique, overhead_wide, overhead_zoom]   # index = switch input
+struct VideoSwitchSection {
+  VideoSwitchConfig link;
+  std::vector<std::string> camera_names;  ///< the names CAMERA commands use, by switch input
+  int line = 0;
+};
+
+/// Reads the section from remote.yaml text; nullopt when there is none.
+/// InputError naming the file, line and key: unknown keys, a port outside
+/// 1..65535, a unit outside 0..255, a non-positive timeout, retries outside
+/// 0..10, no cameras, an empty or repeated camera name.
+std::optional<VideoSwitchSection> parse_video_switch_section(const std::string& yaml_text, const std::string& source);
+std::optional<VideoSwitchSection> load_video_switch_section(const std::string& remote_yaml_path);
 
 /// A camera and its set point. SI inside: radians and pixels.
 struct CameraView {
