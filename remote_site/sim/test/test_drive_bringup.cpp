@@ -15,7 +15,13 @@ using hw::canopen::PowerState;
 
 TEST(DriveBringUp, PowerOnToOperationEnabledHoldsPosition) {
   // joint2 powers on away from zero: enabling must not move it.
-  SimRig rig(project_config(), {}, [](sim::CanSimulator& s) { s.drive(1).set_position_counts(1234567); });
+  // Between configure() and enable() the master sends no cycles (no
+  // heartbeat): on a loaded machine the checks below can outlast the drives'
+  // 150 ms heartbeat consumer (they fault, EMCY 0x8130). This test is about
+  // the bring-up, not the consumer (test_drive_faults): give it 1 s.
+  hw::RemoteConfig cfg = project_config();
+  cfg.heartbeat_consumer_s = 1.0;
+  SimRig rig(cfg, {}, [](sim::CanSimulator& s) { s.drive(1).set_position_counts(1234567); });
   rig.drives->configure();
   for (std::size_t j = 0; j < 7; ++j) {
     EXPECT_EQ(rig.sim->drive(j).nmt_state(), hw::canopen::NmtState::Operational) << j;
