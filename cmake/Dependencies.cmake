@@ -32,7 +32,7 @@ pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 # foresight_add_test(NAME SOURCES... LIBS ...): one gtest executable, its tests
 # discovered into ctest. Tests see FORESIGHT_CONFIG_DIR and FORESIGHT_BIN_DIR.
 function(foresight_add_test name)
-  cmake_parse_arguments(T "" "TIMEOUT;LOCK" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "SERIAL" "TIMEOUT;LOCK" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
   # Shared test helpers (foresight/test/cli.hpp: run the CLI, scratch files).
@@ -53,6 +53,12 @@ function(foresight_add_test name)
   endif()
   if(T_LOCK)
     list(APPEND T_PROPERTIES RESOURCE_LOCK ${T_LOCK})
+  endif()
+  # SERIAL: nothing else runs beside these tests (they measure a few
+  # milliseconds of bus timing: production TPDO miss limits, heartbeat
+  # consumer times, and a neighbour test on 2 cores shifts those).
+  if(T_SERIAL)
+    list(APPEND T_PROPERTIES RUN_SERIAL TRUE)
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ${T_PROPERTIES})
 endfunction()
