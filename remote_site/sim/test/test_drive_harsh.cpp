@@ -35,10 +35,16 @@ TEST(HarshBus, ProductionTpdoMissLimitFaultsALostDriveInThreeCycles) {
   rig.run_until([](const CycleStatus&) { return false; }, 5);
   rig.sim->drive(2).stop_answering(true);
   int n = 0;
-  const CycleStatus s = rig.run_until(has(HwFault::TpdoMissing), 50, &n);
-  const HwEvent* e = find_event(s, HwFault::TpdoMissing);
+  // The lost drive's miss (on a loaded machine a neighbour may miss too, from
+  // scheduling; the lost one is counted in master cycles all the same).
+  auto lost_missing = [](const CycleStatus& st) -> const HwEvent* {
+    for (std::size_t i = 0; i < st.event_count; ++i)
+      if (st.events[i].fault == HwFault::TpdoMissing && st.events[i].joint == 2) return &st.events[i];
+    return nullptr;
+  };
+  const CycleStatus s = rig.run_until([&](const CycleStatus& st) { return lost_missing(st) != nullptr; }, 50, &n);
+  const HwEvent* e = lost_missing(s);
   ASSERT_NE(e, nullptr);
-  EXPECT_EQ(e->joint, 2);
   EXPECT_EQ(e->code, 3u);
   EXPECT_TRUE(s.stop_required);
   EXPECT_GE(n, 3);
