@@ -15,49 +15,6 @@
 #include "foresight/render/synthetic_camera.hpp"
 
 namespace foresight::align {
-namespace {
-
-// Error (x, y, z, theta) of an estimate in the true object frame.
-Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
-  Eigen::Matrix<double, 6, 1> e;
-  e.head<3>() = truth.linear().transpose() * (est.translation() - truth.translation());
-  const Eigen::AngleAxisd aa(truth.linear().transpose() * est.linear());
-  e.tail<3>() = aa.angle() * aa.axis();
-  return e;
-}
-
-struct Accumulator {
-  int n = 0;
-  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
-  Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero();
-  void add(const Eigen::Matrix<double, 6, 1>& e) {
-    ++n;
-    sum += e;
-    sum_sq += e.cwiseAbs2();
-  }
-  ErrorStats stats() const {
-    ErrorStats s;
-    s.n = n;
-    if (n == 0) return s;
-    s.mean = sum / n;
-    s.rms = (sum_sq / n).cwiseSqrt();
-    const double bessel = n > 1 ? static_cast<double>(n) / (n - 1) : 1.0;
-    s.sd = ((sum_sq / n - s.mean.cwiseAbs2()) * bessel).cwiseMax(0.0).cwiseSqrt();
-    s.alignment95_m = s.mean.head<2>().norm() + 2.0 * s.sd.head<2>().norm();
-    s.depth95_m = std::abs(s.mean[2]) + 2.0 * s.sd[2];
-    s.position_rmse_m = s.rms.head<3>().norm();
-    s.rotation_rmse_rad = s.rms.tail<3>().norm();
-    return s;
-  }
-};
-
-std::string label_of(const std::vector<int>& views) {
-  std::string s;
-  for (const int v : views) s += (s.empty() ? "" : "+") + std::to_string(v + 1);
-  return s;
-}
-
-}  // namespace
 
 AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotModel& robot, const ObjectModel& object,
                                          const Scene& scene, const AlignmentStudyOptions& opt) {
@@ -93,10 +50,10 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       AlignmentComboStats c;
       for (int v = 0; v < nv; ++v)
         if (mask & (1 << v)) c.views.push_back(v);
-      c.label = label_of(c.views);
+      c.label = view_combination_label(c.views);
       combos.push_back(c);
     }
-  std::vector<Accumulator> acc_clicks(combos.size()), acc_aligned(combos.size());
+  std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size());
   res.camera_clicks_px.assign(nv, 0.0);
   res.camera_aligned_px.assign(nv, 0.0);
   res.camera_refused.assign(nv, 0);

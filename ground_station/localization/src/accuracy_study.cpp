@@ -16,9 +16,6 @@
 
 namespace foresight {
 
-namespace {
-
-/// Error (x, y, z, theta) in the object frame of an estimate.
 Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
   Eigen::Matrix<double, 6, 1> e;
   e.head<3>() = truth.linear().transpose() * (est.translation() - truth.translation());
@@ -27,38 +24,32 @@ Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
   return e;
 }
 
-struct Accumulator {
-  int n = 0;
-  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
-  Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero();
-  void add(const Eigen::Matrix<double, 6, 1>& e) {
-    ++n;
-    sum += e;
-    sum_sq += e.cwiseAbs2();
-  }
-  ErrorStats stats() const {
-    ErrorStats s;
-    s.n = n;
-    if (n == 0) return s;
-    s.mean = sum / n;
-    s.rms = (sum_sq / n).cwiseSqrt();
-    const double bessel = n > 1 ? static_cast<double>(n) / (n - 1) : 1.0;
-    s.sd = ((sum_sq / n - s.mean.cwiseAbs2()) * bessel).cwiseMax(0.0).cwiseSqrt();
-    s.alignment95_m = s.mean.head<2>().norm() + 2.0 * s.sd.head<2>().norm();
-    s.depth95_m = std::abs(s.mean[2]) + 2.0 * s.sd[2];
-    s.position_rmse_m = s.rms.head<3>().norm();
-    s.rotation_rmse_rad = s.rms.tail<3>().norm();
-    return s;
-  }
-};
+void ErrorAccumulator::add(const Eigen::Matrix<double, 6, 1>& e) {
+  ++n;
+  sum += e;
+  sum_sq += e.cwiseAbs2();
+}
 
-std::string label_of(const std::vector<int>& views) {
+ErrorStats ErrorAccumulator::stats() const {
+  ErrorStats s;
+  s.n = n;
+  if (n == 0) return s;
+  s.mean = sum / n;
+  s.rms = (sum_sq / n).cwiseSqrt();
+  const double bessel = n > 1 ? static_cast<double>(n) / (n - 1) : 1.0;
+  s.sd = ((sum_sq / n - s.mean.cwiseAbs2()) * bessel).cwiseMax(0.0).cwiseSqrt();
+  s.alignment95_m = s.mean.head<2>().norm() + 2.0 * s.sd.head<2>().norm();
+  s.depth95_m = std::abs(s.mean[2]) + 2.0 * s.sd[2];
+  s.position_rmse_m = s.rms.head<3>().norm();
+  s.rotation_rmse_rad = s.rms.tail<3>().norm();
+  return s;
+}
+
+std::string view_combination_label(const std::vector<int>& views) {
   std::string s;
   for (const int v : views) s += (s.empty() ? "" : "+") + std::to_string(v + 1);
   return s;
 }
-
-}  // namespace
 
 std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& m) {
   KinematicsWorkspace ws(m);
@@ -230,7 +221,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       ComboStats c;
       for (int v = 0; v < nv; ++v)
         if (mask & (1 << v)) c.views.push_back(v);
-      c.label = label_of(c.views);
+      c.label = view_combination_label(c.views);
       Eigen::Matrix<double, 6, 6> joint, known;
       cramer_rao_bound(setup, c.views, opt.noise_px, joint, known);
       c.crlb_sd = joint.diagonal().cwiseMax(0.0).cwiseSqrt();
@@ -241,7 +232,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
       c.crlb_depth95_m = 2.0 * std::sqrt(joint(2, 2));
       res.combos.push_back(c);
     }
-  std::vector<Accumulator> ours(res.combos.size()), ours_joint(res.combos.size()), pnp_it(res.combos.size()), pnp_sq(res.combos.size()),
+  std::vector<ErrorAccumulator> ours(res.combos.size()), ours_joint(res.combos.size()), pnp_it(res.combos.size()), pnp_sq(res.combos.size()),
       tri(res.combos.size());
   std::vector<double> calib_rms_sum(nv, 0.0);
   int good_trials = 0;

@@ -94,6 +94,22 @@ struct ErrorStats {
   double rotation_rmse_rad = 0.0;
 };
 
+/// Error (x, y, z, theta) of an estimate in the true object frame, the
+/// order of ErrorStats.
+Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth);
+
+/// Sums of pose errors over trials -> ErrorStats (Bessel-corrected sd).
+struct ErrorAccumulator {
+  int n = 0;
+  Eigen::Matrix<double, 6, 1> sum = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero();
+  void add(const Eigen::Matrix<double, 6, 1>& e);
+  ErrorStats stats() const;
+};
+
+/// "1+2+4": 0-based view indices written 1-based, as the paper.
+std::string view_combination_label(const std::vector<int>& views);
+
 struct ComboStats {
   std::vector<int> views;  ///< 0-based view indices
   std::string label;       ///< "1+2+4" (1-based, as the paper)
