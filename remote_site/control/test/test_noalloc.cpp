@@ -1,115 +1,45 @@
 // The control cycle never touches the heap: 10,000 cycles of every mode
 // (disabled, stiff and compliant hold, trajectory, compliant trajectory,
 // guarded_move, insert with spiral search, pull_out, controlled stop,
-// stopped, fault) and the commands that start and end them, counted with a
-// replaced operator new AND an interposed malloc (Eigen and KDL allocate
-// through malloc). The counter is armed only around Controller::step() and
-// Controller::command(); the test's plant and bookkeeping run unarmed.
+// stopped, fault) and the commands that start and end them, counted with the
+// shared counter (foresight/test/allocation_counter.hpp: a replaced operator
+// new AND malloc, since Eigen and KDL allocate through malloc; under ASan/TSan
+// the sanitizer's own malloc hook, so this test runs in the sanitizer builds
+// too). The counter is armed only around Controller::step() and
+// Controller::command() on the test thread; the test's plant and bookkeeping
+// run unarmed.
 
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cerrno>
-#include <cstdlib>
-#include <new>
+#include <memory>
+#include <optional>
 
 #include "control_fixture.hpp"
 #include "foresight/control/control_loop.hpp"
 #include "foresight/control/spsc_ring.hpp"
 #include "foresight/sim/can_simulator.hpp"
-
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-}
+#include "foresight/test/allocation_counter.hpp"
 
 namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-inline void count() {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
+// One counter per test (armed and paused by arm()); created paused.
+std::optional<foresight::test::AllocationCounter> g_counter;
+void reset_counter() {
+  g_counter.reset();
+  g_counter.emplace();
+  g_counter->pause();
 }
-void* checked(void* p) {
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
+long allocations() { return g_counter->count(); }
 }  // namespace
-
-// ---- the C allocator ----
-extern "C" {
-void* malloc(std::size_t n) {
-  count();
-  return __libc_malloc(n);
-}
-void* calloc(std::size_t n, std::size_t size) {
-  count();
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t n) {
-  count();
-  return __libc_realloc(p, n);
-}
-void* memalign(std::size_t a, std::size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-void* aligned_alloc(std::size_t a, std::size_t n) {
-  count();
-  return __libc_memalign(a, n);
-}
-int posix_memalign(void** out, std::size_t a, std::size_t n) {
-  count();
-  void* p = __libc_memalign(a, n);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* p) { __libc_free(p); }
-}
-
-// ---- C++ operator new/delete ----
-void* operator new(std::size_t n) {
-  count();
-  return checked(__libc_malloc(n == 0 ? 1 : n));
-}
-void* operator new[](std::size_t n) {
-  count();
-  return checked(__libc_malloc(n == 0 ? 1 : n));
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  count();
-  return __libc_malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  count();
-  return __libc_malloc(n == 0 ? 1 : n);
-}
-void* operator new(std::size_t n, std::align_val_t a) {
-  count();
-  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  count();
-  return checked(__libc_memalign(static_cast<std::size_t>(a), n == 0 ? 1 : n));
-}
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-
 
 namespace foresight::control::test {
 namespace {
 
-void arm(bool on) { g_counting.store(on, std::memory_order_relaxed); }
+void arm(bool on) {
+  if (on)
+    g_counter->resume();
+  else
+    g_counter->pause();
+}
 
 Trajectory long_trajectory(const JointArray& from, double duration_s) {
   Trajectory t;
@@ -134,14 +64,14 @@ JointArray ik(const Pose& target) {
 }
 
 TEST(ControlNoAlloc, CounterSeesAllocations) {
-  g_allocations = 0;
+  reset_counter();
   arm(true);
   auto* v = new std::vector<double>(100);
   Eigen::VectorXd x(50);
   x.setZero();
   arm(false);
   delete v;
-  EXPECT_EQ(g_allocations.load(), 3);
+  EXPECT_EQ(allocations(), 3);
 }
 
 TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
@@ -158,11 +88,11 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
   b.base_T_oru = base_T_oru;
   b.last_tip = b.tip(b.q_arm);
   b.arm = arm;
-  g_allocations = 0;
+  reset_counter();
   const auto run = [&](const char* what, int cycles) {
-    const long before = g_allocations.load();
+    const long before = allocations();
     for (int k = 0; k < cycles; ++k) b.step();
-    EXPECT_EQ(g_allocations.load() - before, 0) << what;
+    EXPECT_EQ(allocations() - before, 0) << what;
   };
   const auto command = [&](MotionCommandKind kind, auto&& fill) {
     MotionCommand c;
@@ -295,8 +225,8 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
   run.kind = MotionCommandKind::RunTrajectory;
   run.trajectory = &traj;
   run.compliant = true;
-  g_allocations = 0;
-  long allocations = 0;
+  reset_counter();
+  long allocated = 0;
   std::size_t popped = 0;
   for (int k = 0; k < 10000; ++k) {
     simulator->process(0);
@@ -314,13 +244,13 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
     for (std::size_t i = 0; i < out.event_count; ++i) events->try_push(out.events[i]);
     telemetry->try_push(out.telemetry);
     arm(false);
-    allocations = g_allocations.load();
+    allocated = allocations();
     MotionEvent e;
     while (events->try_pop(e)) ++popped;
     TelemetrySample ts;
     while (telemetry->try_pop(ts)) {
     }
-    ASSERT_EQ(allocations, 0) << "cycle " << k;
+    ASSERT_EQ(allocated, 0) << "cycle " << k;
   }
   EXPECT_EQ(ctl.mode(), ControllerMode::Trajectory);
   EXPECT_GE(popped, 3u);  // enable started + completed, trajectory started
