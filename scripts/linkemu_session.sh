@@ -11,7 +11,8 @@
 # --loss 0.01 --rate-kbit 512 ...; see docs/linkemu.md). The remote command
 # starts first, in the background; the ground command runs until it ends, and
 # its exit status is the script's. Both see CYCLONEDDS_URI set for the link,
-# and LINKEMU_GROUND_NS, LINKEMU_REMOTE_NS. A "link up" line and, at the end,
+# and LINKEMU_GROUND_NS, LINKEMU_REMOTE_NS, LINKEMU_PID (the emulator: SIGUSR1
+# takes the link down, SIGUSR2 brings it back). A "link up" line and, at the end,
 # the emulator's statistics (one JSON line) go to stderr.
 #
 # Exit status: the ground command's; 77 when namespaces are not permitted here
@@ -115,7 +116,8 @@ fi
 field() { printf '%s' "$ready" | sed -n "s/.*\"$1\":\"\([^\"]*\)\".*/\1/p"; }
 LINKEMU_GROUND_NS="$(field ground_netns)"
 LINKEMU_REMOTE_NS="$(field remote_netns)"
-export LINKEMU_GROUND_NS LINKEMU_REMOTE_NS
+LINKEMU_PID="$emu_pid"  # kill -USR1 / -USR2: link down / up (docs/linkemu.md)
+export LINKEMU_GROUND_NS LINKEMU_REMOTE_NS LINKEMU_PID
 echo "linkemu_session: link up: ground $LINKEMU_GROUND_NS ($(field ground_address)), remote $LINKEMU_REMOTE_NS ($(field remote_address)); emulator options: ${emu_opts[*]:-none}" >&2
 
 if [ -n "$remote_cmd" ]; then

@@ -30,13 +30,18 @@ void Forwarder::read_burst(Lane& lane) noexcept {
   for (int i = 0; i < 256; ++i) {
     auto slot = lane.line.acquire();
     const bool have_slot = !slot.empty();
-    std::uint8_t* buffer = have_slot ? slot.data() : scratch_.data();
-    const std::size_t size = have_slot ? slot.size() : scratch_.size();
+    const bool keep = have_slot && !down_;
+    std::uint8_t* buffer = keep ? slot.data() : scratch_.data();
+    const std::size_t size = keep ? slot.size() : scratch_.size();
     const ssize_t n = ::read(lane.in_fd, buffer, size);
     if (n <= 0) return;  // EAGAIN (drained), EINTR or an error: poll again
     const std::int64_t now = monotonic_ns();
     lane.stats.packets_in += 1;
     lane.stats.bytes_in += static_cast<std::uint64_t>(n);
+    if (down_) {
+      lane.stats.dropped_outage += 1;
+      continue;
+    }
     if (!have_slot) {
       lane.stats.dropped_overflow += 1;
       continue;

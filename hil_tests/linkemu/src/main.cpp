@@ -6,7 +6,9 @@
 //                     [--rate-kbit R] ... [--]
 //       creates PREFIX-PID-ground and PREFIX-PID-remote, a TUN device in each,
 //       prints one JSON line {"event":"ready",...} and forwards until
-//       SIGINT/SIGTERM/SIGHUP (or --lifetime-s); then prints one JSON line
+//       SIGINT/SIGTERM/SIGHUP (or --lifetime-s); SIGUSR1 takes the link down
+//       (an outage: every packet entering is dropped) and SIGUSR2 brings it
+//       back, each printing {"event":"link","state":"down"|"up"}; then prints one JSON line
 //       {"event":"stats",...}, removes both namespaces and exits 0.
 //   foresight-linkemu exec NAME [--keep-dds-env] [--exit-with-parent] -- CMD [ARGS...]
 //       runs CMD inside namespace NAME with CYCLONEDDS_URI set for the link
@@ -150,6 +152,7 @@ json stats_json(const le::DirectionStats& s, std::size_t in_flight) {
           {"dropped_queue", s.dropped_queue},
           {"dropped_overflow", s.dropped_overflow},
           {"dropped_write", s.dropped_write},
+          {"dropped_outage", s.dropped_outage},
           {"reordered", s.reordered},
           {"max_queued", s.max_queued}};
 }
@@ -168,6 +171,8 @@ int run(const RunOptions& o) {
   sigaddset(&mask, SIGINT);
   sigaddset(&mask, SIGTERM);
   sigaddset(&mask, SIGHUP);
+  sigaddset(&mask, SIGUSR1);
+  sigaddset(&mask, SIGUSR2);
   if (sigprocmask(SIG_BLOCK, &mask, nullptr) != 0) throw std::runtime_error("sigprocmask failed");
   std::signal(SIGPIPE, SIG_IGN);
   const int stop_fd = signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK);
@@ -236,11 +241,23 @@ int run(const RunOptions& o) {
                 {"remote", le::cyclone_config_xml(kInterface, gcfg.address)}}}});
 
   const std::int64_t deadline = o.lifetime_s > 0 ? le::monotonic_ns() + std::llround(o.lifetime_s * 1e9) : 0;
-  const int err = forwarder.run(stop_fd, deadline);
+  int err = 0;
   std::string reason = "lifetime";
-  signalfd_siginfo info{};
-  if (::read(stop_fd, &info, sizeof info) == static_cast<ssize_t>(sizeof info)) {
-    reason = strsignal(static_cast<int>(info.ssi_signo));
+  for (;;) {
+    err = forwarder.run(stop_fd, deadline);
+    signalfd_siginfo info{};
+    if (err != 0 || ::read(stop_fd, &info, sizeof info) != static_cast<ssize_t>(sizeof info)) break;
+    const int signo = static_cast<int>(info.ssi_signo);
+    if (signo == SIGUSR1 || signo == SIGUSR2) {  // outage control; go on forwarding
+      const bool down = signo == SIGUSR1;
+      if (down != forwarder.down()) {
+        forwarder.set_down(down);
+        print_line({{"event", "link"}, {"state", down ? "down" : "up"}, {"t_ns", le::monotonic_ns()}});
+      }
+      continue;
+    }
+    reason = strsignal(signo);
+    break;
   }
   if (err != 0) reason = std::string("ppoll: ") + std::strerror(err);
   print_line({{"event", "stats"},

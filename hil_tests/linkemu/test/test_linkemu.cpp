@@ -352,6 +352,39 @@ TEST(LinkEmu, LossRateWithinStatisticalBounds) {
   }
 }
 
+// ----------------------------------------------------------------- outage
+
+TEST(LinkEmu, OutageDropsEverythingEnteringUntilTheLinkIsBack) {
+  START_EMULATOR(emu, "--delay-ms", "5");
+  const int rx = udp_socket_in(emu.remote(), emu.ready.at("remote_address"), 47005);
+  const int tx = udp_socket_in(emu.ground(), emu.ready.at("ground_address"), 0);
+  const auto to = endpoint(emu.ready.at("remote_address"), 47005);
+  const auto burst = [&] {
+    send_probes(tx, to, 20, 1ms, 64);
+    return receive_until_quiet(rx, 300ms, 10s, false).size();
+  };
+  EXPECT_EQ(burst(), 20u);
+  kill(emu.child.pid, SIGUSR1);
+  const auto down = emu.child.line(10s);
+  ASSERT_TRUE(down);
+  EXPECT_EQ(json::parse(*down).at("state"), "down") << *down;
+  EXPECT_EQ(burst(), 0u);  // nothing gets through while the link is down
+  kill(emu.child.pid, SIGUSR2);
+  const auto up = emu.child.line(10s);
+  ASSERT_TRUE(up);
+  EXPECT_EQ(json::parse(*up).at("state"), "up") << *up;
+  EXPECT_EQ(burst(), 20u);
+  close(rx);
+  close(tx);
+  const json stats = emu.stop();
+  EXPECT_EQ(emu.child.exit_code(), 0);
+  const auto& g2r = stats.at("ground_to_remote");
+  EXPECT_EQ(g2r.at("packets_in").get<int>(), 60);
+  EXPECT_EQ(g2r.at("dropped_outage").get<int>(), 20);
+  EXPECT_EQ(g2r.at("dropped").get<int>(), 20);
+  EXPECT_EQ(g2r.at("packets_out").get<int>(), 40);
+}
+
 // -------------------------------------------------------------- bandwidth
 
 TEST(LinkEmu, BandwidthCapRespectedAndQueueBounded) {

@@ -24,9 +24,11 @@ struct DirectionStats {
   std::uint64_t dropped_queue = 0;     ///< bandwidth shaper's queue limit
   std::uint64_t dropped_overflow = 0;  ///< the delay line was full
   std::uint64_t dropped_write = 0;     ///< the far TUN refused the packet
+  std::uint64_t dropped_outage = 0;    ///< entered while the link was down (set_down)
   std::uint64_t reordered = 0;
   std::uint64_t max_queued = 0;
-  std::uint64_t dropped() const noexcept { return dropped_loss + dropped_queue + dropped_overflow + dropped_write; }
+  std::uint64_t dropped() const noexcept { return dropped_loss + dropped_queue + dropped_overflow + dropped_write + dropped_outage;
+  }
 };
 
 enum Direction : int { kGroundToRemote = 0, kRemoteToGround = 1 };
@@ -45,13 +47,23 @@ class Forwarder {
   Forwarder(int ground_fd, int remote_fd, const ForwarderOptions& options);
 
   /// Runs until `stop_fd` becomes readable (e.g. a signalfd) or CLOCK_MONOTONIC
-  /// reaches `deadline_ns` (0 = none). Packets still queued are dropped.
+  /// reaches `deadline_ns` (0 = none). Packets still queued stay queued: a
+  /// later run() delivers them; the caller that stops for good drops them.
   /// Returns 0, or the errno of a failed ppoll().
   int run(int stop_fd, std::int64_t deadline_ns) noexcept;
 
   const DirectionStats& stats(Direction d) const noexcept { return lanes_[d].stats; }
   /// Packets still in the timed queue (in flight when run() returned).
   std::size_t queued(Direction d) const noexcept { return lanes_[d].line.size(); }
+
+  /// A link outage (a dropped radio link, a ground station hand-over): while
+  /// down, every packet entering either direction is dropped (dropped_outage);
+  /// packets already in flight still arrive, as on a real path. Call between
+  /// run()s: run() returns when stop_fd is readable, the caller reads the
+  /// signal, sets this, and calls run() again (the delay lines keep their
+  /// packets and times).
+  void set_down(bool down) noexcept { down_ = down; }
+  bool down() const noexcept { return down_; }
 
  private:
   struct Lane {
@@ -66,7 +78,8 @@ class Forwarder {
   void deliver_due(Lane& lane, std::int64_t now_ns) noexcept;
 
   std::array<Lane, 2> lanes_;
-  std::array<std::uint8_t, 65536> scratch_{};  // for packets dropped before queueing
+  std::array<std::uint8_t, 65536> scratch_{};
+  bool down_ = false;  // for packets dropped before queueing
 };
 
 /// CLOCK_MONOTONIC in nanoseconds.
