@@ -9,8 +9,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "foresight/calibration/detail/levenberg_marquardt.hpp"
-#include "foresight/calibration/detail/robust.hpp"
+#include "foresight/calibration/levenberg_marquardt.hpp"
+#include "foresight/calibration/outlier_flagging.hpp"
 #include "foresight/camera/projection.hpp"
 
 namespace foresight {
@@ -231,7 +231,7 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   };
   // Size of the parameters in the units of a step (rad, m, px): for the relative step test.
   auto state_norm = [](const CamState& s) { return std::sqrt(3.0 + s.c.squaredNorm() + s.f * s.f); };
-  detail::LmReport last_fit;
+  estimation::LmReport last_fit;
   auto residual_norms = [&](const CamState& s) {
     std::vector<double> r(static_cast<std::size_t>(n));
     const Eigen::Matrix3d Rt = s.R.transpose();
@@ -258,18 +258,18 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
       state = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
       have_state = true;
     }
-    detail::LmOptions lm;
+    estimation::LmOptions lm;
     lm.max_iterations = opt.max_iterations;
-    last_fit = detail::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
+    last_fit = estimation::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
                                               lm);
     iterations = last_fit.iterations;
     return residual_norms(state);
   };
   std::vector<double> r;
-  const std::vector<bool> inlier = detail::flag_outliers(n, 8, opt.outliers, fit, r);
+  const std::vector<bool> inlier = estimation::flag_outliers(n, 8, opt.outliers, fit, r);
   if (!last_fit.converged)
     throw EstimationError(who + "the nonlinear fit did not converge after " + std::to_string(last_fit.iterations) +
-                          " iterations (" + detail::to_string(last_fit.stop) + ")");
+                          " iterations (" + estimation::to_string(last_fit.stop) + ")");
 
   // The final camera and its statistics over the inliers.
   res.camera.name = name;

@@ -6,11 +6,11 @@
 #include <cmath>
 #include <random>
 
-#include "foresight/calibration/detail/levenberg_marquardt.hpp"
+#include "foresight/calibration/levenberg_marquardt.hpp"
 
-using foresight::detail::levenberg_marquardt;
-using foresight::detail::LmOptions;
-using foresight::detail::LmStop;
+using foresight::estimation::levenberg_marquardt;
+using foresight::estimation::LmOptions;
+using foresight::estimation::LmStop;
 using Vec2 = Eigen::Matrix<double, 2, 1>;
 
 namespace {

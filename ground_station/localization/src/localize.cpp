@@ -11,8 +11,8 @@
 #include <set>
 #include <sstream>
 
-#include "foresight/calibration/detail/levenberg_marquardt.hpp"
-#include "foresight/calibration/detail/robust.hpp"
+#include "foresight/calibration/levenberg_marquardt.hpp"
+#include "foresight/calibration/outlier_flagging.hpp"
 #include "foresight/camera/projection.hpp"
 
 namespace foresight {
@@ -250,13 +250,13 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   };
   // Size of the parameters in the units of a step (rad, m): for the relative step test.
   auto state_norm = [](const State& s) { return std::sqrt(3.0 + s.t.squaredNorm()); };
-  detail::LmOptions lm;
+  estimation::LmOptions lm;
   lm.max_iterations = opt.max_iterations;
-  detail::LmReport last_fit;
+  estimation::LmReport last_fit;
   auto require_converged = [&](const char* stage) {
     if (!last_fit.converged)
       throw EstimationError(std::string("the ") + stage + " did not converge after " +
-                            std::to_string(last_fit.iterations) + " iterations (" + detail::to_string(last_fit.stop) +
+                            std::to_string(last_fit.iterations) + " iterations (" + estimation::to_string(last_fit.stop) +
                             ")");
   };
   auto residual_norms = [&](const State& s) {
@@ -278,13 +278,13 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       state = {linear_all.linear(), linear_all.translation()};
       have_state = true;
     }
-    last_fit = detail::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
+    last_fit = estimation::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
                                               lm);
     iterations = last_fit.iterations;
     return residual_norms(state);
   };
   std::vector<double> r;
-  const std::vector<bool> inlier = detail::flag_outliers(n, 6, opt.outliers, fit, r);
+  const std::vector<bool> inlier = estimation::flag_outliers(n, 6, opt.outliers, fit, r);
   require_converged("nonlinear localization");
   if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
   idx.clear();
@@ -364,7 +364,7 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       for (int j = 0; j < kj; ++j) ss += s.cams[j].base_T_camera.translation().squaredNorm() + s.cams[j].f_px * s.cams[j].f_px;
       return std::sqrt(ss);
     };
-    last_fit = detail::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm, np);
+    last_fit = estimation::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm, np);
     require_converged("joint refinement (pose and cameras)");
     iterations += last_fit.iterations;
     state.R = js.R;

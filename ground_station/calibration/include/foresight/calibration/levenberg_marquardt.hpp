@@ -1,8 +1,11 @@
 #pragma once
 // A small dense Levenberg-Marquardt (Marquardt's diagonal scaling) for the
-// 6-, 7- and 6+7k-parameter problems of calibration and localization.
-// Internal to the estimation libraries. Not real-time code (vectors sized per
-// problem).
+// 6-, 7- and 6+7k-parameter problems of calibration and localization: the
+// one nonlinear least-squares solver of the estimation libraries (calibration
+// owns it; localization and the accuracy study use it through this header).
+// Set-up code, not real-time: allocates vectors sized per problem; never
+// throws (a failed fit is LmReport::converged == false, and callers report
+// "did not converge after N iterations").
 //
 // Convergence (MINPACK's and Ceres' tests; each is checked only where it
 // means something, never against the damping):
@@ -23,7 +26,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace foresight::detail {
+namespace foresight::estimation {
 
 enum class LmStop { Gradient, Function, Parameter, ZeroResidual, NoDecrease, MaxIterations };
 
@@ -126,4 +129,4 @@ LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, R
   return finish(LmStop::MaxIterations);
 }
 
-}  // namespace foresight::detail
+}  // namespace foresight::estimation

@@ -1,5 +1,7 @@
 #pragma once
-// Robust outlier flagging shared by calibration and localization (internal).
+// Robust outlier flagging shared by calibration and localization: the
+// threshold is k robust sigmas (robust_sigma_px, calibrate.hpp) with a pixel
+// floor (OutlierOptions). Set-up code, not real-time (allocates).
 
 #include <algorithm>
 #include <functional>
@@ -7,7 +9,7 @@
 
 #include "foresight/calibration/calibrate.hpp"
 
-namespace foresight::detail {
+namespace foresight::estimation {
 
 /// Flags outliers in a bounded number of rounds (opt.max_rounds, each one
 /// refit): every inlier whose residual exceeds max(k * robust sigma, floor)
@@ -57,4 +59,4 @@ inline std::vector<bool> flag_outliers(int n, int min_inliers, const OutlierOpti
   return inlier;
 }
 
-}  // namespace foresight::detail
+}  // namespace foresight::estimation
