@@ -506,10 +506,11 @@ void DriveSystem::push_event(const HwEvent& e) noexcept {
     ++pending_dropped_;
 }
 
-void DriveSystem::cycle_write(const JointTargets& targets) noexcept {
+void DriveSystem::cycle_write(const JointTargets& targets) noexcept { cycle_write(targets, Clock::now()); }
+
+void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now) noexcept {
   if (!configured_) return;  // nothing is sent to nodes that configure() has not checked
   const bool quick_stop = quick_stop_.load(std::memory_order_acquire);
-  const auto now = Clock::now();
   const bool send_heartbeat = now - last_master_hb_ >= master_hb_period_;
   if (send_heartbeat) last_master_hb_ = now;
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {

@@ -22,19 +22,30 @@ struct CanSimulator::Bus final : FrameSink {
     can_frame f;
   };
   std::deque<Timed> queue;
+  Clock::time_point now{};  // of the process()/process_at() step running (delays count from it)
 
+  std::mt19937_64 hb_rng{2};
   bool lose(double p) { return p > 0.0 && std::uniform_real_distribution<double>(0.0, 1.0)(rng) < p; }
+  /// Heartbeats draw from their own stream: their phase against the SYNCs
+  /// comes from wall time at power-on, and must not shift which PDOs a seeded
+  /// run loses.
+  bool lose(const can_frame& f, double p) {
+    const bool hb = (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 &&
+                    (f.can_id & CAN_SFF_MASK) >= hw::canopen::kHeartbeatBase &&
+                    (f.can_id & CAN_SFF_MASK) < hw::canopen::kHeartbeatBase + 0x80;
+    return p > 0.0 && std::uniform_real_distribution<double>(0.0, 1.0)(hb ? hb_rng : rng) < p;
+  }
   /// A node's frame onto the bus: lost, delayed, or written now.
   void send(const can_frame& f) override {
     std::lock_guard lock(write_mu);
     if (bus_off) return;
-    if (!(f.can_id & CAN_ERR_FLAG) && lose(imp.loss)) {
+    if (!(f.can_id & CAN_ERR_FLAG) && lose(f, imp.loss)) {
       ++owner->frames_lost_;
       return;
     }
     if (imp.delay_s > 0.0 || imp.jitter_s > 0.0) {
       const double d = imp.delay_s + (imp.jitter_s > 0.0 ? std::uniform_real_distribution<double>(0.0, imp.jitter_s)(rng) : 0.0);
-      Clock::time_point due = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(d));
+      Clock::time_point due = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(d));
       if (!queue.empty() && due < queue.back().due) due = queue.back().due;  // FIFO
       queue.push_back({due, f});
       return;
@@ -173,6 +184,7 @@ void CanSimulator::set_impairment(std::size_t bus, const BusImpairment& imp) {
   std::lock_guard lock(b.write_mu);
   b.imp = imp;
   b.rng.seed(imp.seed);
+  b.hb_rng.seed(imp.seed ^ 0x9E3779B97F4A7C15ull);
 }
 
 void CanSimulator::inject_bus_off(std::size_t bus) {
@@ -208,7 +220,7 @@ void CanSimulator::dispatch(std::size_t bus, const can_frame& f, Clock::time_poi
   {
     std::lock_guard lock(b.write_mu);
     if (b.bus_off) return;  // nothing reaches the nodes
-    if (b.lose(b.imp.loss) || (sync && b.lose(b.imp.sync_loss))) {
+    if (b.lose(f, b.imp.loss) || (sync && b.lose(b.imp.sync_loss))) {
       ++frames_lost_;
       return;
     }
@@ -218,15 +230,24 @@ void CanSimulator::dispatch(std::size_t bus, const can_frame& f, Clock::time_poi
 }
 
 void CanSimulator::process(int timeout_ms) {
-  std::lock_guard lock(step_mu_);
-  power_on();
   if (timeout_ms > 0) {
     std::vector<pollfd> fds;
     for (auto& b : buses_) fds.push_back({b->end->fd(), POLLIN, 0});
     ::poll(fds.data(), fds.size(), timeout_ms);
   }
-  const auto now = Clock::now();
-  for (auto& b : buses_) b->flush(now);
+  process_at(Clock::now());
+}
+
+void CanSimulator::process_at(Clock::time_point now) {
+  std::lock_guard lock(step_mu_);
+  power_on();
+  for (auto& b : buses_) {
+    {
+      std::lock_guard bl(b->write_mu);
+      b->now = now;
+    }
+    b->flush(now);
+  }
   for (std::size_t i = 0; i < buses_.size(); ++i) {
     can_frame f{};
     for (int k = 0; k < 4096; ++k) {

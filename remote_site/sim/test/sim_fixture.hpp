@@ -62,8 +62,38 @@ struct SimRig {
     cycle();
   }
 
+  /// Deterministic stepping: after bring-up, the simulator thread stops and
+  /// every cycle() reads, writes and lets the simulator answer in this thread
+  /// at a simulated time that advances one period (+ jitter) per cycle, so
+  /// timing is counted in cycles, never in milliseconds of scheduling.
+  bool stepping = false;
+  Clock::time_point sim_now{};
+  std::chrono::nanoseconds next_jitter{0};  ///< added to the period after the next cycle only
+
+  void bring_up_stepped() {
+    drives->configure();
+    drives->enable();
+    sim->stop();  // joined: from here on only this thread touches the simulator
+    drives->held_targets(targets);
+    stepping = true;
+    sim_now = Clock::now();
+    cycle();
+  }
+
+  std::chrono::nanoseconds period() const {
+    return std::chrono::nanoseconds(static_cast<long>(1e9 / config.cycle_rate_hz));
+  }
+
   /// One real-time period: read, then write the current targets.
   CycleStatus cycle() {
+    if (stepping) {
+      const CycleStatus s = drives->cycle_read(fb, ft, sim_now);
+      drives->cycle_write(targets, sim_now);
+      sim->process_at(sim_now);  // the nodes take the RPDOs and SYNC, and answer
+      sim_now += period() + next_jitter;
+      next_jitter = std::chrono::nanoseconds{0};
+      return s;
+    }
     std::this_thread::sleep_until(deadline);
     deadline += std::chrono::microseconds(static_cast<long>(1e6 / config.cycle_rate_hz));
     const CycleStatus s = drives->cycle_read(fb, ft);

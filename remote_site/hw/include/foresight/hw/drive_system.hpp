@@ -186,6 +186,9 @@ class DriveSystem {
   /// refused here (InvalidTarget, the previous target is kept) before it can
   /// fault the drive.
   void cycle_write(const JointTargets& targets) noexcept;
+  /// The same at a given time (the master heartbeat's producer period counts
+  /// from it): with cycle_read(..., now), a caller stepping simulated time.
+  void cycle_write(const JointTargets& targets, Clock::time_point now) noexcept;
   /// Drain the buses and decode; fills `joints` and `ft`.
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft, Clock::time_point now) noexcept;

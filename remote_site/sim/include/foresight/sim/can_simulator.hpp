@@ -2,7 +2,7 @@
 // The simulated far end of the CAN buses: simulated nodes (drives, F/T
 // sensor) attached to the far ends of mock buses. Run it on its own thread
 // (start/stop), or step it from the caller's thread (process) for
-// deterministic single-threaded use (benchmarks). Not real-time code.
+// deterministic single-threaded use (benchmarks; tests with process_at). Not real-time code.
 //
 //   auto [master, far] = make_mock_buses(config);
 //   auto sim = CanSimulator::from_config(config, std::move(far));
@@ -71,6 +71,11 @@ class CanSimulator {
   /// Single-threaded use: power on (first call), handle every frame waiting
   /// on the buses (waiting up to timeout_ms for the first), tick heartbeats.
   void process(int timeout_ms = 0);
+  /// Single-threaded and deterministic: as process(0), at the simulated time
+  /// `now` (non-decreasing; SYNC physics, heartbeats and frame delays count
+  /// from it, never from the wall clock). Tests step the master and the
+  /// simulator in one thread with it, so timing is counted in cycles.
+  void process_at(Clock::time_point now);
 
   /// Send a raw frame on a bus from the far end (malformed-frame injection,
   /// error frames: can_id | CAN_ERR_FLAG). Any thread.
