@@ -16,7 +16,7 @@ using namespace canopen;
 
 namespace {
 enum RouteKind : std::uint8_t {
-  kNone = 0, kOwn, kDriveTpdo, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
+  kNone = 0, kOwn, kDriveTpdo, kDriveVelocity, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
 };
 constexpr std::size_t kMaxFramesPerRead = 512;
 
@@ -133,6 +133,7 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
     b.drives.push_back(j);
     const auto slot = static_cast<std::uint8_t>(j);
     b.routes[kTpdo1Base + d.node] = {kDriveTpdo, slot};
+    if (config_.velocity_tpdo_every > 0) b.routes[kTpdo1Base + 0x100 + d.node] = {kDriveVelocity, slot};
     b.routes[kEmcyBase + d.node] = {kDriveEmcy, slot};
     b.routes[kHeartbeatBase + d.node] = {kDriveHb, slot};
     b.routes[kSdoTxBase + d.node] = {kDriveSdo, slot};
@@ -251,6 +252,7 @@ DriveSetup DriveSystem::drive_setup(std::size_t j) const {
     if (v > 0.0 && v < 4.29e9) s.max_velocity_counts_s = static_cast<std::uint32_t>(std::lround(v));
   }
   s.file_entries = d.cfg.sdo_entries;
+  s.velocity_tpdo_every = static_cast<std::uint8_t>(config_.velocity_tpdo_every);
   return s;
 }
 
@@ -625,6 +627,18 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       if (d.st.state == PowerState::QuickStopActive && before == PowerState::OperationEnabled &&
           !quick_stop_.load(std::memory_order_relaxed))
         push_event({HwFault::QuickStopActive, bus8, d.node, j, d.st.statusword, 0});
+      return;
+    }
+    case kDriveVelocity: {  // TPDO2: velocity actual, on every velocity_tpdo_every-th SYNC
+      Drive& d = drives_[r.slot];
+      if (f.can_dlc != 4) return malformed(static_cast<std::int8_t>(r.slot));
+      if (bs.sync_echo_active && bs.sync_seen != bs.sync_counter) {
+        ++bs.stale_tpdos;  // answers an earlier SYNC: not taken
+        return;
+      }
+      d.st.velocity_counts_s = static_cast<std::int32_t>(get_u32(f.data));
+      d.st.velocity_rad_s = d.st.velocity_counts_s / d.cfg.counts_per_rad();
+      d.st.velocity_cycle = cycle_;
       return;
     }
     case kDriveEmcy:

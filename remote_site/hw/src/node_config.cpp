@@ -116,6 +116,17 @@ DriveInfo NodeConfigurator::configure_drive(const DriveSetup& s) {
   sdo_.write(n, od::kTpdo1Map, 3, od::map_entry(od::kTorqueActual, 0, 16), 4);
   sdo_.write(n, od::kTpdo1Map, 0, 3, 1);
   write_checked(n, od::kTpdo1Comm, 1, kTpdo1Base + n, 4, false, info);
+  // TPDO2: velocity actual, on every n-th SYNC (TPDO1 is full; at every SYNC
+  // the 4 drives of a bus would pass the bus-load limit: docs/hardware.md).
+  if (s.velocity_tpdo_every) {
+    constexpr std::uint16_t kTpdo2Comm = od::kTpdo1Comm + 1, kTpdo2Map = od::kTpdo1Map + 1;
+    sdo_.write(n, kTpdo2Comm, 1, od::kCobIdInvalid | (kTpdo1Base + 0x100u + n), 4);
+    write_checked(n, kTpdo2Comm, 2, s.velocity_tpdo_every, 1, false, info);
+    sdo_.write(n, kTpdo2Map, 0, 0, 1);
+    sdo_.write(n, kTpdo2Map, 1, od::map_entry(od::kVelocityActual, 0, 32), 4);
+    sdo_.write(n, kTpdo2Map, 0, 1, 1);
+    write_checked(n, kTpdo2Comm, 1, kTpdo1Base + 0x100u + n, 4, false, info);
+  }
   // Cyclic synchronous position: supported (0x6502 bit 7), selected, confirmed.
   const std::uint32_t modes = sdo_.read(n, od::kSupportedModes, 0);
   if (!(modes & (1u << 7)))

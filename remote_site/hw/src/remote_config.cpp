@@ -100,7 +100,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
   p.check_keys(root, "top level",
                {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "buses", "drives", "ft_sensor", "tool", "video_switch", "controller"});
+                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "velocity_tpdo_every", "buses", "drives", "ft_sensor", "tool", "video_switch", "controller"});
 
   RemoteConfig c;
   c.source = source_name;
@@ -132,6 +132,10 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   if (c.bus_off_restart_limit < 0 || c.bus_off_restart_limit > 100)
     p.fail(root["bus_off_restart_limit"], "top level: bus_off_restart_limit " + std::to_string(c.bus_off_restart_limit) +
                                               " is outside 0..100");
+  c.velocity_tpdo_every = p.get_or<int>(root, "velocity_tpdo_every", "top level", 5);
+  if (c.velocity_tpdo_every < 0 || c.velocity_tpdo_every > 240)
+    p.fail(root["velocity_tpdo_every"], "top level: velocity_tpdo_every " + std::to_string(c.velocity_tpdo_every) +
+                                            " is outside 1..240 (SYNCs per TPDO2, CiA 301 0x1801:02), or 0 for no velocity");
   std::string base_dir;
   if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 
@@ -328,8 +332,10 @@ std::vector<BusLoad> compute_bus_loads(const RemoteConfig& c) {
                          l.drives * (worst_case_frame_bits(kRpdoBytes) + worst_case_frame_bits(kTpdoBytes)) +
                          (l.ft ? 2 * worst_case_frame_bits(kFtBytes) : 0);
       l.heartbeat_bits_per_s = (nodes + 1) * worst_case_frame_bits(1) / c.heartbeat_producer_s;  // + master
+      if (c.velocity_tpdo_every > 0)  // TPDO2: velocity actual, 4 bytes
+        l.velocity_bits_per_s = l.drives * worst_case_frame_bits(4) * c.cycle_rate_hz / c.velocity_tpdo_every;
     }
-    l.bits_per_s = l.bits_per_cycle * c.cycle_rate_hz + l.heartbeat_bits_per_s;
+    l.bits_per_s = l.bits_per_cycle * c.cycle_rate_hz + l.velocity_bits_per_s + l.heartbeat_bits_per_s;
     l.load = l.bits_per_s / l.bitrate_bps;
     out.push_back(l);
   }
@@ -338,13 +344,15 @@ std::vector<BusLoad> compute_bus_loads(const RemoteConfig& c) {
 
 std::string BusLoad::describe() const {
   char buf[320];
+  char velocity[64] = "";
+  if (velocity_bits_per_s > 0.0) std::snprintf(velocity, sizeof velocity, " + velocity TPDOs %.0f bit/s", velocity_bits_per_s);
   std::snprintf(buf, sizeof buf,
                 "bus %s: %d drive%s%s, %d frames/cycle (SYNC + %d PDOs), %d bits/cycle worst case "
-                "x %.0f Hz + heartbeats %.0f bit/s = %.1f kbit/s = %.1f%% of %.0f kbit/s",
+                "x %.0f Hz%s + heartbeats %.0f bit/s = %.1f kbit/s = %.1f%% of %.0f kbit/s",
                 bus.c_str(), drives, drives == 1 ? "" : "s", ft ? " + F/T" : "", frames_per_cycle,
                 frames_per_cycle > 0 ? frames_per_cycle - 1 : 0, bits_per_cycle,
-                bits_per_cycle > 0 ? (bits_per_s - heartbeat_bits_per_s) / bits_per_cycle : 0.0,
-                heartbeat_bits_per_s, bits_per_s / 1000.0, load * 100.0, bitrate_bps / 1000.0);
+                bits_per_cycle > 0 ? (bits_per_s - heartbeat_bits_per_s - velocity_bits_per_s) / bits_per_cycle : 0.0,
+                velocity, heartbeat_bits_per_s, bits_per_s / 1000.0, load * 100.0, bitrate_bps / 1000.0);
   return buf;
 }
 

@@ -49,11 +49,18 @@ TEST(RemoteConfig, LoadsTheProjectFile) {
   ASSERT_EQ(loads.size(), 2u);
   EXPECT_EQ(loads[0].frames_per_cycle, 9);
   EXPECT_EQ(loads[0].bits_per_cycle, 1065);
-  EXPECT_NEAR(loads[0].load, 0.5390, 1e-6);
-  // arm_b 3 drives + F/T: (65 + 3*250 + 2*135) * 500 + (4+1)*65/0.05 = 549000 bit/s
+  // + velocity TPDO2 (4 bytes, 95 bits) every 5th SYNC: 4*95*500/5 = 38000 bit/s -> 577000
+  EXPECT_NEAR(loads[0].velocity_bits_per_s, 38000.0, 1e-6);
+  EXPECT_NEAR(loads[0].load, 0.5770, 1e-6);
+  // arm_b 3 drives + F/T: (65 + 3*250 + 2*135) * 500 + (4+1)*65/0.05 = 549000 bit/s, + 3*95*100 = 577500
   EXPECT_EQ(loads[1].frames_per_cycle, 9);
   EXPECT_EQ(loads[1].bits_per_cycle, 1085);
-  EXPECT_NEAR(loads[1].load, 0.5490, 1e-6);
+  EXPECT_NEAR(loads[1].load, 0.5775, 1e-6);
+  // Velocity on every SYNC would not fit arm_a: 539000 + 4*95*500 = 729000 bit/s, 72.9% > 70%.
+  RemoteConfig every = c;
+  every.velocity_tpdo_every = 1;
+  EXPECT_NEAR(compute_bus_loads(every)[0].load, 0.729, 1e-6);
+  EXPECT_NEAR(compute_bus_loads(every)[1].load, 0.69150, 1e-6);
   // Without the counter, SYNC is 0 bytes (55 bits).
   RemoteConfig no_counter = c;
   no_counter.sync_counter_overflow = 0;
@@ -79,15 +86,16 @@ TEST(RemoteConfig, SevenDrivesOnOneBusAt500HzAreRefusedWithTheNumbers) {
   std::string drives;
   for (int i = 1; i <= 7; ++i) drives += drive("joint" + std::to_string(i), "b", i);
   const std::string msg = error_of(base_yaml(drives));
-  // (55 + 7*250 + 270) * 500 + (8+1)*65/0.05 = 1049200 bit/s
+  // (55 + 7*250 + 270) * 500 + 7*95*500/5 (velocity) + (8+1)*65/0.05 = 1115700 bit/s
   EXPECT_NE(msg.find("remote.yaml:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("bus b: 7 drives + F/T, 17 frames/cycle"), std::string::npos) << msg;
   EXPECT_NE(msg.find("2075 bits/cycle"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("104.9% of 1000 kbit/s"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("x 500 Hz + velocity TPDOs 66500 bit/s + heartbeats 11700 bit/s"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("111.6% of 1000 kbit/s"), std::string::npos) << msg;
   EXPECT_NE(msg.find("exceeds the 70% limit"), std::string::npos) << msg;
-  // The same bus at 250 Hz fits (53.0%).
+  // The same bus at 250 Hz fits (56.4%).
   const RemoteConfig ok = parse_remote_config(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 250\n"), "x");
-  EXPECT_NEAR(compute_bus_loads(ok)[1].load, 0.53045, 1e-6);
+  EXPECT_NEAR(compute_bus_loads(ok)[1].load, 0.5637, 1e-6);
 }
 
 TEST(RemoteConfig, DuplicateNodeIdOnABusIsNamed) {

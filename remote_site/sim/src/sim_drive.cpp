@@ -113,6 +113,9 @@ void SimDrive::reset_application() {
     define(static_cast<std::uint16_t>(od::kRpdo1Comm + i), 2, 1, true, 255);
     define(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 1, 4, true, kTpdo1Base + 0x100u * i + node_id_);
     define(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 2, 1, true, 1);  // on every SYNC: statusword
+    define(static_cast<std::uint16_t>(od::kTpdo1Map + i), 0, 1, true, 1);
+    for (std::uint8_t s = 1; s <= 8; ++s)
+      define(static_cast<std::uint16_t>(od::kTpdo1Map + i), s, 4, true, s == 1 ? od::map_entry(od::kStatusword, 0, 16) : 0);
   }
   state_ = PowerState::NotReadyToSwitchOn;
   last_sync_ = Clock::time_point{};
@@ -142,8 +145,9 @@ std::uint32_t SimDrive::check_mapping(std::uint16_t map_index, std::uint8_t coun
 }
 
 std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
-  if (index == od::kRpdo1Map || index == od::kTpdo1Map) {
-    const std::uint16_t comm = index == od::kRpdo1Map ? od::kRpdo1Comm : od::kTpdo1Comm;
+  if (index == od::kRpdo1Map || (index >= od::kTpdo1Map && index <= od::kTpdo1Map + 3)) {
+    const std::uint16_t comm =
+        index == od::kRpdo1Map ? od::kRpdo1Comm : static_cast<std::uint16_t>(od::kTpdo1Comm + (index - od::kTpdo1Map));
     if (!(get(comm, 1) & od::kCobIdInvalid)) return static_cast<std::uint32_t>(SdoAbort::DeviceState);
     if (sub == 0) return check_mapping(index, static_cast<std::uint8_t>(value));
     if (get(index, 0) != 0) return static_cast<std::uint32_t>(SdoAbort::DeviceState);
@@ -173,7 +177,7 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
     const auto e = static_cast<std::int8_t>(value);
     return e >= -6 && e <= 0 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
   }
-  if ((index == od::kRpdo1Comm || index == od::kTpdo1Comm) && sub == 2)
+  if ((index == od::kRpdo1Comm || (index >= od::kTpdo1Comm && index <= od::kTpdo1Comm + 3)) && sub == 2)
     return (value >= 1 && value <= 240) || value >= 254 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
   if (index == od::kModesOfOperation)
     return static_cast<std::int8_t>(value) == kModeCyclicSyncPosition ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
@@ -437,33 +441,28 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
     fe_time_s_ = 0.0;
   }
   update_statusword();
-  // 4. synchronous TPDOs: 2-4 carry the statusword while still enabled (the
+  // 4. synchronous TPDOs (transmission type n: every n-th SYNC), each as
+  // mapped. TPDOs 2-4 carry the statusword by default while valid (the
   // predefined set's default; a master that forgets them sees extra COB-IDs).
-  for (std::uint16_t i = 1; i < 4; ++i) {
-    const std::uint32_t cob = get(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 1);
-    const std::uint32_t t = get(static_cast<std::uint16_t>(od::kTpdo1Comm + i), 2);
-    if ((cob & od::kCobIdInvalid) || t < 1 || t > 240 || syncs_ % t != 0) continue;
-    can_frame extra{};
-    extra.can_id = cob & 0x7FF;
-    extra.can_dlc = 2;
-    hw::put_u16(extra.data, static_cast<std::uint16_t>(get(od::kStatusword, 0)));
-    out.send(extra);
+  for (std::uint16_t i = 0; i < 4; ++i) {
+    const auto comm = static_cast<std::uint16_t>(od::kTpdo1Comm + i);
+    const auto map = static_cast<std::uint16_t>(od::kTpdo1Map + i);
+    const std::uint32_t cob = get(comm, 1);
+    const std::uint32_t type = get(comm, 2);
+    if ((cob & od::kCobIdInvalid) || type < 1 || type > 240 || syncs_ % type != 0) continue;
+    can_frame f{};
+    f.can_id = cob & 0x7FF;
+    int bit = 0;
+    for (std::uint8_t s = 1; s <= get(map, 0); ++s) {
+      const std::uint32_t m = get(map, s);
+      const int len = static_cast<int>(m & 0xFF);
+      const std::uint32_t v = get(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF));
+      for (int b = 0; b < len / 8; ++b) f.data[bit / 8 + b] = static_cast<std::uint8_t>(v >> (8 * b));
+      bit += len;
+    }
+    f.can_dlc = static_cast<std::uint8_t>(bit / 8);
+    out.send(f);
   }
-  const std::uint32_t tpdo_cob = get(od::kTpdo1Comm, 1);
-  const std::uint32_t type = get(od::kTpdo1Comm, 2);
-  if ((tpdo_cob & od::kCobIdInvalid) || type < 1 || type > 240 || syncs_ % type != 0) return;
-  can_frame f{};
-  f.can_id = tpdo_cob & 0x7FF;
-  int bit = 0;
-  for (std::uint8_t s = 1; s <= get(od::kTpdo1Map, 0); ++s) {
-    const std::uint32_t m = get(od::kTpdo1Map, s);
-    const int len = static_cast<int>(m & 0xFF);
-    const std::uint32_t v = get(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF));
-    for (int b = 0; b < len / 8; ++b) f.data[bit / 8 + b] = static_cast<std::uint8_t>(v >> (8 * b));
-    bit += len;
-  }
-  f.can_dlc = static_cast<std::uint8_t>(bit / 8);
-  out.send(f);
 }
 
 }  // namespace foresight::sim

@@ -146,7 +146,8 @@ TEST(DriveBringUp, OverloadedBusIsRefusedBeforeAnyFrameIsSent) {
     FAIL() << "an overloaded bus was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("bus arm_a: 7 drives + F/T, 17 frames/cycle (SYNC + 16 PDOs), 2085 bits/cycle "
-                                         "worst case x 500 Hz + heartbeats 11700 bit/s = 1054.2 kbit/s = 105.4% of "
+                                         "worst case x 500 Hz + velocity TPDOs 66500 bit/s + heartbeats 11700 bit/s = "
+                                         "1120.7 kbit/s = 112.1% of "
                                          "1000 kbit/s exceeds the 70% limit"), std::string::npos) << e.what();
   }
   // Whatever the constructor sent is already in the socket: process() reads it all.

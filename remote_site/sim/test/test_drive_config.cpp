@@ -47,7 +47,7 @@ TEST(DriveConfigFile, EveryDriveIsConfiguredFromItsFileAndReadBack) {
     EXPECT_EQ(info.vendor_id, 0x00F0E5E7u);
     EXPECT_EQ(info.product_code, 0x402u);
     EXPECT_EQ(info.revision, 0x00010000u);
-    EXPECT_EQ(info.pdos_disabled, 6u);  // RPDO2-4, TPDO2-4
+    EXPECT_EQ(info.pdos_disabled, 6u);  // RPDO2-4, TPDO2-4 (TPDO2 then mapped to the velocity)
     EXPECT_GE(info.verified, 5u + 12u);  // the file's 5 writes + the master's own objects
     for (const hw::SdoEntry& e : d.sdo_entries) {
       const std::uint32_t mask = e.size == 4 ? 0xFFFFFFFFu : (1u << (8 * e.size)) - 1;
@@ -61,8 +61,13 @@ TEST(DriveConfigFile, EveryDriveIsConfiguredFromItsFileAndReadBack) {
     EXPECT_NEAR(rig.drives->sdo_read(bus, n, 0x607F, 0), vmax, 0.6) << d.joint;  // from the URDF
     for (std::uint16_t i = 1; i < 4; ++i) {
       EXPECT_TRUE(rig.drives->sdo_read(bus, n, static_cast<std::uint16_t>(0x1400 + i), 1) & 0x80000000u);
+      if (i == 1) continue;  // TPDO2: velocity actual 0x606C on every 5th SYNC
       EXPECT_TRUE(rig.drives->sdo_read(bus, n, static_cast<std::uint16_t>(0x1800 + i), 1) & 0x80000000u);
     }
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x1801, 1), 0x280u + n);
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x1801, 2), 5u);
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x1A01, 0), 1u);
+    EXPECT_EQ(rig.drives->sdo_read(bus, n, 0x1A01, 1), 0x606C0020u);
   }
   // ... and runs CSP with no stray frames on the bus.
   rig.drives->enable();
@@ -212,4 +217,48 @@ TEST(DriveConfigFile, FollowingErrorTimeoutIsHonoured) {
     }
     EXPECT_EQ(faulted, timeout_s == 0.0) << timeout_s;
   }
+}
+
+// Velocity actual (0x606C) in TPDO2 on every 5th SYNC, reported beside the
+// position. Stepped: a ramp at 0.05 rad/s on joint 6 (direction -1) and
+// joint 2; the drive's velocity is the ramp's once it has caught up.
+TEST(DriveConfigFile, VelocityActualComesInTpdo2EveryFifthSync) {
+  SimRig rig(hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml"));
+  ASSERT_EQ(rig.config.velocity_tpdo_every, 5);
+  rig.bring_up_stepped();
+  const JointTargets q0 = rig.targets;
+  std::uint64_t last_cycle = 0;
+  int updates = 0;
+  for (int i = 1; i <= 200; ++i) {  // 0.4 s
+    rig.targets.position_rad[5] = q0.position_rad[5] + 0.05 * i * 0.002;
+    rig.targets.position_rad[1] = q0.position_rad[1] - 0.05 * i * 0.002;
+    const CycleStatus s = rig.cycle();
+    EXPECT_TRUE(s.ok()) << i;
+    if (rig.fb.joints[5].velocity_cycle != last_cycle) {
+      ++updates;
+      last_cycle = rig.fb.joints[5].velocity_cycle;
+    }
+  }
+  EXPECT_GE(updates, 39);  // 200 SYNCs / 5
+  EXPECT_LE(updates, 41);
+  EXPECT_NEAR(rig.fb.joints[5].velocity_rad_s, 0.05, 0.002);
+  EXPECT_NEAR(rig.fb.joints[1].velocity_rad_s, -0.05, 0.002);
+  EXPECT_NEAR(rig.fb.joints[3].velocity_rad_s, 0.0, 1e-6);
+  // The same number the simulated drive holds, in counts/s through the scaling.
+  EXPECT_NEAR(rig.fb.joints[5].velocity_counts_s, 0.05 * rig.config.drives[5].counts_per_rad(), 0.002 * 2.1e6);
+  EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
+  EXPECT_EQ(rig.drives->unexpected_frames(1), 0u);
+}
+
+// Without velocity_tpdo_every (0) TPDO2 stays off and nothing else changes.
+TEST(DriveConfigFile, VelocityTpdoCanBeSwitchedOff) {
+  hw::RemoteConfig c = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  c.velocity_tpdo_every = 0;
+  SimRig rig(c);
+  rig.drives->configure();
+  EXPECT_TRUE(rig.drives->sdo_read(0, 1, 0x1801, 1) & 0x80000000u);
+  rig.bring_up_stepped();
+  for (int i = 0; i < 20; ++i) EXPECT_TRUE(rig.cycle().ok()) << i;
+  EXPECT_EQ(rig.fb.joints[0].velocity_cycle, 0u);
+  EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
 }

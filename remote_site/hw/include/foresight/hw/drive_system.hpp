@@ -61,6 +61,9 @@ struct JointTargets {
 struct JointState {
   double position_rad = 0.0;
   double torque_nm = 0.0;  ///< joint side: torque actual x rated torque x gear ratio
+  double velocity_rad_s = 0.0;   ///< velocity actual 0x606C (TPDO2, every velocity_tpdo_every-th SYNC), joint side
+  std::int32_t velocity_counts_s = 0;
+  std::uint64_t velocity_cycle = 0;  ///< master cycle whose SYNC the last velocity answered (0: none yet)
   std::int32_t position_counts = 0;
   std::uint16_t statusword = 0;
   canopen::PowerState state = canopen::PowerState::NotReadyToSwitchOn;

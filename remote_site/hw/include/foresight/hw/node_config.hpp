@@ -5,8 +5,8 @@
 //          revision from the drive's file, `expect` lines), device name, the
 //          drive's file (stop and fault reactions 0x605A/0x605E/0x6007 ...,
 //          each written and read back), heartbeats (0x1017, 0x1016), the PDOs
-//          (RPDO1 controlword + target, TPDO1 statusword + position + torque;
-//          every other PDO disabled), supported modes 0x6502 (CSP), mode
+//          (RPDO1 controlword + target, TPDO1 statusword + position + torque,
+//          TPDO2 velocity actual every n-th SYNC; every other PDO disabled), supported modes 0x6502 (CSP), mode
 //          0x6060 read back in 0x6061, periods 0x1006 / 0x60C2 (exponent from
 //          config), following-error window/timeout 0x6065/0x6066, software
 //          limits 0x607D and max profile velocity 0x607F from the URDF, rated
@@ -39,6 +39,7 @@ struct DriveSetup {
   std::uint16_t following_error_timeout_ms = 0; ///< 0x6066 (0: not written)
   std::optional<std::pair<std::int32_t, std::int32_t>> limits_counts;  ///< 0x607D:01/02
   std::optional<std::uint32_t> max_velocity_counts_s;                   ///< 0x607F
+  std::uint8_t velocity_tpdo_every = 0;  ///< TPDO2 = velocity actual 0x606C every n-th SYNC (0: TPDO2 off)
   std::vector<SdoEntry> file_entries;  ///< the drive's file (writes and expects)
 };
 

@@ -68,6 +68,7 @@ struct RemoteConfig {
   double sdo_timeout_s = 0.1;
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
   int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
+  int velocity_tpdo_every = 5;        ///< TPDO2 (velocity actual 0x606C) on every n-th SYNC (0x1801:02); 0 = not mapped
   int bus_off_restart_limit = 3;      ///< controller restarts after bus-off (restart-ms) tolerated per configure()
   int sync_counter_overflow = 0;      ///< 0x1019: SYNC carries a counter 1..this (CiA 301: 2..240), 0 = none
   int interpolation_exponent = -4;    ///< 0x60C2:02, the unit of 0x60C2:01 (10^exp s); -3 where the drive requires ms
@@ -104,6 +105,7 @@ struct BusLoad {
   int frames_per_cycle = 0;     ///< SYNC + RPDO + TPDO per drive + 2 F/T frames
   int bits_per_cycle = 0;       ///< worst case, stuffing included
   double heartbeat_bits_per_s = 0.0;
+  double velocity_bits_per_s = 0.0; ///< TPDO2 (0x606C) of every drive on every velocity_tpdo_every-th SYNC
   double bits_per_s = 0.0;      ///< cycle traffic x rate + heartbeats
   std::uint32_t bitrate_bps = 0;
   double load = 0.0;            ///< bits_per_s / bitrate
