@@ -451,6 +451,90 @@ void DriveSystem::enable() {
   enabled_ = true;
 }
 
+std::size_t DriveSystem::home() {
+  if (!configured_) throw HwError("home(): configure() has not succeeded");
+  constexpr std::uint16_t kHomingMethod = 0x6098, kHomingSpeeds = 0x6099, kHomingAcceleration = 0x609A;
+  constexpr std::int8_t kModeHoming = 6;
+  constexpr std::uint16_t kHomingStart = 1u << 4, kHomingAttained = 1u << 12, kHomingError = 1u << 13;
+  std::vector<std::size_t> homing;
+  double timeout_s = 0.0;
+  auto write_back = [&](const Drive& d, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int size,
+                        const char* what) {
+    sdo_write(d.bus, d.node, index, sub, value, size);
+    const std::uint32_t mask = size == 4 ? 0xFFFFFFFFu : (1u << (8 * size)) - 1;
+    const std::uint32_t back = sdo_read(d.bus, d.node, index, sub) & mask;
+    if (back != (value & mask))
+      throw HwError(node_label(d.bus, d.node) + ": homing " + what + " read back " + std::to_string(back) +
+                    " after writing " + std::to_string(value & mask));
+  };
+  for (std::size_t j = 0; j < drives_.size(); ++j) {
+    const Drive& d = drives_[j];
+    const HomingConfig& h = d.cfg.homing;
+    if (!h.enabled) continue;
+    const double cpr = std::abs(d.cfg.counts_per_rad());
+    write_back(d, od::kModesOfOperation, 0, static_cast<std::uint8_t>(kModeHoming), 1, "mode 0x6060");
+    if (static_cast<std::int8_t>(sdo_read(d.bus, d.node, od::kModesDisplay, 0)) != kModeHoming)
+      throw HwError(node_label(d.bus, d.node) + ": modes of operation display 0x6061 is not 6 (homing) after 0x6060 = 6");
+    write_back(d, kHomingMethod, 0, static_cast<std::uint8_t>(static_cast<std::int8_t>(h.method)), 1, "method 0x6098");
+    write_back(d, kHomingSpeeds, 1, static_cast<std::uint32_t>(std::lround(h.speed_switch_rad_s * cpr)), 4,
+               "speed 0x6099:01");
+    write_back(d, kHomingSpeeds, 2, static_cast<std::uint32_t>(std::lround(h.speed_zero_rad_s * cpr)), 4,
+               "speed 0x6099:02");
+    write_back(d, kHomingAcceleration, 0, static_cast<std::uint32_t>(std::lround(h.acceleration_rad_s2 * cpr)), 4,
+               "acceleration 0x609A");
+    homing.push_back(j);
+    timeout_s = std::max(timeout_s, h.timeout_s);
+  }
+  if (homing.empty()) return 0;
+  enable();
+  JointTargets t;
+  held_targets(t);
+  JointFeedback fb;
+  CycleStatus status;
+  std::vector<bool> done(drives_.size(), false);
+  const auto start = Clock::now();
+  Clock::time_point deadline = start;
+  for (int cycle = 0;; ++cycle) {
+    for (std::size_t j : homing)
+      drives_[j].controlword = static_cast<std::uint16_t>(controlword::kEnableOperation | (cycle > 0 ? kHomingStart : 0));
+    cycle_write(t);
+    run_cycle_blocking(deadline, fb, status);
+    bool all = true;
+    std::string errors;
+    for (std::size_t j : homing) {
+      const Drive& d = drives_[j];
+      // Two cycles after the start edge: the TPDO answers a SYNC after it.
+      if (cycle >= 3 && d.st.fresh && (d.st.statusword & kHomingError))
+        errors += " " + node_label(d.bus, d.node) + " homing error (statusword " + hex(d.st.statusword, 4) + ");";
+      if (cycle >= 3 && d.st.fresh && (d.st.statusword & kHomingAttained) && d.st.state == PowerState::OperationEnabled)
+        done[j] = true;
+      all = all && done[j];
+    }
+    if (!errors.empty()) {
+      disable();
+      throw HwError("home():" + errors);
+    }
+    if (all) break;
+    if (std::chrono::duration<double>(Clock::now() - start).count() > timeout_s) {
+      std::string msg = "home(): not homed within " + std::to_string(static_cast<int>(timeout_s * 1000)) + " ms:";
+      for (std::size_t j : homing)
+        if (!done[j])
+          msg += " " + node_label(drives_[j].bus, drives_[j].node) + " (statusword " + hex(drives_[j].st.statusword, 4) + ");";
+      disable();
+      throw HwError(msg);
+    }
+  }
+  for (std::size_t j : homing) drives_[j].controlword = controlword::kEnableOperation;
+  disable();  // holds the new actual positions as targets
+  for (std::size_t j : homing) {
+    const Drive& d = drives_[j];
+    write_back(d, od::kModesOfOperation, 0, static_cast<std::uint8_t>(kModeCyclicSyncPosition), 1, "mode 0x6060");
+    if (static_cast<std::int8_t>(sdo_read(d.bus, d.node, od::kModesDisplay, 0)) != kModeCyclicSyncPosition)
+      throw HwError(node_label(d.bus, d.node) + ": modes of operation display 0x6061 is not 8 (CSP) after homing");
+  }
+  return homing.size();
+}
+
 void DriveSystem::held_targets(JointTargets& out) const noexcept {
   for (std::size_t j = 0; j < drives_.size(); ++j) out.position_rad[j] = drives_[j].cfg.to_rad(drives_[j].target_counts);
 }

@@ -166,7 +166,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     const std::string where = drive_name(i, dc.joint);
     p.check_keys(d, where,
                  {"joint", "bus", "node_id", "counts_per_rev", "gear_ratio", "direction", "offset_rad",
-                  "following_error_limit_rad", "following_error_timeout_ms", "sdo_file"});
+                  "following_error_limit_rad", "following_error_timeout_ms", "sdo_file", "homing"});
     if (dc.joint.empty()) p.fail(d, where + ": missing 'joint' (URDF joint name)");
     dc.bus = p.get<std::string>(d, "bus", where);
     const int node = p.get<int>(d, "node_id", where);
@@ -185,6 +185,27 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
       const std::string f = p.get<std::string>(d, "sdo_file", where);
       dc.sdo_file = (!f.empty() && f[0] == '/') ? f : base_dir + f;
       dc.sdo_entries = load_sdo_list(dc.sdo_file);  // InputError names the list's own file and line
+    }
+    if (const YAML::Node h = d["homing"]) {  // incremental encoder: CiA 402 homing at bring-up (DriveSystem::home)
+      const std::string hw_where = where + ".homing";
+      if (!h.IsMap()) p.fail(h, hw_where + ": must be a map");
+      p.check_keys(h, hw_where, {"method", "speed_switch_rad_s", "speed_zero_rad_s", "acceleration_rad_s2", "timeout_ms"});
+      HomingConfig& hc = dc.homing;
+      hc.enabled = true;
+      hc.method = p.get<int>(h, "method", hw_where, "CiA 402 homing method, 0x6098");
+      if (hc.method < 1 || (hc.method > 35 && hc.method != 37))
+        p.fail(h["method"], hw_where + ".method: " + std::to_string(hc.method) +
+                                " is not a CiA 402 homing method (1..35, 37)");
+      const std::pair<const char*, double*> positive[] = {{"speed_switch_rad_s", &hc.speed_switch_rad_s},
+                                                          {"speed_zero_rad_s", &hc.speed_zero_rad_s},
+                                                          {"acceleration_rad_s2", &hc.acceleration_rad_s2}};
+      for (const auto& [key, out] : positive) {
+        *out = p.get<double>(h, key, hw_where);
+        if (!(*out > 0.0) || !std::isfinite(*out))
+          p.fail(h[key], hw_where + "." + key + ": must be a positive finite number");
+      }
+      hc.timeout_s = p.get_or<double>(h, "timeout_ms", hw_where, 30000.0) * 1e-3;
+      if (!(hc.timeout_s > 0.0) || !std::isfinite(hc.timeout_s)) p.fail(h["timeout_ms"], hw_where + ".timeout_ms: must be positive");
     }
     dc.line = line_of(d);
     c.drives.push_back(dc);

@@ -62,6 +62,16 @@ void SimDrive::set_position_counts(double counts) {
   v_ = 0.0;
 }
 
+void SimDrive::set_home_switch_counts(double counts) {
+  std::lock_guard lock(mu_);
+  home_switch_ = counts;
+}
+
+bool SimDrive::homing_attained() const {
+  std::lock_guard lock(mu_);
+  return homing_attained_;
+}
+
 void SimDrive::reset_application() {
   // Defaults differ from what the master needs (as on many real drives): the
   // master must map the PDOs and select the mode, or the frames are wrong.
@@ -108,6 +118,13 @@ void SimDrive::reset_application() {
   define(od::kFollowingErrorTimeout, 0, 2, true, 0);
   define(od::kMaxProfileVelocity, 0, 4, true, 0xFFFFFFFFu);
   define(od::kVelocityActual, 0, 4, false, 0);
+  define(0x6098, 0, 1, true, 0);         // homing method (0: none)
+  define(0x6099, 0, 1, false, 2);
+  define(0x6099, 1, 4, true, 131072);    // speed during search for switch, counts/s
+  define(0x6099, 2, 4, true, 13107);     // speed during search for zero
+  define(0x609A, 0, 4, true, 1000000);   // homing acceleration, counts/s^2
+  define(0x607C, 0, 4, true, 0);         // home offset
+  homing_active_ = homing_attained_ = homing_slow_ = false;
   for (std::uint16_t i = 1; i < 4; ++i) {  // predefined connection set: PDOs 2-4 valid at boot
     define(static_cast<std::uint16_t>(od::kRpdo1Comm + i), 1, 4, true, kRpdo1Base + 0x100u * i + node_id_);
     define(static_cast<std::uint16_t>(od::kRpdo1Comm + i), 2, 1, true, 255);
@@ -180,7 +197,14 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
   if ((index == od::kRpdo1Comm || (index >= od::kTpdo1Comm && index <= od::kTpdo1Comm + 3)) && sub == 2)
     return (value >= 1 && value <= 240) || value >= 254 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
   if (index == od::kModesOfOperation)
-    return static_cast<std::int8_t>(value) == kModeCyclicSyncPosition ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+    return static_cast<std::int8_t>(value) == kModeCyclicSyncPosition || static_cast<std::int8_t>(value) == 6
+               ? 0
+               : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  if (index == 0x6098) {  // homing methods this drive has: home switch (17-30), current position (35, 37)
+    const auto m = static_cast<std::int8_t>(value);
+    return (m >= 17 && m <= 30) || m == 35 || m == 37 ? 0 : static_cast<std::uint32_t>(SdoAbort::ValueRange);
+  }
+  if ((index == 0x6099 || index == 0x609A) && value == 0) return static_cast<std::uint32_t>(SdoAbort::ValueTooLow);
   if (index == od::kCommCyclePeriod && (value < 100 || value > 100000))
     return static_cast<std::uint32_t>(SdoAbort::ValueRange);
   if (index == od::kFollowingErrorWindow && value == 0) return static_cast<std::uint32_t>(SdoAbort::ValueTooLow);
@@ -188,7 +212,53 @@ std::uint32_t SimDrive::check_sdo_write(std::uint16_t index, std::uint8_t sub, s
 }
 
 void SimDrive::on_sdo_written(std::uint16_t index, std::uint8_t) {
-  if (index == od::kModesOfOperation) set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
+  if (index == od::kModesOfOperation) {
+    set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
+    homing_active_ = homing_start_prev_ = false;  // attained stays until the next homing starts
+  }
+}
+
+void SimDrive::step_homing(double dt) {
+  const std::uint16_t cw = static_cast<std::uint16_t>(get(od::kControlword, 0));
+  const bool start = (cw & 0x10) != 0;
+  const bool edge = start && !homing_start_prev_;  // homing starts on the rising edge of bit 4
+  homing_start_prev_ = start;
+  if (state_ != PowerState::OperationEnabled || !start) {
+    homing_active_ = false;  // bit 4 low or not enabled: halt (attained stays as it is)
+    v_ = a_ = 0.0;
+    demand_ = demand_prev_ = x_;
+    return;
+  }
+  if (edge) {
+    homing_active_ = true;
+    homing_attained_ = homing_slow_ = false;
+  }
+  if (!homing_active_) return;
+  const auto method = static_cast<std::int8_t>(get(0x6098, 0));
+  const auto offset = static_cast<double>(static_cast<std::int32_t>(get(0x607C, 0)));
+  bool at_home = method == 35 || method == 37;
+  if (!at_home) {
+    // To the switch at the switch-search speed, the last 1/100 rev at the zero-search speed.
+    const double to_go = home_switch_ - x_;
+    homing_slow_ = std::abs(to_go) < p_.counts_per_rev / 100.0;
+    const double speed = static_cast<double>(get(0x6099, homing_slow_ ? 2 : 1));
+    const double step = speed * dt;
+    if (std::abs(to_go) <= step) {
+      x_ = home_switch_;
+      at_home = true;
+    } else {
+      x_ += to_go > 0 ? step : -step;
+      v_ = to_go > 0 ? speed : -speed;
+    }
+  }
+  if (at_home) {
+    home_switch_ += offset - x_;  // the switch stays where it is; counts are redefined
+    x_ = offset;
+    v_ = a_ = 0.0;
+    demand_ = demand_prev_ = x_;
+    homing_active_ = false;
+    homing_attained_ = true;
+  }
 }
 
 void SimDrive::ramp(double dt, double decel) {
@@ -298,7 +368,8 @@ void SimDrive::apply_command(std::uint16_t cw, FrameSink& out) {
       break;
     case PowerState::SwitchedOn:
       if (c == DriveCommand::EnableOperation) {
-        if (static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) != kModeCyclicSyncPosition) {
+        if (const auto mode = static_cast<std::int8_t>(get(od::kModesOfOperation, 0));
+            mode != kModeCyclicSyncPosition && mode != 6) {
           fault(0x6320, out);  // parameter error: no mode selected
           break;
         }
@@ -363,8 +434,12 @@ void SimDrive::update_statusword() {
       state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::QuickStopActive)
     sw |= statusword::kVoltageEnabled;
   sw |= statusword::kRemote;
-  if (state_ == PowerState::OperationEnabled) sw |= statusword::kCspFollowsCommand;
-  if (std::abs(demand_ - x_) < 10.0) sw |= statusword::kTargetReached;
+  if (static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) == 6) {  // homing: bit 12 attained, bit 10 reached
+    if (homing_attained_) sw |= statusword::kCspFollowsCommand | statusword::kTargetReached;
+  } else {
+    if (state_ == PowerState::OperationEnabled) sw |= statusword::kCspFollowsCommand;
+    if (std::abs(demand_ - x_) < 10.0) sw |= statusword::kTargetReached;
+  }
   if (internal_limit_) sw |= statusword::kInternalLimit;
   if (following_error_) sw |= statusword::kCspFollowingError;
   set(od::kStatusword, 0, sw);
@@ -410,7 +485,11 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
   if (last_sync_ != Clock::time_point{})
     dt = std::clamp(std::chrono::duration<double>(now - last_sync_).count(), 0.1 * period_s, 5.0 * period_s);
   last_sync_ = now;
-  if (state_ == PowerState::OperationEnabled) {
+  const bool homing_mode = static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) == 6;
+  if (homing_mode) {
+    step_homing(dt);
+    update_statusword();
+  } else if (state_ == PowerState::OperationEnabled) {
     const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
     const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));
     const auto hi = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 2)));
@@ -426,12 +505,12 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
     const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
     ramp(dt, static_cast<double>(get(option == 1 || option == 5 ? 0x6084 : od::kQuickStopDeceleration, 0)));
     if (ramp_v_ == 0.0 && (option == 1 || option == 2)) state_ = PowerState::SwitchOnDisabled;  // then power off
-  } else if (state_ != PowerState::FaultReactionActive) {
+  } else if (state_ != PowerState::FaultReactionActive && !homing_mode) {
     step_physics(dt);
   }
   // Following error: beyond the window (0x6065) for longer than the timeout (0x6066, ms).
   const std::uint32_t window = get(od::kFollowingErrorWindow, 0);
-  if (state_ == PowerState::OperationEnabled && window != 0xFFFFFFFFu && std::abs(demand_ - x_) > window) {
+  if (state_ == PowerState::OperationEnabled && !homing_mode && window != 0xFFFFFFFFu && std::abs(demand_ - x_) > window) {
     fe_time_s_ += dt;
     if (fe_time_s_ * 1e3 >= static_cast<double>(get(od::kFollowingErrorTimeout, 0))) {
       following_error_ = true;

@@ -5,6 +5,8 @@
 // master refuses a target step beyond the following-error window.
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 
 #include "foresight/common/robot_model.hpp"
 #include "sim_fixture.hpp"
@@ -261,4 +263,126 @@ TEST(DriveConfigFile, VelocityTpdoCanBeSwitchedOff) {
   for (int i = 0; i < 20; ++i) EXPECT_TRUE(rig.cycle().ok()) << i;
   EXPECT_EQ(rig.fb.joints[0].velocity_cycle, 0u);
   EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
+}
+
+// Homing at bring-up for incremental encoders (DriveSystem::home): joint2
+// runs to its home switch (method 19) 30,000 counts below where it powered
+// on, joint5 takes its current position (method 37); both then read the home
+// offset (0 counts); the others (absolute encoders) are not moved. Back in
+// CSP, the arm runs from the new zero.
+TEST(DriveConfigFile, HomingRunsToTheSwitchAndRedefinesThePosition) {
+  hw::RemoteConfig c = project_config();
+  c.drives[1].homing = {true, 19, 0.02, 0.002, 1.0, 5.0};
+  c.drives[4].homing = {true, 37, 0.02, 0.002, 1.0, 5.0};
+  SimRig rig(c);
+  rig.sim->drive(1).set_position_counts(50000.0);  // an incremental encoder counts from anywhere
+  rig.sim->drive(1).set_home_switch_counts(20000.0);
+  rig.sim->drive(4).set_position_counts(-12345.0);
+  rig.drives->configure();
+  const double other = rig.sim->drive(0).position_counts();
+  const auto t0 = Clock::now();
+  EXPECT_EQ(rig.drives->home(), 2u);
+  const double took_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_TRUE(rig.sim->drive(1).homing_attained());
+  EXPECT_TRUE(rig.sim->drive(4).homing_attained());
+  EXPECT_NEAR(rig.sim->drive(1).position_counts(), 0.0, 0.5);
+  EXPECT_NEAR(rig.sim->drive(4).position_counts(), 0.0, 0.5);
+  EXPECT_NEAR(rig.sim->drive(0).position_counts(), other, 0.5);
+  // 30,000 counts: 28,690 at 0.02 rad/s (66,757 counts/s), the last 1/100 rev
+  // (1,311) at 0.002 rad/s: 0.43 + 0.20 s.
+  EXPECT_GE(took_s, 0.6);
+  const double cpr = c.drives[1].counts_per_rad();
+  EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6098, 0), 19u);
+  EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6099, 1), static_cast<std::uint32_t>(std::lround(0.02 * cpr)));
+  EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6099, 2), static_cast<std::uint32_t>(std::lround(0.002 * cpr)));
+  EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x609A, 0), static_cast<std::uint32_t>(std::lround(1.0 * cpr)));
+  EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6061, 0), 8u);  // back in CSP
+  EXPECT_EQ(rig.drives->sdo_read(1, 5, 0x6061, 0), 8u);
+  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::ReadyToSwitchOn);  // disabled after homing
+  // CSP from the new zero.
+  rig.drives->enable();
+  rig.drives->held_targets(rig.targets);
+  EXPECT_NEAR(rig.targets.position_rad[1], 0.0, 1e-6);
+  EXPECT_NEAR(rig.targets.position_rad[4], 0.0, 1e-6);
+  rig.deadline = Clock::now();
+  for (int i = 1; i <= 50; ++i) {
+    rig.targets.position_rad[1] = 0.01 * i / 50.0;
+    EXPECT_TRUE(rig.cycle().ok()) << i;
+  }
+  rig.run_until([](const CycleStatus&) { return false; }, 25);
+  EXPECT_NEAR(rig.fb.joints[1].position_rad, 0.01, 1e-4);
+}
+
+TEST(DriveConfigFile, HomingThatDoesNotFinishInTimeNamesTheDrive) {
+  hw::RemoteConfig c = project_config();
+  c.drives[1].homing = {true, 19, 0.02, 0.002, 1.0, 0.2};
+  SimRig rig(c);
+  rig.sim->drive(1).set_home_switch_counts(-131072.0 * 160);  // a joint revolution away: 314 s at 0.02 rad/s
+  rig.drives->configure();
+  try {
+    rig.drives->home();
+    FAIL() << "homing that cannot finish in 200 ms was accepted";
+  } catch (const hw::HwError& e) {
+    EXPECT_NE(std::string(e.what()).find("home(): not homed within 200 ms: joint2 (bus arm_a node 2) (statusword 0x"),
+              std::string::npos) << e.what();
+  }
+  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::ReadyToSwitchOn);  // left disabled
+  EXPECT_FALSE(rig.sim->drive(1).homing_attained());
+}
+
+TEST(DriveConfigFile, AHomingMethodTheDriveLacksIsRefusedByIt) {
+  hw::RemoteConfig c = project_config();
+  c.drives[1].homing = {true, 1, 0.02, 0.002, 1.0, 1.0};  // limit switch with index: not in this drive
+  SimRig rig(c);
+  rig.drives->configure();
+  try {
+    rig.drives->home();
+    FAIL();
+  } catch (const hw::SdoError& e) {
+    EXPECT_NE(std::string(e.what()).find("0x6098"), std::string::npos) << e.what();
+  }
+}
+
+// The `homing:` block of a drive in remote.yaml, and a bad one named.
+TEST(DriveConfigFile, HomingBlockIsReadFromRemoteYaml) {
+  std::ifstream in(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text = ss.str();
+  const std::string joint2 = "{joint: joint2,";
+  const auto at = text.find(joint2);
+  ASSERT_NE(at, std::string::npos);
+  const auto end = text.find("sdo_file: drives/simdrive.sdo}", at);
+  ASSERT_NE(end, std::string::npos);
+  auto with = [&](const std::string& block) {
+    std::string t = text;
+    t.replace(end, std::string("sdo_file: drives/simdrive.sdo}").size(), "sdo_file: drives/simdrive.sdo, homing: " + block + "}");
+    return t;
+  };
+  const hw::RemoteConfig c = hw::parse_remote_config(
+      with("{method: 19, speed_switch_rad_s: 0.02, speed_zero_rad_s: 0.002, acceleration_rad_s2: 1.0, timeout_ms: 5000}"),
+      FORESIGHT_CONFIG_DIR "/remote.yaml");
+  EXPECT_TRUE(c.drives[1].homing.enabled);
+  EXPECT_EQ(c.drives[1].homing.method, 19);
+  EXPECT_DOUBLE_EQ(c.drives[1].homing.speed_switch_rad_s, 0.02);
+  EXPECT_DOUBLE_EQ(c.drives[1].homing.speed_zero_rad_s, 0.002);
+  EXPECT_DOUBLE_EQ(c.drives[1].homing.acceleration_rad_s2, 1.0);
+  EXPECT_DOUBLE_EQ(c.drives[1].homing.timeout_s, 5.0);
+  EXPECT_FALSE(c.drives[0].homing.enabled);  // absolute encoders: no block, offset_rad
+  try {
+    hw::parse_remote_config(with("{method: 36, speed_switch_rad_s: 0.02, speed_zero_rad_s: 0.002, acceleration_rad_s2: 1}"),
+                            FORESIGHT_CONFIG_DIR "/remote.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("method: 36 is not a CiA 402 homing method (1..35, 37)"), std::string::npos)
+        << e.what();
+  }
+  try {
+    hw::parse_remote_config(with("{method: 19, speed_switch_rad_s: 0, speed_zero_rad_s: 0.002, acceleration_rad_s2: 1}"),
+                            FORESIGHT_CONFIG_DIR "/remote.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("speed_switch_rad_s: must be a positive finite number"), std::string::npos)
+        << e.what();
+  }
 }

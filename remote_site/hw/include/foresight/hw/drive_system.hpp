@@ -170,6 +170,16 @@ class DriveSystem {
   /// holding target = actual position, until all are Operation enabled.
   /// Throws HwError naming each drive that did not get there, and its state.
   void enable();
+  /// Set-up, after configure() and before the CSP enable(): homing for every
+  /// drive with a `homing:` block (incremental encoders), all at once: mode 6
+  /// (read back in 0x6061), method 0x6098, speeds 0x6099:01/02, acceleration
+  /// 0x609A (each written and read back), enable(), start (controlword bit 4)
+  /// until statusword bit 12 (homing attained) within the drive's timeout;
+  /// then disable() and back to CSP (0x6060 = 8, read back). Drives without a
+  /// block (absolute encoders: offset_rad) are not touched beyond enable/
+  /// disable. Returns the number of drives homed. Throws HwError naming each
+  /// drive with a homing error (bit 13) or not homed in time.
+  std::size_t home();
   /// The targets the drives hold right now (after enable(): their actual
   /// positions at enable time, then the last cycle_write). The controller's
   /// first cycle_write starts from these, so nothing jumps.

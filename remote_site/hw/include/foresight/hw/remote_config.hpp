@@ -27,6 +27,17 @@ struct BusConfig {
   bool is_mock() const { return interface == "mock"; }
 };
 
+/// Optional homing at bring-up (incremental encoders; absolute encoders keep
+/// offset_rad and have no block): CiA 402 homing mode 6.
+struct HomingConfig {
+  bool enabled = false;
+  int method = 0;                   ///< 0x6098 (CiA 402 1..35, 37)
+  double speed_switch_rad_s = 0.0;  ///< 0x6099:01, search for the switch, joint side
+  double speed_zero_rad_s = 0.0;    ///< 0x6099:02, search for the index/zero, joint side
+  double acceleration_rad_s2 = 0.0; ///< 0x609A, joint side
+  double timeout_s = 30.0;          ///< homing attained (statusword bit 12) within this
+};
+
 struct DriveConfig {
   std::string joint;  ///< URDF joint name
   std::string bus;
@@ -40,6 +51,7 @@ struct DriveConfig {
   double following_error_timeout_s = 0.0;  ///< 0x6066 (0: leave the drive's own)
   std::string sdo_file;                    ///< the drive's SDO list (resolved path), "" = none
   std::vector<SdoEntry> sdo_entries;       ///< parsed from sdo_file at load (sdo_list.hpp)
+  HomingConfig homing;                     ///< `homing:` block (enabled when present)
   int line = 0;
 
   /// Counts per radian of joint angle (signed by direction).

@@ -14,7 +14,8 @@
 // reaction 0x605E (0 coast, 1/2 ramp in Fault reaction active, then Fault),
 // abort connection 0x6007 on a lost master heartbeat (0 nothing but the EMCY,
 // 1 fault, 2 disable voltage, 3 quick stop). Identity 0x1018, supported
-// modes 0x6502 (CSP), and RPDO2-4 / TPDO2-4 enabled by default as the
+// modes 0x6502 (CSP, homing; homing mode 6 runs to a simulated home switch
+// and sets statusword bit 12), and RPDO2-4 / TPDO2-4 enabled by default as the
 // predefined connection set has them (the master must switch them off).
 
 #include <array>
@@ -60,6 +61,12 @@ class SimDrive final : public SimNode {
   void set_load_torque_nm(double motor_torque_nm);
   /// Move the shaft (as if pushed) to `counts`, velocity 0.
   void set_position_counts(double counts);
+  /// Where the home switch is, in the drive's current counts (default 0).
+  /// Homing (mode 6, methods 17-30) moves there at 0x6099:01, then the last
+  /// stretch at 0x6099:02, and the position becomes the home offset 0x607C;
+  /// methods 35/37 take the current position as home at once.
+  void set_home_switch_counts(double counts);
+  bool homing_attained() const;
 
  protected:
   void reset_application() override;
@@ -75,6 +82,7 @@ class SimDrive final : public SimNode {
   void quick_stop();                 // enter Quick stop active per 0x605A
   void ramp(double dt_s, double decel);  // decelerate v_ toward 0, move x_
   void step_physics(double dt_s);
+  void step_homing(double dt_s);  // mode 6
   void update_statusword();
   std::uint32_t check_mapping(std::uint16_t map_index, std::uint8_t count) const;
 
@@ -99,6 +107,11 @@ class SimDrive final : public SimNode {
   Clock::time_point last_tick_{};
   Clock::time_point last_sync_{};
   double fe_time_s_ = 0.0;  // how long the following error has been beyond the window  // wall time of the previous SYNC (physics dt)
+  bool homing_active_ = false;
+  bool homing_attained_ = false;
+  bool homing_slow_ = false;
+  bool homing_start_prev_ = false;  // within the last stretch: zero search speed
+  double home_switch_ = 0.0;  // counts
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };
