@@ -1,6 +1,8 @@
 #pragma once
 // JSON helpers shared by the CLI commands (their --json output is a contract:
-// 4x4 poses are lists of 4 rows, angles in degrees only where the key says _deg).
+// 4x4 poses are lists of 4 rows (pose_json, with the object pose file's writer
+// and reader in foresight/localization/pose_json.hpp), angles in degrees only
+// where the key says _deg).
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -11,6 +13,7 @@
 
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/pose.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 
@@ -23,8 +26,6 @@ inline nlohmann::json matrix_rows(const Eigen::MatrixXd& M) {
   }
   return rows;
 }
-
-inline nlohmann::json pose_json(const Pose& T) { return matrix_rows(T.matrix()); }
 
 inline nlohmann::json vec_json(const Eigen::VectorXd& v) {
   return nlohmann::json(std::vector<double>(v.data(), v.data() + v.size()));

@@ -27,6 +27,7 @@
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/video_frame.hpp"
 #include "json_util.hpp"
@@ -135,7 +136,9 @@ int run_align(const AlignArgs& a) {
     if (!a.object_out.empty() && r.base_T_object) {
       std::ofstream f(a.object_out);
       if (!f) throw InputError(a.object_out, "cannot write object pose file");
-      f << nlohmann::json{{"base_T_object", pose_json(*r.base_T_object)}, {"source", "foresight align"}}.dump(2) << "\n";
+      nlohmann::json j = object_pose_json(*r.base_T_object);
+      j["source"] = "foresight align";
+      f << j.dump(2) << "\n";
     }
   }
 

@@ -35,8 +35,8 @@
 #include "command.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/protocol/loopback.hpp"
-#include "foresight/render/overlay_inputs.hpp"
 #include "foresight/script/executor.hpp"
 #include "foresight/script/script.hpp"
 #include "link_session.hpp"
@@ -361,7 +361,7 @@ json ground_chain(const Options& o, const std::string& self, const std::string& 
   run_step(self, {"localize", out + "/oru_clicks.csv", "--cameras", out + "/cameras.yaml", "--json"},
            out + "/localize.json", out + "/child.log");
   const json lj = json::parse(read_text(out + "/localize.json"));
-  const Pose est = render::read_object_pose_json(out + "/localize.json");
+  const Pose est = read_object_pose_json(out + "/localize.json");
   const double dp = (est.translation() - scene.base_T_object.translation()).norm();
   const double dr =
       Eigen::AngleAxisd(est.linear().transpose() * scene.base_T_object.linear()).angle() * 180.0 / M_PI;

@@ -39,6 +39,7 @@
 #include "foresight/common/trajectory.hpp"
 #include "foresight/display/display_frame.hpp"
 #include "foresight/display/video_source.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/preview/preview.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/scene_geometry.hpp"

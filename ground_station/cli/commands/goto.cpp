@@ -11,7 +11,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/plan.hpp"
 #include "foresight/common/scene.hpp"
-#include "foresight/render/overlay_inputs.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "link_options.hpp"
 #include "link_session.hpp"
 
@@ -44,7 +44,7 @@ int run(const Options& o) {
     }
     Pose base_T_object;
     if (!o.object_pose.empty()) {
-      base_T_object = render::read_object_pose_json(o.object_pose);
+      base_T_object = read_object_pose_json(o.object_pose);
       pose_source = o.object_pose;
     } else {
       base_T_object = Scene::from_file(o.scene).base_T_object;

@@ -98,23 +98,23 @@ int run_localize(const LocalizeArgs& a) {
       residuals.push_back({{"n", p.n}, {"cam", p.cam}, {"px", p.px}, {"outlier", p.outlier}, {"line", p.line}});
       if (p.outlier) outlier_details.push_back({{"n", p.n}, {"cam", p.cam}, {"px", p.px}, {"line", p.line}});
     }
-    const nlohmann::json j = {{"object", object.name},
-                              {"base_T_object", pose_json(r.base_T_object)},
-                              {"position_m", vec_json(pos)},
-                              {"rpy_deg", vec_json(rpy_deg)},
-                              {"sigma", {{"position_m", vec_json(r.sigma_position_m)}, {"rpy_deg", vec_json(sigma_rpy_deg)}}},
-                              {"covariance", matrix_rows(r.covariance)},
-                              {"rms_px", r.rms_px},
-                              {"max_px", r.max_px},
-                              {"linear_rms_px", r.linear_rms_px},
-                              {"iterations", r.iterations},
-                              {"n_points", r.n_points},
-                              {"residuals_px", residuals},
-                              {"outliers", r.outliers},
-                              {"outlier_details", outlier_details},
-                              {"views", r.views},
-                              {"camera_uncertainty", r.camera_uncertainty},
-                              {"tags", tags}};
+    nlohmann::json j = {{"object", object.name},
+                        {"position_m", vec_json(pos)},
+                        {"rpy_deg", vec_json(rpy_deg)},
+                        {"sigma", {{"position_m", vec_json(r.sigma_position_m)}, {"rpy_deg", vec_json(sigma_rpy_deg)}}},
+                        {"covariance", matrix_rows(r.covariance)},
+                        {"rms_px", r.rms_px},
+                        {"max_px", r.max_px},
+                        {"linear_rms_px", r.linear_rms_px},
+                        {"iterations", r.iterations},
+                        {"n_points", r.n_points},
+                        {"residuals_px", residuals},
+                        {"outliers", r.outliers},
+                        {"outlier_details", outlier_details},
+                        {"views", r.views},
+                        {"camera_uncertainty", r.camera_uncertainty},
+                        {"tags", tags}};
+    j.update(object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
     std::cout << j.dump(2) << "\n";
     return kExitOk;
   }

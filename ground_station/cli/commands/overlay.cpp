@@ -18,6 +18,7 @@
 #include "command.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/renderer.hpp"
 #include "foresight/render/scene_geometry.hpp"

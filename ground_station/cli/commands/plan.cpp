@@ -19,7 +19,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/common/plan.hpp"
-#include "foresight/render/overlay_inputs.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "json_util.hpp"
 
 namespace foresight::cli {
@@ -77,7 +77,7 @@ int run(const Args& a) {
   const ObjectModel object = ObjectModel::from_file(a.object);
   const Eigen::VectorXd q0 =
       !a.from.empty() ? parse_joints(a.from, "--from", robot) : parse_joints(a.from_deg, "--from-deg", robot, true);
-  const Pose base_T_object = render::read_object_pose_json(a.object_pose);
+  const Pose base_T_object = read_object_pose_json(a.object_pose);
   const auto goals = parse_goals(a.to, object, base_T_object, q0);
 
   Plan plan;

@@ -16,6 +16,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/preview/preview.hpp"
 #include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/video_frame.hpp"
 #include "json_util.hpp"

@@ -25,6 +25,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/preview/preview.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/video_frame.hpp"
 #include "json_util.hpp"

@@ -15,7 +15,7 @@
 
 #include "foresight/common/plan.hpp"
 #include "foresight/common/trajectory.hpp"
-#include "foresight/render/overlay_inputs.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "link_session.hpp"
 
 namespace foresight::cli {
@@ -72,7 +72,7 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     base_T_object_ = scene_.base_T_object;
     pose_source_ = s_.scene + " (the work site's true pose)";
   } else if (!s_.object_pose.empty()) {
-    base_T_object_ = render::read_object_pose_json(s_.object_pose);
+    base_T_object_ = read_object_pose_json(s_.object_pose);
     pose_source_ = s_.object_pose;
   }
   if (link_) {
@@ -241,7 +241,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
     case Op::Release: grabbed_ = false; return done("the object's graphics stay where they are", t0);
     case Op::Object:
       if (c.has("pose")) {
-        base_T_object_ = render::read_object_pose_json(c.text_or("pose", ""));
+        base_T_object_ = read_object_pose_json(c.text_or("pose", ""));
         pose_source_ = c.text_or("pose", "");
       }
       return done("object " + c.positional[0].text + (pose_source_.empty() ? "" : ", pose from " + pose_source_), t0);
@@ -273,7 +273,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       const int rc = child(args, out, interrupted, &err);
       if (rc == -2) return {CommandState::Canceled, "localization interrupted", since(t0)};
       if (rc != 0) return failed("localize: " + err, t0);
-      base_T_object_ = render::read_object_pose_json(out);
+      base_T_object_ = read_object_pose_json(out);
       pose_source_ = out;
       const Eigen::Vector3d p = base_T_object_->translation();
       char buf[160];

@@ -1,6 +1,6 @@
 #pragma once
-// Inputs the overlay commands share: a camera by name from cameras.yaml, the
-// object pose from `foresight localize --json` output, joint vectors. Set-up
+// Inputs the overlay commands share: a camera by name from cameras.yaml
+// (the object pose file is read by foresight/localization/pose_json.hpp). Set-up
 // code; throws InputError naming the file (or std::invalid_argument naming
 // the option).
 
@@ -15,10 +15,5 @@ namespace foresight::render {
 
 /// Camera `name` of a cameras.yaml file. InputError "no camera 'X' (known: a, b)".
 Camera load_camera(const std::string& cameras_yaml, const std::string& name);
-
-/// base_T_object from a localize JSON file (key "base_T_object", 4 rows of
-/// 4 numbers, orthonormal rotation). InputError naming the file otherwise.
-Pose read_object_pose_json(const std::string& path);
-
 
 }  // namespace foresight::render

@@ -1,0 +1,61 @@
+#include "foresight/localization/pose_json.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+#include <cmath>
+
+#include "foresight/common/error.hpp"
+#include "foresight/common/text_file.hpp"
+
+namespace foresight {
+
+nlohmann::json pose_json(const Pose& T) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int c = 0; c < 4; ++c) row.push_back(T.matrix()(r, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+nlohmann::json object_pose_json(const Pose& base_T_object) {
+  return nlohmann::json{{kObjectPoseKey, pose_json(base_T_object)}};
+}
+
+Pose parse_object_pose_json(const std::string& text, const std::string& source) {
+  const std::string key = kObjectPoseKey;
+  auto bad = [&](const std::string& message) { return InputError(source, message); };
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e400
+    throw bad(std::string("malformed JSON: ") + e.what());
+  }
+  if (!j.is_object() || !j.contains(key)) throw bad("no key '" + key + "'");
+  const nlohmann::json& m = j[key];
+  if (!m.is_array() || m.size() != 4) throw bad(key + " must be 4 rows of 4 numbers");
+  Eigen::Matrix4d M;
+  for (int r = 0; r < 4; ++r) {
+    const std::string row = key + " row " + std::to_string(r + 1);
+    if (!m[r].is_array() || m[r].size() != 4) throw bad(row + " must have 4 numbers");
+    for (int c = 0; c < 4; ++c) {
+      if (!m[r][c].is_number()) throw bad(row + " has a non-number");
+      M(r, c) = m[r][c].get<double>();
+      if (!std::isfinite(M(r, c))) throw bad(key + " has a non-finite number");
+    }
+  }
+  const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0.0 ||
+      (M.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-9)
+    throw bad(key + " is not a rigid transform (rotation not orthonormal or last row not 0 0 0 1)");
+  Pose T;
+  T.matrix() = M;
+  return T;
+}
+
+Pose read_object_pose_json(const std::string& path) {
+  return parse_object_pose_json(read_text_file(path, "cannot open object pose file"), path);  // bounded size
+}
+
+}  // namespace foresight
