@@ -22,6 +22,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
   if (!(opt.noise_px > 0.0) || !std::isfinite(opt.noise_px)) throw InputError("--noise-px must be a positive number");
   if (!(opt.arm_link_error_m >= 0.0) || !std::isfinite(opt.arm_link_error_m))
     throw InputError("--arm-error-mm must be a non-negative number");
+  if (!(opt.arm_link_prior_m >= 0.0) || !std::isfinite(opt.arm_link_prior_m))
+    throw InputError("--arm-prior-mm must be a non-negative number");
   const auto t0 = std::chrono::steady_clock::now();
   StudySetup setup = make_study_setup(scene, object, {});
   const std::vector<ArmCalibrationPose> poses = arm_calibration_poses(robot);
@@ -53,7 +55,14 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       c.label = view_combination_label(c.views);
       combos.push_back(c);
     }
-  std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size());
+  std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size()), acc_cam_only(combos.size());
+  const int nseg = static_cast<int>(robot.chain().getNrOfSegments());
+  for (int k = 0; k < nseg; ++k)
+    if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) res.link_segments.push_back(k);
+  const int nls = static_cast<int>(res.link_segments.size());
+  std::vector<double> link_true2(nls, 0.0), link_err2(nls, 0.0), link_sig(nls, 0.0);
+  int link_trials = 0;
+  res.camera_bundle_px.assign(nv, 0.0);
   res.camera_clicks_px.assign(nv, 0.0);
   res.camera_aligned_px.assign(nv, 0.0);
   res.camera_refused.assign(nv, 0);
@@ -150,6 +159,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     std::vector<AlignView> views(nv);
     const std::optional<Pose> occluder = clicks_pose.back() ? clicks_pose.back() : std::optional<Pose>(setup.base_T_object);
     std::vector<Camera> aligned_cam(nv);
+    std::vector<int> views_aligned;
     for (int v = 0; v < nv; ++v) {
       const Camera& truth = setup.views[v].truth;
       views[v].camera = cams.at(truth.name);
@@ -159,30 +169,81 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       const AlignResult r = aligner.align({views[v]}, occluder, ao);
       if (r.status != AlignStatus::Aligned) ++res.camera_refused[v];
       aligned_cam[v] = r.cameras[0];  // the start when refused
+      if (r.status == AlignStatus::Aligned) views_aligned.push_back(v);
       res.camera_clicks_px[v] += reprojection_rms_px(views[v].camera, truth, metric_points);
       res.camera_aligned_px[v] += reprojection_rms_px(aligned_cam[v], truth, metric_points);
     }
-    // The ORU over each combination with the arm-refined cameras.
+    // Step 5: cameras + the arm's link lengths over every aligned camera's frames.
+    std::vector<Camera> bundle_cam = aligned_cam;
+    std::vector<double> arm_delta;  // empty: the nominal arm
+    if (opt.arm_link_prior_m > 0.0 && !views_aligned.empty()) {
+      std::vector<AlignView> all;
+      for (const int v : views_aligned) all.push_back({aligned_cam[v], views[v].frames});
+      AlignOptions ao;
+      ao.refine = Refine::Camera;
+      ao.arm_link_prior_m = opt.arm_link_prior_m;
+      const AlignResult r = aligner.align(all, occluder, ao);
+      if (r.status == AlignStatus::Aligned) {
+        for (std::size_t i = 0; i < views_aligned.size(); ++i) bundle_cam[views_aligned[i]] = r.cameras[i];
+        arm_delta = r.arm_link_delta_m;
+        for (int j = 0; j < nls; ++j) {
+          const int k = res.link_segments[j];
+          link_true2[j] += delta[k] * delta[k];
+          link_err2[j] += (arm_delta[k] - delta[k]) * (arm_delta[k] - delta[k]);
+          link_sig[j] += r.arm_link_sigma_m.empty() ? 0.0 : r.arm_link_sigma_m[k];
+        }
+        ++link_trials;
+      } else {
+        ++res.bundle_refused;
+      }
+    }
+    for (int v = 0; v < nv; ++v) res.camera_bundle_px[v] += reprojection_rms_px(bundle_cam[v], setup.views[v].truth, metric_points);
+    // The ORU over each combination: with the step-5 cameras and arm, and
+    // with the step-4 cameras (nominal arm) for comparison.
     for (std::size_t ci = 0; ci < combos.size(); ++ci) {
       if (!clicks_pose[ci]) continue;
       acc_clicks[ci].add(pose_error(*clicks_pose[ci], setup.base_T_object));
-      std::vector<AlignView> sub;
-      for (const int v : combos[ci].views) sub.push_back({aligned_cam[v], views[v].frames});
+      std::vector<AlignView> sub, sub_cam_only;
+      for (const int v : combos[ci].views) {
+        sub.push_back({bundle_cam[v], views[v].frames});
+        sub_cam_only.push_back({aligned_cam[v], views[v].frames});
+      }
       AlignOptions ao;
       ao.refine = Refine::Object;
-      const AlignResult r = aligner.align(sub, clicks_pose[ci], ao);
-      if (r.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
-      acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
+      const AlignResult r0 = aligner.align(sub_cam_only, clicks_pose[ci], ao);
+      if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_cameras_only_refused;
+      acc_cam_only[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
+      if (opt.arm_link_prior_m > 0.0) {
+        ao.arm_link_delta_m = arm_delta;
+        const AlignResult r = aligner.align(sub, clicks_pose[ci], ao);
+        if (r.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
+        acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
+      } else {
+        if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
+        acc_aligned[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
+      }
     }
     if (opt.progress) opt.progress(t + 1, opt.trials);
   }
   for (std::size_t ci = 0; ci < combos.size(); ++ci) {
     combos[ci].clicks = acc_clicks[ci].stats();
     combos[ci].aligned = acc_aligned[ci].stats();
+    combos[ci].aligned_cameras_only = acc_cam_only[ci].stats();
   }
+  double t2 = 0.0, e2 = 0.0;
+  for (int j = 0; j < nls; ++j) {
+    t2 += link_true2[j];
+    e2 += link_err2[j];
+    res.link_true_rms_m.push_back(std::sqrt(link_true2[j] / std::max(1, link_trials)));
+    res.link_estimate_error_rms_m.push_back(std::sqrt(link_err2[j] / std::max(1, link_trials)));
+    res.link_sigma_mean_m.push_back(link_sig[j] / std::max(1, link_trials));
+  }
+  res.link_true_rms_all_m = std::sqrt(t2 / std::max(1, link_trials * nls));
+  res.link_estimate_error_rms_all_m = std::sqrt(e2 / std::max(1, link_trials * nls));
   for (int v = 0; v < nv; ++v) {
     res.camera_clicks_px[v] /= std::max(1, good);
     res.camera_aligned_px[v] /= std::max(1, good);
+    res.camera_bundle_px[v] /= std::max(1, good);
   }
   res.combos = std::move(combos);
   res.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -151,7 +151,11 @@ struct Sample {
   double length_px = 0.0;  // contour length it stands for
   int cluster = 0;  // the model edge (per frame) it lies on: samples of one edge share their errors
   Eigen::Vector3d p_local, dir_local;  // object frame when on_object, else base
+  int link = -1;                       // arm samples: the link it is fixed in
+  Eigen::Vector3d p_link, dir_link;    // arm samples: in that link's frame
 };
+
+constexpr int kMaxLinks = 16;  // refined link lengths (chain segments with an offset)
 
 struct Gradient {
   cv::Mat gx, gy;  // CV_32F, grey levels per pixel
@@ -285,6 +289,7 @@ struct ModelAligner::Impl {
 
   // Per frame: the link poses at its q, the grey image.
   struct FrameData {
+    Eigen::VectorXd q;
     std::vector<Pose> link_poses;
     cv::Mat grey8, grey;
     std::map<int, Gradient> gradients;  // by level index (-1: score level)
@@ -328,6 +333,7 @@ struct ModelAligner::Impl {
     else if (frame.image_bgr.type() == CV_8UC1) f.grey8 = frame.image_bgr;
     else throw std::invalid_argument("frame must be an 8-bit BGR or grey image");
     f.grey8.convertTo(f.grey, CV_32F);
+    f.q = frame.q;
     f.link_poses.resize(arm.links().size());
     for (int k = 0; k < static_cast<int>(arm.links().size()); ++k)
       f.link_poses[k] = forward_kinematics(arm, ws, frame.q, k);
@@ -418,6 +424,10 @@ struct ModelAligner::Impl {
         } else {
           s.p_local = p;
           s.dir_local = dir;
+          s.link = c.prim->link;
+          const Pose& T = f.link_poses[s.link];
+          s.p_link = T.inverse() * p;
+          s.dir_link = T.linear().transpose() * dir;
         }
         out.push_back(s);
       }
@@ -438,7 +448,24 @@ struct Eval {
   std::vector<double> r;       // signed distance along n, px
   std::vector<char> matched;
   std::vector<Eigen::Matrix<double, 1, 13>> J;  // camera 7, object 6
+  std::vector<Eigen::Matrix<double, 1, kMaxLinks>> Jl;  // refined link lengths
 };
+
+// The prior weight of the link lengths in units of H (= sum w J^T J over
+// samples): s^2 n / G / sd^2 is the prior information 1/sd^2 scaled by the
+// data's per-sample variance s^2 and the n / G samples per model edge.
+double link_prior_weight_impl(const std::vector<Sample>& samples, const Eval& e, double c, double s2, double prior_m) {
+  std::vector<int> clusters;
+  int n = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (!e.matched[i] || std::abs(e.r[i] / c) >= 1.0) continue;
+    clusters.push_back(samples[i].cluster);
+    ++n;
+  }
+  std::sort(clusters.begin(), clusters.end());
+  const double G = static_cast<double>(std::unique(clusters.begin(), clusters.end()) - clusters.begin());
+  return s2 * (n / std::max(1.0, G)) / (prior_m * prior_m);
+}
 
 }  // namespace
 
@@ -484,8 +511,55 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   };
   const bool want_arm = refine_camera;
   const bool want_object = refine_object;
-  const int P = (refine_camera ? 7 * V : 0) + (refine_object ? 6 : 0);
+
+  // The arm model's link-length corrections: given (rendered and sampled
+  // with) and/or refined with the cameras under a prior (a bundle adjustment
+  // over cameras + arm; the link offsets are observable over several poses).
+  const int nseg = static_cast<int>(I.arm.chain().getNrOfSegments());
+  if (!o.arm_link_delta_m.empty() && static_cast<int>(o.arm_link_delta_m.size()) != nseg)
+    throw std::invalid_argument("arm link corrections: " + std::to_string(o.arm_link_delta_m.size()) +
+                                " values for " + std::to_string(nseg) + " chain segments");
+  if (!(o.arm_link_prior_m >= 0.0) || !std::isfinite(o.arm_link_prior_m))
+    throw std::invalid_argument("arm link prior must be a non-negative number");
+  const std::vector<double> link_start = o.arm_link_delta_m.empty() ? std::vector<double>(nseg, 0.0) : o.arm_link_delta_m;
+  std::vector<double> link_delta = link_start;
+  std::vector<int> link_segs;
+  if (refine_camera && o.arm_link_prior_m > 0.0)
+    for (int k = 0; k < nseg; ++k)
+      if (I.arm.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) link_segs.push_back(k);
+  const int NL = static_cast<int>(link_segs.size());
+  if (NL > kMaxLinks) throw std::invalid_argument("arm link refinement: more than 16 link offsets");
+  constexpr double kLinkStep_m = 1e-3;  // FK is linear in the offsets at fixed q: the difference is exact
+  // dposes[v][k][j][link]: the link poses with link length j stepped.
+  std::vector<std::vector<std::vector<std::vector<Pose>>>> dposes(V);
+  auto update_arm = [&]() {
+    const RobotModel m = I.arm.with_link_lengths_changed(link_delta);
+    KinematicsWorkspace mws(m);
+    std::vector<RobotModel> stepped;
+    for (int j = 0; j < NL; ++j) {
+      std::vector<double> d = link_delta;
+      d[link_segs[j]] += kLinkStep_m;
+      stepped.push_back(I.arm.with_link_lengths_changed(d));
+    }
+    const int nl = static_cast<int>(I.arm.links().size());
+    for (int v = 0; v < V; ++v) {
+      dposes[v].resize(data[v].size());
+      for (std::size_t k = 0; k < data[v].size(); ++k) {
+        auto& f = data[v][k];
+        for (int l = 0; l < nl; ++l) f.link_poses[l] = forward_kinematics(m, mws, f.q, l);
+        dposes[v][k].assign(NL, std::vector<Pose>(nl));
+        for (int j = 0; j < NL; ++j) {
+          KinematicsWorkspace sws(stepped[j]);
+          for (int l = 0; l < nl; ++l) dposes[v][k][j][l] = forward_kinematics(stepped[j], sws, f.q, l);
+        }
+      }
+    }
+  };
+  if (!o.arm_link_delta_m.empty() || NL > 0) update_arm();
+
+  const int P = (refine_camera ? 7 * V : 0) + (refine_object ? 6 : 0) + NL;
   const int obj_col = refine_camera ? 7 * V : 0;
+  const int link_col = P - NL;
 
   auto collect = [&](std::vector<Sample>& samples, std::vector<int>* per_view) {
     samples.clear();
@@ -506,14 +580,22 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     e.r.assign(samples.size(), 0.0);
     e.matched.assign(samples.size(), 0);
     if (jac) e.J.assign(samples.size(), Eigen::Matrix<double, 1, 13>::Zero());
+    if (jac && NL > 0) e.Jl.assign(samples.size(), Eigen::Matrix<double, 1, kMaxLinks>::Zero());
     const double thr = o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px);
     std::vector<Camera> cams;
     for (int v = 0; v < V; ++v) cams.push_back(camera_of(v));
     for (std::size_t i = 0; i < samples.size(); ++i) {
       const Sample& s = samples[i];
       const Camera& cam = cams[s.view];
-      const Eigen::Vector3d p = s.on_object ? Eigen::Vector3d(obj_R * s.p_local + obj_t) : s.p_local;
-      const Eigen::Vector3d dir = s.on_object ? Eigen::Vector3d(obj_R * s.dir_local) : s.dir_local;
+      Eigen::Vector3d p, dir;
+      if (s.on_object) {
+        p = obj_R * s.p_local + obj_t;
+        dir = obj_R * s.dir_local;
+      } else {
+        const Pose& T = data[s.view][s.frame].link_poses[s.link];
+        p = T * s.p_link;
+        dir = T.linear() * s.dir_link;
+      }
       if (cam.to_camera(p).z() <= kNear_m) continue;
       const Projection pr = project_with_jacobians(cam, p);
       Eigen::Vector2d d2 = pr.d_point * dir;
@@ -529,6 +611,11 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         if (refine_camera) e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
         if (refine_object && s.on_object)
           e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, obj_R, s.p_local);
+        if (NL > 0 && !s.on_object) {
+          const Eigen::RowVector3d nd = n.transpose() * pr.d_point;
+          for (int j = 0; j < NL; ++j)
+            e.Jl[i][j] = nd.dot(dposes[s.view][s.frame][j][s.link] * s.p_link - p) / kLinkStep_m;
+        }
       }
     }
   };
@@ -545,6 +632,10 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     }
     if (matched1) *matched1 = m1;
     return samples.empty() ? o.score_cap_px : std::sqrt(s2 / samples.size());
+  };
+
+  auto link_prior_weight = [&](const std::vector<Sample>& samples, const Eval& ev, double c, double s2, int) {
+    return link_prior_weight_impl(samples, ev, c, s2, o.arm_link_prior_m);
   };
 
   AlignResult res;
@@ -605,14 +696,25 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         row.setZero();
         if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
         if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
         H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
         g += w * e.r[i] * row;
         wsum += w;
         wr2 += w * e.r[i] * e.r[i];
       }
       H = H.selfadjointView<Eigen::Lower>();
-      H_last = H;
       s2_last = wr2 / std::max(1.0, wsum - P);
+      if (NL > 0) {
+        // The prior on the link lengths, in the data's units: the data's
+        // information is H / (s^2 n / G) (G model edges: independent
+        // errors per edge, not per sample), the prior's 1 / sd^2.
+        const double lambda = link_prior_weight(samples, e, c, s2_last, P);
+        for (int j = 0; j < NL; ++j) {
+          H(link_col + j, link_col + j) += lambda;
+          g[link_col + j] -= lambda * (link_delta[link_segs[j]] - link_start[link_segs[j]]);
+        }
+      }
+      H_last = H;
       Eigen::MatrixXd A = H;
       for (int k = 0; k < P; ++k) A(k, k) += 1e-3 * H(k, k) + 1e-12;
       Eigen::VectorXd delta = A.ldlt().solve(g);
@@ -623,6 +725,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         row.setZero();
         if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
         if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
         max_move = std::max(max_move, std::abs(row.dot(delta)));
       }
       if (max_move > L.search_px) delta *= L.search_px / max_move;
@@ -639,6 +742,10 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         obj_R = obj_R * exp_so3(d.head<3>());
         obj_t += d.tail<3>();
         res.object_change += d;
+      }
+      if (NL > 0) {
+        for (int j = 0; j < NL; ++j) link_delta[link_segs[j]] += delta[link_col + j];
+        update_arm();
       }
       ++res.iterations;
       if (max_move < (li + 1 == static_cast<int>(kLevels.size()) ? 0.005 : 0.05)) break;
@@ -670,13 +777,32 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         row.setZero();
         if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
         if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
         H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
         auto it = score.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first;
         it->second += w * e.r[i] * row;
         ++n;
       }
       H = H.selfadjointView<Eigen::Lower>();
+      double prior_lambda = 0.0;
+      if (NL > 0) {
+        double wr2p = 0.0, wsump = 0.0;
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+          if (!e.matched[i]) continue;
+          const double u = e.r[i] / c;
+          if (std::abs(u) >= 1.0) continue;
+          const double w = (1 - u * u) * (1 - u * u);
+          wr2p += w * e.r[i] * e.r[i];
+          wsump += w;
+        }
+        prior_lambda = link_prior_weight(samples, e, c, wr2p / std::max(1.0, wsump - P), P);
+        for (int j = 0; j < NL; ++j) H(link_col + j, link_col + j) += prior_lambda;
+      }
       Eigen::MatrixXd B = Eigen::MatrixXd::Zero(P, P);
+      // The prior's score: lambda x (a link error of sd prior): a link no
+      // edge sees keeps its prior sd.
+      for (int j = 0; j < NL; ++j)
+        B(link_col + j, link_col + j) += prior_lambda * prior_lambda * o.arm_link_prior_m * o.arm_link_prior_m;
       for (const auto& [k, g] : score) B.selfadjointView<Eigen::Lower>().rankUpdate(g);
       B = B.selfadjointView<Eigen::Lower>();
       const double G = static_cast<double>(score.size());
@@ -761,6 +887,12 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   if (res.status == AlignStatus::Aligned) {
     for (int v = 0; v < V; ++v) res.cameras[v] = camera_of(v);
     if (refine_object) res.base_T_object = object_pose();
+  }
+  res.arm_link_delta_m = res.status == AlignStatus::Aligned ? link_delta : link_start;
+  if (NL > 0) {
+    res.arm_link_sigma_m.assign(nseg, 0.0);
+    if (res.covariance.rows() == P)
+      for (int j = 0; j < NL; ++j) res.arm_link_sigma_m[link_segs[j]] = std::sqrt(res.covariance(link_col + j, link_col + j));
   }
   return finish(res);
 }

@@ -8,10 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
+#include "foresight/align/alignment_study.hpp"
 #include "foresight/align/model_aligner.hpp"
 #include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
+#include "foresight/localization/accuracy_study.hpp"
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
 
@@ -247,4 +250,105 @@ TEST(Align, ModelNotInViewAndBadFrames) {
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "refining the object needs its start pose (--object-pose)");
   }
+}
+
+// The arm's own model error estimated from the images (a bundle adjustment
+// over the cameras and the link lengths): a true arm whose link offsets are
+// off by a known +-2-3 mm, three cameras that see it at the four calibration
+// poses, cameras started 3 px off. The link lengths come back well inside
+// their 2 mm prior and the cameras closer to the truth than an alignment to
+// the nominal arm gets them.
+TEST(Align, ArmLinkLengthsWithTheCameras) {
+  World w;
+  const unsigned nseg = w.model.chain().getNrOfSegments();
+  std::vector<double> truth_delta(nseg, 0.0);
+  std::vector<int> segs;
+  for (unsigned k = 0; k < nseg; ++k)
+    if (w.model.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) {
+      truth_delta[k] = (segs.size() % 2 ? -1.0 : 1.0) * (0.002 + 0.0005 * static_cast<double>(segs.size() % 3));
+      segs.push_back(static_cast<int>(k));
+    }
+  const RobotModel truth_arm = w.model.with_link_lengths_changed(truth_delta);
+  const auto poses = arm_calibration_poses(w.model);
+  std::vector<AlignView> views, nominal_only;
+  std::vector<Camera> truths;
+  std::vector<std::unique_ptr<SyntheticCamera>> synths;
+  for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
+    const Camera truth = scene_camera(w.scene, name);
+    truths.push_back(truth);
+    synths.push_back(std::make_unique<SyntheticCamera>(*w.ctx, truth_arm, w.oru, w.scene, truth.viewport, options(2.0, 21)));
+    AlignView v{perturbed(truth, 2.5, -1.5, 1.004), {}};
+    for (const auto& p : poses) v.frames.push_back({synths.back()->render(truth, p.q).image_bgr, p.q});
+    views.push_back(v);
+  }
+  ModelAligner aligner(*w.ctx, w.model, &w.oru, truths[0].viewport);
+  std::vector<Eigen::Vector3d> pts;
+  {
+    KinematicsWorkspace tws(truth_arm);
+    for (const auto& p : poses)
+      for (int k = 0; k < static_cast<int>(truth_arm.links().size()); ++k)
+        pts.push_back(forward_kinematics(truth_arm, tws, p.q, k).translation());
+  }
+  AlignOptions nominal;
+  const AlignResult r0 = aligner.align(views, w.scene.base_T_object, nominal);
+  AlignOptions o;
+  o.arm_link_prior_m = 0.002;
+  const AlignResult r = aligner.align(views, w.scene.base_T_object, o);
+  ASSERT_EQ(r0.status, AlignStatus::Aligned) << r0.reason;
+  ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
+  ASSERT_EQ(r.arm_link_delta_m.size(), nseg);
+  double t2 = 0.0, e2 = 0.0;
+  int within3 = 0;
+  std::printf("link   truth mm  estimate mm  sigma mm\n");
+  for (const int k : segs) {
+    const double err = r.arm_link_delta_m[k] - truth_delta[k];
+    std::printf("%4d %9.2f %12.2f %9.2f\n", k, truth_delta[k] * 1e3, r.arm_link_delta_m[k] * 1e3,
+                r.arm_link_sigma_m[k] * 1e3);
+    t2 += truth_delta[k] * truth_delta[k];
+    e2 += err * err;
+    if (std::abs(err) <= 3.0 * r.arm_link_sigma_m[k]) ++within3;
+  }
+  const double true_rms = std::sqrt(t2 / segs.size()), est_rms = std::sqrt(e2 / segs.size());
+  double cam_nominal = 0.0, cam_bundle = 0.0;
+  for (std::size_t v = 0; v < truths.size(); ++v) {
+    cam_nominal += reprojection_rms_px(r0.cameras[v], truths[v], pts) / truths.size();
+    cam_bundle += reprojection_rms_px(r.cameras[v], truths[v], pts) / truths.size();
+  }
+  std::printf("links: true error %.2f mm rms, estimate's error %.2f mm rms (%d of %zu within 3 sigma); cameras vs "
+              "truth: %.2f px aligned to the nominal arm, %.2f px with the arm refined; %d it, %.0f ms\n",
+              true_rms * 1e3, est_rms * 1e3, within3, segs.size(), cam_nominal, cam_bundle, r.iterations, r.time_ms);
+  EXPECT_LT(est_rms, 0.5 * true_rms);
+  EXPECT_LT(cam_bundle, 0.7 * cam_nominal);
+}
+
+// A driver for measurements (not run by ctest: DISABLED_): the alignment
+// study with FORESIGHT_STUDY_TRIALS / _SEED / _ARM_ERROR_MM / _PRIOR_MM.
+TEST(AlignStudy, DISABLED_Driver) {
+  World w;
+  AlignmentStudyOptions o;
+  auto env = [](const char* k, double d) { const char* v = std::getenv(k); return v ? std::atof(v) : d; };
+  o.trials = static_cast<int>(env("FORESIGHT_STUDY_TRIALS", 2));
+  o.seed = static_cast<unsigned>(env("FORESIGHT_STUDY_SEED", 1));
+  o.arm_link_error_m = env("FORESIGHT_STUDY_ARM_ERROR_MM", 2.0) * 1e-3;
+  o.arm_link_prior_m = env("FORESIGHT_STUDY_PRIOR_MM", 2.0) * 1e-3;
+  const AlignmentStudyResult r = run_alignment_study(*w.ctx, w.model, w.oru, w.scene, o);
+  for (std::size_t v = 0; v < r.view_names.size(); ++v)
+    std::printf("view %zu %s: camera %.2f px clicks, %.2f aligned (%d refused), %.2f with arm\n", v + 1,
+                r.view_names[v].c_str(), r.camera_clicks_px[v], r.camera_aligned_px[v], r.camera_refused[v],
+                r.camera_bundle_px[v]);
+  std::printf("links: true %.2f mm rms, estimate error %.2f mm rms, bundle refused %d\n", r.link_true_rms_all_m * 1e3,
+              r.link_estimate_error_rms_all_m * 1e3, r.bundle_refused);
+  for (std::size_t j = 0; j < r.link_segments.size(); ++j)
+    std::printf("  seg %d: true %.2f est err %.2f sigma %.2f mm\n", r.link_segments[j], r.link_true_rms_m[j] * 1e3,
+                r.link_estimate_error_rms_m[j] * 1e3, r.link_sigma_mean_m[j] * 1e3);
+  for (const auto& c : r.combos)
+    std::printf("%-8s clicks %6.2f mm %.3f deg 95%% %.3f depth %.3f | aligned %6.2f mm %.3f deg 95%% %.3f depth %.3f (%d) | "
+                "cam-only %6.2f mm 95%% %.3f depth %.3f (%d)\n",
+                c.label.c_str(), c.clicks.position_rmse_m * 1e3, c.clicks.rotation_rmse_rad * 180 / M_PI,
+                c.clicks.alignment95_m * 100, c.clicks.depth95_m * 100, c.aligned.position_rmse_m * 1e3,
+                c.aligned.rotation_rmse_rad * 180 / M_PI, c.aligned.alignment95_m * 100, c.aligned.depth95_m * 100,
+                c.aligned_refused, c.aligned_cameras_only.position_rmse_m * 1e3,
+                c.aligned_cameras_only.alignment95_m * 100, c.aligned_cameras_only.depth95_m * 100,
+                c.aligned_cameras_only_refused);
+  std::printf("elapsed %.1f s\n", r.elapsed_s);
 }

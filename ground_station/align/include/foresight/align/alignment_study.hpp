@@ -16,10 +16,16 @@
 //  4. Each camera refined by alignment of the nominal arm to its frames
 //     (Refine::Camera, the clicks' camera as the start, the 4-view clicks ORU
 //     for occlusion); a refused alignment keeps the clicks camera.
-//  5. Per view combination the ORU pose refined by alignment over those views
-//     at once (Refine::Object, the arm-refined cameras, the combination's
-//     clicks pose as the start): the "aligned" result; a refused alignment
-//     keeps the clicks pose (and is counted).
+//  5. The arm self-calibration (arm_link_prior_m > 0): one bundle
+//     adjustment over every camera whose step-4 alignment held and all their
+//     frames, refining the cameras and the arm's link lengths together
+//     (AlignOptions::arm_link_prior_m, the prior sd), so the cameras are no
+//     longer aligned to the wrong model arm; refused: the step-4 cameras.
+//  6. Per view combination the ORU pose refined by alignment over those views
+//     at once (Refine::Object, the combination's clicks pose as the start):
+//     with the step-5 cameras and corrected arm the "aligned" result, with the
+//     step-4 cameras and the nominal arm "aligned_cameras_only"; a refused
+//     alignment keeps the clicks pose (and is counted).
 // Errors in the ORU frame as the localization study (x, y, z, theta; the
 // paper's 95% alignment |mu_xy| + 2 sigma_xy and depth |mu_z| + 2 sigma_z).
 //
@@ -44,6 +50,7 @@ struct AlignmentStudyOptions {
   double arm_link_error_m = 0.002;   ///< link-length error sd of the rendered true arm (m)
   double sensor_noise_dn = 2.0;      ///< synthetic camera sensor noise (digital numbers)
   double blur_px = 0.6;              ///< synthetic camera optical blur (px)
+  double arm_link_prior_m = 0.002;   ///< step 5's link-length prior sd (m); 0: no arm refinement
   std::function<void(int, int)> progress;  ///< (done, total) after each trial
 };
 
@@ -51,9 +58,11 @@ struct AlignmentComboStats {
   std::vector<int> views;  ///< 0-based
   std::string label;       ///< "1+2+3+4"
   ErrorStats clicks;       ///< clicks alone (calibrate, then localize)
-  ErrorStats aligned;      ///< clicks + alignment (cameras, then the ORU over the views)
+  ErrorStats aligned;      ///< clicks + alignment (cameras and arm, then the ORU over the views)
+  ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
   int clicks_failures = 0;
   int aligned_refused = 0;  ///< trials where the ORU alignment refused (clicks pose kept)
+  int aligned_cameras_only_refused = 0;
 };
 
 struct AlignmentStudyResult {
@@ -65,6 +74,15 @@ struct AlignmentStudyResult {
   /// over trials, for the clicks camera and the aligned one.
   std::vector<double> camera_clicks_px, camera_aligned_px;
   std::vector<int> camera_refused;  ///< per view, trials where the camera alignment refused
+  std::vector<double> camera_bundle_px;  ///< per view, after step 5 (cameras + arm)
+  int bundle_refused = 0;                ///< trials where step 5 refused
+  /// Step 5's link lengths against the truth, per chain segment with an
+  /// offset (`link_segments`, chain indices): RMS over trials of the true
+  /// error (what the nominal model is off by) and of the estimate's error
+  /// (estimate - truth), and the mean reported sd; all links pooled too.
+  std::vector<int> link_segments;
+  std::vector<double> link_true_rms_m, link_estimate_error_rms_m, link_sigma_mean_m;
+  double link_true_rms_all_m = 0.0, link_estimate_error_rms_all_m = 0.0;
   int trials = 0;
   int calibration_failures = 0;
   double noise_px = 0.0;

@@ -62,6 +62,18 @@ struct AlignOptions {
   double min_matched_fraction = 0.3; ///< final inliers within 1 px / visible samples
   double gradient_threshold = 6.0;   ///< grey levels per pixel (Sobel / 8)
   double score_cap_px = 8.0;         ///< truncation of the confidence score
+  /// Arm-model self-calibration (a bundle adjustment over the cameras and
+  /// the arm's link lengths): when > 0 and the cameras are refined, the
+  /// length of every non-zero link offset (RobotModel::
+  /// with_link_lengths_changed, one value per chain segment) is refined with
+  /// the cameras, under a Gaussian prior of this sd (m) around
+  /// `arm_link_delta_m`'s start. Observable over several arm poses seen by
+  /// several cameras; 0: the arm model is taken as exact (the default).
+  double arm_link_prior_m = 0.0;
+  /// Link-length corrections of the arm model (m, one per chain segment;
+  /// empty: none): the model that is rendered, sampled and (with
+  /// arm_link_prior_m) the start of their refinement.
+  std::vector<double> arm_link_delta_m;
 };
 
 /// One image of a camera with the arm at joint angles q.
@@ -99,12 +111,17 @@ struct AlignResult {
   std::vector<Eigen::Matrix<double, 7, 1>> camera_change;
   Eigen::Matrix<double, 6, 1> object_change = Eigen::Matrix<double, 6, 1>::Zero();
   /// Covariance of the refined parameters in the same order (cameras'
-  /// blocks of 7 when refined, then the object's 6): a cluster sandwich
+  /// blocks of 7 when refined, then the object's 6, then the refined link
+  /// lengths): a cluster sandwich
   /// estimator H^-1 B H^-1 at the final residuals, the scores summed per
   /// model edge (the samples of one edge share their errors; the plain
   /// s^2 H^-1 was 3-5x optimistic). See docs/estimation.md.
   Eigen::MatrixXd covariance;
   double time_ms = 0.0;
+  /// With arm_link_prior_m > 0: the refined link-length corrections (m, one
+  /// per chain segment; 0 for segments without an offset) and their sds
+  /// (from the covariance's link block); else the given ones / empty.
+  std::vector<double> arm_link_delta_m, arm_link_sigma_m;
 };
 
 /// The aligner for one viewport: holds a GL renderer and the model's
