@@ -67,7 +67,7 @@ T scalar_or(const YAML::Node& map, const char* key, T fallback, const std::strin
   try {
     return n.as<T>();
   } catch (const YAML::Exception&) {
-    throw InputError(file, line_of(n), prefix + key + ": not " + a_t + ": '" + n.Scalar() + "'");
+    throw InputError(file, line_of(n), prefix + key + ": " + not_a(n, a_t));
   }
 }
 
@@ -75,12 +75,12 @@ T scalar_or(const YAML::Node& map, const char* key, T fallback, const std::strin
 
 double number_or(const YAML::Node& map, const char* key, double fallback, const std::string& file,
                  const std::string& prefix) {
-  return scalar_or(map, key, fallback, file, prefix, "a number");
+  return scalar_or(map, key, fallback, file, prefix, type_words<double>());
 }
 
 int integer_or(const YAML::Node& map, const char* key, int fallback, const std::string& file,
                const std::string& prefix) {
-  return scalar_or(map, key, fallback, file, prefix, "an integer");
+  return scalar_or(map, key, fallback, file, prefix, type_words<int>());
 }
 
 std::optional<YAML::Node> unknown_key(const YAML::Node& map, std::span<const char* const> allowed) {
@@ -97,6 +97,47 @@ std::string key_list(std::span<const char* const> keys) {
   std::string list;
   for (const char* k : keys) list += std::string(list.empty() ? "" : ", ") + k;
   return list;
+}
+
+std::string not_a(const YAML::Node& n, const char* a_t) {
+  const std::string head = std::string("not ") + a_t;
+  if (n.IsScalar()) return head + ": '" + n.Scalar() + "'";
+  if (n.IsSequence()) return head + " (a list)";
+  if (n.IsMap()) return head + " (a map)";
+  return head + " (no value)";
+}
+
+MapReader::MapReader(const YAML::Node& map, std::string file, std::string path)
+    : map_(map), file_(std::move(file)), path_(std::move(path)) {
+  if (!map_.IsMap()) fail(map_, path_.empty() ? "expected a map at the top level" : path_ + ": expected a map");
+}
+
+std::string MapReader::name(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+void MapReader::fail(const YAML::Node& at, const std::string& message) const {
+  throw InputError(file_, line_of(at) > 0 ? line_of(at) : line_of(map_), message);
+}
+
+YAML::Node MapReader::at(const YAML::Node& value, const char* key) const {
+  if (value && !value.IsNull()) return value;
+  for (const auto& kv : map_)
+    if (kv.first.IsScalar() && kv.first.Scalar() == key) return kv.first;
+  return value;
+}
+
+void MapReader::fail_key(const char* key, const std::string& problem) const {
+  fail(at(map_[key], key), name(key) + ": " + problem);
+}
+
+void MapReader::check_keys(std::span<const char* const> allowed) const {
+  if (const auto key = unknown_key(map_, allowed))
+    fail(*key, name(key->as<std::string>()) + ": unknown key (expected one of: " + key_list(allowed) + ")");
+}
+
+MapReader MapReader::map(const char* key, const std::string& what) const {
+  const YAML::Node n = map_[key];
+  if (!n) fail(map_, label() + ": missing '" + key + "'" + (what.empty() ? "" : " (" + what + ")"));
+  return MapReader(n, file_, name(key));
 }
 
 }  // namespace foresight::yaml

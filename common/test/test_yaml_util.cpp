@@ -72,4 +72,49 @@ TEST(YamlUtil, Section) {
   EXPECT_EQ(error_of([&] { yaml::section(root, "t", "F", "the t part"); }), "F:3: t: expected a map");
 }
 
+// MapReader: the one wording of every configuration reader (remote.yaml's
+// sections, the tool, the video switch).
+TEST(YamlUtil, MapReaderReadsValuesAndFallbacks) {
+  const YAML::Node root = yaml::parse("rate: 2.5\nn: 7\nname: can0\nsub:\n  bits: 1000000\n", "F");
+  const yaml::MapReader top(root, "F", "");
+  EXPECT_EQ(top.get<double>("rate"), 2.5);
+  EXPECT_EQ(top.get<int>("n"), 7);
+  EXPECT_EQ(top.get<std::string>("name"), "can0");
+  EXPECT_EQ(top.get_or<int>("absent", -4), -4);
+  EXPECT_EQ(top.get_or<std::string>("absent", "tcp"), "tcp");
+  const yaml::MapReader sub = top.map("sub");
+  EXPECT_EQ(sub.get<std::uint32_t>("bits"), 1000000u);
+  EXPECT_EQ(sub.line(), 5);
+  EXPECT_EQ(sub.name("bits"), "sub.bits");
+  EXPECT_EQ(top.name("rate"), "rate");
+  EXPECT_EQ(top.label(), "top level");
+  EXPECT_EQ(sub.label(), "sub");
+}
+
+TEST(YamlUtil, MapReaderMessages) {
+  const YAML::Node root = yaml::parse(
+      "a: 1\nlist: [1]\ns:\n  x: fast\n  y: 1.5\n  z: -3\n  w: {k: 1}\n  v:\n  gain: 3\nt: 5\n", "F");
+  const yaml::MapReader top(root, "F", "");
+  const yaml::MapReader s = top.map("s");
+  EXPECT_EQ(error_of([&] { s.get<double>("x"); }), "F:4: s.x: not a number: 'fast'");
+  EXPECT_EQ(error_of([&] { s.get<int>("y"); }), "F:5: s.y: not an integer: '1.5'");
+  EXPECT_EQ(error_of([&] { s.get<std::uint32_t>("z"); }), "F:6: s.z: not an integer: '-3'");
+  EXPECT_EQ(error_of([&] { s.get<std::string>("w"); }), "F:7: s.w: not a string (a map)");
+  EXPECT_EQ(error_of([&] { s.get_or<double>("v", 1.0); }), "F:8: s.v: not a number (no value)");
+  EXPECT_EQ(error_of([&] { top.get<int>("list"); }), "F:2: list: not an integer (a list)");
+  EXPECT_EQ(error_of([&] { s.get<double>("u", "the u value"); }), "F:4: s: missing 'u' (the u value)");
+  EXPECT_EQ(error_of([&] { top.get<double>("u"); }), "F:1: top level: missing 'u'");
+  EXPECT_EQ(error_of([&] { s.check_keys({"x", "y", "z", "w", "v"}); }),
+            "F:9: s.gain: unknown key (expected one of: x, y, z, w, v)");
+  EXPECT_EQ(error_of([&] { top.check_keys({"a", "s", "t"}); }), "F:2: list: unknown key (expected one of: a, s, t)");
+  EXPECT_EQ(error_of([&] { top.map("t"); }), "F:10: t: expected a map");
+  EXPECT_EQ(error_of([&] { top.map("m", "the m part"); }), "F:1: top level: missing 'm' (the m part)");
+  EXPECT_EQ(error_of([&] { s.fail_key("y", "1.5 is outside 2..3"); }), "F:5: s.y: 1.5 is outside 2..3");
+  EXPECT_EQ(error_of([&] { s.fail_key("absent", "needed here"); }), "F:4: s.absent: needed here");
+  EXPECT_EQ(error_of([] { yaml::MapReader(yaml::parse("- 1\n", "F"), "F", ""); }), "F:1: expected a map at the top level");
+  // The optional settings speak the same words.
+  EXPECT_EQ(error_of([&] { yaml::number_or(s.node(), "x", 0.0, "F", "s."); }), "F:4: s.x: not a number: 'fast'");
+  EXPECT_EQ(error_of([&] { yaml::integer_or(s.node(), "w", 0, "F", "s."); }), "F:7: s.w: not an integer (a map)");
+}
+
 }  // namespace

@@ -20,85 +20,52 @@ namespace {
 
 using yaml::line_of;
 
-class ToolParser {
- public:
-  ToolParser(std::string source, const YAML::Node& section, std::string prefix)
-      : source_(std::move(source)), section_(section), prefix_(std::move(prefix)) {}
-
-  [[noreturn]] void fail(const YAML::Node& at, const std::string& msg) const {
-    throw InputError(source_, line_of(at), prefix_ + msg);
-  }
-
-  YAML::Node node(const char* key) const { return section_[key]; }
-
-  void check_keys(std::initializer_list<const char*> allowed) const {
-    if (const auto key = yaml::unknown_key(section_, allowed))
-      fail(*key, key->as<std::string>() + ": unknown key (expected one of: " + yaml::key_list(allowed) + ")");
-  }
-
-  double number(const char* key, double fallback) const {
-    const double v = yaml::number_or(section_, key, fallback, source_, prefix_);
-    if (!std::isfinite(v)) fail(section_[key], std::string(key) + ": not a finite number");
-    return v;
-  }
-
-  int integer(const char* key, int fallback) const {
-    return yaml::integer_or(section_, key, fallback, source_, prefix_);
-  }
-
-  std::string text(const char* key, const std::string& fallback) const {
-    const YAML::Node n = section_[key];
-    if (!n) return fallback;
-    if (!n.IsScalar()) fail(n, std::string(key) + ": expected a string");
-    return n.Scalar();
-  }
-
- private:
-  std::string source_;
-  YAML::Node section_;
-  std::string prefix_;
-};
+/// A finite number at map[key], `fallback` when absent (the shared wording
+/// of yaml::MapReader, and "<path>.<key>: not a finite number").
+double finite_or(const yaml::MapReader& m, const char* key, double fallback) {
+  const double v = m.get_or<double>(key, fallback);
+  if (!std::isfinite(v)) m.fail_key(key, "not a finite number");
+  return v;
+}
 
 LstToolConfig parse_root(const YAML::Node& root, const std::string& source) {
-  if (!root.IsMap()) throw InputError(source, "expected a map at the top level");
-  const YAML::Node section = yaml::section(root, "tool", source, "the LST power tool");
-  ToolParser t(source, section, "tool.");
+  const yaml::MapReader top(root, source, "");
+  const yaml::MapReader t(yaml::section(top.node(), "tool", source, "the LST power tool"), source, "tool");
   t.check_keys({"modbus", "max_speed_rad_s", "max_torque_nm", "speed_rad_s", "tighten_torque_nm",
                 "loosen_torque_limit_nm"});
-  const YAML::Node link = section["modbus"];
-  if (!link) throw InputError(source, line_of(section), "tool: missing 'modbus' (the link to the tool)");
-  if (!link.IsMap()) throw InputError(source, line_of(link), "tool.modbus: expected a map");
-  ToolParser m(source, link, "tool.modbus.");
+  const yaml::MapReader m = t.map("modbus", "the link to the tool");
   m.check_keys({"transport", "host", "port", "device", "baud", "parity", "data_bits", "stop_bits", "unit_id",
                 "response_timeout_ms", "retries", "reconnect_interval_ms"});
+  const YAML::Node& section = t.node();
+  const YAML::Node& link = m.node();
   LstToolConfig c;
   c.source = source;
-  c.line = line_of(section);
-  const std::string transport = m.text("transport", "tcp");
+  c.line = t.line();
+  const std::string transport = m.get_or<std::string>("transport", "tcp");
   if (transport == "tcp")
     c.transport = LstToolConfig::Transport::Tcp;
   else if (transport == "rtu")
     c.transport = LstToolConfig::Transport::Rtu;
   else
-    m.fail(m.node("transport"), "transport: '" + transport + "' is not tcp or rtu");
-  c.host = m.text("host", c.host);
-  c.port = m.integer("port", c.port);
-  c.device = m.text("device", c.device);
-  c.baud = m.integer("baud", c.baud);
-  const std::string parity = m.text("parity", std::string(1, c.parity));
-  if (parity.size() != 1) m.fail(m.node("parity"), "parity: '" + parity + "' is not N, E or O");
+    m.fail_key("transport", "'" + transport + "' is not tcp or rtu");
+  c.host = m.get_or<std::string>("host", c.host);
+  c.port = m.get_or<int>("port", c.port);
+  c.device = m.get_or<std::string>("device", c.device);
+  c.baud = m.get_or<int>("baud", c.baud);
+  const std::string parity = m.get_or<std::string>("parity", std::string(1, c.parity));
+  if (parity.size() != 1) m.fail_key("parity", "'" + parity + "' is not N, E or O");
   c.parity = parity[0];
-  c.data_bits = m.integer("data_bits", c.data_bits);
-  c.stop_bits = m.integer("stop_bits", c.stop_bits);
-  c.unit_id = m.integer("unit_id", c.unit_id);
-  c.response_timeout_s = 1e-3 * m.number("response_timeout_ms", 1e3 * c.response_timeout_s);
-  c.retries = m.integer("retries", c.retries);
-  c.reconnect_delay_s = 1e-3 * m.number("reconnect_interval_ms", 1e3 * c.reconnect_delay_s);
-  c.max_speed_rad_s = t.number("max_speed_rad_s", c.max_speed_rad_s);
-  c.max_torque_nm = t.number("max_torque_nm", c.max_torque_nm);
-  c.speed_rad_s = t.number("speed_rad_s", c.speed_rad_s);
-  c.tighten_torque_nm = t.number("tighten_torque_nm", c.tighten_torque_nm);
-  c.loosen_torque_limit_nm = t.number("loosen_torque_limit_nm", c.loosen_torque_limit_nm);
+  c.data_bits = m.get_or<int>("data_bits", c.data_bits);
+  c.stop_bits = m.get_or<int>("stop_bits", c.stop_bits);
+  c.unit_id = m.get_or<int>("unit_id", c.unit_id);
+  c.response_timeout_s = 1e-3 * finite_or(m, "response_timeout_ms", 1e3 * c.response_timeout_s);
+  c.retries = m.get_or<int>("retries", c.retries);
+  c.reconnect_delay_s = 1e-3 * finite_or(m, "reconnect_interval_ms", 1e3 * c.reconnect_delay_s);
+  c.max_speed_rad_s = finite_or(t, "max_speed_rad_s", c.max_speed_rad_s);
+  c.max_torque_nm = finite_or(t, "max_torque_nm", c.max_torque_nm);
+  c.speed_rad_s = finite_or(t, "speed_rad_s", c.speed_rad_s);
+  c.tighten_torque_nm = finite_or(t, "tighten_torque_nm", c.tighten_torque_nm);
+  c.loosen_torque_limit_nm = finite_or(t, "loosen_torque_limit_nm", c.loosen_torque_limit_nm);
   // Point a validation error at the offending key's line.
   try {
     validate(c);

@@ -40,54 +40,6 @@ int RemoteConfig::bus_index(const std::string& name) const {
 
 namespace {
 
-using yaml::line_of;
-
-class Parser {
- public:
-  explicit Parser(std::string source) : source_(std::move(source)) {}
-
-  [[noreturn]] void fail(const YAML::Node& at, const std::string& msg) const {
-    throw InputError(source_, line_of(at), msg);
-  }
-
-  void require_map(const YAML::Node& node, const std::string& where) const {
-    if (!node.IsMap()) fail(node, where + ": must be a map");
-  }
-
-  void check_keys(const YAML::Node& map, const std::string& where, std::initializer_list<const char*> allowed) {
-    require_map(map, where);
-    if (const auto key = yaml::unknown_key(map, allowed))
-      fail(*key, where + ": unknown key '" + key->as<std::string>() + "' (expected one of: " + yaml::key_list(allowed) +
-                     ")");
-  }
-
-  template <typename T>
-  T get(const YAML::Node& map, const char* key, const std::string& where, const char* what = nullptr) {
-    require_map(map, where);
-    const YAML::Node n = map[key];
-    if (!n) fail(map, where + ": missing '" + key + "'" + (what ? std::string(" (") + what + ")" : ""));
-    try {
-      return n.as<T>();
-    } catch (const YAML::Exception&) {
-      fail(n, where + ": '" + key + "' has a value of the wrong type: '" + scalar(n) + "'");
-    }
-  }
-
-  template <typename T>
-  T get_or(const YAML::Node& map, const char* key, const std::string& where, T fallback) {
-    require_map(map, where);
-    if (!map[key]) return fallback;
-    return get<T>(map, key, where);
-  }
-
-  static std::string scalar(const YAML::Node& n) { return n.IsScalar() ? n.Scalar() : "<not a scalar>"; }
-
-  const std::string& source() const { return source_; }
-
- private:
-  std::string source_;
-};
-
 std::string drive_name(std::size_t i, const std::string& joint) {
   return "drives[" + std::to_string(i) + "]" + (joint.empty() ? "" : " (" + joint + ")");
 }
@@ -95,135 +47,125 @@ std::string drive_name(std::size_t i, const std::string& joint) {
 }  // namespace
 
 RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string& source_name) {
-  Parser p(source_name);
-  const YAML::Node root = yaml::parse(yaml_text, source_name);  // the project's one wording for malformed YAML
-  if (!root.IsMap()) throw InputError(source_name, "top level must be a map");
-  p.check_keys(root, "top level",
-               {"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit", "velocity_tpdo_every", "buses", "drives", "ft_sensor", "tool", "video_switch", "controller"});
+  // The project's one YAML reader and its wording (yaml::parse, yaml::MapReader).
+  const yaml::MapReader top(yaml::parse(yaml_text, source_name), source_name, "");
+  top.check_keys({"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
+                  "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit",
+                  "velocity_tpdo_every", "buses",
+                  "drives", "ft_sensor", "tool", "video_switch", "controller"});
 
   RemoteConfig c;
   c.source = source_name;
-  c.cycle_rate_hz = p.get<double>(root, "cycle_rate_hz", "top level");
-  if (const YAML::Node hb = root["heartbeat"]) {
-    p.check_keys(hb, "heartbeat", {"producer_ms", "consumer_ms", "master_node_id"});
-    c.heartbeat_producer_s = p.get<double>(hb, "producer_ms", "heartbeat") * 1e-3;
-    c.heartbeat_consumer_s = p.get<double>(hb, "consumer_ms", "heartbeat") * 1e-3;
-    const int master = p.get_or<int>(hb, "master_node_id", "heartbeat", 127);
+  c.cycle_rate_hz = top.get<double>("cycle_rate_hz");
+  {
+    const yaml::MapReader hb = top.map("heartbeat", "producer_ms, consumer_ms");
+    hb.check_keys({"producer_ms", "consumer_ms", "master_node_id"});
+    c.heartbeat_producer_s = hb.get<double>("producer_ms") * 1e-3;
+    c.heartbeat_consumer_s = hb.get<double>("consumer_ms") * 1e-3;
+    const int master = hb.get_or<int>("master_node_id", 127);
     if (master < 1 || master > canopen::kMaxNodeId)
-      p.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
+      hb.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
     c.master_node_id = static_cast<std::uint8_t>(master);
-  } else {
-    p.fail(root, "top level: missing 'heartbeat' (producer_ms, consumer_ms)");
   }
-  c.sdo_timeout_s = p.get_or<double>(root, "sdo_timeout_ms", "top level", 100.0) * 1e-3;
-  c.enable_timeout_s = p.get_or<double>(root, "enable_timeout_ms", "top level", 2000.0) * 1e-3;
-  c.tpdo_miss_limit = p.get_or<int>(root, "tpdo_miss_limit", "top level", 3);
-  c.max_bus_load = p.get_or<double>(root, "max_bus_load", "top level", 0.70);
-  c.interpolation_exponent = p.get_or<int>(root, "interpolation_exponent", "top level", -4);
+  c.sdo_timeout_s = top.get_or<double>("sdo_timeout_ms", 100.0) * 1e-3;
+  c.enable_timeout_s = top.get_or<double>("enable_timeout_ms", 2000.0) * 1e-3;
+  c.tpdo_miss_limit = top.get_or<int>("tpdo_miss_limit", 3);
+  c.max_bus_load = top.get_or<double>("max_bus_load", 0.70);
+  c.interpolation_exponent = top.get_or<int>("interpolation_exponent", -4);
   if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
-    p.fail(root["interpolation_exponent"], "top level: interpolation_exponent " +
-                                               std::to_string(c.interpolation_exponent) + " is outside -6..0");
-  c.sync_counter_overflow = p.get_or<int>(root, "sync_counter_overflow", "top level", 0);
+    top.fail(top["interpolation_exponent"], "top level: interpolation_exponent " +
+                                                std::to_string(c.interpolation_exponent) + " is outside -6..0");
+  c.sync_counter_overflow = top.get_or<int>("sync_counter_overflow", 0);
   if (c.sync_counter_overflow != 0 && (c.sync_counter_overflow < 2 || c.sync_counter_overflow > 240))
-    p.fail(root["sync_counter_overflow"], "top level: sync_counter_overflow " + std::to_string(c.sync_counter_overflow) +
-                                              " is outside 2..240 (CiA 301 0x1019), or 0 for no counter");
-  c.bus_off_restart_limit = p.get_or<int>(root, "bus_off_restart_limit", "top level", 3);
+    top.fail(top["sync_counter_overflow"], "top level: sync_counter_overflow " + std::to_string(c.sync_counter_overflow) +
+                                               " is outside 2..240 (CiA 301 0x1019), or 0 for no counter");
+  c.bus_off_restart_limit = top.get_or<int>("bus_off_restart_limit", 3);
   if (c.bus_off_restart_limit < 0 || c.bus_off_restart_limit > 100)
-    p.fail(root["bus_off_restart_limit"], "top level: bus_off_restart_limit " + std::to_string(c.bus_off_restart_limit) +
-                                              " is outside 0..100");
-  c.velocity_tpdo_every = p.get_or<int>(root, "velocity_tpdo_every", "top level", 5);
+    top.fail(top["bus_off_restart_limit"], "top level: bus_off_restart_limit " + std::to_string(c.bus_off_restart_limit) +
+                                               " is outside 0..100");
+  c.velocity_tpdo_every = top.get_or<int>("velocity_tpdo_every", 5);
   if (c.velocity_tpdo_every < 0 || c.velocity_tpdo_every > 240)
-    p.fail(root["velocity_tpdo_every"], "top level: velocity_tpdo_every " + std::to_string(c.velocity_tpdo_every) +
-                                            " is outside 1..240 (SYNCs per TPDO2, CiA 301 0x1801:02), or 0 for no velocity");
+    top.fail(top["velocity_tpdo_every"], "top level: velocity_tpdo_every " + std::to_string(c.velocity_tpdo_every) +
+                                             " is outside 1..240 (SYNCs per TPDO2, CiA 301 0x1801:02), or 0 for no velocity");
   std::string base_dir;
   if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 
-  const YAML::Node buses = root["buses"];
+  const YAML::Node buses = top["buses"];
   if (!buses || !buses.IsSequence() || buses.size() == 0)
-    p.fail(buses ? buses : root, "top level: 'buses' must be a non-empty list");
+    top.fail(buses, "top level: 'buses' must be a non-empty list");
   for (std::size_t i = 0; i < buses.size(); ++i) {
-    const YAML::Node b = buses[i];
-    const std::string where = "buses[" + std::to_string(i) + "]";
-    if (!b.IsMap()) p.fail(b, where + ": must be a map");
-    p.check_keys(b, where, {"name", "interface", "bitrate"});
+    const yaml::MapReader b(buses[i], source_name, "buses[" + std::to_string(i) + "]");
+    b.check_keys({"name", "interface", "bitrate"});
     BusConfig bc;
-    bc.name = p.get<std::string>(b, "name", where);
-    bc.interface = p.get<std::string>(b, "interface", where, "SocketCAN name like can0, or mock");
-    bc.bitrate_bps = p.get<std::uint32_t>(b, "bitrate", where, "bit/s");
-    bc.line = line_of(b);
+    bc.name = b.get<std::string>("name");
+    bc.interface = b.get<std::string>("interface", "SocketCAN name like can0, or mock");
+    bc.bitrate_bps = b.get<std::uint32_t>("bitrate", "bit/s");
+    bc.line = b.line();
     c.buses.push_back(bc);
   }
 
-  const YAML::Node drives = root["drives"];
+  const YAML::Node drives = top["drives"];
   if (!drives || !drives.IsSequence() || drives.size() == 0)
-    p.fail(drives ? drives : root, "top level: 'drives' must be a non-empty list");
+    top.fail(drives, "top level: 'drives' must be a non-empty list");
   for (std::size_t i = 0; i < drives.size(); ++i) {
-    const YAML::Node d = drives[i];
-    if (!d.IsMap()) p.fail(d, drive_name(i, "") + ": must be a map");
     DriveConfig dc;
-    dc.joint = p.get_or<std::string>(d, "joint", drive_name(i, ""), "");
-    const std::string where = drive_name(i, dc.joint);
-    p.check_keys(d, where,
-                 {"joint", "bus", "node_id", "counts_per_rev", "gear_ratio", "direction", "offset_rad",
+    dc.joint = yaml::MapReader(drives[i], source_name, drive_name(i, "")).get_or<std::string>("joint", "");
+    const yaml::MapReader d(drives[i], source_name, drive_name(i, dc.joint));  // named by its joint from here on
+    d.check_keys({"joint", "bus", "node_id", "counts_per_rev", "gear_ratio", "direction", "offset_rad",
                   "following_error_limit_rad", "following_error_timeout_ms", "sdo_file", "homing"});
-    if (dc.joint.empty()) p.fail(d, where + ": missing 'joint' (URDF joint name)");
-    dc.bus = p.get<std::string>(d, "bus", where);
-    const int node = p.get<int>(d, "node_id", where);
+    if (dc.joint.empty()) d.fail(d.node(), d.label() + ": missing 'joint' (URDF joint name)");
+    dc.bus = d.get<std::string>("bus");
+    const int node = d.get<int>("node_id");
     if (node < 1 || node > canopen::kMaxNodeId)
-      p.fail(d["node_id"], where + ": node_id " + std::to_string(node) + " is outside 1..127");
+      d.fail(d["node_id"], d.label() + ": node_id " + std::to_string(node) + " is outside 1..127");
     dc.node_id = static_cast<std::uint8_t>(node);
-    dc.counts_per_rev = p.get<double>(d, "counts_per_rev", where, "scaling: encoder counts per motor revolution");
-    dc.gear_ratio = p.get<double>(d, "gear_ratio", where, "scaling: motor revolutions per joint revolution");
-    dc.direction = p.get_or<int>(d, "direction", where, 1);
-    dc.offset_rad = p.get_or<double>(d, "offset_rad", where, 0.0);
-    dc.following_error_limit_rad = p.get<double>(d, "following_error_limit_rad", where);
-    dc.following_error_timeout_s = p.get_or<double>(d, "following_error_timeout_ms", where, 0.0) * 1e-3;
+    dc.counts_per_rev = d.get<double>("counts_per_rev", "scaling: encoder counts per motor revolution");
+    dc.gear_ratio = d.get<double>("gear_ratio", "scaling: motor revolutions per joint revolution");
+    dc.direction = d.get_or<int>("direction", 1);
+    dc.offset_rad = d.get_or<double>("offset_rad", 0.0);
+    dc.following_error_limit_rad = d.get<double>("following_error_limit_rad");
+    dc.following_error_timeout_s = d.get_or<double>("following_error_timeout_ms", 0.0) * 1e-3;
     if (dc.following_error_timeout_s < 0.0 || dc.following_error_timeout_s > 65.535)
-      p.fail(d["following_error_timeout_ms"], where + ": following_error_timeout_ms must be in 0..65535");
+      d.fail(d["following_error_timeout_ms"], d.label() + ": following_error_timeout_ms must be in 0..65535");
     if (d["sdo_file"]) {
-      const std::string f = p.get<std::string>(d, "sdo_file", where);
+      const std::string f = d.get<std::string>("sdo_file");
       dc.sdo_file = (!f.empty() && f[0] == '/') ? f : base_dir + f;
       dc.sdo_entries = load_sdo_list(dc.sdo_file);  // InputError names the list's own file and line
     }
-    if (const YAML::Node h = d["homing"]) {  // incremental encoder: CiA 402 homing at bring-up (DriveSystem::home)
-      const std::string hw_where = where + ".homing";
-      if (!h.IsMap()) p.fail(h, hw_where + ": must be a map");
-      p.check_keys(h, hw_where, {"method", "speed_switch_rad_s", "speed_zero_rad_s", "acceleration_rad_s2", "timeout_ms"});
+    if (d["homing"]) {  // incremental encoder: CiA 402 homing at bring-up (DriveSystem::home)
+      const yaml::MapReader h = d.map("homing");
+      h.check_keys({"method", "speed_switch_rad_s", "speed_zero_rad_s", "acceleration_rad_s2", "timeout_ms"});
       HomingConfig& hc = dc.homing;
       hc.enabled = true;
-      hc.method = p.get<int>(h, "method", hw_where, "CiA 402 homing method, 0x6098");
+      hc.method = h.get<int>("method", "CiA 402 homing method, 0x6098");
       if (hc.method < 1 || (hc.method > 35 && hc.method != 37))
-        p.fail(h["method"], hw_where + ".method: " + std::to_string(hc.method) +
-                                " is not a CiA 402 homing method (1..35, 37)");
+        h.fail_key("method", std::to_string(hc.method) + " is not a CiA 402 homing method (1..35, 37)");
       const std::pair<const char*, double*> positive[] = {{"speed_switch_rad_s", &hc.speed_switch_rad_s},
                                                           {"speed_zero_rad_s", &hc.speed_zero_rad_s},
                                                           {"acceleration_rad_s2", &hc.acceleration_rad_s2}};
       for (const auto& [key, out] : positive) {
-        *out = p.get<double>(h, key, hw_where);
-        if (!(*out > 0.0) || !std::isfinite(*out))
-          p.fail(h[key], hw_where + "." + key + ": must be a positive finite number");
+        *out = h.get<double>(key);
+        if (!(*out > 0.0) || !std::isfinite(*out)) h.fail_key(key, "must be a positive finite number");
       }
-      hc.timeout_s = p.get_or<double>(h, "timeout_ms", hw_where, 30000.0) * 1e-3;
-      if (!(hc.timeout_s > 0.0) || !std::isfinite(hc.timeout_s)) p.fail(h["timeout_ms"], hw_where + ".timeout_ms: must be positive");
+      hc.timeout_s = h.get_or<double>("timeout_ms", 30000.0) * 1e-3;
+      if (!(hc.timeout_s > 0.0) || !std::isfinite(hc.timeout_s)) h.fail_key("timeout_ms", "must be positive");
     }
-    dc.line = line_of(d);
+    dc.line = d.line();
     c.drives.push_back(dc);
   }
 
-  if (const YAML::Node f = root["ft_sensor"]) {
-    const std::string where = "ft_sensor";
-    if (!f.IsMap()) p.fail(f, where + ": must be a map");
-    p.check_keys(f, where, {"bus", "node_id", "force_counts_per_n", "torque_counts_per_nm"});
+  if (top["ft_sensor"]) {
+    const yaml::MapReader f = top.map("ft_sensor");
+    f.check_keys({"bus", "node_id", "force_counts_per_n", "torque_counts_per_nm"});
     c.ft.present = true;
-    c.ft.bus = p.get<std::string>(f, "bus", where);
-    const int node = p.get<int>(f, "node_id", where);
+    c.ft.bus = f.get<std::string>("bus");
+    const int node = f.get<int>("node_id");
     if (node < 1 || node > canopen::kMaxNodeId)
-      p.fail(f["node_id"], where + ": node_id " + std::to_string(node) + " is outside 1..127");
+      f.fail(f["node_id"], "ft_sensor: node_id " + std::to_string(node) + " is outside 1..127");
     c.ft.node_id = static_cast<std::uint8_t>(node);
-    c.ft.force_counts_per_n = p.get<double>(f, "force_counts_per_n", where, "scaling: int16 counts per N");
-    c.ft.torque_counts_per_nm = p.get<double>(f, "torque_counts_per_nm", where, "scaling: int16 counts per N*m");
-    c.ft.line = line_of(f);
+    c.ft.force_counts_per_n = f.get<double>("force_counts_per_n", "scaling: int16 counts per N");
+    c.ft.torque_counts_per_nm = f.get<double>("torque_counts_per_nm", "scaling: int16 counts per N*m");
+    c.ft.line = f.line();
   }
 
   validate(c);

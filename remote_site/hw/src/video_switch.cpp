@@ -85,38 +85,31 @@ std::error_code make_error_code(VideoSwitchError e) noexcept {
 std::optional<VideoSwitchSection> parse_video_switch_section(const std::string& yaml_text, const std::string& source) {
   const YAML::Node root = yaml::parse(yaml_text, source);
   if (!root.IsMap() || !root["video_switch"]) return std::nullopt;
-  const YAML::Node n = root["video_switch"];
-  const std::string prefix = "video_switch.";
-  if (!n.IsMap()) throw InputError(source, yaml::line_of(n), "video_switch: expected a map");
-  static constexpr const char* kKeys[] = {"host", "port", "unit_id", "response_timeout_ms", "retries", "cameras"};
-  if (const auto key = yaml::unknown_key(n, kKeys))
-    throw InputError(source, yaml::line_of(*key),
-                     prefix + key->as<std::string>() + ": unknown key (expected one of: " + yaml::key_list(kKeys) + ")");
+  const yaml::MapReader n = yaml::MapReader(root, source, "").map("video_switch");
+  n.check_keys({"host", "port", "unit_id", "response_timeout_ms", "retries", "cameras"});
   VideoSwitchSection s;
-  s.line = yaml::line_of(n);
-  auto fail = [&](const char* key, const std::string& msg) {
-    throw InputError(source, yaml::line_of(n[key] ? n[key] : n), prefix + key + ": " + msg);
-  };
-  if (!n["host"] || !n["host"].IsScalar() || n["host"].Scalar().empty()) fail("host", "missing (the switch's address)");
-  s.link.host = n["host"].Scalar();
-  s.link.port = yaml::integer_or(n, "port", s.link.port, source, prefix);
-  if (s.link.port < 1 || s.link.port > 65535) fail("port", std::to_string(s.link.port) + " is outside 1..65535");
-  s.link.unit_id = yaml::integer_or(n, "unit_id", s.link.unit_id, source, prefix);
-  if (s.link.unit_id < 0 || s.link.unit_id > 255) fail("unit_id", std::to_string(s.link.unit_id) + " is outside 0..255");
-  const double timeout_ms = yaml::number_or(n, "response_timeout_ms", s.link.response_timeout_s * 1e3, source, prefix);
-  if (!(timeout_ms > 0.0 && timeout_ms <= 10000.0)) fail("response_timeout_ms", "must be in (0, 10000]");
+  s.line = n.line();
+  s.link.host = n.get<std::string>("host", "the switch's address");
+  if (s.link.host.empty()) n.fail_key("host", "empty (the switch's address)");
+  s.link.port = n.get_or<int>("port", s.link.port);
+  if (s.link.port < 1 || s.link.port > 65535) n.fail_key("port", std::to_string(s.link.port) + " is outside 1..65535");
+  s.link.unit_id = n.get_or<int>("unit_id", s.link.unit_id);
+  if (s.link.unit_id < 0 || s.link.unit_id > 255)
+    n.fail_key("unit_id", std::to_string(s.link.unit_id) + " is outside 0..255");
+  const double timeout_ms = n.get_or<double>("response_timeout_ms", s.link.response_timeout_s * 1e3);
+  if (!(timeout_ms > 0.0 && timeout_ms <= 10000.0)) n.fail_key("response_timeout_ms", "must be in (0, 10000]");
   s.link.response_timeout_s = timeout_ms * 1e-3;
-  s.link.retries = yaml::integer_or(n, "retries", s.link.retries, source, prefix);
-  if (s.link.retries < 0 || s.link.retries > 10) fail("retries", std::to_string(s.link.retries) + " is outside 0..10");
+  s.link.retries = n.get_or<int>("retries", s.link.retries);
+  if (s.link.retries < 0 || s.link.retries > 10) n.fail_key("retries", std::to_string(s.link.retries) + " is outside 0..10");
   const YAML::Node cams = n["cameras"];
   if (!cams || !cams.IsSequence() || cams.size() == 0)
-    fail("cameras", "must be a non-empty list of camera names (index = switch input)");
+    n.fail_key("cameras", "must be a non-empty list of camera names (index = switch input)");
   for (const auto& c : cams) {
     if (!c.IsScalar() || c.Scalar().empty())
-      throw InputError(source, yaml::line_of(c), prefix + "cameras: a name must be a non-empty string");
+      n.fail(c, n.name("cameras") + ": a name must be a non-empty string");
     for (const auto& earlier : s.camera_names)
       if (earlier == c.Scalar())
-        throw InputError(source, yaml::line_of(c), prefix + "cameras: '" + earlier + "' is listed twice");
+        n.fail(c, n.name("cameras") + ": '" + earlier + "' is listed twice");
     s.camera_names.push_back(c.Scalar());
   }
   return s;

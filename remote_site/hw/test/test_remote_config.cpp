@@ -128,7 +128,9 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, direction: 2, following_error_limit_rad: 0.02")))
                 .find("direction must be 1 or -1, not 2"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02, gain: 3")))
-                .find("drives[0] (joint1): unknown key 'gain'"), std::string::npos);
+                .find("remote.yaml:7: drives[0] (joint1).gain: unknown key (expected one of: joint, bus, node_id, "
+                      "counts_per_rev, gear_ratio, direction, offset_rad, following_error_limit_rad, "
+                      "following_error_timeout_ms, sdo_file, homing)"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 900000}\n"))
                 .find("buses[0] (a): bitrate 900000 is not a CiA 301 bit rate"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n", "cycle_rate_hz: 300\n"))
@@ -138,11 +140,20 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_EQ(malformed.rfind("remote.yaml:", 0), 0u) << malformed;
   EXPECT_NE(malformed.find(": malformed YAML: "), std::string::npos) << malformed;
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: fast}\n"))
-                .find("'bitrate' has a value of the wrong type: 'fast'"), std::string::npos);
+                .find(": buses[0].bitrate: not an integer: 'fast'"), std::string::npos);
+  EXPECT_EQ(error_of("cycle_rate_hz: fast\n"), "remote.yaml:1: cycle_rate_hz: not a number: 'fast'");
+  EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: {producer_ms: 10, consumer_ms: 50, master_node_id: [1]}\n"),
+            "remote.yaml:2: heartbeat.master_node_id: not an integer (a list)");
+  EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: {producer_ms: 10, consumer_ms: 50}\nbeat: 3\n"),
+            "remote.yaml:3: beat: unknown key (expected one of: cycle_rate_hz, heartbeat, sdo_timeout_ms, "
+            "enable_timeout_ms, tpdo_miss_limit, max_bus_load, interpolation_exponent, sync_counter_overflow, "
+            "bus_off_restart_limit, velocity_tpdo_every, buses, drives, ft_sensor, tool, video_switch, controller)");
+  EXPECT_EQ(error_of("cycle_rate_hz: 500\n"), "remote.yaml:1: top level: missing 'heartbeat' (producer_ms, consumer_ms)");
+  EXPECT_EQ(error_of("- 1\n"), "remote.yaml:1: expected a map at the top level");
   // A section that is a scalar where a map belongs (yaml-cpp threw its own
   // BadSubscript before, without the file: fuzz_remote_yaml).
-  EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: 5\n"), "remote.yaml:2: heartbeat: must be a map");
-  EXPECT_NE(error_of("cycle_rate_hz: 500\nheartbeat:\n").find(": heartbeat: must be a map"), std::string::npos);
+  EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: 5\n"), "remote.yaml:2: heartbeat: expected a map");
+  EXPECT_NE(error_of("cycle_rate_hz: 500\nheartbeat:\n").find(": heartbeat: expected a map"), std::string::npos);
   try {
     load_remote_config("/nonexistent/remote.yaml");
     FAIL();
@@ -188,7 +199,10 @@ TEST(VideoSwitchSection, AbsentIsNoneAndBadValuesAreNamed) {
             "remote.yaml:4: video_switch.zoom: unknown key (expected one of: host, port, unit_id, response_timeout_ms, "
             "retries, cameras)");
   EXPECT_EQ(video_error(head + "  port: 502\n  cameras: [a]\n"),
-            "remote.yaml:3: video_switch.host: missing (the switch's address)");
+            "remote.yaml:3: video_switch: missing 'host' (the switch's address)");
+  EXPECT_EQ(video_error(head + "  host: [a]\n  cameras: [a]\n"), "remote.yaml:3: video_switch.host: not a string (a list)");
+  EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: [a, [b]]\n"),
+            "remote.yaml:4: video_switch.cameras: a name must be a non-empty string");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  retries: 11\n  cameras: [a]\n"),
             "remote.yaml:4: video_switch.retries: 11 is outside 0..10");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  response_timeout_ms: 0\n  cameras: [a]\n"),

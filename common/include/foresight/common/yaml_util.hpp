@@ -1,15 +1,18 @@
 #pragma once
 // Reading YAML configuration files (non-real-time code): one loader and one
 // set of readers, so that every file reports its errors the same way, as an
-// InputError "<file>:<line>: <message>".
+// InputError "<file>:<line>: <message>". Configuration sections read key by
+// key go through MapReader (below), whose words every config reader shares.
 
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
 #include <cmath>
+#include <initializer_list>
 #include <optional>
 #include <span>
 #include <string>
+#include <type_traits>
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/pose.hpp"
@@ -83,5 +86,100 @@ std::optional<YAML::Node> unknown_key(const YAML::Node& map, std::span<const cha
 
 /// "a, b, c": the allowed keys, for a message.
 std::string key_list(std::span<const char* const> keys);
+
+// ---- one configuration map, read key by key ----
+
+/// "a number", "an integer", "a string", "true or false": what a T is, for a message.
+template <typename T>
+constexpr const char* type_words() {
+  if constexpr (std::is_same_v<T, std::string>) return "a string";
+  else if constexpr (std::is_same_v<T, bool>) return "true or false";
+  else if constexpr (std::is_integral_v<T>) return "an integer";
+  else return "a number";
+}
+
+/// "not <a_t>: '<text>'" for a scalar node, "not <a_t> (a list)", "(a map)",
+/// "(no value)" otherwise: the one wording of a value of the wrong type.
+std::string not_a(const YAML::Node& n, const char* a_t);
+
+/// One map of a configuration file, read key by key. Every configuration
+/// reader (remote.yaml's sections, the tool, the video switch, ...) says its
+/// problems in these words, as InputError "<file>:<line>: <message>":
+///   "<path>: expected a map"            (top level: "expected a map at the top level")
+///   "<path>.<key>: unknown key (expected one of: a, b)"
+///   "<path>: missing '<key>'" + " (<what>)" when the caller says what it is
+///   "<path>.<key>: not a number: '<text>'" (not an integer, not a string, ...)
+/// <path> names the map ("tool.modbus", "drives[0] (joint1)"); at the top
+/// level (empty path) a key is named alone and the map is "top level". The
+/// line is the offending key's or value's, else the map's. Set-up code.
+class MapReader {
+ public:
+  /// InputError "<path>: expected a map" when `map` is not a map.
+  MapReader(const YAML::Node& map, std::string file, std::string path);
+
+  const YAML::Node& node() const { return map_; }
+  const std::string& file() const { return file_; }
+  int line() const { return line_of(map_); }
+  /// map[key]; an invalid (false) node when absent.
+  YAML::Node operator[](const char* key) const { return map_[key]; }
+  /// "<path>.<key>", or "<key>" at the top level.
+  std::string name(const std::string& key) const;
+  /// "<path>", or "top level".
+  std::string label() const { return path_.empty() ? "top level" : path_; }
+
+  /// InputError "<file>:<line of at, else of the map>: <message>".
+  [[noreturn]] void fail(const YAML::Node& at, const std::string& message) const;
+  /// InputError "<file>:<line of the key's value, else of the map>: <path>.<key>: <problem>".
+  [[noreturn]] void fail_key(const char* key, const std::string& problem) const;
+
+  /// InputError "<path>.<key>: unknown key (expected one of: a, b)" for the
+  /// first key not allowed.
+  void check_keys(std::span<const char* const> allowed) const;
+  void check_keys(std::initializer_list<const char*> allowed) const {
+    check_keys(std::span<const char* const>(allowed.begin(), allowed.size()));
+  }
+
+  /// The required value map[key] as a T. InputError "<path>: missing '<key>'
+  /// (<what>)" (without the parenthesis when `what` is empty), "<path>.<key>:
+  /// not <a T>: '<text>'".
+  template <typename T>
+  T get(const char* key, const std::string& what = "") const {
+    const YAML::Node n = map_[key];
+    if (!n) fail(map_, label() + ": missing '" + key + "'" + (what.empty() ? "" : " (" + what + ")"));
+    return as<T>(n, key);
+  }
+
+  /// map[key] as a T, `fallback` when absent. InputError as get().
+  template <typename T>
+  T get_or(const char* key, T fallback) const {
+    const YAML::Node n = map_[key];
+    return n ? as<T>(n, key) : fallback;
+  }
+
+  /// The map at map[key]: InputError "<path>: missing '<key>' (<what>)",
+  /// "<path>.<key>: expected a map".
+  MapReader map(const char* key, const std::string& what = "") const;
+
+ private:
+  template <typename T>
+  T as(const YAML::Node& n, const char* key) const {
+    if constexpr (std::is_same_v<T, std::string>) {
+      if (!n.IsScalar()) fail(at(n, key), name(key) + ": " + not_a(n, type_words<T>()));
+    }
+    try {
+      return n.as<T>();
+    } catch (const YAML::Exception&) {
+      fail(at(n, key), name(key) + ": " + not_a(n, type_words<T>()));
+    }
+  }
+
+  /// Where to point at a bad value: the value, or its key when it has none
+  /// (yaml-cpp marks an empty value at the next token).
+  YAML::Node at(const YAML::Node& value, const char* key) const;
+
+  YAML::Node map_;
+  std::string file_;
+  std::string path_;
+};
 
 }  // namespace foresight::yaml
