@@ -194,6 +194,13 @@ TEST(EvalAlignmentCli, OneTrialGivesTheJsonContract) {
       }
       EXPECT_EQ(c[k]["n"], 1);
     }
+  // The arm self-calibration: one entry per link offset, the estimate's
+  // error against the truth beside the truth's own error.
+  EXPECT_EQ(j["arm_prior_mm"].get<double>(), 2.0);
+  ASSERT_FALSE(j["arm_links"].empty());
+  for (const auto& l : j["arm_links"])
+    for (const char* f : {"true_rms_m", "estimate_error_rms_m", "sigma_mean_m"}) EXPECT_GE(l[f].get<double>(), 0.0);
+  EXPECT_TRUE(j["combinations"][14].contains("aligned_cameras_only"));
 }
 
 // `foresight health --json`: the per-frame silhouette IoU beside the edge measures.
