@@ -143,6 +143,17 @@ run_asan() {  # all|ci
 # and its SPSC ring, the daemon (supervisor + loop + link).
 TSAN_BINARIES=(test_control_loop test_control test_journal test_link_loopback test_protocol_loopback test_daemon)
 TSAN_TESTS='^(ControlLoop|Journal|JournalCommand|SpscRing|LinkLoopback|LinkLoopbackRos2|LinkLoopbackTwoKept|ProtocolLoopback|Daemon)[A-Za-z]*\.'
+# Left out of the TSan run, and why (it runs in the normal build's ctest):
+#  * ControlLoop.InsertsThroughTheSimulatedDrivesAndSensor  the insertion's peak
+#    force depends on the loop thread keeping its 2 ms cycle against the
+#    simulated contact; under TSan (5-15x slower) on a loaded machine it
+#    overshot the 80 N limit (86.2 N) with no TSan report: timing, not a race
+#    (the loop's threading is exercised by the other ControlLoop tests).
+#  * LinkLoopback.DelayStatisticsAndTelemetryAgesAreSane  asserts a loopback
+#    round-trip median below 50 ms; under TSan on a loaded machine it measured
+#    147 ms with no TSan report: a latency bound, not a race.
+TSAN_EXCLUDE_TESTS='^ControlLoop\.InsertsThroughTheSimulatedDrivesAndSensor$|^LinkLoopback\.DelayStatisticsAndTelemetryAgesAreSane$'
+
 
 run_tsan() {
   local dir=${FORESIGHT_TSAN_DIR:-build-tsan}
@@ -152,7 +163,7 @@ run_tsan() {
   step_done
   step "TSan ctest"
   # Discovered tests of binaries not built here are "not run": select by name.
-  ctest --test-dir "$dir" --output-on-failure -j"$JOBS" --timeout 900 -R "$TSAN_TESTS"
+  ctest --test-dir "$dir" --output-on-failure -j"$JOBS" --timeout 900 -R "$TSAN_TESTS" -E "$TSAN_EXCLUDE_TESTS"
   step_done
 }
 
