@@ -2,6 +2,10 @@
 
 #include <fcntl.h>
 #include <linux/can/error.h>
+#include <linux/can/netlink.h>
+#include <linux/if_link.h>
+#include <linux/netlink.h>
+#include <linux/rtnetlink.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
 #include <sys/ioctl.h>
@@ -34,6 +38,18 @@ void set_nonblocking(int fd, const std::string& what) {
   }
 }
 }  // namespace
+
+const char* to_string(RestartResult r) noexcept {
+  switch (r) {
+    case RestartResult::Requested: return "restart requested over netlink";
+    case RestartResult::NotPermitted:
+      return "netlink restart not permitted (needs CAP_NET_ADMIN): relies on the interface's restart-ms "
+             "(ip link set <if> type can restart-ms 100)";
+    case RestartResult::NotSupported: return "no netlink restart on this bus (mock bus or no CAN netlink)";
+    case RestartResult::Failed: return "netlink restart failed";
+  }
+  return "?";
+}
 
 const char* to_string(CanIo io) noexcept {
   switch (io) {
@@ -207,7 +223,74 @@ int open_can_socket(const std::string& interface) {
 }
 }  // namespace
 
-SocketCanBus::SocketCanBus(const std::string& interface) : CanBus(interface, open_can_socket(interface)) {}
+SocketCanBus::SocketCanBus(const std::string& interface) : CanBus(interface, open_can_socket(interface)) {
+  ifindex_ = static_cast<int>(::if_nametoindex(interface.c_str()));
+  // For request_restart(): failing here only means no netlink restart later.
+  netlink_fd_ = ::socket(AF_NETLINK, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, NETLINK_ROUTE);
+}
+
+SocketCanBus::~SocketCanBus() {
+  if (netlink_fd_ >= 0) ::close(netlink_fd_);
+}
+
+RestartResult CanBus::request_restart() noexcept {
+  ++restart_requests_;
+  return RestartResult::NotSupported;
+}
+
+RestartResult MockCanBus::request_restart() noexcept {
+  ++restart_requests_;
+  return restart_result_;
+}
+
+RestartResult SocketCanBus::request_restart() noexcept {
+  ++restart_requests_;
+  if (netlink_fd_ < 0 || ifindex_ <= 0) return RestartResult::NotSupported;
+  // RTM_NEWLINK { ifinfomsg, IFLA_LINKINFO { IFLA_INFO_KIND "can", IFLA_INFO_DATA { IFLA_CAN_RESTART u32 1 } } }
+  alignas(NLMSG_ALIGNTO) std::uint8_t buf[256] = {};
+  auto* nh = reinterpret_cast<nlmsghdr*>(buf);
+  nh->nlmsg_type = RTM_NEWLINK;
+  nh->nlmsg_flags = NLM_F_REQUEST | NLM_F_ACK;
+  nh->nlmsg_seq = ++netlink_seq_;
+  nh->nlmsg_len = NLMSG_LENGTH(sizeof(ifinfomsg));
+  auto* ifi = reinterpret_cast<ifinfomsg*>(NLMSG_DATA(nh));
+  ifi->ifi_family = AF_UNSPEC;
+  ifi->ifi_index = ifindex_;
+  auto put = [&](unsigned short type, const void* data, std::size_t len) -> rtattr* {
+    auto* a = reinterpret_cast<rtattr*>(buf + NLMSG_ALIGN(nh->nlmsg_len));
+    a->rta_type = type;
+    a->rta_len = static_cast<unsigned short>(RTA_LENGTH(len));
+    if (len) std::memcpy(RTA_DATA(a), data, len);
+    nh->nlmsg_len = NLMSG_ALIGN(nh->nlmsg_len) + RTA_ALIGN(a->rta_len);
+    return a;
+  };
+  rtattr* linkinfo = put(IFLA_LINKINFO, nullptr, 0);
+  put(IFLA_INFO_KIND, "can", 4);
+  rtattr* data = put(IFLA_INFO_DATA, nullptr, 0);
+  const std::uint32_t one = 1;
+  put(IFLA_CAN_RESTART, &one, sizeof one);
+  data->rta_len = static_cast<unsigned short>(buf + nh->nlmsg_len - reinterpret_cast<std::uint8_t*>(data));
+  linkinfo->rta_len = static_cast<unsigned short>(buf + nh->nlmsg_len - reinterpret_cast<std::uint8_t*>(linkinfo));
+  sockaddr_nl kernel{};
+  kernel.nl_family = AF_NETLINK;
+  if (::sendto(netlink_fd_, buf, nh->nlmsg_len, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&kernel),
+               sizeof kernel) < 0) {
+    set_errno(errno);
+    return errno == EPERM || errno == EACCES ? RestartResult::NotPermitted : RestartResult::Failed;
+  }
+  // rtnetlink handles the request inside sendto(): the ack is already queued.
+  alignas(NLMSG_ALIGNTO) std::uint8_t ack[512];
+  const ssize_t n = ::recv(netlink_fd_, ack, sizeof ack, MSG_DONTWAIT);
+  if (n < static_cast<ssize_t>(NLMSG_LENGTH(sizeof(nlmsgerr)))) return RestartResult::Requested;  // no ack yet: sent
+  const auto* ah = reinterpret_cast<const nlmsghdr*>(ack);
+  if (ah->nlmsg_type != NLMSG_ERROR) return RestartResult::Requested;
+  const int err = -reinterpret_cast<const nlmsgerr*>(NLMSG_DATA(ah))->error;
+  if (err == 0) return RestartResult::Requested;
+  set_errno(err);
+  return err == EPERM || err == EACCES ? RestartResult::NotPermitted
+         : err == EOPNOTSUPP          ? RestartResult::NotSupported
+                                      : RestartResult::Failed;
+}
 
 void SocketCanBus::set_filters(std::span<const can_filter> filters) {
   const std::vector<can_filter> k = detail::kernel_filters(filters);

@@ -77,6 +77,7 @@ const char* to_string(HwFault f) noexcept {
     case HwFault::BusErrorPassive: return "CAN error passive";
     case HwFault::BusRestarted: return "CAN controller restarted after bus-off";
     case HwFault::BusOffRepeated: return "CAN bus-off again and again (restart limit reached)";
+    case HwFault::BusRestartRequested: return "CAN bus-off";
     case HwFault::TxFailed: return "CAN transmit failed";
     case HwFault::RxFailed: return "CAN receive failed";
     case HwFault::MalformedFrame: return "malformed frame";
@@ -94,6 +95,7 @@ bool requires_stop(HwFault f) noexcept {
     case HwFault::FtFrameMismatch:
     case HwFault::BusErrorPassive:
     case HwFault::BusRestarted:
+    case HwFault::BusRestartRequested:
     case HwFault::MalformedFrame:
     case HwFault::UnknownCobId:
     case HwFault::UnexpectedSdo:
@@ -357,6 +359,8 @@ void DriveSystem::configure() {
     b.sync_seen = b.sync_counter;
     b.restarts = 0;
     b.restart_limit_hit = false;
+    b.restart_requests = 0;
+    b.bus_off_cycles = 0;
   }
   pending_count_ = 0;
   configured_ = true;
@@ -833,6 +837,21 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
         push_event({HwFault::BusOffRepeated, bus8, 0, -1, bs.restarts, static_cast<std::uint32_t>(config_.bus_off_restart_limit)});
       }
     }
+    // Bus-off that lasts: ask the controller to restart (the interface's
+    // restart-ms may do it first), every bus_off_restart_delay_s, at most
+    // bus_off_restart_limit times per configure().
+    if (h.bus_off) {
+      const auto delay_cycles = static_cast<std::uint32_t>(std::max(1.0, config_.bus_off_restart_delay_s * config_.cycle_rate_hz));
+      if (++bs.bus_off_cycles >= delay_cycles &&
+          bs.restart_requests < static_cast<std::uint32_t>(std::max(0, config_.bus_off_restart_limit))) {
+        bs.bus_off_cycles = 0;
+        const RestartResult r = bus.request_restart();
+        ++bs.restart_requests;
+        push_event({HwFault::BusRestartRequested, bus8, 0, -1, bs.restart_requests, static_cast<std::uint32_t>(r)});
+      }
+    } else {
+      bs.bus_off_cycles = 0;
+    }
     bs.bus_off_reported = h.bus_off;
     if (h.error_passive && !bs.passive_reported) push_event({HwFault::BusErrorPassive, bus8, 0, -1, h.error_frames, 0});
     bs.passive_reported = h.error_passive;
@@ -964,6 +983,10 @@ std::string DriveSystem::describe(const HwEvent& e) const {
     case HwFault::TpdoMissing:
     case HwFault::FtMissing: msg += " for " + std::to_string(e.code) + " cycles"; break;
     case HwFault::BusRestarted: msg += " (" + std::to_string(e.code) + " since configure)"; break;
+    case HwFault::BusRestartRequested:
+      msg += std::string(": ") + to_string(static_cast<RestartResult>(e.detail)) + " (attempt " + std::to_string(e.code) +
+             " of " + std::to_string(config_.bus_off_restart_limit) + ")";
+      break;
     case HwFault::BusOffRepeated:
       msg += " (" + std::to_string(e.code) + " restarts, limit " + std::to_string(e.detail) +
              "): check wiring, termination and bit rate";

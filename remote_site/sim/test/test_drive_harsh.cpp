@@ -421,3 +421,52 @@ TEST(HarshBus, BusOffRestartsAreBoundedByTheConfiguredLimit) {
   EXPECT_TRUE(last.stop_required);
   EXPECT_GE(last.active_faults, 1);
 }
+
+// A bus-off that lasts bus_off_restart_delay_s (100 ms, 50 cycles) makes the
+// master ask the controller to restart (SocketCanBus: rtnetlink
+// IFLA_CAN_RESTART), at most bus_off_restart_limit (3) times per configure();
+// each attempt is a notice saying what came of it. Through the mock bus,
+// which answers as configured: first a cabinet without CAP_NET_ADMIN, then one
+// where the restart is granted (the simulator then restarts the controller).
+TEST(HarshBus, BusOffRestartRequestsAreBoundedAndSayWhatHappened) {
+  SimRig rig(production_config());
+  ASSERT_EQ(rig.config.bus_off_restart_limit, 3);
+  rig.bring_up_stepped();
+  auto& bus0 = dynamic_cast<hw::MockCanBus&>(const_cast<hw::CanBus&>(rig.drives->bus(0)));
+  bus0.set_restart_result(hw::RestartResult::NotPermitted);
+  rig.sim->inject_bus_off(0);
+  std::vector<std::pair<int, std::string>> requests;  // cycle, text
+  for (int i = 1; i <= 400; ++i) {
+    const CycleStatus s = rig.cycle();
+    for (std::size_t k = 0; k < s.event_count; ++k)
+      if (s.events[k].fault == HwFault::BusRestartRequested) requests.emplace_back(i, rig.drives->describe(s.events[k]));
+  }
+  ASSERT_EQ(requests.size(), 3u);  // bounded: none after the 3rd in 400 cycles (0.8 s) of bus-off
+  EXPECT_EQ(bus0.restart_requests(), 3u);
+  EXPECT_EQ(requests[0].first, 50);  // the bus-off is read in cycle 1: its 50th cycle (100 ms)
+  EXPECT_EQ(requests[1].first, 100);
+  EXPECT_EQ(requests[2].first, 150);
+  EXPECT_EQ(requests[0].second,
+            "bus arm_a: CAN bus-off: netlink restart not permitted (needs CAP_NET_ADMIN): relies on the interface's "
+            "restart-ms (ip link set <if> type can restart-ms 100) (attempt 1 of 3)");
+  EXPECT_NE(requests[2].second.find("(attempt 3 of 3)"), std::string::npos);
+  EXPECT_FALSE(hw::requires_stop(HwFault::BusRestartRequested));
+  EXPECT_TRUE(rig.drives->bus(0).health().bus_off);
+
+  // Granted on bus arm_b: one request, then the controller's restart.
+  auto& bus1 = dynamic_cast<hw::MockCanBus&>(const_cast<hw::CanBus&>(rig.drives->bus(1)));
+  bus1.set_restart_result(hw::RestartResult::Requested);
+  rig.sim->inject_bus_off(1);
+  int n = 0;
+  CycleStatus s = rig.run_until(has(HwFault::BusRestartRequested), 100, &n);
+  const HwEvent* e = find_event(s, HwFault::BusRestartRequested);
+  ASSERT_NE(e, nullptr);
+  EXPECT_EQ(n, 50);
+  EXPECT_EQ(e->bus, 1);
+  EXPECT_EQ(rig.drives->describe(*e), "bus arm_b: CAN bus-off: restart requested over netlink (attempt 1 of 3)");
+  rig.sim->recover_bus(1);  // the kernel restarts the controller: CAN_ERR_RESTARTED
+  s = rig.run_until(has(HwFault::BusRestarted), 5, &n);
+  EXPECT_EQ(n, 1);
+  EXPECT_FALSE(rig.drives->bus(1).health().bus_off);
+  EXPECT_EQ(bus1.restart_requests(), 1u);
+}

@@ -47,6 +47,15 @@ enum class CanIo : std::uint8_t {
 };
 const char* to_string(CanIo io) noexcept;
 
+/// Result of CanBus::request_restart().
+enum class RestartResult : std::uint8_t {
+  Requested,     ///< the kernel accepted the restart (CAN_ERR_RESTARTED follows)
+  NotPermitted,  ///< EPERM: the process lacks CAP_NET_ADMIN (the interface's restart-ms must do it)
+  NotSupported,  ///< no netlink restart on this bus (mock bus, or no CAN netlink in the kernel)
+  Failed,        ///< any other error (last_errno())
+};
+const char* to_string(RestartResult r) noexcept;
+
 /// Controller state as learned from error frames (CAN_ERR_BUSOFF,
 /// CAN_ERR_CRTL, CAN_ERR_RESTARTED). errno never sets bus_off: ENETDOWN means
 /// the interface is down (CanIo::NetDown), which is a different fault.
@@ -81,6 +90,15 @@ class CanBus {
   const BusHealth& health() const noexcept { return health_; }
   /// Forget bus-off/passive state (after a controller restart).
   void clear_health() noexcept;
+  /// Ask the controller to leave bus-off now. SocketCanBus: one rtnetlink
+  /// RTM_NEWLINK with IFLA_CAN_RESTART (as `ip link set can0 type can
+  /// restart`), needs CAP_NET_ADMIN; sent on a non-blocking netlink socket
+  /// opened at construction, the kernel's synchronous ack read without
+  /// waiting. Real-time safe (no allocation, no blocking). The base (and the
+  /// mock bus unless told otherwise) answers NotSupported.
+  virtual RestartResult request_restart() noexcept;
+  /// request_restart() calls so far.
+  std::uint32_t restart_requests() const noexcept { return restart_requests_; }
 
   /// Receive filters, SocketCAN semantics: a data frame passes when
   /// (id & mask) == (filter.can_id & mask) for any filter (CAN_INV_FILTER in
@@ -91,6 +109,8 @@ class CanBus {
  protected:
   CanBus(std::string name, int fd);
   bool passes_filters(canid_t id) const noexcept;
+  std::uint32_t restart_requests_ = 0;
+  void set_errno(int e) noexcept { last_errno_ = e; }
   void note_error_frame(const can_frame& frame) noexcept;
 
  private:
@@ -118,7 +138,14 @@ std::vector<can_filter> kernel_filters(std::span<const can_filter> filters);
 class SocketCanBus final : public CanBus {
  public:
   explicit SocketCanBus(const std::string& interface);
+  ~SocketCanBus() override;
   void set_filters(std::span<const can_filter> filters) override;
+  RestartResult request_restart() noexcept override;
+
+ private:
+  int ifindex_ = 0;
+  int netlink_fd_ = -1;  // -1: no rtnetlink socket (request_restart: NotSupported)
+  std::uint32_t netlink_seq_ = 0;
 };
 
 /// One end of an in-memory bus (AF_UNIX SOCK_SEQPACKET socketpair).
@@ -128,9 +155,15 @@ class MockCanBus final : public CanBus {
   /// are read on the other. Throws CanError if the socketpair fails.
   static std::pair<std::unique_ptr<MockCanBus>, std::unique_ptr<MockCanBus>> create_pair(
       const std::string& name);
+  /// What request_restart() answers (tests: a cabinet with or without
+  /// CAP_NET_ADMIN); NotSupported by default. The restart itself is the far
+  /// end's (the simulator's recover_bus: CAN_ERR_RESTARTED).
+  void set_restart_result(RestartResult r) noexcept { restart_result_ = r; }
+  RestartResult request_restart() noexcept override;
 
  private:
   MockCanBus(std::string name, int fd) : CanBus(std::move(name), fd) {}
+  RestartResult restart_result_ = RestartResult::NotSupported;
 };
 
 // ---- frame helpers (real-time safe) ---------------------------------------

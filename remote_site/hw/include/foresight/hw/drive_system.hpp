@@ -97,6 +97,9 @@ enum class HwFault : std::uint8_t {
   BusErrorPassive,    ///< controller error passive (notice)
   BusRestarted,       ///< the controller left bus-off (CAN_ERR_RESTARTED: restart-ms); code = restarts so far (notice)
   BusOffRepeated,     ///< more bus-off restarts than bus_off_restart_limit: stays a fault until configure() (stop)
+  BusRestartRequested,///< bus-off for bus_off_restart_delay_s: the master asked the controller to restart
+                      ///< (CanBus::request_restart, rtnetlink); code = attempt (1..bus_off_restart_limit),
+                      ///< detail = RestartResult (notice; BusOff is the stop)
   TxFailed,           ///< a frame could not be queued; code = CanIo; once per episode (stop)
   RxFailed,           ///< read error / bus closed; code = CanIo (stop)
   MalformedFrame,     ///< wrong DLC / RTR / not a can_frame; code = COB-ID, detail = DLC (notice)
@@ -259,6 +262,8 @@ class DriveSystem {
     bool sync_echo_active = false;   // this bus loops our SYNCs back
     std::uint32_t stale_tpdos = 0;
     std::uint16_t restarts = 0;      // bus-off -> restarted, since configure()
+    std::uint16_t restart_requests = 0;  // request_restart() calls since configure()
+    std::uint32_t bus_off_cycles = 0;    // cycles in the present bus-off
     bool restart_limit_hit = false;
   };
 

@@ -82,6 +82,8 @@ struct RemoteConfig {
   int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
   int velocity_tpdo_every = 5;        ///< TPDO2 (velocity actual 0x606C) on every n-th SYNC (0x1801:02); 0 = not mapped
   int bus_off_restart_limit = 3;      ///< controller restarts after bus-off (restart-ms) tolerated per configure()
+  double bus_off_restart_delay_s = 0.1;  ///< bus-off this long: the master requests a restart (netlink), at most
+                                         ///< bus_off_restart_limit times per configure()
   int sync_counter_overflow = 0;      ///< 0x1019: SYNC carries a counter 1..this (CiA 301: 2..240), 0 = none
   int interpolation_exponent = -4;    ///< 0x60C2:02, the unit of 0x60C2:01 (10^exp s); -3 where the drive requires ms
   double max_bus_load = 0.70;
