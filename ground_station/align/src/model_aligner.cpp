@@ -869,6 +869,23 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   }
 
   const double matched_fraction = samples.empty() ? 0.0 : static_cast<double>(n_in) / samples.size();
+  // How far the model moved in the images from the start: beyond the
+  // coarsest search range no edge evidence vouches for the result (seen: a
+  // single wide view pulling the ORU 0.3 m onto the panel's edges).
+  double moved_px = 0.0;
+  {
+    const Pose start_obj = base_T_object_start ? *base_T_object_start : Pose::Identity();
+    const auto end_obj = object_pose();
+    for (const auto& s : samples) {
+      const Camera end_cam = camera_of(s.view);
+      const Camera& start_cam = views[s.view].camera;
+      const Eigen::Vector3d p_end = s.on_object ? Eigen::Vector3d(*end_obj * s.p_local)
+                                                : Eigen::Vector3d(data[s.view][s.frame].link_poses[s.link] * s.p_link);
+      const Eigen::Vector3d p_start = s.on_object ? Eigen::Vector3d(start_obj * s.p_local) : p_end;
+      if (start_cam.to_camera(p_start).z() <= kNear_m || end_cam.to_camera(p_end).z() <= kNear_m) continue;
+      moved_px = std::max(moved_px, (end_cam.project(p_end) - start_cam.project(p_start)).norm());
+    }
+  }
   char buf[256];
   if (res.final_score_px > res.start_score_px + 0.02) {
     std::snprintf(buf, sizeof buf, "the edge distance got worse: %.2f px at the start, %.2f px after alignment",
@@ -879,6 +896,12 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     std::snprintf(buf, sizeof buf,
                   "only %.0f%% of the %zu visible model edge samples lie within 1 px of an image edge (need %.0f%%)",
                   100.0 * matched_fraction, samples.size(), 100.0 * o.min_matched_fraction);
+    res.status = AlignStatus::Refused;
+    res.reason = buf;
+  } else if (moved_px > kLevels.front().search_px) {
+    std::snprintf(buf, sizeof buf,
+                  "the model moved %.0f px from the start, beyond the %.0f px search range that edges can vouch for",
+                  moved_px, kLevels.front().search_px);
     res.status = AlignStatus::Refused;
     res.reason = buf;
   } else {
