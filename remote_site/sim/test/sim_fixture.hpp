@@ -72,6 +72,10 @@ struct SimRig {
 
   void bring_up_stepped() {
     drives->configure();
+    go_stepped();
+  }
+  /// After configure(): enable on the simulator thread, then step.
+  void go_stepped() {
     drives->enable();
     sim->stop();  // joined: from here on only this thread touches the simulator
     drives->held_targets(targets);

@@ -259,7 +259,7 @@ TEST(DriveConfigFile, VelocityTpdoCanBeSwitchedOff) {
   SimRig rig(c);
   rig.drives->configure();
   EXPECT_TRUE(rig.drives->sdo_read(0, 1, 0x1801, 1) & 0x80000000u);
-  rig.bring_up_stepped();
+  rig.go_stepped();
   for (int i = 0; i < 20; ++i) EXPECT_TRUE(rig.cycle().ok()) << i;
   EXPECT_EQ(rig.fb.joints[0].velocity_cycle, 0u);
   EXPECT_EQ(rig.drives->unexpected_frames(0), 0u);
@@ -280,17 +280,16 @@ TEST(DriveConfigFile, HomingRunsToTheSwitchAndRedefinesThePosition) {
   rig.sim->drive(4).set_position_counts(-12345.0);
   rig.drives->configure();
   const double other = rig.sim->drive(0).position_counts();
-  const auto t0 = Clock::now();
   EXPECT_EQ(rig.drives->home(), 2u);
-  const double took_s = std::chrono::duration<double>(Clock::now() - t0).count();
   EXPECT_TRUE(rig.sim->drive(1).homing_attained());
   EXPECT_TRUE(rig.sim->drive(4).homing_attained());
   EXPECT_NEAR(rig.sim->drive(1).position_counts(), 0.0, 0.5);
   EXPECT_NEAR(rig.sim->drive(4).position_counts(), 0.0, 0.5);
   EXPECT_NEAR(rig.sim->drive(0).position_counts(), other, 0.5);
-  // 30,000 counts: 28,690 at 0.02 rad/s (66,757 counts/s), the last 1/100 rev
-  // (1,311) at 0.002 rad/s: 0.43 + 0.20 s.
-  EXPECT_GE(took_s, 0.6);
+  // (30,000 counts: 28,690 at 0.02 rad/s = 66,757 counts/s, the last 1/100
+  // rev, 1,311, at 0.002 rad/s: 0.63 s of simulated motion. Not asserted in
+  // wall time: on a loaded machine late SYNCs bunch up and the drive's
+  // physics, bounded per SYNC, runs ahead of or behind the wall clock.)
   const double cpr = c.drives[1].counts_per_rad();
   EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6098, 0), 19u);
   EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6099, 1), static_cast<std::uint32_t>(std::lround(0.02 * cpr)));
