@@ -182,16 +182,18 @@ json to_json(const JournalContents& c, const std::string& db, std::optional<std:
   return j;
 }
 
+// Columns wide enough for 64-bit ids (session and trajectory ids are random
+// 64-bit numbers, up to 20 digits), so every field stays its own column.
 void print_table(std::ostream& out, const JournalContents& c, const std::string& db, std::optional<std::int64_t> since) {
   out << "journal " << db << " (" << c.files.size() << (c.files.size() == 1 ? " file" : " files") << ")";
   if (since) out << ", since " << format_utc(*since);
   out << "\n\ncommands: " << c.commands.size() << "\n";
   if (!c.commands.empty()) {
-    out << std::left << "  " << std::setw(26) << "time" << std::setw(9) << "session" << std::setw(9) << "command"
+    out << std::left << "  " << std::setw(26) << "time" << std::setw(22) << "session" << std::setw(9) << "command"
         << std::setw(7) << "seq" << std::setw(18) << "kind" << std::setw(11) << "state" << std::setw(20) << "code"
         << "reason\n";
     for (const auto& r : c.commands)
-      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(9) << r.session_id << std::setw(9)
+      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(22) << r.session_id << std::setw(9)
           << r.command_id << std::setw(7) << r.sequence_number << std::setw(18) << r.kind << std::setw(11) << r.state
           << std::setw(20) << r.code << r.reason << "\n";
   }
@@ -205,19 +207,19 @@ void print_table(std::ostream& out, const JournalContents& c, const std::string&
   }
   out << "\nuploads: " << c.uploads.size() << "\n";
   if (!c.uploads.empty()) {
-    out << "  " << std::setw(26) << "time" << std::setw(12) << "trajectory" << std::setw(11) << "state"
+    out << "  " << std::setw(26) << "time" << std::setw(22) << "trajectory" << std::setw(11) << "state"
         << std::setw(20) << "code" << std::setw(9) << "samples" << std::setw(8) << "joints" << std::setw(18)
         << "hash" << "reason\n";
     for (const auto& r : c.uploads)
-      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(12) << r.trajectory_id << std::setw(11)
+      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(22) << r.trajectory_id << std::setw(11)
           << r.state << std::setw(20) << r.code << std::setw(9) << r.samples << std::setw(8) << r.joints
           << std::setw(18) << r.hash_hex.substr(0, 16) << r.reason << "\n";
   }
   out << "\nevents: " << c.events.size() << "\n";
   if (!c.events.empty()) {
-    out << "  " << std::setw(26) << "time" << std::setw(14) << "kind" << "text\n";
+    out << "  " << std::setw(26) << "time" << std::setw(16) << "kind" << "text\n";
     for (const auto& r : c.events)
-      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(14) << r.kind << r.text << "\n";
+      out << "  " << std::setw(26) << format_utc(r.stamp_ns) << std::setw(16) << r.kind << r.text << "\n";
   }
   out << "\ntelemetry: " << c.telemetry_count << " rows";
   if (c.telemetry_last)
