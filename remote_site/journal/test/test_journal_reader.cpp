@@ -134,7 +134,7 @@ TEST(JournalCommand, ReadableTable) {
   const std::string s = out.str();
   EXPECT_NE(s.find("journal " + db + " (1 file)"), std::string::npos) << s;
   EXPECT_NE(s.find("commands: 3"), std::string::npos) << s;
-  EXPECT_NE(s.find("2026-12-01T16:37:03.000Z  7        2        2      GOTO_JOINT        REJECTED   HASH_MISMATCH       "
+  EXPECT_NE(s.find("2026-12-01T16:37:03.000Z  7                     2        2      GOTO_JOINT        REJECTED   HASH_MISMATCH       "
                    "content hash differs from the announced one\n"),
             std::string::npos)
       << s;
