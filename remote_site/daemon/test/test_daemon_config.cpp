@@ -68,7 +68,7 @@ TEST(DaemonConfig, EveryKeyIsRead) {
 
 TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
-            "r.yaml:2: controller: unknown key 'speed' (expected one of: start_tolerance_rad, link, reports, journal, "
+            "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
             "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s)");
   EXPECT_EQ(error_of("controller:\n  link:\n    loss_policy: panic\n"),
             "r.yaml:3: controller.link.loss_policy: 'panic' is not a policy (expected finish_and_hold or stop)");
@@ -79,4 +79,8 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  journal: {keep_files: 0}\n"),
             "r.yaml:2: controller.journal.keep_files: must be in 1..100");
   EXPECT_EQ(error_of("controller: 5\n"), "r.yaml:1: controller: expected a map");
+  EXPECT_EQ(error_of("controller:\n  journal: {keep_files: many}\n"),
+            "r.yaml:2: controller.journal.keep_files: not an integer: 'many'");
+  EXPECT_EQ(error_of("controller:\n  estop_file: [a, b]\n"), "r.yaml:2: controller.estop_file: not a string (a list)");
+  EXPECT_EQ(error_of("controller:\n  link: 3\n"), "r.yaml:2: controller.link: expected a map");
 }
