@@ -277,7 +277,7 @@ TEST(CheckSim, SimulatedSitePasses) {
   const CheckItem& tool = must_find(r, "tool");
   EXPECT_EQ(tool.result, CheckResult::Pass) << tool.why;
   EXPECT_EQ(tool.why.rfind("tcp 127.0.0.1:", 0), 0u) << tool.why;
-  EXPECT_EQ(must_find(r, "bus budget").why, "arm_a 53.9%, arm_b 54.9% worst case at 500 Hz (limit 70%)");
+  EXPECT_EQ(must_find(r, "bus budget").why, "arm_a 57.7%, arm_b 57.8% worst case at 500 Hz (limit 70%)");
   EXPECT_EQ(must_find(r, "DDS security").result, CheckResult::Skip);
   // --sim never fails for missing real-time permissions.
   EXPECT_NE(must_find(r, "rt priority").result, CheckResult::Fail);
