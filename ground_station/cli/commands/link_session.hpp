@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "foresight/common/error.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/control/command.hpp"
@@ -22,9 +23,9 @@ namespace foresight::cli {
 
 /// The remote did not answer, an upload was not committed, or a command was
 /// rejected/failed/timed out (exit 1).
-class LinkFailure : public std::runtime_error {
+class LinkFailure : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 /// The DDS domain: `option` when >= 0, else $FORESIGHT_DDS_DOMAIN, else 0.

@@ -14,7 +14,9 @@
 // Branch members elsewhere: EstimationInputError (InputError) and
 // EstimationError (ComputationError) in calibration, PlanError
 // (ComputationError) in common/plan, hw::HwError (ComputationError) in
-// remote_site/hw, protocol::ProtocolError (ComputationError).
+// remote_site/hw, protocol::ProtocolError (ComputationError), journal::JournalError,
+// sim::LstServerError and sim::VideoSwitchServerError (ComputationError), the
+// CLI's LinkFailure (ComputationError).
 
 #include <stdexcept>
 #include <string>

@@ -38,15 +38,16 @@
 #include <thread>
 #include <vector>
 
+#include "foresight/common/error.hpp"
 #include "foresight/journal/rows.hpp"
 #include "foresight/journal/spsc_ring.hpp"
 
 namespace foresight::journal {
 
 /// A journal file could not be opened, written or read; what() names the file.
-class JournalError : public std::runtime_error {
+class JournalError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 struct JournalOptions {

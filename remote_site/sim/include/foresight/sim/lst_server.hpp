@@ -28,6 +28,7 @@
 #include <string>
 #include <thread>
 
+#include "foresight/common/error.hpp"
 #include "foresight/hw/lst_tool.hpp"
 #include "foresight/sim/screw_model.hpp"
 
@@ -51,9 +52,9 @@ struct LstServerOptions {
 LstServerOptions lst_server_options(const hw::LstToolConfig& tool, const std::string& scene_yaml_path);
 
 /// The server could not be set up (bind, listen, openpty); set-up only.
-class LstServerError : public std::runtime_error {
+class LstServerError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 class LstServer {

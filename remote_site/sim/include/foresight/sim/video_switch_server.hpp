@@ -19,6 +19,8 @@
 #include <thread>
 #include <vector>
 
+#include "foresight/common/error.hpp"
+
 namespace foresight::sim {
 
 struct VideoSwitchServerOptions {
@@ -39,9 +41,9 @@ struct VideoSwitchServerOptions {
 /// with their f_px. Throws InputError from the scene loader.
 VideoSwitchServerOptions video_switch_options_from_scene(const std::string& scene_yaml_path);
 
-class VideoSwitchServerError : public std::runtime_error {
+class VideoSwitchServerError : public ComputationError {
  public:
-  using std::runtime_error::runtime_error;
+  using ComputationError::ComputationError;
 };
 
 /// Ground truth of the switch.
