@@ -90,8 +90,18 @@ exe_targets() {  # dir exclude-regex
 #                         the wall time of 1e6-row inputs (10 s, 30 s): under
 #                         ASan on a loaded machine they took 10.03 s and 104 s
 #                         with no sanitizer report (timing, not memory).
+#  * RtAlloc.CounterWorks  the allocation counter's self-test asserts an exact
+#                         count (3: a vector's operator new twice, one malloc);
+#                         under ASan's allocator hook it sees 2 (first CI run,
+#                         2026-12-02). The no-allocation proofs assert a count
+#                         of 0, which the hook still sees; the exact count is
+#                         checked in the normal build.
+#  * Plant.LatchAndLoosenThroughTheLstFreeTheOru  asserts that every plant cycle
+#                         met its period (cycles_ok) while the LST runs over
+#                         Modbus: ASan's 2-3x slow-down missed it (timing, not
+#                         memory; first CI run, 2026-12-02).
 ASAN_EXCLUDE_BINARIES='test_changeout_hil|test_demo_cli'
-ASAN_EXCLUDE_TESTS='_NOT_BUILT$|^PointsCsvHardening\.MoreRowsThanAPointsFileMayHaveAreRefused$|^CalibrateHardening\.OutlierFlaggingRefitsABoundedNumberOfTimes$|^Changeout\.|^DemoCli\.|^emulated_link_4s_upload_and_run$|^LinkEmu\.(UdpEchoRoundTripWithinFivePercentOf400ms|DdsPingPongRoundTripWithinFivePercentOf400ms|ForwardingCapacityMeasured|BandwidthCapRespectedAndQueueBounded|LossRateWithinStatisticalBounds|DdsTrajectoryUploadArrivesWholeThroughLossAndJitter)$'
+ASAN_EXCLUDE_TESTS='_NOT_BUILT$|^PointsCsvHardening\.MoreRowsThanAPointsFileMayHaveAreRefused$|^CalibrateHardening\.OutlierFlaggingRefitsABoundedNumberOfTimes$|^Changeout\.|^DemoCli\.|^emulated_link_4s_upload_and_run$|^RtAlloc\.CounterWorks$|^Plant\.LatchAndLoosenThroughTheLstFreeTheOru$|^LinkEmu\.(UdpEchoRoundTripWithinFivePercentOf400ms|DdsPingPongRoundTripWithinFivePercentOf400ms|ForwardingCapacityMeasured|BandwidthCapRespectedAndQueueBounded|LossRateWithinStatisticalBounds|DdsTrajectoryUploadArrivesWholeThroughLossAndJitter)$'
 
 # The CI scope (asan-ci): CI (.ci/run) has 90 min on 2 cores and the normal
 # build + test run takes ~31 min of it; everything CI adds must fit in ~40 min
@@ -108,6 +118,9 @@ ASAN_EXCLUDE_TESTS='_NOT_BUILT$|^PointsCsvHardening\.MoreRowsThanAPointsFileMayH
 # proofs, journal, the remote link, the daemon); the ground's parsers run under
 # ASan+UBSan in the fuzzers (scripts/fuzz.sh, also in CI).
 ASAN_CI_SKIP_DIRS=(ground_station hil_tests)
+# hil_tests' shell tests are not binaries of their own: left out of the CI
+# scope by name (they need the ground CLI and the link emulator, not built there).
+ASAN_CI_EXCLUDE_TESTS='^link_outage_mid_trajectory$'
 
 # Executable targets defined in the CMakeLists.txt under the given folders.
 targets_in_dirs() {
@@ -119,20 +132,21 @@ targets_in_dirs() {
 }
 
 run_asan() {  # all|ci
-  local dir=${FORESIGHT_ASAN_DIR:-build-asan} exclude=$ASAN_EXCLUDE_BINARIES
+  local dir=${FORESIGHT_ASAN_DIR:-build-asan} exclude=$ASAN_EXCLUDE_BINARIES exclude_tests=$ASAN_EXCLUDE_TESTS
   step "ASan+UBSan configure + build ($dir, scope $1)"
   configure "$dir" "address,undefined"
   if [[ $1 == ci ]]; then
     mapfile -t skipped < <(targets_in_dirs "${ASAN_CI_SKIP_DIRS[@]}")
     echo "sanitize: asan-ci leaves out (CI time budget; run by 'scripts/sanitize.sh asan'): ${skipped[*]}"
     exclude="$exclude|$(IFS='|'; echo "${skipped[*]}")"
+    exclude_tests="$exclude_tests|$ASAN_CI_EXCLUDE_TESTS"
   fi
   mapfile -t targets < <(exe_targets "$dir" "$exclude")
   ninja -C "$dir" -j"$JOBS" "${targets[@]}"
   step_done
   step "ASan+UBSan ctest (scope $1)"
   # Tests of binaries not built here are "<binary>_NOT_BUILT": excluded by name.
-  ctest --test-dir "$dir" --output-on-failure -j"$JOBS" --timeout 900 -E "$ASAN_EXCLUDE_TESTS"
+  ctest --test-dir "$dir" --output-on-failure -j"$JOBS" --timeout 900 -E "$exclude_tests"
   step_done
 }
 
