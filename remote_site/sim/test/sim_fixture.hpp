@@ -7,6 +7,7 @@
 #include <chrono>
 #include <functional>
 #include <thread>
+#include <vector>
 
 #include "foresight/hw/drive_system.hpp"
 #include "foresight/sim/can_simulator.hpp"
@@ -118,6 +119,24 @@ struct SimRig {
     }
     if (n) *n = max_cycles;
     return s;
+  }
+
+  /// Run cycles until one reports an event that requires a stop (or
+  /// max_cycles): that cycle's status and its stop events; the count in *n.
+  struct Stopped {
+    CycleStatus status;
+    std::vector<HwEvent> stops;
+  };
+  Stopped run_until_stop(int max_cycles, int* n = nullptr) {
+    Stopped r;
+    r.status = run_until(
+        [&](const CycleStatus& st) {
+          for (std::size_t i = 0; i < st.event_count; ++i)
+            if (hw::requires_stop(st.events[i].fault)) r.stops.push_back(st.events[i]);
+          return !r.stops.empty();
+        },
+        max_cycles, n);
+    return r;
   }
 };
 

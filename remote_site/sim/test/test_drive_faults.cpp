@@ -27,14 +27,7 @@ TEST(DriveFaults, HeartbeatLossIsDetectedWithinTheConsumerTime) {
   rig.run_until([](const CycleStatus&) { return false; }, 30);
   rig.sim->drive(4).silence_heartbeat(true);
   int n = 0;
-  std::vector<HwEvent> stops;
-  const CycleStatus s = rig.run_until(
-      [&](const CycleStatus& st) {
-        for (std::size_t i = 0; i < st.event_count; ++i)
-          if (hw::requires_stop(st.events[i].fault)) stops.push_back(st.events[i]);
-        return !stops.empty();
-      },
-      200, &n);
+  const auto [s, stops] = rig.run_until_stop(200, &n);
   ASSERT_EQ(stops.size(), 1u);
   const HwEvent* e = &stops[0];
   EXPECT_EQ(e->fault, HwFault::HeartbeatLost);

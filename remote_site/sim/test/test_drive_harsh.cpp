@@ -42,14 +42,7 @@ TEST(HarshBus, ProductionTpdoMissLimitFaultsALostDriveInThreeCycles) {
   ASSERT_TRUE(before.ok()) << before.event_count;
   rig.sim->drive(2).stop_answering(true);
   int n = 0;
-  std::vector<HwEvent> stops;
-  const CycleStatus s = rig.run_until(
-      [&](const CycleStatus& st) {
-        for (std::size_t i = 0; i < st.event_count; ++i)
-          if (hw::requires_stop(st.events[i].fault)) stops.push_back(st.events[i]);
-        return !stops.empty();
-      },
-      50, &n);
+  const auto [s, stops] = rig.run_until_stop(50, &n);
   ASSERT_EQ(stops.size(), 1u);  // nobody else misses: no scheduling in a stepped run
   const HwEvent& e = stops[0];
   EXPECT_EQ(e.fault, HwFault::TpdoMissing);
