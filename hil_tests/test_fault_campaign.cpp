@@ -237,8 +237,12 @@ class FaultCampaign : public ::testing::Test {
             },
             1s);
         if (!ok) refusals.push_back("recovered, then stopped again");
-      } else if (refusals.empty() || refusals.back() != rec.reason) {
-        refusals.push_back(rec.reason);
+      } else {
+        // The state too: a RECOVER with no final answer has no reason.
+        std::string what = std::string(rec.finished ? "" : "no final answer, ") + "state " +
+                           control::to_string(rec.state) + ": " + rec.reason;
+        for (const auto& a : rec.acks) what += std::string(" [") + control::to_string(a.state) + " " + a.reason + "]";
+        if (refusals.empty() || refusals.back() != what) refusals.push_back(what);
       }
       if (!ok) std::this_thread::sleep_for(300ms);  // the poll period of this bounded retry
     }

@@ -272,6 +272,7 @@ void Controller::drive_request_done(DriveRequest request, bool ok, const char* t
                                     const JointArray& held) noexcept {
   if (!drive_request_pending_ || request != pending_request_) return;
   drive_request_pending_ = false;
+  drive_request_issued_ = false;  // a request made before the next step (RECOVER) is issued then
   pending_request_ = DriveRequest::None;
   const bool command_owned = active_ == Active::Enable || active_ == Active::Recover || active_ == Active::Disable;
   if (request == DriveRequest::Enable) {

@@ -556,6 +556,34 @@ TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
   expect_after(b, StopCategory::Cat0);
 }
 
+// RECOVER taken in the first cycle after the stop's drive disable finished
+// (it waited in the command ring while disable() ran: a loaded machine, a
+// slow bus): the enable must still be asked for. It was not: the disable's
+// "request issued" flag was still set, and RECOVER stayed executing forever.
+TEST_F(ControllerFaults, RecoverRightAfterTheStopsDisableEnablesTheDrives) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.hw_stop_required = true;
+  b.in.hw_drive_fault = true;
+  b.in.hw_fault = 4;
+  b.in.hw_node = 3;
+  b.in.hw_joint = 2;
+  b.step();
+  b.in.hw_stop_required = false;
+  b.in.hw_drive_fault = false;
+  int k = 0;
+  while (b.out.drive_request != DriveRequest::Disable && k++ < 1000) b.step();
+  ASSERT_EQ(b.out.drive_request, DriveRequest::Disable);  // done at once by the bench
+  ASSERT_EQ(b.ctl->mode(), ControllerMode::Fault);
+  MotionCommand r;
+  r.kind = MotionCommandKind::Recover;
+  const auto id = b.send(r);
+  const MotionEvent e = b.run_until_final(id, 10);
+  EXPECT_EQ(e.kind, MotionEventKind::Completed) << e.text.data();
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+  EXPECT_TRUE(b.in.drives_enabled);
+}
+
 TEST_F(ControllerFaults, FollowingErrorIsCat1) {
   Bench b(home_q());
   start_motion(b);
