@@ -70,6 +70,8 @@ void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& f
   for (std::size_t j = 0; j < fb.count && j < kMaxJoints; ++j) {
     in.q[j] = fb.joints[j].position_rad;
     in.torque[j] = fb.joints[j].torque_nm;
+    in.dq_drive[j] = fb.joints[j].velocity_rad_s;
+    in.dq_drive_cycle[j] = fb.joints[j].velocity_cycle;
     enabled = enabled && fb.joints[j].state == hw::canopen::PowerState::OperationEnabled;
   }
   in.drives_enabled = enabled;

@@ -52,6 +52,7 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (config.estop_category == StopCategory::None) throw std::invalid_argument("estop_category must be 0, 1 or 2");
   if (config.sensor_fault_cycles < 1) throw std::invalid_argument("sensor_fault_cycles must be >= 1");
   if (!finite_pos(config.velocity_filter_hz)) throw std::invalid_argument("velocity_filter_hz must be > 0");
+  if (config.drive_velocity_max_age_cycles < 0) throw std::invalid_argument("drive_velocity_max_age_cycles must be >= 0");
   dt_ = 1.0 / config.cycle_rate_hz;
   for (std::size_t j = 0; j < dof_; ++j) {
     const JointLimits& l = model.limits()[j];
@@ -688,6 +689,16 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   t.joints = dof_;
   t.q = q_;
   t.dq = dq_;
+  t.dq_drive_mask = 0;
+  if (config_.drive_velocity_max_age_cycles > 0 && joints_ok) {
+    const auto max_age = static_cast<std::uint64_t>(config_.drive_velocity_max_age_cycles);
+    for (std::size_t j = 0; j < dof_; ++j) {
+      const std::uint64_t at = in.dq_drive_cycle[j];
+      if (at == 0 || at > in.cycle || in.cycle - at > max_age || !std::isfinite(in.dq_drive[j])) continue;
+      t.dq[j] = in.dq_drive[j];
+      t.dq_drive_mask |= std::uint32_t{1} << j;
+    }
+  }
   t.torque = in.torque;
   t.q_cmd = q_cmd_;
   t.wrench_tool = wrench_tool_;

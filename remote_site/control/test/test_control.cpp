@@ -800,5 +800,46 @@ TEST(Controller, TareCompletesWhenTheDecoderIsDone) {
   EXPECT_EQ(e.kind, MotionEventKind::Completed);
 }
 
+// Telemetry dq: the drive's own velocity actual (0x606C) while it is fresh,
+// the differentiated position otherwise (no TPDO2, or TPDO2 lost too long).
+TEST(Controller, TelemetryVelocityIsTheDrivesWhileFreshElseDifferentiated) {
+  constexpr double kV = 0.1;       // rad/s: the arm's true motion of joints 1 and 2
+  constexpr double kDrive = 0.25;  // what joint 1's drive reports (not the position's slope, to tell them apart)
+  const auto run = [](ControllerConfig cfg, std::uint64_t drive_age, int cycles) {
+    Bench b(home_q(), cfg);      // disabled: the controller follows the measured arm
+    for (int k = 0; k < cycles; ++k) {
+      b.q_arm[0] += kV * 0.002;
+      b.q_arm[1] += kV * 0.002;
+      b.in.dq_drive[0] = kDrive;
+      b.in.dq_drive_cycle[0] = b.cycle + 1 > drive_age ? b.cycle + 1 - drive_age : 0;  // the next step's cycle - age
+      b.step();
+    }
+    return b.out.telemetry;
+  };
+  // 1 s of motion: the 50 Hz filter has settled on the slope.
+  TelemetrySample t = run(ControllerConfig{}, 4, 500);
+  EXPECT_EQ(t.dq[0], kDrive);               // the drive's value, exactly
+  EXPECT_NEAR(t.dq[1], kV, 1e-9);           // no drive value: the slope of q
+  EXPECT_EQ(t.dq_drive_mask, 1u);
+  t = run(ControllerConfig{}, 10, 500);     // as old as allowed (2 x velocity_tpdo_every 5)
+  EXPECT_EQ(t.dq[0], kDrive);
+  t = run(ControllerConfig{}, 11, 500);     // older: the TPDO2 is lost, fall back
+  EXPECT_NEAR(t.dq[0], kV, 1e-9);
+  EXPECT_EQ(t.dq_drive_mask, 0u);
+  ControllerConfig unmapped;
+  unmapped.drive_velocity_max_age_cycles = 0;  // velocity_tpdo_every 0: never the drive's
+  t = run(unmapped, 0, 500);
+  EXPECT_NEAR(t.dq[0], kV, 1e-9);
+  EXPECT_EQ(t.dq_drive_mask, 0u);
+  ControllerConfig bad;
+  bad.drive_velocity_max_age_cycles = -1;
+  try {
+    Controller c(robot(), bad);
+    ADD_FAILURE() << "a negative age was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "drive_velocity_max_age_cycles must be >= 0");
+  }
+}
+
 }  // namespace
 }  // namespace foresight::control::test

@@ -65,7 +65,13 @@ struct ControllerConfig {
   StopCategory estop_category = StopCategory::Cat0;
   LinkLossPolicy link_loss = LinkLossPolicy::FinishThenHold;
   int sensor_fault_cycles = 5;             ///< F/T saturated or faulty this many cycles in a row: Cat1
-  double velocity_filter_hz = 50.0;        ///< dq telemetry low-pass
+  double velocity_filter_hz = 50.0;        ///< dq telemetry low-pass (joints without a fresh drive velocity)
+  /// Telemetry dq of a joint is the drive's own velocity actual (0x606C,
+  /// CycleInputs::dq_drive) while that value answered a SYNC at most this many
+  /// cycles ago; otherwise (never mapped, TPDO2 lost) the differentiated,
+  /// low-passed measured position. 0 = never the drive's. The daemon sets
+  /// 2 x velocity_tpdo_every (one lost TPDO2 tolerated).
+  int drive_velocity_max_age_cycles = 10;
 };
 
 /// What the loop read this cycle.
@@ -75,6 +81,9 @@ struct CycleInputs {
   std::size_t joints = 0;              ///< must equal the model's dof (else: Cat0, DriveFault)
   JointArray q{};                      ///< measured joint positions
   JointArray torque{};
+  JointArray dq_drive{};               ///< drives' velocity actual 0x606C, joint side (hw JointState::velocity_rad_s)
+  /// The cycle whose read delivered dq_drive[j] (hw JointState::velocity_cycle); 0 = none (TPDO2 not mapped).
+  std::array<std::uint64_t, kMaxJoints> dq_drive_cycle{};
   bool drives_enabled = false;         ///< every drive in Operation enabled
   Wrench6 wrench_ft{};                 ///< hw::FtReading::wrench_ft (sensor frame, bias removed)
   bool ft_fresh = false;

@@ -207,7 +207,12 @@ struct TelemetrySample {
   std::uint64_t cycle = 0;
   std::size_t joints = 0;
   JointArray q{};        ///< measured
-  JointArray dq{};       ///< measured, differentiated and filtered
+  /// Measured velocity, rad/s: per joint the drive's own velocity actual
+  /// (0x606C, TPDO2 every velocity_tpdo_every-th SYNC, so up to that many
+  /// cycles older than q) where it is fresh (ControllerConfig::
+  /// drive_velocity_max_age_cycles), else q differentiated and low-passed.
+  JointArray dq{};
+  std::uint32_t dq_drive_mask = 0;  ///< bit j: dq[j] is the drive's 0x606C (else differentiated)
   JointArray torque{};   ///< drive torque actual, joint side
   JointArray q_cmd{};    ///< commanded this cycle
   Wrench6 wrench_tool{}; ///< contact wrench: bias and tool gravity compensated, filtered; tool frame about the tip
