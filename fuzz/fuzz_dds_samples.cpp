@@ -27,6 +27,7 @@
 
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
+#include "foresight/protocol/cdr_check.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
@@ -42,8 +43,8 @@ using foresight::protocol::Sample;
 
 constexpr std::uint32_t kMaxSample = 1u << 16;
 
-/// FORESIGHT_FUZZ_KNOWN=1 lets the known third-party crash below through
-/// (to reproduce fuzz/regressions/fuzz_dds_samples/open/*).
+/// FORESIGHT_FUZZ_KNOWN=1 lets the known third-party crashes below through
+/// (to reproduce Cyclone's own defects with fuzz/regressions/fuzz_dds_samples/*).
 bool let_known_crashes_through() {
   static const bool on = [] {
     const char* v = std::getenv("FORESIGHT_FUZZ_KNOWN");
@@ -63,17 +64,23 @@ bool decode(const std::uint8_t* bytes, std::size_t n, std::uint8_t encoding, Sam
   enum ddsi_sertype_extensibility ext = DDSI_SERTYPE_EXT_FINAL;
   if (!dds_stream_extensibility(ops, &ext)) return false;
   const std::uint32_t xcdr = (encoding & 2) || ext != DDSI_SERTYPE_EXT_FINAL ? 2 : 1;  // CDR_ENC_VERSION_1 / _2
-  if constexpr (std::is_same_v<T, msg::Command>) {
-    // Cyclone DDS 0.10.2 (Debian) accepts a Command whose DHEADER ends
-    // before the payload union and then abort()s in dds_stream_read: what
-    // Reader<Command> does about it (protocol/dds.hpp take_checked) is done
-    // here too: a DHEADER below MessageTraits<Command>::min_dheader is
-    // dropped before Cyclone reads it. FORESIGHT_FUZZ_KNOWN=1 skips the
-    // guard (to show Cyclone's abort: fuzz/regressions/README.md).
-    std::uint32_t dheader = 0;
-    if (n >= 4) std::memcpy(&dheader, bytes, 4);
-    if (encoding & 1) dheader = __builtin_bswap32(dheader);
-    if (n >= 4 && dheader < MessageTraits<msg::Command>::min_dheader && !let_known_crashes_through()) return false;
+  // Cyclone DDS 0.10.2 accepts samples it then cannot read safely: a Command
+  // whose DHEADER ends before the payload union (dds_stream_read abort()s),
+  // and in XCDR2 any 8-byte value, or sequence or array of them, longer than
+  // the bytes left (normalize checks 4 bytes per double; dds_stream_read then
+  // reads past the buffer: regressions *_overread_in_cyclone_read). What
+  // Reader<T> does about it (protocol/dds.hpp take_checked: cdr_check.hpp's
+  // layout walk, and min_dheader) is done here too, before Cyclone sees the
+  // bytes. FORESIGHT_FUZZ_KNOWN=1 skips it (to show Cyclone's own defects).
+  if (!let_known_crashes_through()) {
+    const foresight::protocol::CdrPayload payload{{bytes, n}, (encoding & 1) == 0, xcdr == 2};
+    if (!foresight::protocol::cdr_fits<T>(payload)) return false;
+    if constexpr (std::is_same_v<T, msg::Command>) {
+      std::uint32_t dheader = 0;
+      if (n >= 4) std::memcpy(&dheader, bytes, 4);
+      if (encoding & 1) dheader = __builtin_bswap32(dheader);
+      if (dheader < MessageTraits<msg::Command>::min_dheader) return false;
+    }
   }
   const bool bswap = (encoding & 1) != 0;
   // The receive path hands the normalizer a writable, 8-aligned copy.

@@ -10,6 +10,7 @@
 // domain derived from the pid, its own peer, and bounded waits; the peer is
 // killed in TearDown whatever happened (and dies with us: PR_SET_PDEATHSIG).
 
+#include <dds/ddsi/ddsi_cdrstream.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
@@ -20,7 +21,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <span>
 #include <thread>
+#include <vector>
 
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
@@ -776,5 +779,120 @@ TEST(ProtocolHostile, ACommandTruncatedBeforeItsPayloadIsDroppedNotFatal) {
   writer.write(*good);
   ASSERT_TRUE(reader.wait_take(got, kReplyTimeout));
   EXPECT_EQ(got->command_id, 42u);
+  EXPECT_EQ(reader.malformed_dropped(), 1u);
+}
+
+namespace {
+/// Writes `payload` (XCDR2, little endian; `identifier` CDR2_LE 0x07 for a
+/// final type, D_CDR2_LE 0x09 for an appendable one) as a sample of T through
+/// `writer`, as a hostile participant could put it on the wire. The sertype
+/// comes from a sample `probe` took. Returns whether Cyclone accepted it.
+template <class T>
+bool write_raw(fp::Writer<T>& writer, fp::Reader<T>& probe, const T& any, unsigned char identifier,
+               const std::vector<unsigned char>& payload) {
+  writer.write(any);
+  ddsi_serdata* sample = nullptr;
+  dds_sample_info_t info;
+  for (auto deadline = Clock::now() + kReplyTimeout; sample == nullptr && Clock::now() < deadline;)
+    if (dds_takecdr(probe.get(), &sample, 1, &info, DDS_ANY_STATE) <= 0) std::this_thread::sleep_for(5ms);
+  if (sample == nullptr) return false;
+  std::vector<unsigned char> bytes{0x00, identifier, 0x00, 0x00};
+  bytes.insert(bytes.end(), payload.begin(), payload.end());
+  ddsrt_iovec_t iov;
+  iov.iov_base = bytes.data();
+  iov.iov_len = static_cast<ddsrt_iov_len_t>(bytes.size());
+  ddsi_serdata* raw = ddsi_serdata_from_ser_iov(sample->type, SDK_DATA, 1, &iov, bytes.size());
+  ddsi_serdata_unref(sample);
+  if (raw == nullptr) return false;
+  return dds_writecdr(writer.get(), raw) == DDS_RETCODE_OK;
+}
+
+/// A sample's XCDR2 payload as Cyclone writes it (no encapsulation header).
+template <class T>
+std::vector<unsigned char> xcdr2_payload(const T& value) {
+  dds_ostreamLE_t os;
+  dds_ostreamLE_init(&os, 0, 2);
+  dds_stream_writeLE(&os, reinterpret_cast<const char*>(&value), fp::MessageTraits<T>::descriptor()->m_ops);
+  std::vector<unsigned char> out(os.x.m_buffer, os.x.m_buffer + os.x.m_index);
+  dds_ostreamLE_fini(&os);
+  return out;
+}
+
+/// Takes what `reader` holds (the sample write_raw() wrote first, whatever
+/// the history depth kept) until it dropped one malformed sample.
+template <class T>
+bool drop_one(fp::Reader<T>& reader) {
+  fp::Sample<T> got;
+  for (auto deadline = Clock::now() + kReplyTimeout; reader.malformed_dropped() == 0 && Clock::now() < deadline;)
+    (void)reader.wait_take(got, 50ms);
+  return reader.malformed_dropped() == 1;
+}
+
+void put_u32_le(std::vector<unsigned char>& b, std::size_t off, std::uint32_t v) {
+  for (std::size_t i = 0; i < 4; ++i) b[off + i] = static_cast<unsigned char>(v >> (8 * i));
+}
+}  // namespace
+
+// A sample whose last sequence of doubles is longer than the bytes it carries
+// (XCDR2): Cyclone 0.10.2's normalize checks 4 bytes per double, accepts it,
+// and building the sample at take then read past the heap buffer (ASan:
+// heap-buffer-overflow in dds_stream_read; fuzz/regressions/fuzz_dds_samples/
+// *_overread_in_cyclone_read). Reader<T> walks the CDR first (cdr_check.hpp):
+// dropped and counted, and the next well-formed sample is taken.
+TEST(ProtocolHostile, AJointStateWhoseSequenceOutrunsItsBytesIsDroppedNotOverRead) {
+  fp::use_loopback_if_unconfigured();
+  fp::Participant participant(fp::unique_test_domain());
+  fp::Writer<msg::JointState> writer(participant);
+  fp::Reader<msg::JointState> reader(participant);
+  fp::Reader<msg::JointState> probe(participant);
+  ASSERT_TRUE(writer.wait_for_readers(2, kDiscoveryTimeout));
+
+  fp::Sample<msg::JointState> good;
+  const std::vector<double> q{0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7};
+  fp::assign(good->torque_nm, std::span<const double>(q), msg::kMaxJoints, "torque");
+  good->cycle = 1;
+  fp::Sample<msg::JointState> got;
+  // stamp 8, cycle 8, q and dq empty (4 + 4), torque: length at 24, 56 bytes.
+  std::vector<unsigned char> lie = xcdr2_payload(*good);
+  ASSERT_EQ(lie.size(), 84u);
+  put_u32_le(lie, 24, 14);  // 14 doubles in 56 bytes: Cyclone reads 56 bytes past them
+  ASSERT_TRUE(write_raw(writer, probe, *good, 0x07, lie)) << "Cyclone refused the lie itself (then the guard is moot)";
+  ASSERT_TRUE(drop_one(reader));
+
+  good->cycle = 2;
+  writer.write(*good);
+  ASSERT_TRUE(reader.wait_take(got, kReplyTimeout));
+  EXPECT_EQ(got->cycle, 2u);
+  ASSERT_EQ(got->torque_nm._length, 7u);
+  EXPECT_EQ(got->torque_nm._buffer[6], 0.7);
+  EXPECT_EQ(reader.malformed_dropped(), 1u);
+}
+
+TEST(ProtocolHostile, ATrajectoryChunkWhoseSamplesOutrunItsBytesIsDroppedNotOverRead) {
+  fp::use_loopback_if_unconfigured();
+  fp::Participant participant(fp::unique_test_domain());
+  fp::Writer<msg::TrajectoryChunk> writer(participant);
+  fp::Reader<msg::TrajectoryChunk> reader(participant);
+  fp::Reader<msg::TrajectoryChunk> probe(participant);
+  ASSERT_TRUE(writer.wait_for_readers(2, kDiscoveryTimeout));
+
+  fp::Sample<msg::TrajectoryChunk> good;
+  good->trajectory_id = 5;
+  good->chunk_count = 1;
+  std::vector<double> samples(8, 0.25);
+  fp::assign(good->samples, std::span<const double>(samples), msg::kMaxChunkValues, "samples");
+  fp::Sample<msg::TrajectoryChunk> got;
+  // DHEADER 4, 76 bytes of members, samples' length at 80, 64 bytes.
+  std::vector<unsigned char> lie = xcdr2_payload(*good);
+  ASSERT_EQ(lie.size(), 148u);
+  put_u32_le(lie, 80, 16);  // 16 doubles in 64 bytes
+  ASSERT_TRUE(write_raw(writer, probe, *good, 0x09, lie)) << "Cyclone refused the lie itself (then the guard is moot)";
+  ASSERT_TRUE(drop_one(reader));
+
+  good->trajectory_id = 6;
+  writer.write(*good);
+  ASSERT_TRUE(reader.wait_take(got, kReplyTimeout));
+  EXPECT_EQ(got->trajectory_id, 6u);
+  EXPECT_EQ(got->samples._length, 8u);
   EXPECT_EQ(reader.malformed_dropped(), 1u);
 }

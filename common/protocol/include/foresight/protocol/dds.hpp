@@ -27,10 +27,12 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
 
+#include "foresight/protocol/cdr_check.hpp"
 #include "foresight/protocol/error.hpp"
 #include "foresight/protocol/messages.hpp"
 #include "foresight/protocol/qos.hpp"
@@ -203,22 +205,13 @@ class Reader {
   /// unregister notifications (no data) are consumed and skipped. `info`
   /// receives the sample info (source timestamp, instance state, ...).
   bool take(Sample<T>& out, dds_sample_info_t* info = nullptr) {
-    if constexpr (kMinDheader > 0) return take_checked(out, info);
-    for (;;) {
-      void* buffers[1] = {out.get()};
-      dds_sample_info_t local_info;
-      const dds_return_t n = dds_take(entity_.get(), buffers, &local_info, 1, 1);
-      check(n, "take on " + topic_.name());
-      if (n == 0) return false;
-      if (local_info.valid_data) {
-        if (info != nullptr) *info = local_info;
-        return true;
-      }
-    }
+    return take_checked(out, info);
   }
 
-  /// Samples dropped before Cyclone built them (a DHEADER shorter than the
-  /// type's min_dheader: messages.hpp), since the reader was created.
+  /// Samples dropped before Cyclone built them, since the reader was created:
+  /// a member, sequence or string longer than the bytes the sample carries
+  /// (cdr_check.hpp), or a DHEADER shorter than the type's min_dheader
+  /// (messages.hpp).
   std::uint64_t malformed_dropped() const noexcept { return malformed_dropped_; }
 
   /// Waits up to `timeout` for a sample and takes it. False on timeout.
@@ -249,9 +242,12 @@ class Reader {
     else return std::uint32_t{0};
   }();
 
-  /// take() through the serialized sample: its DHEADER is checked before
-  /// Cyclone builds the C struct (ddsi_serdata_to_sample), so a truncated
-  /// sample is dropped and counted instead of reaching Cyclone's abort.
+  /// take() through the serialized sample: before Cyclone builds the C
+  /// struct (ddsi_serdata_to_sample), the sample's CDR is walked member by
+  /// member (cdr_check.hpp: every length against the bytes left; Cyclone
+  /// 0.10.2's own check lets 8-byte values and sequences of them run past the
+  /// data, and its read then over-reads the heap), and a Command's DHEADER is
+  /// checked against min_dheader. A sample that fails is dropped and counted.
   bool take_checked(Sample<T>& out, dds_sample_info_t* info) {
     for (;;) {
       ddsi_serdata* data = nullptr;
@@ -261,17 +257,7 @@ class Reader {
       if (n == 0) return false;
       bool ok = false;
       if (local_info.valid_data) {
-        // The 4-byte encapsulation header (its low bit: little endian), then
-        // the appendable struct's DHEADER.
-        unsigned char head[8] = {};
-        if (ddsi_serdata_size(data) >= sizeof head) {
-          ddsi_serdata_to_ser(data, 0, sizeof head, head);
-          const std::uint32_t dheader =
-              (head[1] & 1u) != 0
-                  ? head[4] | (head[5] << 8) | (head[6] << 16) | (static_cast<std::uint32_t>(head[7]) << 24)
-                  : head[7] | (head[6] << 8) | (head[5] << 16) | (static_cast<std::uint32_t>(head[4]) << 24);
-          ok = dheader >= kMinDheader && ddsi_serdata_to_sample(data, out.get(), nullptr, nullptr);
-        }
+        ok = serialized_fits(data) && ddsi_serdata_to_sample(data, out.get(), nullptr, nullptr);
         if (!ok) ++malformed_dropped_;
       }
       ddsi_serdata_unref(data);
@@ -280,6 +266,32 @@ class Reader {
         return true;
       }
     }
+  }
+
+  /// The encapsulation header, min_dheader and the layout walk over the
+  /// serialized bytes in place (no copy).
+  static bool serialized_fits(ddsi_serdata* data) noexcept {
+    const std::uint32_t size = ddsi_serdata_size(data);
+    if (size < 4) return false;
+    ddsrt_iovec_t ref{};
+    ddsi_serdata* held = ddsi_serdata_to_ser_ref(data, 0, size, &ref);
+    const std::span<const unsigned char> bytes(static_cast<const unsigned char*>(ref.iov_base), ref.iov_len);
+    bool ok = false;
+    if (const std::optional<CdrPayload> payload = cdr_payload(bytes)) {
+      ok = cdr_fits<T>(*payload);
+      if (ok && kMinDheader > 0) {
+        // An appendable type's DHEADER (XCDR2 only) in the payload's byte order.
+        const unsigned char* h = payload->bytes.data();
+        const std::uint32_t dheader =
+            payload->bytes.size() < 4 ? 0
+            : payload->little_endian
+                ? h[0] | (h[1] << 8) | (h[2] << 16) | (static_cast<std::uint32_t>(h[3]) << 24)
+                : h[3] | (h[2] << 8) | (h[1] << 16) | (static_cast<std::uint32_t>(h[0]) << 24);
+        ok = dheader >= kMinDheader;
+      }
+    }
+    ddsi_serdata_to_ser_unref(held, &ref);
+    return ok;
   }
 
   Topic<T> topic_;
