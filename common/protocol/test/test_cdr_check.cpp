@@ -442,3 +442,33 @@ TEST(CdrCheck, EncapsulationHeaders) {
   const unsigned char pad_beyond[] = {0, 0x09, 0, 2, 1};
   EXPECT_FALSE(fp::cdr_payload(pad_beyond).has_value());
 }
+
+// What the walk cannot reach: Cyclone normalizes a received sample on its
+// receive thread before any reader sees it, and for a byte-swapped (big
+// endian) sender it swaps the 8-byte values in place: a sequence claiming up
+// to twice its doubles is swapped past the data, a heap WRITE inside
+// libddsc (4 bytes per claimed double beyond the bytes). Reader<T> drops the
+// sample afterwards, but the write has happened. Fixed upstream on Cyclone's
+// master (d781633e7, "Refactor dds_cdrstream_normalize", 2026-04-29: the
+// element size checked apart from the alignment), in no Debian release; until
+// the project carries a Cyclone with it (or a custom sertype), this stays
+// open (docs/faults.md). This test fails the day Cyclone checks it.
+TEST(CdrCheck, CycloneItselfSwapsPastAByteSwappedLieOnReceipt) {
+  // JointState XCDR2 big endian: q and dq empty, torque claiming 14 doubles over 56 bytes.
+  std::vector<unsigned char> buffer(84 + 64);
+  for (std::size_t i = 0; i < buffer.size(); ++i) buffer[i] = static_cast<unsigned char>(i * 7 + 1);
+  std::memset(buffer.data(), 0, 28);
+  buffer[27] = 14;
+  Encoded e;
+  e.bytes.assign(buffer.begin(), buffer.begin() + 84);
+  e.little = false;
+  EXPECT_FALSE(fp::cdr_fits<msg::JointState>(e.payload()));
+  std::uint32_t off = 0;
+  ASSERT_NE(dds_stream_normalize_data(reinterpret_cast<char*>(buffer.data()), &off, 84, true, 2,
+                                      ops<msg::JointState>()),
+            nullptr);
+  EXPECT_EQ(off, 28u + 14u * 8u);
+  std::size_t changed = 0;
+  for (std::size_t i = 84; i < buffer.size(); ++i) changed += buffer[i] != static_cast<unsigned char>(i * 7 + 1);
+  EXPECT_EQ(changed, 56u) << "Cyclone no longer writes past a byte-swapped lie: say so in docs/faults.md";
+}
