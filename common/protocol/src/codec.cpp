@@ -1,5 +1,6 @@
 #include "foresight/protocol/codec.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
@@ -58,6 +59,51 @@ const char* enum_error(const msg::ControllerStatus& s, char* buf, std::size_t si
 
 const char* enum_error(const msg::Heartbeat& h, char* buf, std::size_t size) noexcept {
   return past(h.side, foresight_msg_SIDE_REMOTE, "side", buf, size);
+}
+
+const char* joint_state_error(const msg::JointState& s, std::size_t expected_joints, JointStateDefect& defect,
+                              char* buf, std::size_t size) noexcept {
+  defect = JointStateDefect::None;
+  const auto q = view(s.q_rad), dq = view(s.dq_rad_s), tq = view(s.torque_nm);
+  if (q.empty() || (expected_joints != 0 && q.size() != expected_joints)) {
+    defect = JointStateDefect::JointCount;
+    if (q.empty())
+      std::snprintf(buf, size, "q_rad is empty");
+    else
+      std::snprintf(buf, size, "q_rad has %zu joints; the arm has %zu", q.size(), expected_joints);
+    return buf;
+  }
+  const struct {
+    std::span<const double> values;
+    const char* name;
+  } seqs[] = {{q, "q_rad"}, {dq, "dq_rad_s"}, {tq, "torque_nm"}};
+  for (const auto& f : seqs) {
+    if (f.values.size() != q.size()) {
+      defect = JointStateDefect::Length;
+      std::snprintf(buf, size, "%s has %zu values for %zu joints", f.name, f.values.size(), q.size());
+      return buf;
+    }
+  }
+  for (const auto& f : seqs) {
+    for (std::size_t i = 0; i < f.values.size(); ++i) {
+      if (!std::isfinite(f.values[i])) {
+        defect = JointStateDefect::NotFinite;
+        std::snprintf(buf, size, "%s[%zu] is not finite", f.name, i);
+        return buf;
+      }
+    }
+  }
+  return nullptr;
+}
+
+const char* to_string(JointStateDefect defect) noexcept {
+  switch (defect) {
+    case JointStateDefect::None: return "none";
+    case JointStateDefect::JointCount: return "joint_count";
+    case JointStateDefect::Length: return "length";
+    case JointStateDefect::NotFinite: return "not_finite";
+  }
+  return "?";
 }
 
 const char* to_string(msg::CommandKind value) noexcept {

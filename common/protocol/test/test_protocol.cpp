@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -713,4 +714,39 @@ TEST(ProtocolEnums, EveryEnumFieldOfAReceivedSampleIsCheckedAsARawInteger) {
   const auto v = remote.check(*c, fp::now_ns());
   EXPECT_EQ(v.code, foresight_msg_REASON_BAD_ARGUMENT);
   EXPECT_EQ(v.reason, "command 1: unknown kind 42");
+}
+
+// A received JointState is used only when its sequences describe one arm of
+// finite numbers: each defect with its reason and its kind.
+TEST(ProtocolNumbers, JointStateErrorNamesTheSequenceAndTheValue) {
+  char buf[96];
+  fp::JointStateDefect defect{};
+  fp::Sample<msg::JointState> s;
+  const auto set = [&](std::vector<double> q, std::vector<double> dq, std::vector<double> t) {
+    fp::assign(s->q_rad, std::span<const double>(q), msg::kMaxJoints, "q");
+    fp::assign(s->dq_rad_s, std::span<const double>(dq), msg::kMaxJoints, "dq");
+    fp::assign(s->torque_nm, std::span<const double>(t), msg::kMaxJoints, "t");
+  };
+  const std::vector<double> three = {0.1, -0.2, 0.3};
+  set(three, three, three);
+  EXPECT_EQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), nullptr);
+  EXPECT_EQ(defect, fp::JointStateDefect::None);
+  EXPECT_EQ(fp::joint_state_error(*s, 0, defect, buf, sizeof buf), nullptr);  // 0: any joint count
+  EXPECT_STREQ(fp::joint_state_error(*s, 7, defect, buf, sizeof buf), "q_rad has 3 joints; the arm has 7");
+  EXPECT_EQ(defect, fp::JointStateDefect::JointCount);
+  set({}, {}, {});
+  EXPECT_STREQ(fp::joint_state_error(*s, 0, defect, buf, sizeof buf), "q_rad is empty");
+  EXPECT_EQ(defect, fp::JointStateDefect::JointCount);
+  set(three, {0.1, 0.2}, three);
+  EXPECT_STREQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), "dq_rad_s has 2 values for 3 joints");
+  EXPECT_EQ(defect, fp::JointStateDefect::Length);
+  set(three, three, {});
+  EXPECT_STREQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), "torque_nm has 0 values for 3 joints");
+  EXPECT_EQ(defect, fp::JointStateDefect::Length);
+  set(three, {0.1, std::numeric_limits<double>::infinity(), 0.3}, three);
+  EXPECT_STREQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), "dq_rad_s[1] is not finite");
+  EXPECT_EQ(defect, fp::JointStateDefect::NotFinite);
+  EXPECT_STREQ(fp::to_string(defect), "not_finite");
+  set({0.1, 0.2, std::numeric_limits<double>::quiet_NaN()}, three, three);
+  EXPECT_STREQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), "q_rad[2] is not finite");
 }

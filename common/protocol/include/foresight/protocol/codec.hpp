@@ -181,6 +181,29 @@ const char* enum_error(const msg::ToolState& sample, char* buf, std::size_t size
 const char* enum_error(const msg::ControllerStatus& sample, char* buf, std::size_t size) noexcept;
 const char* enum_error(const msg::Heartbeat& sample, char* buf, std::size_t size) noexcept;
 
+// ---- numbers in received samples ----
+// The other side is not trusted either way: a JointState is used only when
+// its sequences describe one arm (same length) of finite numbers.
+
+/// Why a received JointState was dropped (the ground counts each).
+enum class JointStateDefect : std::uint8_t {
+  None = 0,
+  JointCount,  ///< q_rad empty, or not the expected joint count
+  Length,      ///< dq_rad_s or torque_nm not as long as q_rad
+  NotFinite,   ///< a NaN or an infinity in q_rad, dq_rad_s or torque_nm
+};
+inline constexpr std::size_t kJointStateDefects = 4;
+
+/// Checks a received JointState: q_rad not empty and, when `expected_joints`
+/// is not 0, of that length; dq_rad_s and torque_nm as long as q_rad; every
+/// value finite. Returns nullptr when it may be used, else the reason
+/// ("dq_rad_s has 6 values for 7 joints", "dq_rad_s[2] is not finite"),
+/// written into `buf` (96 bytes are enough), with `defect` set to its kind.
+/// Real-time safe: noexcept, no allocation.
+const char* joint_state_error(const msg::JointState& sample, std::size_t expected_joints, JointStateDefect& defect,
+                              char* buf, std::size_t size) noexcept;
+const char* to_string(JointStateDefect defect) noexcept;  ///< "joint_count", "length", "not_finite", "none"
+
 /// Names of enum values, for logs and error messages ("ACK_COMPLETED", ...).
 /// Only for checked values (enum_error() returned nullptr).
 const char* to_string(msg::CommandKind kind) noexcept;
