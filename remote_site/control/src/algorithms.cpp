@@ -95,6 +95,7 @@ bool AlgorithmRunner::start(const AlgorithmParams& params, const Pose& base_T_ti
   spiral_r_ = 0.0;
   distance_m_ = 0.0;
   peak_force_n_ = 0.0;
+  peak_torque_nm_ = 0.0;
   out_ = AlgorithmStep{};
   out_.status = AlgorithmStatus::Running;
   out_.base_T_ref = base_T_tip;
@@ -117,6 +118,8 @@ const AlgorithmStep& AlgorithmRunner::step(const Pose& base_T_tip, const Wrench6
   const Eigen::Vector3d f_task = base_R_task_.transpose() * (base_T_tip.linear() * f_tip);
   const double f_norm = f_task.norm();
   if (std::isfinite(f_norm) && f_norm > peak_force_n_) peak_force_n_ = f_norm;
+  const double t_norm = Eigen::Vector3d(wrench_tool[3], wrench_tool[4], wrench_tool[5]).norm();
+  if (std::isfinite(t_norm) && t_norm > peak_torque_nm_) peak_torque_nm_ = t_norm;
   switch (params_.kind) {
     case AlgorithmKind::GuardedMove: step_guarded(base_T_tip, f_task); break;
     case AlgorithmKind::Insert: step_insert(base_T_tip, f_task); break;
@@ -170,8 +173,8 @@ void AlgorithmRunner::step_insert(const Pose& tip, const Eigen::Vector3d& f_task
     return finish(AlgorithmStatus::Failed, Reason::ForceLimit, buf);
   }
   if (depth >= p.depth_m) {
-    std::snprintf(buf, sizeof buf, "insert: depth %.1f mm reached (search radius %.1f mm)", 1e3 * depth,
-                  1e3 * spiral_r_);
+    std::snprintf(buf, sizeof buf, "insert: depth %.1f mm reached (search radius %.1f mm; peak %.1f N, %.2f N m)",
+                  1e3 * depth, 1e3 * spiral_r_, peak_force_n_, peak_torque_nm_);
     return finish(AlgorithmStatus::Succeeded, Reason::None, buf);
   }
   if (t_ > p.timeout_s) {
@@ -219,7 +222,8 @@ void AlgorithmRunner::step_insert(const Pose& tip, const Eigen::Vector3d& f_task
     }
   } else if (phase_ == 2 && stalled) {
     if (depth >= p.depth_m - p.depth_tolerance_m) {
-      std::snprintf(buf, sizeof buf, "insert: bottomed out at %.1f mm (target %.1f mm)", 1e3 * depth, 1e3 * p.depth_m);
+      std::snprintf(buf, sizeof buf, "insert: bottomed out at %.1f mm (target %.1f mm; peak %.1f N, %.2f N m)",
+                    1e3 * depth, 1e3 * p.depth_m, peak_force_n_, peak_torque_nm_);
       return finish(AlgorithmStatus::Succeeded, Reason::None, buf);
     }
     std::snprintf(buf, sizeof buf, "insert: stuck at depth %.1f mm (target %.1f mm)", 1e3 * depth, 1e3 * p.depth_m);

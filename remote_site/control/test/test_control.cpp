@@ -762,7 +762,9 @@ TEST(Controller, CompliantTrajectoryYieldsAroundThePath) {
   JointArray to = home_q();
   to[0] += 0.2;
   to[2] += 0.2;
-  const PreparedTrajectory traj(line_trajectory(home_q(), to, 10.0));
+  // 20 s: the admittance time constant (damping / stiffness) is 3 s since the
+  // damping was doubled for the SYNC-first loop delay (compliance.hpp).
+  const PreparedTrajectory traj(line_trajectory(home_q(), to, 20.0));
   MotionCommand c;
   c.kind = MotionCommandKind::RunTrajectory;
   c.trajectory = &traj;
@@ -770,7 +772,7 @@ TEST(Controller, CompliantTrajectoryYieldsAroundThePath) {
   b.send(c);
   // 10 N along the tool's y, applied at the tip (sensor torque = p_tip x F).
   b.extra_ft = {0.0, 10.0, 0.0, -0.295 * 10.0, 0.0, 0.0};
-  const int n = 4500;  // 9 s: the 1.5 s admittance time constant has settled
+  const int n = 9000;  // 18 s: six 3 s time constants, settled
   for (int k = 0; k < n; ++k) b.step();
   ASSERT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
   std::size_t hint = 0;

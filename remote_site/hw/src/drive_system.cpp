@@ -606,6 +606,29 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     CanBus& bus = *buses_[bi];
     BusState& bs = bus_state_[bi];
+    // SYNC first (CiA 301 synchronous PDOs): the nodes sample their TPDOs at
+    // this SYNC and latch the RPDOs that follow at the next one, so the whole
+    // synchronous window is left for the RPDOs and a late RPDO cannot split
+    // a cycle's targets across two SYNCs.
+    can_frame sync{};
+    sync.can_id = kSync;
+    sync.can_dlc = 0;
+    if (config_.sync_counter_overflow > 0) {  // CiA 301 counter 1..overflow
+      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter >= config_.sync_counter_overflow ? 1 : bs.sync_counter + 1);
+      sync.can_dlc = 1;
+      sync.data[0] = bs.sync_counter;
+    } else {
+      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter + 1);  // echo matching without a counter on the wire
+    }
+    const CanIo sync_io = bus.write(sync);
+    const bool sync_ok = sync_io == CanIo::Ok;
+    if (!sync_ok) {
+      if (!bs.tx_fail_reported)
+        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(sync_io), kSync});
+      bs.tx_fail_reported = true;
+    } else {
+      bs.sync_sent = true;
+    }
     bool all_sent = true;
     for (std::size_t j : bs.drives) {
       Drive& d = drives_[j];
@@ -634,29 +657,6 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
                       static_cast<std::uint32_t>(io), f.can_id});
         bs.tx_fail_reported = true;
       }
-    }
-    // SYNC after the RPDOs: the drives take this cycle's targets at this SYNC
-    // (synchronous RPDOs, CiA 301) and answer with their TPDOs. With SYNC
-    // first, the targets waited one more cycle (+2 ms in the compliance loop:
-    // the changeout's ORU insertion overshot its torque limit).
-    can_frame sync{};
-    sync.can_id = kSync;
-    sync.can_dlc = 0;
-    if (config_.sync_counter_overflow > 0) {  // CiA 301 counter 1..overflow
-      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter >= config_.sync_counter_overflow ? 1 : bs.sync_counter + 1);
-      sync.can_dlc = 1;
-      sync.data[0] = bs.sync_counter;
-    } else {
-      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter + 1);  // echo matching without a counter on the wire
-    }
-    const CanIo sync_io = bus.write(sync);
-    const bool sync_ok = sync_io == CanIo::Ok;
-    if (!sync_ok) {
-      if (!bs.tx_fail_reported)
-        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(sync_io), kSync});
-      bs.tx_fail_reported = true;
-    } else {
-      bs.sync_sent = true;
     }
     if (send_heartbeat)  // the master's own heartbeat (NMT state operational)
       (void)bus.write(make_frame(kHeartbeatBase + config_.master_node_id, {static_cast<std::uint8_t>(NmtState::Operational)}));

@@ -456,51 +456,25 @@ void SimDrive::update_statusword() {
 
 void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
   ++syncs_;
-  // 1. synchronous RPDO received since the last SYNC takes effect now
-  if (have_rpdo_) {
-    have_rpdo_ = false;
-    int bit = 0;
-    for (std::uint8_t s = 1; s <= get(od::kRpdo1Map, 0); ++s) {
-      const std::uint32_t m = get(od::kRpdo1Map, s);
-      const int len = static_cast<int>(m & 0xFF);
-      std::uint32_t v = 0;
-      for (int b = 0; b < len / 8; ++b) v |= static_cast<std::uint32_t>(rpdo_[static_cast<std::size_t>(bit / 8 + b)]) << (8 * b);
-      set(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF), v);
-      bit += len;
-    }
-  }
-  if (injected_fault_) {
-    injected_fault_ = false;
-    fault(injected_code_, out);
-  }
-  // 2. power state machine
-  apply_command(static_cast<std::uint16_t>(get(od::kControlword, 0)), out);
-  // 3. motion: csp target with limit and following-error supervision
+  // A drive in cyclic synchronous position mode at SYNC k (CiA 301 synchronous
+  // PDOs, CiA 402 csp): the motion of the period that just ended ran toward
+  // the target latched at SYNC k-1; the TPDOs sample the state now, at the
+  // SYNC; then the RPDO received since SYNC k-1 is latched and becomes the
+  // demand of the period that starts now (reached at SYNC k+1). So a target
+  // sent after SYNC k shows in the TPDO of SYNC k+2, never earlier.
+  //
+  // 1. motion over the elapsed period. Physics advances by the wall time since
+  // the previous SYNC, so late, lost or irregular SYNCs show (bounded: a drive
+  // interpolates at most 5 periods).
   std::uint32_t period_us = get(od::kCommCyclePeriod, 0);
   if (period_us == 0) period_us = 1000;
-  // Physics advances by the wall time since the previous SYNC, so late, lost
-  // or irregular SYNCs show (bounded: a drive interpolates at most 5 periods).
   const double period_s = period_us * 1e-6;
   double dt = period_s;
   if (last_sync_ != Clock::time_point{})
     dt = std::clamp(std::chrono::duration<double>(now - last_sync_).count(), 0.1 * period_s, 5.0 * period_s);
   last_sync_ = now;
   const bool homing_mode = static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) == 6;
-  if (homing_mode) {
-    step_homing(dt);
-    update_statusword();
-  } else if (state_ == PowerState::OperationEnabled) {
-    const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
-    const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));
-    const auto hi = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 2)));
-    demand_prev_ = demand_;
-    if (target < lo || target > hi) {
-      internal_limit_ = true;
-      fault(0x8612, out);
-    } else {
-      demand_ = target;
-    }
-  }
+  if (homing_mode) step_homing(dt);
   if (state_ == PowerState::QuickStopActive) {
     const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
     ramp(dt, static_cast<double>(get(option == 1 || option == 5 ? 0x6084 : od::kQuickStopDeceleration, 0)));
@@ -520,9 +494,10 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
     fe_time_s_ = 0.0;
   }
   update_statusword();
-  // 4. synchronous TPDOs (transmission type n: every n-th SYNC), each as
-  // mapped. TPDOs 2-4 carry the statusword by default while valid (the
-  // predefined set's default; a master that forgets them sees extra COB-IDs).
+  // 2. synchronous TPDOs (transmission type n: every n-th SYNC), each as
+  // mapped, sampled at this SYNC. TPDOs 2-4 carry the statusword by default
+  // while valid (the predefined set's default; a master that forgets them
+  // sees extra COB-IDs).
   for (std::uint16_t i = 0; i < 4; ++i) {
     const auto comm = static_cast<std::uint16_t>(od::kTpdo1Comm + i);
     const auto map = static_cast<std::uint16_t>(od::kTpdo1Map + i);
@@ -542,6 +517,39 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
     f.can_dlc = static_cast<std::uint8_t>(bit / 8);
     out.send(f);
   }
+  // 3. the synchronous RPDO received since the last SYNC takes effect now
+  if (have_rpdo_) {
+    have_rpdo_ = false;
+    int bit = 0;
+    for (std::uint8_t s = 1; s <= get(od::kRpdo1Map, 0); ++s) {
+      const std::uint32_t m = get(od::kRpdo1Map, s);
+      const int len = static_cast<int>(m & 0xFF);
+      std::uint32_t v = 0;
+      for (int b = 0; b < len / 8; ++b) v |= static_cast<std::uint32_t>(rpdo_[static_cast<std::size_t>(bit / 8 + b)]) << (8 * b);
+      set(static_cast<std::uint16_t>(m >> 16), static_cast<std::uint8_t>((m >> 8) & 0xFF), v);
+      bit += len;
+    }
+  }
+  if (injected_fault_) {
+    injected_fault_ = false;
+    fault(injected_code_, out);
+  }
+  // 4. power state machine, then the new target: the demand the next period
+  // interpolates toward (with limit supervision).
+  apply_command(static_cast<std::uint16_t>(get(od::kControlword, 0)), out);
+  if (!homing_mode && state_ == PowerState::OperationEnabled) {
+    const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
+    const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));
+    const auto hi = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 2)));
+    demand_prev_ = demand_;
+    if (target < lo || target > hi) {
+      internal_limit_ = true;
+      fault(0x8612, out);
+    } else {
+      demand_ = target;
+    }
+  }
+  update_statusword();  // what SDO reads see until the next SYNC
 }
 
 }  // namespace foresight::sim

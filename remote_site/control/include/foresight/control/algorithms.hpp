@@ -88,6 +88,8 @@ class AlgorithmRunner {
   /// Outcome numbers for the final event.
   double distance_m() const noexcept { return distance_m_; }
   double peak_force_n() const noexcept { return peak_force_n_; }
+  /// |T| about the tip, the largest seen since start (what the controller's torque limit checks).
+  double peak_torque_nm() const noexcept { return peak_torque_nm_; }
   double spiral_radius_m() const noexcept { return spiral_r_; }
   /// Insert phase, for telemetry/tests: 0 approach/push, 1 spiral search, 2 entered.
   int phase() const noexcept { return phase_; }
@@ -117,6 +119,7 @@ class AlgorithmRunner {
   double spiral_r_ = 0.0;
   double distance_m_ = 0.0;
   double peak_force_n_ = 0.0;
+  double peak_torque_nm_ = 0.0;
 };
 
 }  // namespace foresight::control

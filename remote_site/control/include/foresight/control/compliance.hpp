@@ -95,7 +95,14 @@ struct AdmittanceParams {
   TaskFrame frame = TaskFrame::Tool;  ///< Tool: axes of the tip frame; Base: of the base frame
   /// Per axis x y z (kg, N s/m, N/m) and rx ry rz (kg m^2, N m s/rad, N m/rad).
   std::array<double, 6> mass{4.0, 4.0, 4.0, 0.05, 0.05, 0.05};
-  std::array<double, 6> damping{3000.0, 3000.0, 3000.0, 10.0, 10.0, 10.0};
+  /// Damping bounds the contact stiffness the loop stays stable against: for an
+  /// overdamped admittance on a position-controlled arm the largest stable
+  /// environment stiffness grows with damping / loop delay. SYNC first with
+  /// drives that latch at the next SYNC (docs/hardware.md "Cycle") gives a
+  /// 3-cycle loop (6 ms at 500 Hz) instead of the earlier 1: twice the damping
+  /// keeps the earlier margin (discrete model with the drives' 40 Hz servo and
+  /// the 30 Hz wrench filter: lateral 1.0e6 N/m, rotational 2.3e3 -> 2.9e3 N m/rad).
+  std::array<double, 6> damping{6000.0, 6000.0, 6000.0, 20.0, 20.0, 20.0};
   std::array<double, 6> stiffness{2000.0, 2000.0, 2000.0, 20.0, 20.0, 20.0};
   std::array<double, 6> max_offset{0.02, 0.02, 0.02, 0.1, 0.1, 0.1};  ///< m, rad
 };

@@ -8,6 +8,11 @@
 // injection. Positions are drive counts (motor encoder); physics advances by
 // the wall time between SYNCs (the first: one period 0x1006; bounded to
 // 0.1..5 periods), so late, lost or irregular SYNCs show in the motion.
+// At each SYNC, as a csp drive does: the period that ended ran toward the
+// target latched at the previous SYNC; the TPDOs sample the state at this
+// SYNC; then the RPDO received since the previous SYNC is latched (power
+// state machine, new target reached at the next SYNC). A target the master
+// sends after SYNC k (SYNC first) shows in the TPDO of SYNC k+2.
 // Stop reactions follow the codes the master writes: quick stop option 0x605A
 // (0 coast, 1/2 ramp then Switch on disabled, 5/6 ramp and hold in Quick stop
 // active; ramps at 0x6084 slow-down / 0x6085 quick-stop deceleration), fault
