@@ -119,6 +119,7 @@ struct GroundLink::Impl {
   std::map<std::uint64_t, UploadSeen> upload_log;
   std::deque<std::uint64_t> upload_order;
   std::optional<Timed<control::JointReport>> joint_state;
+  DroppedSamples drops;
   std::optional<Timed<control::WrenchReport>> wrench;
   std::optional<Timed<control::ToolReport>> tool;
   std::optional<Timed<control::StatusReport>> status;
@@ -213,6 +214,22 @@ void GroundLink::Impl::take_all() {
   }
   const std::int64_t now = protocol::now_ns();
   for (int i = 0; i < kTakeBatch && joints.take(js); ++i) {
+    char why[96];
+    protocol::JointStateDefect defect{};
+    if (const char* bad = protocol::joint_state_error(*js, config.joints, defect, why, sizeof why)) {
+      std::uint64_t seen = 0;
+      {
+        std::lock_guard lock(mutex);
+        auto& n = defect == protocol::JointStateDefect::JointCount ? drops.joint_state_joint_count
+                  : defect == protocol::JointStateDefect::Length   ? drops.joint_state_length
+                                                                   : drops.joint_state_not_finite;
+        seen = ++n;
+      }
+      if (seen == 1 || seen % 1000 == 0)  // the first of each reason, then every 1000th
+        spdlog::warn("ground link: joint state of cycle {} dropped ({} so far for {}): {}", js->cycle, seen,
+                     protocol::to_string(defect), bad);
+      continue;
+    }
     auto v = remote_link::from_wire(*js);
     std::lock_guard lock(mutex);
     joint_state = Timed<control::JointReport>{std::move(v), now, 0.0};
@@ -376,6 +393,10 @@ std::optional<Timed<control::JointReport>> GroundLink::joint_state() const {
   auto v = impl_->joint_state;
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
   return v;
+}
+DroppedSamples GroundLink::dropped() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->drops;
 }
 std::optional<Timed<control::WrenchReport>> GroundLink::wrench() const {
   std::lock_guard lock(impl_->mutex);

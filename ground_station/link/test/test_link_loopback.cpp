@@ -573,3 +573,68 @@ TEST(DelayStats, PercentilesSharesAndOffsetFromKnownSamples) {
   EXPECT_DOUBLE_EQ(s.last_rtt_s, 5.0);
   EXPECT_EQ(gl::compute_delay_stats({}).count, 0u);
 }
+
+// The ground does not trust the remote: a JointState whose sequences do not
+// describe the arm (lengths) or hold a NaN is dropped, counted by reason, and
+// never becomes joint_state(); a good one after it does, velocities and all.
+TEST(GroundLinkChecks, ABadJointStateIsDroppedAndCountedByReason) {
+  fp::use_loopback_if_unconfigured();
+  const dds_domainid_t domain = fp::unique_test_domain();
+  gl::Config config;
+  config.domain = domain;
+  config.joints = 7;
+  gl::GroundLink ground(config);
+  fp::Participant remote(domain);
+  fp::Writer<msg::JointState> writer(remote);
+
+  const std::vector<double> q = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7};
+  const std::vector<double> dq = {0.01, -0.02, 0.03, -0.04, 0.05, -0.06, 0.07};
+  const auto make = [](std::uint64_t cycle, std::vector<double> q_rad, std::vector<double> dq_rad_s,
+                       std::vector<double> torque_nm) {
+    fp::Sample<msg::JointState> s;
+    s->stamp_ns = fp::now_ns();
+    s->cycle = cycle;
+    fp::assign(s->q_rad, std::span<const double>(q_rad), msg::kMaxJoints, "q");
+    fp::assign(s->dq_rad_s, std::span<const double>(dq_rad_s), msg::kMaxJoints, "dq");
+    fp::assign(s->torque_nm, std::span<const double>(torque_nm), msg::kMaxJoints, "torque");
+    return s;
+  };
+  // Written until counted (telemetry is best effort: the first may precede the
+  // match); returns how many were written.
+  const auto send_until = [&](const fp::Sample<msg::JointState>& s, auto counted) {
+    std::uint64_t writes = 0;
+    const bool seen = eventually([&] {
+      writer.write(s);
+      ++writes;
+      return counted(ground.dropped()) > 0;
+    }, 10s);
+    return seen ? writes : 0;
+  };
+  std::vector<double> bad_dq = dq;
+  bad_dq[2] = std::numeric_limits<double>::quiet_NaN();
+  const auto not_finite = [](const gl::DroppedSamples& d) { return d.joint_state_not_finite; };
+  const auto length = [](const gl::DroppedSamples& d) { return d.joint_state_length; };
+  const auto joint_count = [](const gl::DroppedSamples& d) { return d.joint_state_joint_count; };
+  const std::uint64_t nan_writes = send_until(make(1, q, bad_dq, q), not_finite);
+  const std::vector<double> six(q.begin(), q.end() - 1);
+  const std::uint64_t length_writes = send_until(make(2, q, six, q), length);
+  const std::uint64_t count_writes = send_until(make(3, six, six, six), joint_count);
+  EXPECT_GT(nan_writes, 0u);
+  EXPECT_GT(length_writes, 0u);
+  EXPECT_GT(count_writes, 0u);
+  EXPECT_FALSE(ground.joint_state().has_value());  // none of them was used
+
+  ASSERT_TRUE(eventually([&] {
+    writer.write(make(4, q, dq, q));
+    return ground.joint_state().has_value();
+  }, 10s));
+  const auto j = ground.joint_state();
+  EXPECT_EQ(j->value.cycle, 4u);
+  EXPECT_EQ(j->value.q_rad, q);
+  EXPECT_EQ(j->value.dq_rad_s, dq);
+  // Each reason counted at most once per bad sample written (the good ones never).
+  const gl::DroppedSamples d = ground.dropped();
+  EXPECT_LE(d.joint_state_not_finite, nan_writes);
+  EXPECT_LE(d.joint_state_length, length_writes);
+  EXPECT_LE(d.joint_state_joint_count, count_writes);
+}

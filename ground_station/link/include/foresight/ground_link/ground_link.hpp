@@ -11,6 +11,7 @@
 //                                   the remote's hash beside the local one
 //   joint_state(), wrench(), tool(), status() -> the latest, with its age on
 //                                   the ground clock (clock offset applied)
+//   dropped()                    -> received samples refused, by reason
 //
 // Threads: every public method is thread-safe. Not real-time. Construction
 // and send()/upload() may throw (DDS set-up, bad payload); waits return
@@ -49,6 +50,20 @@ struct Config {
   /// Watch only: no command or chunk writer (a secure "observer" may not
   /// create them); send(), execute() and upload() throw std::logic_error.
   bool read_only = false;
+  /// The arm's joint count: a JointState of another length is dropped
+  /// (0 = any length, as long as its sequences agree).
+  std::size_t joints = 0;
+};
+
+/// Received samples dropped instead of used, by reason (the remote is not
+/// trusted: protocol::joint_state_error).
+struct DroppedSamples {
+  std::uint64_t joint_state_joint_count = 0;  ///< q_rad empty or not Config::joints long
+  std::uint64_t joint_state_length = 0;       ///< dq_rad_s / torque_nm not as long as q_rad
+  std::uint64_t joint_state_not_finite = 0;   ///< NaN or infinity in q_rad, dq_rad_s, torque_nm
+  std::uint64_t joint_state() const noexcept {
+    return joint_state_joint_count + joint_state_length + joint_state_not_finite;
+  }
 };
 
 /// Every ack seen for one command, in arrival order.
@@ -122,7 +137,12 @@ class GroundLink {
   UploadResult upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
                       std::uint64_t trajectory_id = 0);
 
+  /// The latest valid JointState: q_rad, dq_rad_s (the drives' velocity
+  /// actual 0x606C where mapped, else differentiated; docs/protocol.md) and
+  /// torque_nm, all of one length.
   std::optional<Timed<control::JointReport>> joint_state() const;
+  /// Samples dropped so far, by reason.
+  DroppedSamples dropped() const;
   std::optional<Timed<control::WrenchReport>> wrench() const;
   std::optional<Timed<control::ToolReport>> tool() const;
   std::optional<Timed<control::StatusReport>> status() const;
