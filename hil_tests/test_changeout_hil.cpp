@@ -21,6 +21,7 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
+#include "hil_support.hpp"
 
 using namespace foresight;
 using namespace std::chrono_literals;
@@ -95,15 +96,7 @@ struct Changeout : public ::testing::Test {
   }
 
   nlohmann::json last_truth() const {
-    const std::string cmd =
-        std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + remote->journal();
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[4096];
-    std::size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    pclose(p);
-    const auto j = nlohmann::json::parse(out);
+    const auto j = test::journal_json(remote->journal());
     nlohmann::json truth;
     for (const auto& e : j["events"])
       if (e["kind"] == "sim_truth") truth = e["detail"];

@@ -36,6 +36,7 @@
 #include "foresight/remote_link/convert.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
+#include "hil_support.hpp"
 
 using namespace foresight;
 using namespace std::chrono_literals;
@@ -48,15 +49,7 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-template <class F>
-bool eventually(F condition, std::chrono::nanoseconds timeout) {
-  const auto deadline = Clock::now() + timeout;
-  while (Clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return condition();
-}
+using test::eventually;
 
 /// The simulated drives' own record (sim_faults.hpp: drive_record).
 struct DriveRecord {
@@ -126,18 +119,7 @@ class FaultCampaign : public ::testing::Test {
     return r;
   }
 
-  nlohmann::json journal_json() {
-    const std::string cmd =
-        std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + remote_->journal();
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[4096];
-    std::size_t n;
-    while (p != nullptr && (n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    const int rc = p != nullptr ? pclose(p) : -1;
-    EXPECT_EQ(rc, 0) << out;
-    return nlohmann::json::parse(out);
-  }
+  nlohmann::json journal_json() { return test::journal_json(remote_->journal()); }
 
   /// Every command this test sent (session, id) has exactly the final state
   /// we saw on the ground, in the journal, after RECEIVED.
@@ -175,34 +157,9 @@ class FaultCampaign : public ::testing::Test {
     ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
   }
 
-  Eigen::VectorXd current_q() {
-    Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
-    const bool ok = eventually(
-        [&] {
-          const auto js = ground_->joint_state();
-          if (!js || js->value.q_rad.size() != 7) return false;
-          q = Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), 7);
-          return true;
-        },
-        5s);
-    EXPECT_TRUE(ok) << "no joint state";
-    return q;
-  }
-
-  /// A slow GOTO_JOINT of joint 1 by `delta`; returns its id once EXECUTING.
+  Eigen::VectorXd current_q() { return test::current_q(*ground_); }
   std::uint64_t start_slow_motion(const Eigen::VectorXd& q0, double delta) {
-    control::GotoJoint g;
-    g.q_rad.assign(q0.data(), q0.data() + 7);
-    g.q_rad[0] += delta;
-    g.speed_fraction = 0.1;
-    const std::uint64_t id = ground_->send(CommandKind::GotoJoint, g);
-    bool executing = false;
-    for (int i = 0; i < 500 && !executing; ++i) {
-      const auto partial = ground_->wait_final(id, 10ms);
-      for (const auto& a : partial.acks) executing = executing || a.state == AckState::Executing;
-    }
-    EXPECT_TRUE(executing);
-    return id;
+    return test::start_slow_motion(*ground_, q0, delta);
   }
 
   /// Waits for a status with the given stop category; returns it.

@@ -15,6 +15,7 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
+#include "hil_support.hpp"
 
 using namespace foresight;
 using namespace std::chrono_literals;
@@ -56,34 +57,10 @@ class RemoteCommands : public ::testing::Test {
     std::ofstream(faults_ + "/" + name) << text;
   }
 
-  nlohmann::json journal_json(const std::string& db) {
-    const std::string cmd = std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + db;
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[4096];
-    std::size_t n;
-    while (p != nullptr && (n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    const int rc = p != nullptr ? pclose(p) : -1;
-    EXPECT_EQ(rc, 0) << out;
-    return nlohmann::json::parse(out);
-  }
+  static nlohmann::json journal_json(const std::string& db) { return test::journal_json(db); }
 
   /// Sends a slow GOTO_JOINT of joint 1 by `delta` and returns its id once EXECUTING.
-  std::uint64_t start_slow_motion(double delta) {
-    const Eigen::VectorXd q0 = current_q();
-    control::GotoJoint g;
-    g.q_rad.assign(q0.data(), q0.data() + 7);
-    g.q_rad[0] += delta;
-    g.speed_fraction = 0.1;
-    const std::uint64_t id = ground_->send(CommandKind::GotoJoint, g);
-    bool executing = false;
-    for (int i = 0; i < 500 && !executing; ++i) {
-      const auto partial = ground_->wait_final(id, 10ms);
-      for (const auto& a : partial.acks) executing = executing || a.state == AckState::Executing;
-    }
-    EXPECT_TRUE(executing);
-    return id;
-  }
+  std::uint64_t start_slow_motion(double delta) { return test::start_slow_motion(*ground_, current_q(), delta); }
 
   ground_link::CommandResult run(CommandKind kind, const control::Payload& payload = control::NoPayload{},
                              double expected_s = 2.0) {
@@ -104,15 +81,7 @@ class RemoteCommands : public ::testing::Test {
     ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
   }
 
-  Eigen::VectorXd current_q() {
-    for (int i = 0; i < 200; ++i) {
-      if (auto js = ground_->joint_state(); js && js->value.q_rad.size() == 7)
-        return Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), 7);
-      std::this_thread::sleep_for(20ms);
-    }
-    ADD_FAILURE() << "no joint state";
-    return Eigen::VectorXd::Zero(7);
-  }
+  Eigen::VectorXd current_q() { return test::current_q(*ground_); }
 
   RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   int domain_ = 0;

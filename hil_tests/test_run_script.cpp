@@ -28,6 +28,7 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
+#include "hil_support.hpp"
 
 using namespace foresight;
 using namespace std::chrono_literals;
@@ -179,17 +180,9 @@ class RunScript : public ::testing::Test {
 
   /// The daemon's journal: every command it received, in order.
   nlohmann::json remote_commands() {
-    const std::string cmd =
-        std::string(FORESIGHT_BIN_DIR) + "/foresight-remote journal --json --db " + remote_->journal();
-    FILE* p = popen(cmd.c_str(), "r");
-    std::string out;
-    char buf[4096];
-    std::size_t n;
-    while (p != nullptr && (n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-    if (p != nullptr) pclose(p);
-    const auto j = nlohmann::json::parse(out, nullptr, false);
-    if (j.is_discarded() || !j.contains("commands")) {
-      ADD_FAILURE() << "journal: " << out;
+    const auto j = test::journal_json(remote_->journal());
+    if (!j.contains("commands")) {
+      ADD_FAILURE() << "journal without commands: " << j.dump();
       return nlohmann::json::array();
     }
     return j["commands"];

@@ -43,11 +43,12 @@ inline std::string read_file(const std::string& path) {
   return ss.str();
 }
 
-/// Runs `foresight <args>` (args go through the shell) with a 300 s limit.
-inline CliRun run_foresight(const std::string& args) {
+/// Runs the built executable `program` (foresight, foresight-remote) with
+/// `args` (through the shell) under a 300 s limit.
+inline CliRun run_program(const std::string& program, const std::string& args) {
   const std::string err_path = temp_path(".err");
   const std::string cmd =
-      "timeout 300 " + std::string(FORESIGHT_BIN_DIR) + "/foresight " + args + " 2>" + err_path;
+      "timeout 300 " + std::string(FORESIGHT_BIN_DIR) + "/" + program + " " + args + " 2>" + err_path;
   CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (p == nullptr) return r;
@@ -60,5 +61,8 @@ inline CliRun run_foresight(const std::string& args) {
   std::remove(err_path.c_str());
   return r;
 }
+
+/// Runs `foresight <args>` (args go through the shell) with a 300 s limit.
+inline CliRun run_foresight(const std::string& args) { return run_program("foresight", args); }
 
 }  // namespace foresight::test
