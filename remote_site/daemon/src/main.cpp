@@ -191,6 +191,7 @@ int run_daemon(const Options& o) {
   control::ControllerConfig cc;
   cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
   cc.start_tolerance_rad = config.start_tolerance_rad;
+  cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
   cc.link_loss = config.link_loss_policy == remote::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;
   if (site.simulated && site.simulated->plant) {
