@@ -19,7 +19,10 @@
 // A video source that cannot be opened or stops is said on stderr and on the
 // picture, and retried every --retry-s. Exit: 0 ok, 2 bad input (also: no
 // display and no --headless), 1 the video source never delivered a frame or
-// the remote did not answer.
+// the remote did not answer. --json: frames, video_frames, recorded, mode,
+// compose_ms_mean, ...; with --remote also remote{controller, fault,
+// q_actual_rad, rtt_median_s (null before a measurement), alive}: what the last
+// frame showed.
 
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgproc.hpp>
@@ -30,6 +33,7 @@
 #include <cstdio>
 #include <iostream>
 #include <thread>
+#include <vector>
 
 #include "command.hpp"
 #include "foresight/common/error.hpp"
@@ -280,6 +284,14 @@ int run_display(const DisplayArgs& a) {
                         {"mode", to_string(state.mode)},
                         {"compose_ms_mean", shown > 0 ? 1000.0 * compose_s / shown : 0.0}};
     if (!a.record.empty()) j["record"] = a.record;
+    if (link) {  // what the last frame showed from the remote
+      const auto stats = link->delay().stats();
+      j["remote"] = {{"controller", state.controller_text},
+                     {"fault", state.fault_text},
+                     {"q_actual_rad", std::vector<double>(state.q_actual.data(), state.q_actual.data() + state.q_actual.size())},
+                     {"rtt_median_s", stats.count > 0 ? nlohmann::json(stats.median_s) : nlohmann::json(nullptr)},
+                     {"alive", link->remote_alive()}};
+    }
     std::cout << j.dump() << "\n";
   } else {
     std::printf("display: camera %s, video %s: %d frame(s) shown, %d from the source, %d with a video problem",

@@ -29,7 +29,9 @@
 #include "foresight/display/click_session.hpp"
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
+#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
+#include "foresight/test/remote_process.hpp"
 
 using namespace foresight;
 using foresight::test::read_file;
@@ -212,6 +214,49 @@ TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
   // colours: 0.82); the exact comparison without the codec is in test_display (0.996).
   EXPECT_GT(worst, 0.9);
   EXPECT_GT(sum / frames, 0.92);
+}
+
+// `display --remote` against the real daemon (foresight-remote --sim): the
+// arm it shows (and the synthetic video renders) is the remote's reported
+// arm, moved there by `foresight goto`; the controller state and the round
+// trip come from the link.
+TEST(DisplayCli, RemoteShowsTheDaemonsArmControllerStateAndRoundTrip) {
+  protocol::use_loopback_if_unconfigured();
+  const int domain = static_cast<int>(protocol::unique_test_domain());
+  test::RemoteProcess::Options o;
+  o.domain = domain;
+  test::RemoteProcess remote(o);
+  ASSERT_TRUE(remote.ready()) << remote.log();
+  const std::string link = " --domain " + std::to_string(domain) + " --connect-timeout 30";
+  const auto rec = run_foresight("recover" + link);
+  ASSERT_EQ(rec.status, 0) << rec.err << remote.log();
+  const std::vector<double> target = {0.10, 0.35, -0.05, -0.9, 0.05, 0.6, 0.2};
+  std::string joints;
+  for (double v : target) joints += (joints.empty() ? "" : ",") + std::to_string(v);
+  const auto go = run_foresight("goto --joints " + joints + " --speed 0.5 --json" + link);
+  ASSERT_EQ(go.status, 0) << go.out << go.err << remote.log();
+
+  const std::string cams = true_cameras();
+  const std::string shot = temp_path(".png");
+  const auto r = run_foresight("display --headless --remote --cameras " + cams + " --camera " + kCamera +
+                               " --video synthetic --frames 40 --snapshot " + shot + " --json" + link);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["frames"], 40);
+  ASSERT_TRUE(j.contains("remote")) << r.out;
+  const auto& rj = j["remote"];
+  EXPECT_EQ(rj["controller"], "controller idle") << rj.dump();
+  EXPECT_EQ(rj["fault"], "") << rj.dump();
+  EXPECT_TRUE(rj["alive"].get<bool>());
+  const auto q = rj["q_actual_rad"].get<std::vector<double>>();
+  ASSERT_EQ(q.size(), target.size());
+  for (std::size_t i = 0; i < q.size(); ++i) EXPECT_NEAR(q[i], target[i], 2e-3) << "joint " << i + 1;
+  if (!rj["rtt_median_s"].is_null()) {  // measured once a ping came back within the 40 frames
+    EXPECT_GT(rj["rtt_median_s"].get<double>(), 0.0);
+    EXPECT_LT(rj["rtt_median_s"].get<double>(), 1.0);  // loopback
+  }
+  EXPECT_TRUE(exists(shot));
+  EXPECT_EQ(remote.stop(SIGTERM), 0) << remote.log();
 }
 
 TEST(DisplayCli, UnopenableVideoSourceIsSaidAndRetriedBoundedByFrames) {
