@@ -69,6 +69,7 @@ struct Edge {
 struct Primitive {
   int link = -1;  // link index; -1: the object
   int body = -1;
+  int shaded_body = -1;  // in the shaded (appearance) renderer
   int label = 0;  // 1..
   Eigen::Vector4d rgba = Eigen::Vector4d::Zero();
   std::vector<Edge> edges;
@@ -150,6 +151,8 @@ struct Sample {
   bool silhouette = false;
   double length_px = 0.0;  // contour length it stands for
   int cluster = 0;  // the model edge (per frame) it lies on: samples of one edge share their errors
+  double outward = 0.0;  // silhouettes: +1 when +n (the search direction) points out of the model, else -1; creases 0
+  double bias_px = 0.0;  // the edge search's offset on the predicted (shaded) model image at this level
   Eigen::Vector3d p_local, dir_local;  // object frame when on_object, else base
   int link = -1;                       // arm samples: the link it is fixed in
   Eigen::Vector3d p_link, dir_link;    // arm samples: in that link's frame
@@ -260,14 +263,15 @@ struct ModelAligner::Impl {
   const ObjectModel* object;
   Viewport vp;
   render::Renderer renderer;
+  render::Renderer shaded_renderer;  // the model's appearance (lit, anti-aliased): the edge bias prediction
   KinematicsWorkspace ws;
   std::vector<Primitive> prims;
   render::DrawList list;
-  cv::Mat layer;
+  cv::Mat layer, shaded_layer;
   int next_cluster = 0;
 
   Impl(render::GlContext& ctx, const RobotModel& a, const ObjectModel* o, const Viewport& v)
-      : arm(a), object(o), vp(v), renderer(ctx, v, 1), ws(a) {
+      : arm(a), object(o), vp(v), renderer(ctx, v, 1), shaded_renderer(ctx, v, 4), ws(a) {
     const auto& links = arm.links();
     for (int k = 0; k < static_cast<int>(links.size()); ++k)
       for (const auto& shape : links[k].visuals) add(k, render::make_shape(shape), shape.rgba);
@@ -281,6 +285,7 @@ struct ModelAligner::Impl {
     Primitive p;
     p.link = link;
     p.body = renderer.add_body(mesh);
+    p.shaded_body = shaded_renderer.add_body(mesh);
     p.label = static_cast<int>(prims.size()) + 1;
     p.rgba = rgba;
     p.edges = mesh_edges(mesh);
@@ -338,6 +343,104 @@ struct ModelAligner::Impl {
     for (int k = 0; k < static_cast<int>(arm.links().size()); ++k)
       f.link_poses[k] = forward_kinematics(arm, ws, frame.q, k);
     return f;
+  }
+
+  // The edge search's own bias on this model's appearance: the model rendered
+  // as the camera would see it (lit, anti-aliased, the camera's optical blur,
+  // on a flat background of the image's median where the model is not), the
+  // same search run on it at every sample of out[begin..] whose true edge is
+  // at 0. Shading ramps beside a silhouette (a cylinder darkening towards its
+  // rim) and the background's contrast move the gradient peak by 0.1-0.3 px;
+  // the residual is then the image's offset minus this predicted one. Uses
+  // `layer` (the label image of the same camera and frame, just rendered).
+  void predict_bias(const Camera& cam, const FrameData& f, const std::optional<Pose>& base_T_object, double blur,
+                    double search_px, double threshold, const AlignOptions& o, std::vector<Sample>& out,
+                    std::size_t begin) {
+    if (begin >= out.size()) return;
+    list.clear();
+    for (const auto& p : prims) {
+      if (p.link < 0 && !base_T_object) continue;
+      render::BodyInstance b;
+      b.body = p.shaded_body;
+      b.base_T_body = p.link >= 0 ? f.link_poses[p.link] : *base_T_object;
+      list.bodies.push_back(b);
+    }
+    render::RenderSettings st;
+    st.mode = render::RenderMode::Solid;
+    st.lighting = true;
+    st.near_m = kNear_m;
+    st.clear_rgba = Eigen::Vector4d::Zero();
+    shaded_renderer.render(cam, list, st, shaded_layer);
+    // The background: the image's median grey where no model part is.
+    std::array<int, 256> hist{};
+    int nbg = 0;
+    for (int y = 0; y < layer.rows; y += 2) {
+      const std::uint8_t* lp = layer.ptr<std::uint8_t>(y);
+      const std::uint8_t* gp = f.grey8.ptr<std::uint8_t>(y);
+      for (int x = 0; x < layer.cols; x += 2)
+        if (lp[4 * x + 2] == 0 && lp[4 * x + 1] == 0) {
+          ++hist[gp[x]];
+          ++nbg;
+        }
+    }
+    float bg = 0.0f;
+    for (int k = 0, acc = 0; k < 256; ++k) {
+      acc += hist[k];
+      if (2 * acc >= nbg) {
+        bg = static_cast<float>(k);
+        break;
+      }
+    }
+    // The local background: the image where no model part is (3 px clear of
+    // the model, so its blurred edges stay out), spread over the model by a
+    // normalized Gaussian (floor behind one silhouette, sky behind another).
+    cv::Mat model_mask(layer.rows, layer.cols, CV_8U);
+    for (int y = 0; y < layer.rows; ++y) {
+      const std::uint8_t* lp = layer.ptr<std::uint8_t>(y);
+      std::uint8_t* m = model_mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < layer.cols; ++x) m[x] = (lp[4 * x + 2] | lp[4 * x + 1]) ? 255 : 0;
+    }
+    cv::dilate(model_mask, model_mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(7, 7)));
+    cv::Mat bg_w, bg_v;
+    cv::bitwise_not(model_mask, model_mask);
+    model_mask.convertTo(bg_w, CV_32F, 1.0 / 255.0);
+    cv::multiply(f.grey, bg_w, bg_v);
+    cv::GaussianBlur(bg_w, bg_w, cv::Size(0, 0), 6.0);
+    cv::GaussianBlur(bg_v, bg_v, cv::Size(0, 0), 6.0);
+    cv::Mat grey(shaded_layer.rows, shaded_layer.cols, CV_32F);
+    for (int y = 0; y < grey.rows; ++y) {
+      const std::uint8_t* p = shaded_layer.ptr<std::uint8_t>(y);
+      const float* w = bg_w.ptr<float>(y);
+      const float* v = bg_v.ptr<float>(y);
+      float* g = grey.ptr<float>(y);
+      for (int x = 0; x < grey.cols; ++x, p += 4) {
+        const float a = p[3] / 255.0f;
+        // BGR -> grey as cv::COLOR_BGR2GRAY; the layer is premultiplied by coverage.
+        const float model = 0.114f * p[0] + 0.587f * p[1] + 0.299f * p[2];
+        const float b = w[x] > 0.02f ? v[x] / w[x] : bg;
+        g[x] = model + (1.0f - a) * b;
+      }
+    }
+    if (o.optical_blur_px > 0.0) cv::GaussianBlur(grey, grey, cv::Size(0, 0), o.optical_blur_px);
+    if (blur > 0.0) cv::GaussianBlur(grey, grey, cv::Size(0, 0), blur);
+    Gradient g;
+    cv::Sobel(grey, g.gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
+    cv::Sobel(grey, g.gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+    for (std::size_t i = begin; i < out.size(); ++i) {
+      Sample& s = out[i];
+      const Eigen::Vector3d p = s.on_object ? Eigen::Vector3d(*base_T_object * s.p_local) : s.p_local;
+      const Eigen::Vector3d dir = s.on_object ? Eigen::Vector3d(base_T_object->linear() * s.dir_local) : s.dir_local;
+      const Projection pr = project_with_jacobians(cam, p);
+      Eigen::Vector2d d2 = pr.d_point * dir;
+      if (d2.norm() < 1e-9) continue;
+      d2.normalize();
+      const Eigen::Vector2d n(-d2.y(), d2.x());
+      double t = 0.0;
+      // A shading bias is 0.1-0.3 px; a larger offset is another model edge
+      // close by (the tool's small parts), not this edge's bias.
+      if (search_edge(g, pr.uv_px, n, std::min(search_px, 1.5), threshold, t, blur <= 1.0) && std::abs(t) <= 0.5)
+        s.bias_px = t;
+    }
   }
 
   // The visible model edge samples of one frame through `cam`.
@@ -415,6 +518,7 @@ struct ModelAligner::Impl {
         s.frame = frame_index;
         s.on_object = c.prim->link < 0;
         s.silhouette = c.silhouette;
+        if (c.silhouette) s.outward = lp == id ? -1.0 : 1.0;
         s.cluster = next_cluster;
         s.length_px = (c.ub - c.ua).norm() / ns;
         const Eigen::Vector3d dir = (c.b - c.a).normalized();
@@ -447,6 +551,7 @@ namespace {
 struct Eval {
   std::vector<double> r;       // signed distance along n, px
   std::vector<char> matched;
+  std::vector<Eigen::Vector2d> n;  // the search direction (unit, image)
   std::vector<Eigen::Matrix<double, 1, 13>> J;  // camera 7, object 6
   std::vector<Eigen::Matrix<double, 1, kMaxLinks>> Jl;  // refined link lengths
 };
@@ -561,7 +666,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   const int obj_col = refine_camera ? 7 * V : 0;
   const int link_col = P - NL;
 
-  auto collect = [&](std::vector<Sample>& samples, std::vector<int>* per_view) {
+  // Samples at level `level` (-1: the score's); at the fine levels with
+  // their predicted edge bias (Impl::predict_bias).
+  auto collect = [&](std::vector<Sample>& samples, std::vector<int>* per_view, int level) {
     samples.clear();
     if (per_view) per_view->assign(V, 0);
     const auto obj = object_pose();
@@ -570,6 +677,11 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       for (int k = 0; k < static_cast<int>(data[v].size()); ++k) {
         const std::size_t before = samples.size();
         I.sample(cam, data[v][k], obj, v, k, want_arm, want_object, o, samples);
+        if (level >= 0 && o.predict_edge_bias && kLevels[level].blur_px <= 1.0) {
+          const Level& L = kLevels[level];
+          I.predict_bias(cam, data[v][k], obj, L.blur_px, L.search_px,
+                         o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px), o, samples, before);
+        }
         if (per_view) (*per_view)[v] += static_cast<int>(samples.size() - before);
       }
     }
@@ -579,6 +691,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   auto evaluate = [&](const std::vector<Sample>& samples, int level_index, const Level& L, Eval& e, bool jac) {
     e.r.assign(samples.size(), 0.0);
     e.matched.assign(samples.size(), 0);
+    e.n.assign(samples.size(), Eigen::Vector2d::Zero());
     if (jac) e.J.assign(samples.size(), Eigen::Matrix<double, 1, 13>::Zero());
     if (jac && NL > 0) e.Jl.assign(samples.size(), Eigen::Matrix<double, 1, kMaxLinks>::Zero());
     const double thr = o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px);
@@ -605,8 +718,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       double t = 0.0;
       const Gradient& g = I.gradient(data[s.view][s.frame], level_index, L.blur_px);
       if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t, L.blur_px <= 1.0)) continue;
-      e.r[i] = t;
+      e.r[i] = t - s.bias_px;
       e.matched[i] = 1;
+      e.n[i] = n;
       if (jac) {
         if (refine_camera) e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
         if (refine_object && s.on_object)
@@ -651,7 +765,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   std::vector<Sample> samples;
   {
     std::vector<int> per_view;
-    collect(samples, &per_view);
+    collect(samples, &per_view, 0);
     for (int v = 0; v < V; ++v)
       if (per_view[v] == 0) {
         res.status = AlignStatus::NotInView;
@@ -667,7 +781,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   Eval e;
   for (int li = 0; li < static_cast<int>(kLevels.size()); ++li) {
     const Level& L = kLevels[li];
-    if (li > 0) collect(samples, nullptr);
+    if (li > 0) collect(samples, nullptr, li);
     if (static_cast<int>(samples.size()) < o.min_visible_samples) {
       res.status = AlignStatus::Refused;
       res.reason = "too few model edges in view: " + std::to_string(samples.size()) + " samples (need " +
@@ -826,6 +940,33 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       const double s2 = wr2 / std::max(1.0, wsum - P);
       const Eigen::MatrixXd effective = s2 * (n / std::max(1.0, G - P > 1 ? G : 1.0)) * Hinv;
       if (effective.trace() > sandwich.trace()) sandwich = effective;
+      // An offset shared by every silhouette (the image's edges all a little
+      // out of or into the model: appearance the prediction does not carry,
+      // the lighting, the blur) looks like a change of scale (f, depth) and
+      // leaves no trace in the residuals; its sd o.edge_offset_sd_px enters
+      // as the parameters' response to it: (H^-1 a)(H^-1 a)^T sd^2, a the
+      // score of a 1 px outward shift. Likewise a shift of the whole image
+      // (u and v: the pixel grid's phase, a digitizer's line timing).
+      if (o.edge_offset_sd_px > 0.0) {
+        Eigen::VectorXd a = Eigen::VectorXd::Zero(P), au = Eigen::VectorXd::Zero(P), av = Eigen::VectorXd::Zero(P);
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+          if (!e.matched[i]) continue;
+          const double u = e.r[i] / c;
+          if (std::abs(u) >= 1.0) continue;
+          const double w = (1 - u * u) * (1 - u * u);
+          row.setZero();
+          if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
+          if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
+          if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
+          a += w * samples[i].outward * row;
+          au += w * e.n[i].x() * row;
+          av += w * e.n[i].y() * row;
+        }
+        for (const Eigen::VectorXd* s : {&a, &au, &av}) {
+          const Eigen::VectorXd d = Hinv * *s;
+          sandwich += o.edge_offset_sd_px * o.edge_offset_sd_px * d * d.transpose();
+        }
+      }
     }
   }
   if (const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG")) {
@@ -856,7 +997,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   res.residual_rms_px = n_in ? std::sqrt(r2 / n_in) : 0.0;
   {
     std::vector<Sample> final_samples;
-    collect(final_samples, nullptr);
+    collect(final_samples, nullptr, -1);
     res.final_score_px = score_of(final_samples, nullptr);
     res.visible_samples = static_cast<int>(final_samples.size());
   }

@@ -62,6 +62,18 @@ struct AlignOptions {
   double min_matched_fraction = 0.3; ///< final inliers within 1 px / visible samples
   double gradient_threshold = 6.0;   ///< grey levels per pixel (Sobel / 8)
   double score_cap_px = 8.0;         ///< truncation of the confidence score
+  /// The edge search's bias predicted from the model's own appearance (the
+  /// model rendered lit and anti-aliased through the current camera, the
+  /// search run on it where the true edge is known) and subtracted at the
+  /// fine levels: shading ramps beside silhouettes moved the gradient peaks
+  /// 0.1-0.3 px inwards (docs/estimation.md). `optical_blur_px`: the
+  /// camera's blur (Gaussian sd, px) applied to that prediction.
+  bool predict_edge_bias = true;
+  double optical_blur_px = 0.6;
+  /// The sd (px) of an edge offset shared by all silhouettes that the
+  /// residuals cannot show (it trades against f and depth): added to the
+  /// covariance as the parameters' response to it.
+  double edge_offset_sd_px = 0.1;
   /// Arm-model self-calibration (a bundle adjustment over the cameras and
   /// the arm's link lengths): when > 0 and the cameras are refined, the
   /// length of every non-zero link offset (RobotModel::
