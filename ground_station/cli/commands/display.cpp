@@ -13,16 +13,18 @@
 //                     [--snapshot shown.png] [--scene scene.yaml] [--gl osmesa|egl] [--json]
 //
 // Keys: w s h g render mode (wire, solid, hidden-line, ghost), o overlay on/off,
-// c next camera (of cameras.yaml), t text on/off, q / Esc quit.
+// c next camera (of cameras.yaml; with --remote the remote's video switch is
+// asked first and the display follows once it has switched), t text on/off,
+// q / Esc quit.
 // Without --remote, frame k shows trajectory time k / fps: the commanded arm
 // at that time, the actual (and the synthetic video's) arm --delay-s earlier.
 // A video source that cannot be opened or stops is said on stderr and on the
 // picture, and retried every --retry-s. Exit: 0 ok, 2 bad input (also: no
 // display and no --headless), 1 the video source never delivered a frame or
 // the remote did not answer. --json: frames, video_frames, recorded, mode,
-// compose_ms_mean, ...; with --remote also remote{controller, fault,
-// q_actual_rad, rtt_median_s (null before a measurement), alive}: what the last
-// frame showed.
+// camera_switches, compose_ms_mean, ...; with --remote also remote{controller,
+// fault, q_actual_rad, rtt_median_s (null before a measurement), alive,
+// camera_problem}: what the last frame showed.
 
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgproc.hpp>
@@ -163,6 +165,28 @@ int run_display(const DisplayArgs& a) {
     cv::moveWindow(kWindow, 0, 0);
   }
 
+  // The `c` key with --remote: the remote's video switch must show the next
+  // camera before the overlay uses that camera's calibration (one camera's
+  // overlay over another's video would mislead the operator). TAKE_CONTROL,
+  // CAMERA select and RELEASE_CONTROL go out at once, in order (the display
+  // never waits on the link); the display switches when CAMERA completes. A
+  // refusal or no answer is shown and the camera stays.
+  struct PendingCamera {
+    std::uint64_t id = 0;
+    std::size_t index = 0;
+    Clock::time_point deadline;
+  };
+  std::optional<PendingCamera> pending_camera;
+  std::string camera_problem;
+  int camera_switches = 0;
+  auto switch_camera = [&](std::size_t next) {
+    const bool new_viewport = !(cameras[next].viewport == cameras[cam_index].viewport);
+    cam_index = next;
+    ++camera_switches;
+    if (synthetic && new_viewport)
+      synth = std::make_unique<SyntheticCamera>(*context, robot, object, *scene, cameras[cam_index].viewport);
+  };
+
   display::DisplayState state;
   state.mode = mode;
   state.overlay = !a.no_overlay;
@@ -202,6 +226,22 @@ int run_display(const DisplayArgs& a) {
         state.controller_text = "controller: no status yet";
       }
       if (!link->remote_alive()) state.fault_text = "link: remote silent for " + fixed(link->remote_silence_s(), 1) + " s";
+      if (pending_camera) {
+        const auto r = link->wait_final(pending_camera->id, std::chrono::nanoseconds(0));
+        const std::string& name = cameras[pending_camera->index].name;
+        if (r.finished && r.succeeded()) {
+          switch_camera(pending_camera->index);
+          camera_problem.clear();
+          pending_camera.reset();
+        } else if (r.finished || Clock::now() > pending_camera->deadline) {
+          camera_problem = "camera " + name + " not switched at the remote: " +
+                           (r.finished ? std::string(control::to_string(r.code)) + ": " + r.reason : "no answer");
+          std::cerr << "foresight display: " << camera_problem << "\n";
+          pending_camera.reset();
+        }
+      }
+      if (pending_camera) camera_problem = "switching the remote's video to " + cameras[pending_camera->index].name;
+      if (!camera_problem.empty()) state.fault_text += (state.fault_text.empty() ? "" : "; ") + camera_problem;
     } else if (trajectory) {
       state.q_commanded = preview::sample_trajectory(*trajectory, t_s);
       state.q_actual = preview::sample_trajectory(*trajectory, t_s - a.delay_s);
@@ -263,10 +303,19 @@ int run_display(const DisplayArgs& a) {
     if (c == 'g') state.mode = RenderMode::Ghost;
     if (c == 'o') state.overlay = !state.overlay;
     if (c == 't') state.text = !state.text;
-    if (c == 'c') {
-      cam_index = (cam_index + 1) % cameras.size();
-      if (synthetic && !(cameras[cam_index].viewport == cameras[(cam_index + cameras.size() - 1) % cameras.size()].viewport))
-        synth = std::make_unique<SyntheticCamera>(*context, robot, object, *scene, cameras[cam_index].viewport);
+    if (c == 'c' && cameras.size() > 1) {
+      const std::size_t next = (cam_index + 1) % cameras.size();
+      if (!link) {
+        switch_camera(next);
+      } else if (!pending_camera) {
+        control::CameraCommand select;
+        select.camera = cameras[next].name;
+        select.action = control::CameraAction::Select;
+        link->send(control::CommandKind::TakeControl, control::NoPayload{});
+        pending_camera = PendingCamera{link->send(control::CommandKind::Camera, select), next,
+                                       Clock::now() + link->timeout_for(1.0)};
+        link->send(control::CommandKind::ReleaseControl, control::NoPayload{});
+      }
     }
   }
   writer.release();
@@ -282,6 +331,7 @@ int run_display(const DisplayArgs& a) {
                         {"open_attempts", attempts},
                         {"recorded", recorded},
                         {"mode", to_string(state.mode)},
+                        {"camera_switches", camera_switches},
                         {"compose_ms_mean", shown > 0 ? 1000.0 * compose_s / shown : 0.0}};
     if (!a.record.empty()) j["record"] = a.record;
     if (link) {  // what the last frame showed from the remote
@@ -290,7 +340,8 @@ int run_display(const DisplayArgs& a) {
                      {"fault", state.fault_text},
                      {"q_actual_rad", std::vector<double>(state.q_actual.data(), state.q_actual.data() + state.q_actual.size())},
                      {"rtt_median_s", stats.count > 0 ? nlohmann::json(stats.median_s) : nlohmann::json(nullptr)},
-                     {"alive", link->remote_alive()}};
+                     {"alive", link->remote_alive()},
+                     {"camera_problem", camera_problem}};
     }
     std::cout << j.dump() << "\n";
   } else {

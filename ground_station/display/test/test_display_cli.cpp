@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -29,6 +30,7 @@
 #include "foresight/display/click_session.hpp"
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
+#include "foresight/ground_link/ground_link.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
@@ -475,4 +477,77 @@ TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
   EXPECT_TRUE(exists(plot));
   const cv::Mat pic = cv::imread(plot);
   EXPECT_EQ(pic.size(), cv::Size(646, 486));
+}
+
+// The `c` key with --remote under Xvfb: the display asks the remote's video
+// switch first and follows only once it has switched. While another ground
+// session holds control the switch is refused: the display says why and stays
+// on its camera (never one camera's overlay over another's video).
+TEST(DisplayCli, RemoteCameraKeySwitchesTheRemotesVideoFirst) {
+  if (!exists("/usr/bin/Xvfb")) GTEST_SKIP() << "Xvfb is not installed (Debian package xvfb; scripts/setup.sh installs it)";
+  if (!exists("/usr/bin/xdotool")) GTEST_SKIP() << "xdotool is not installed (scripts/setup.sh installs it)";
+  Xvfb x;
+  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start on any display :91-:159";
+  protocol::use_loopback_if_unconfigured();
+  const int domain = static_cast<int>(protocol::unique_test_domain());
+  test::RemoteProcess::Options o;
+  o.domain = domain;
+  test::RemoteProcess remote(o);
+  ASSERT_TRUE(remote.ready()) << remote.log();
+  ground_link::Config lc;
+  lc.domain = domain;
+  ground_link::GroundLink holder(lc);  // another ground station
+  ASSERT_TRUE(holder.wait_for_remote(std::chrono::seconds(30)));
+  const std::string cams = true_cameras();  // side, oblique, ... (sorted: c after side is oblique)
+  const std::string env = "DISPLAY=" + x.display() + " ";
+
+  // Runs the display (150 frames at 15 fps), presses c once its window is up;
+  // returns its --json.
+  auto run_and_press_c = [&](const std::function<void()>& before_c) {
+    const std::string out_path = temp_path(".json"), err_path = temp_path(".err");
+    const std::string pid_text =
+        sh_out(env + "sh -c '" + FORESIGHT_BIN_DIR + "/foresight display --remote --domain " + std::to_string(domain) +
+               " --cameras " + cams + " --camera " + kCamera + " --video synthetic --fps 15 --frames 150 --json >" +
+               out_path + " 2>" + err_path + " & echo $!'");
+    const pid_t pid = std::stoi(pid_text);
+    const std::string win = sh_out(env + "timeout 60 xdotool search --sync --name '^foresight display$' | head -1");
+    EXPECT_FALSE(win.empty()) << read_file(err_path);
+    before_c();
+    EXPECT_TRUE(wait_until([&] { return sh(env + "xdotool key --window " + win + " c") == 0 || kill(pid, 0) != 0; },
+                           30.0));
+    if (!wait_until([&] { return kill(pid, 0) != 0; }, 120.0)) {
+      kill(pid, SIGKILL);
+      ADD_FAILURE() << "foresight display did not end after its 150 frames";
+    }
+    const auto j = nlohmann::json::parse(read_file(out_path), nullptr, false);
+    EXPECT_FALSE(j.is_discarded()) << read_file(err_path);
+    return std::make_pair(j, read_file(err_path));
+  };
+
+  // 1. Another session holds control: refused, the display stays on side.
+  const auto [refused, refused_err] = run_and_press_c([&] {
+    ASSERT_TRUE(holder.execute(control::CommandKind::TakeControl, control::NoPayload{}, 0.0).succeeded());
+  });
+  EXPECT_EQ(refused["camera"], kCamera) << refused.dump();
+  EXPECT_EQ(refused["camera_switches"], 0);
+  const std::string problem = refused["remote"]["camera_problem"];
+  EXPECT_NE(problem.find("camera oblique not switched at the remote: not_in_control: ground session "),
+            std::string::npos)
+      << problem;
+  EXPECT_NE(refused_err.find(problem), std::string::npos) << refused_err;
+
+  // 2. Control released: the remote switches, then the display follows.
+  ASSERT_TRUE(holder.execute(control::CommandKind::ReleaseControl, control::NoPayload{}, 0.0).succeeded());
+  const auto [switched, switched_err] = run_and_press_c([] {});
+  EXPECT_EQ(switched["camera"], "oblique") << switched.dump() << switched_err;
+  EXPECT_EQ(switched["camera_switches"], 1);
+  EXPECT_EQ(switched["remote"]["camera_problem"], "");
+  // The remote's own record: a CAMERA command completed (the video switch moved).
+  const auto journal = test::run_program("foresight-remote", "journal --json --db " + remote.journal());
+  ASSERT_EQ(journal.status, 0) << journal.err;
+  const auto jj = nlohmann::json::parse(journal.out);
+  int completed = 0;
+  for (const auto& c : jj["commands"]) completed += c["kind"] == "CAMERA" && c["state"] == "COMPLETED";
+  EXPECT_EQ(completed, 1) << jj["commands"].dump();
+  EXPECT_EQ(remote.stop(SIGTERM), 0) << remote.log();
 }
