@@ -187,8 +187,13 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
     j["joints_age_s"] = js->age_s;
   } else {
     j["joints_rad"] = nlohmann::json::array();
+    j["joint_velocities_rad_s"] = nlohmann::json::array();
     j["joints_age_s"] = nullptr;
   }
+  const auto dropped = link.dropped();
+  j["joint_states_dropped"] = {{"joint_count", dropped.joint_state_joint_count},
+                               {"length", dropped.joint_state_length},
+                               {"not_finite", dropped.joint_state_not_finite}};
   if (const auto st = link.status()) {
     const auto& s = st->value;
     j["state"] = control::to_string(s.mode);

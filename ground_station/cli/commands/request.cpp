@@ -30,7 +30,9 @@ int run(const Options& o) {
   if (r.succeeded()) wait_joints(*link, 1.0);
   const nlohmann::json s = status_json(*link);
   nlohmann::json report;
-  if (o.what == "joints") report = {{"joints_rad", s["joints_rad"]}, {"age_s", s["joints_age_s"]}};
+  if (o.what == "joints") report = {{"joints_rad", s["joints_rad"]},
+                                                {"joint_velocities_rad_s", s["joint_velocities_rad_s"]},
+                                                {"age_s", s["joints_age_s"]}};
   else if (o.what == "wrench") report = s.value("wrench", nlohmann::json(nullptr));
   else if (o.what == "tool") report = s.value("tool", nlohmann::json(nullptr));
   else report = s;

@@ -1,6 +1,7 @@
 // foresight status: the link's measured delay (round trip statistics, clock
 // offset) and the remote's latest state: controller mode, active command,
-// stop and faults, joint angles, tool, wrist wrench, each with its age.
+// stop and faults, joint angles and velocities, tool, wrist wrench, each with
+// its age; joint states the link dropped as invalid, by reason.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -44,6 +45,9 @@ int run(const Options& o) {
     std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
     for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);
     std::printf("\n");
+    std::printf("joint velocities (deg/s):");
+    for (const auto& v : j["joint_velocities_rad_s"]) std::printf(" %.2f", v.get<double>() * 180.0 / M_PI);
+    std::printf("\n");
   } else {
     std::printf("joints: no report yet\n");
   }
@@ -57,6 +61,15 @@ int run(const Options& o) {
     std::printf("wrench (tool frame): F %.2f %.2f %.2f N, T %.3f %.3f %.3f N m\n", f[0].get<double>(),
                 f[1].get<double>(), f[2].get<double>(), t[0].get<double>(), t[1].get<double>(), t[2].get<double>());
   }
+  const auto& dropped = j["joint_states_dropped"];
+  const auto n_dropped = dropped["joint_count"].get<std::uint64_t>() + dropped["length"].get<std::uint64_t>() +
+                         dropped["not_finite"].get<std::uint64_t>();
+  if (n_dropped != 0)
+    std::printf("joint states dropped: %llu (wrong joint count %llu, sequence lengths %llu, not finite %llu)\n",
+                static_cast<unsigned long long>(n_dropped),
+                static_cast<unsigned long long>(dropped["joint_count"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(dropped["length"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(dropped["not_finite"].get<std::uint64_t>()));
   if (j["faults"].empty()) std::printf("faults: none\n");
   for (const auto& f : j["faults"]) std::printf("fault: %s\n", f.get<std::string>().c_str());
   return kExitOk;
