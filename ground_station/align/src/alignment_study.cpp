@@ -102,30 +102,17 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
       const StudyView& view = setup.views[v];
-      std::vector<Correspondence> cal;
-      for (std::size_t i = 0; i < view.calibration_points_base.size(); ++i) {
-        const ArmFeature& f = view.calibration_features[i];
-        const Eigen::Vector3d p_true = forward_kinematics(truth_arm, tws, setup.arm_q.at(f.pose), f.link) * f.p_link;
-        Correspondence c;
-        c.n = static_cast<int>(i) + 1;
-        c.cam = view.truth.name;
-        c.p_m = view.calibration_points_base[i];
-        c.uv_px = view.truth.project(p_true) + Eigen::Vector2d(noise(rng), noise(rng));
-        cal.push_back(c);
-      }
+      std::vector<Eigen::Vector3d> true_base;
+      for (const ArmFeature& f : view.calibration_features)
+        true_base.push_back(forward_kinematics(truth_arm, tws, setup.arm_q.at(f.pose), f.link) * f.p_link);
+      ViewClicks vc = simulate_view_clicks(view, view.calibration_points_base, true_base, setup.base_T_object,
+                                           [&] { return noise(rng); });
       try {
-        cams[view.truth.name] = calibrate_camera(cal, vp, view.truth.name).camera;
+        cams[view.truth.name] = calibrate_camera(vc.calibration, vp, view.truth.name).camera;
       } catch (const Error&) {
         ok = false;
       }
-      for (std::size_t i = 0; i < view.object_points.size(); ++i) {
-        Correspondence c;
-        c.n = static_cast<int>(i) + 1;
-        c.cam = view.truth.name;
-        c.p_m = view.object_points[i];
-        c.uv_px = view.truth.project(setup.base_T_object * c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
-        oru_clicks.push_back(c);
-      }
+      oru_clicks.insert(oru_clicks.end(), vc.object.begin(), vc.object.end());
     }
     if (!ok) {
       ++res.calibration_failures;

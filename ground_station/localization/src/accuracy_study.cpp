@@ -45,6 +45,29 @@ ErrorStats ErrorAccumulator::stats() const {
   return s;
 }
 
+ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::Vector3d>& believed_base,
+                                const std::vector<Eigen::Vector3d>& true_base, const Pose& base_T_object,
+                                const std::function<double()>& noise) {
+  ViewClicks out;
+  for (std::size_t i = 0; i < believed_base.size(); ++i) {
+    Correspondence c;
+    c.n = static_cast<int>(i) + 1;
+    c.cam = view.truth.name;
+    c.p_m = believed_base[i];
+    c.uv_px = view.truth.project(true_base[i]) + Eigen::Vector2d(noise(), noise());
+    out.calibration.push_back(c);
+  }
+  for (std::size_t i = 0; i < view.object_points.size(); ++i) {
+    Correspondence c;
+    c.n = static_cast<int>(i) + 1;
+    c.cam = view.truth.name;
+    c.p_m = view.object_points[i];
+    c.uv_px = view.truth.project(base_T_object * c.p_m) + Eigen::Vector2d(noise(), noise());
+    out.object.push_back(c);
+  }
+  return out;
+}
+
 std::string view_combination_label(const std::vector<int>& views) {
   std::string s;
   for (const int v : views) s += (s.empty() ? "" : "+") + std::to_string(v + 1);
@@ -264,31 +287,17 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
       const StudyView& view = setup.views[v];
-      std::vector<Correspondence> cal;
-      for (std::size_t i = 0; i < view.calibration_points_base.size(); ++i) {
-        Correspondence c;
-        c.n = static_cast<int>(i) + 1;
-        c.cam = view.truth.name;
-        c.p_m = believed[v][i];
-        c.uv_px = view.truth.project(view.calibration_points_base[i]) + Eigen::Vector2d(noise(rng), noise(rng));
-        cal.push_back(c);
-      }
+      ViewClicks vc = simulate_view_clicks(view, believed[v], view.calibration_points_base, setup.base_T_object,
+                                           [&] { return noise(rng); });
       try {
-        const CalibrationResult r = calibrate_camera(cal, view.truth.viewport, view.truth.name);
+        const CalibrationResult r = calibrate_camera(vc.calibration, view.truth.viewport, view.truth.name);
         cams[view.truth.name] = r.camera;
         information[view.truth.name] = r.information;
         calib_rms_sum[v] += r.rms_px;
       } catch (const Error&) {  // an estimation that failed (input or computation)
         ok = false;
       }
-      for (std::size_t i = 0; i < view.object_points.size(); ++i) {
-        Correspondence c;
-        c.n = static_cast<int>(i) + 1;
-        c.cam = view.truth.name;
-        c.p_m = view.object_points[i];
-        c.uv_px = view.truth.project(setup.base_T_object * c.p_m) + Eigen::Vector2d(noise(rng), noise(rng));
-        clicks.push_back(c);
-      }
+      clicks.insert(clicks.end(), vc.object.begin(), vc.object.end());
     }
     if (!ok) {
       ++res.calibration_failures;

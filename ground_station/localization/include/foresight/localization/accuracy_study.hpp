@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/calibration/correspondence.hpp"
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/pose.hpp"
@@ -109,6 +110,19 @@ struct ErrorAccumulator {
 
 /// "1+2+4": 0-based view indices written 1-based, as the paper.
 std::string view_combination_label(const std::vector<int>& views);
+
+/// The simulated clicks of one view in a trial (the accuracy study's and the
+/// alignment study's): calibration click i pairs the believed 3-D point
+/// believed_base[i] with the true camera's projection of true_base[i] plus
+/// click noise; the object clicks pair the view's object model points with
+/// their true projections (the object at base_T_object) plus noise. The
+/// noise is drawn in that order, u then v per click.
+struct ViewClicks {
+  std::vector<Correspondence> calibration, object;
+};
+ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::Vector3d>& believed_base,
+                                const std::vector<Eigen::Vector3d>& true_base, const Pose& base_T_object,
+                                const std::function<double()>& noise);
 
 struct ComboStats {
   std::vector<int> views;  ///< 0-based view indices
