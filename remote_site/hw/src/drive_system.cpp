@@ -197,6 +197,12 @@ const std::string& DriveSystem::device_name(std::size_t joint) const { return dr
 double DriveSystem::rated_torque_nm(std::size_t joint) const { return drives_.at(joint).rated_torque_nm; }
 const DriveInfo& DriveSystem::drive_info(std::size_t joint) const { return drives_.at(joint).info; }
 
+std::vector<std::string> DriveSystem::setup_notices() const {
+  std::vector<std::string> out;
+  for (const auto& c : sdo_) out.insert(out.end(), c->notices().begin(), c->notices().end());
+  return out;
+}
+
 void DriveSystem::nmt(std::size_t bus, NmtCommand cmd, std::uint8_t node) {
   write_setup_frame(*buses_[bus], config_.buses[bus].name, make_frame(kNmt, {static_cast<std::uint8_t>(cmd), node}));
 }
@@ -264,6 +270,7 @@ void DriveSystem::configure() {
   // boot-up sent before the reset must not count as its answer, or the first
   // SDO reaches a node that is still booting.
   drain_buses();
+  for (auto& c : sdo_) c->clear_notices();
   for (Drive& d : drives_) d.booted = false;
   if (ft_) ft_->booted = false;
   configured_ = false;

@@ -67,9 +67,9 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
       hb.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
     c.master_node_id = static_cast<std::uint8_t>(master);
   }
-  c.sdo_timeout_s = top.get_or<double>("sdo_timeout_ms", 100.0) * 1e-3;
+  c.sdo_timeout_s = top.get_or<double>("sdo_timeout_ms", 500.0) * 1e-3;
   c.enable_timeout_s = top.get_or<double>("enable_timeout_ms", 2000.0) * 1e-3;
-  c.tpdo_miss_limit = top.get_or<int>("tpdo_miss_limit", 3);
+  c.tpdo_miss_limit = top.get_or<int>("tpdo_miss_limit", 5);
   c.max_bus_load = top.get_or<double>("max_bus_load", 0.70);
   c.interpolation_exponent = top.get_or<int>("interpolation_exponent", -4);
   if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
@@ -193,6 +193,19 @@ void validate(RemoteConfig& c) {
     fail(0, "heartbeat.producer_ms must be 1..65000");
   if (!(c.heartbeat_consumer_s > c.heartbeat_producer_s))
     fail(0, "heartbeat.consumer_ms must be larger than heartbeat.producer_ms (a margin for jitter)");
+  // Below 3 x, two heartbeats lost in a row (or one lost and the next late by
+  // the bus's jitter) leave a node silent past the consumer time: a false
+  // HeartbeatLost stop on the master, EMCY 0x8130 faulting the drives. At
+  // exactly 3 x it still happens whenever two lost heartbeats meet jitter
+  // (~36/h at 1% loss); the project uses 3.5 x (docs/hardware.md).
+  if (c.heartbeat_consumer_s < 3.0 * c.heartbeat_producer_s - 1e-9) {
+    std::snprintf(buf, sizeof buf,
+                  "heartbeat.consumer_ms %g is below 3 x producer_ms %g (%g ms): one lost heartbeat and the "
+                  "jitter of the next would stop the arm; use >= 3.5 x (%g ms)",
+                  c.heartbeat_consumer_s * 1e3, c.heartbeat_producer_s * 1e3, 3.0 * c.heartbeat_producer_s * 1e3,
+                  3.5 * c.heartbeat_producer_s * 1e3);
+    fail(0, buf);
+  }
   if (!(c.sdo_timeout_s > 0.0 && c.sdo_timeout_s <= 10.0)) fail(0, "sdo_timeout_ms must be in (0, 10000]");
   if (!(c.enable_timeout_s > 0.0 && c.enable_timeout_s <= 60.0)) fail(0, "enable_timeout_ms must be in (0, 60000]");
   if (c.tpdo_miss_limit < 1 || c.tpdo_miss_limit > 1000) fail(0, "tpdo_miss_limit must be 1..1000");

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 
 #include "foresight/hw/canopen.hpp"
@@ -42,8 +43,34 @@ SdoClient::SdoClient(CanBus& bus, std::string bus_name, double timeout_s, FrameH
       label_(std::move(label)) {}
 
 can_frame SdoClient::exchange(std::uint8_t node, const can_frame& request, const char* what, std::uint16_t index,
-                              std::uint8_t sub) {
+                              std::uint8_t sub, bool retry) {
   const std::string label = std::string("SDO ") + what + " " + od_name(index, sub) + " of " + label_(node);
+  const int timeout_ms = static_cast<int>(std::lround(timeout_s_ * 1000));
+  // One lost frame (the request or the response) must not fail a whole
+  // bring-up: a timed-out transfer is aborted and sent once more (expedited
+  // and initiate requests only: a segment cannot be repeated after its abort).
+  const int attempts = retry ? 2 : 1;
+  for (int attempt = 1;; ++attempt) {
+    try {
+      const can_frame r = exchange_once(node, request, label, index, sub);
+      if (attempt > 1)
+        notices_.push_back(label + ": no response within " + std::to_string(timeout_ms) +
+                           " ms; the retry was answered");
+      return r;
+    } catch (const SdoError& e) {
+      if (e.kind() != SdoError::Kind::Timeout || attempt >= attempts) {
+        if (e.kind() == SdoError::Kind::Timeout && attempts > 1)
+          throw SdoError(SdoError::Kind::Timeout, e.abort_code(),
+                         label + ": timed out after " + std::to_string(timeout_ms) +
+                             " ms (no response), also on the retry");
+        throw;
+      }
+    }
+  }
+}
+
+can_frame SdoClient::exchange_once(std::uint8_t node, const can_frame& request, const std::string& label,
+                                   std::uint16_t index, std::uint8_t sub) {
   write_setup_frame(bus_, bus_name_, request);
   const auto timeout = std::chrono::duration<double>(timeout_s_);
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(timeout);
@@ -70,7 +97,7 @@ can_frame SdoClient::exchange(std::uint8_t node, const can_frame& request, const
       put_u32(abort.data + 4, static_cast<std::uint32_t>(SdoAbort::Timeout));
       (void)bus_.write(abort);
       throw SdoError(SdoError::Kind::Timeout, static_cast<std::uint32_t>(SdoAbort::Timeout),
-                     label + ": timed out after " + std::to_string(static_cast<int>(timeout_s_ * 1000)) +
+                     label + ": timed out after " + std::to_string(static_cast<int>(std::lround(timeout_s_ * 1000))) +
                          " ms (no response)");
     }
     if (io == CanIo::ErrorFrame || io == CanIo::Malformed) continue;
@@ -100,7 +127,7 @@ std::uint32_t SdoClient::read(std::uint8_t node, std::uint16_t index, std::uint8
   can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
   put_u16(req.data + 1, index);
   req.data[3] = sub;
-  const can_frame r = exchange(node, req, "read", index, sub);
+  const can_frame r = exchange(node, req, "read", index, sub, true);
   const std::string label = "SDO read " + od_name(index, sub) + " of " + label_(node);
   const std::uint8_t cmd = r.data[0];
   const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
@@ -122,7 +149,7 @@ void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, 
   put_u16(req.data + 1, index);
   req.data[3] = sub;
   for (int i = 0; i < size; ++i) req.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
-  const can_frame r = exchange(node, req, "write", index, sub);
+  const can_frame r = exchange(node, req, "write", index, sub, true);
   const bool ok_echo = get_u16(r.data + 1) == index && r.data[3] == sub;
   if (r.data[0] == 0x60 && ok_echo) return;
   throw_response_error(r, "SDO write " + od_name(index, sub) + " of " + label_(node), index, sub);
@@ -133,7 +160,7 @@ std::string SdoClient::read_string(std::uint8_t node, std::uint16_t index, std::
   can_frame req = make_frame(kSdoRxBase + node, {0x40, 0, 0, 0, 0, 0, 0, 0});
   put_u16(req.data + 1, index);
   req.data[3] = sub;
-  const can_frame r = exchange(node, req, "read", index, sub);
+  const can_frame r = exchange(node, req, "read", index, sub, true);
   const std::uint8_t cmd = r.data[0];
   if ((cmd >> 5) != sdo::kScsUploadInitiate || get_u16(r.data + 1) != index || r.data[3] != sub)
     throw_response_error(r, label, index, sub);
@@ -161,7 +188,7 @@ std::string SdoClient::read_string(std::uint8_t node, std::uint16_t index, std::
   for (std::uint32_t segment = 0; segment <= kMaxString / 7 + 1; ++segment) {
     const can_frame seg_req =
         make_frame(kSdoRxBase + node, {static_cast<std::uint8_t>(0x60 | (toggle << 4)), 0, 0, 0, 0, 0, 0, 0});
-    const can_frame s = exchange(node, seg_req, "read (segment)", index, sub);
+    const can_frame s = exchange(node, seg_req, "read (segment)", index, sub, false);
     const std::uint8_t c = s.data[0];
     if ((c >> 5) == sdo::kCsAbort) throw_response_error(s, label, index, sub);
     if ((c >> 5) != sdo::kScsUploadSegment)

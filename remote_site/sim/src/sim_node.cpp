@@ -31,6 +31,11 @@ void SimNode::inject_sdo_abort(std::uint16_t index, std::uint8_t sub, std::uint3
   std::lock_guard lock(mu_);
   pending_aborts_[key(index, sub)] = code;
 }
+void SimNode::drop_sdo_responses(std::uint16_t index, std::uint8_t sub, int count) {
+  std::lock_guard lock(mu_);
+  if (count > 0) dropped_responses_[key(index, sub)] = count;
+  else dropped_responses_.erase(key(index, sub));
+}
 void SimNode::inject_bad_toggle(bool on) {
   std::lock_guard lock(mu_);
   bad_toggle_ = on;
@@ -194,6 +199,18 @@ void SimNode::sdo(const can_frame& f, FrameSink& out) {
   if (cs == sdo::kCsAbort) {
     seg_active_ = false;
     return;
+  }
+  if (cs != sdo::kCcsUploadSegment && !dropping_ && !dropped_responses_.empty()) {
+    if (auto it = dropped_responses_.find(key(index, sub)); it != dropped_responses_.end()) {
+      if (--it->second <= 0) dropped_responses_.erase(it);
+      struct Lost final : FrameSink {
+        void send(const can_frame&) override {}
+      } lost;
+      dropping_ = true;
+      sdo(f, lost);  // served; the response never reaches the master
+      dropping_ = false;
+      return;
+    }
   }
   if (cs == sdo::kCcsUploadSegment) {
     if (!seg_active_) return sdo_abort(index, sub, static_cast<std::uint32_t>(SdoAbort::BadCommand), out);

@@ -24,7 +24,7 @@ using hw::FtReading;
 using Clock = std::chrono::steady_clock;
 
 /// config/remote.yaml, with a TPDO miss limit of 25 cycles (50 ms) instead of
-/// 3: ctest runs tests in parallel on 2 shared cores, and a descheduled
+/// 5: ctest runs tests in parallel on 2 shared cores, and a descheduled
 /// simulator thread must not look like a silent drive.
 inline hw::RemoteConfig project_config() {
   hw::RemoteConfig c = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");

@@ -19,8 +19,9 @@ auto has = [](HwFault f) { return [f](const CycleStatus& s) { return find_event(
 // Stepped (SimRig::bring_up_stepped): counted in cycles of simulated time.
 // The drive's last heartbeat was produced within one producer period (50 ms,
 // 25 cycles) before it fell silent and read by the master one cycle later;
-// the master faults at the first read more than the consumer time (150 ms)
-// after that read: 152 ms, between 52 and 77 cycles after the silence.
+// the master faults at the first read more than the consumer time (175 ms,
+// the production 3.5 x producer) after that read: 176 ms, between 64 and 89
+// cycles after the silence.
 TEST(DriveFaults, HeartbeatLossIsDetectedWithinTheConsumerTime) {
   SimRig rig(hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml"));
   rig.bring_up_stepped();
@@ -33,10 +34,10 @@ TEST(DriveFaults, HeartbeatLossIsDetectedWithinTheConsumerTime) {
   EXPECT_EQ(e->fault, HwFault::HeartbeatLost);
   EXPECT_EQ(e->joint, 4);
   EXPECT_TRUE(s.stop_required);
-  EXPECT_GE(n, (150 - 50) / 2 + 2);
-  EXPECT_LE(n, (150 + 2 * 2) / 2);
-  EXPECT_EQ(e->code, 152u);
-  EXPECT_EQ(rig.drives->describe(*e), "joint5 (bus arm_b node 5): heartbeat lost (silent for 152 ms)");
+  EXPECT_GE(n, (175 - 50) / 2 + 2);
+  EXPECT_LE(n, (175 + 2 * 2) / 2);
+  EXPECT_EQ(e->code, 176u);
+  EXPECT_EQ(rig.drives->describe(*e), "joint5 (bus arm_b node 5): heartbeat lost (silent for 176 ms)");
   EXPECT_TRUE(rig.fb.joints[4].heartbeat_lost);
   EXPECT_FALSE(rig.fb.joints[3].heartbeat_lost);
 }
@@ -290,7 +291,7 @@ TEST(DriveFaults, DrivesFaultWhenTheMasterStopsCycling) {
   rig.run_until([](const CycleStatus&) { return false; }, 30);
   // The master falls silent (no SYNC, no heartbeat): after heartbeat.consumer_ms
   // the drives fault on their own (0x1016 consumer), EMCY 0x8130.
-  // Poll with a deadline (no fixed sleep): 150 ms consumer time, 3 s bound.
+  // Poll with a deadline (no fixed sleep): 175 ms consumer time, 3 s bound.
   auto all_faulted = [&] {
     for (std::size_t j = 0; j < 7; ++j)
       if (rig.sim->drive(j).power_state() != PowerState::Fault) return false;

@@ -224,6 +224,11 @@ class DriveSystem {
   double rated_torque_nm(std::size_t joint) const;
   /// Identity, device name, rated torque and how many objects were verified, read at configure().
   const DriveInfo& drive_info(std::size_t joint) const;
+  /// What the last configure() (and SDO calls since) recovered from, one line
+  /// each, bus by bus: an SDO transfer that timed out once and whose retry was
+  /// answered ("SDO read 0x1000:00 of joint3 (bus arm_a node 3): no response
+  /// within 500 ms; the retry was answered"). Empty on a clean bring-up.
+  std::vector<std::string> setup_notices() const;
   const CanBus& bus(std::size_t i) const { return *buses_.at(i); }
   /// Frames with a COB-ID nobody on bus `i` should send, counted since
   /// construction (each COB-ID is reported as an UnknownCobId event once).

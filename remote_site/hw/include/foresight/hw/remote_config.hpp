@@ -74,12 +74,14 @@ struct FtConfig {
 struct RemoteConfig {
   std::string source;  ///< file name (for messages)
   double cycle_rate_hz = 500.0;
-  double heartbeat_producer_s = 0.1;  ///< period each node (and the master) sends its heartbeat
-  double heartbeat_consumer_s = 0.25; ///< a node silent longer than this is a fault (both ways)
+  double heartbeat_producer_s = 0.05;  ///< period each node (and the master) sends its heartbeat
+  double heartbeat_consumer_s = 0.175; ///< a node silent longer than this is a fault (both ways); >= 3 x producer
+                                       ///< (validate() refuses less), 3.5 x recommended
   std::uint8_t master_node_id = 127;  ///< node id of the master's own heartbeat (0x700 + id)
-  double sdo_timeout_s = 0.1;
+  double sdo_timeout_s = 0.5;          ///< per SDO transfer (set-up only); a timed-out transfer is retried once
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
-  int tpdo_miss_limit = 3;            ///< consecutive cycles without a TPDO before a fault
+  int tpdo_miss_limit = 5;            ///< consecutive cycles without a TPDO before a fault (1% loss: 3 gives
+                                      ///< ~140 false stops/h, 5 about one per 12 h)
   int velocity_tpdo_every = 5;        ///< TPDO2 (velocity actual 0x606C) on every n-th SYNC (0x1801:02); 0 = not mapped
   int bus_off_restart_limit = 3;      ///< controller restarts after bus-off (restart-ms) tolerated per configure()
   double bus_off_restart_delay_s = 0.1;  ///< bus-off this long: the master requests a restart (netlink), at most

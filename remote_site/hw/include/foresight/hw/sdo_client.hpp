@@ -1,13 +1,17 @@
 #pragma once
 // The CANopen SDO client (CiA 301): expedited download and upload, segmented
 // upload of visible strings, one bus, blocking with a timeout. Set-up code
-// only (NOT real-time: blocks, allocates, throws SdoError/HwError). Frames
+// only (NOT real-time: blocks, allocates, throws SdoError/HwError). An
+// expedited transfer (or a segmented upload's initiate) that times out is
+// aborted and sent once more before it fails; a retry that is answered is
+// kept as a notice (notices()). Frames
 // that arrive during a transfer and are not its response go to the
 // `other_frames` handler (heartbeats, EMCY, boot-ups keep being seen).
 
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "foresight/common/error.hpp"
 #include "foresight/hw/can_bus.hpp"
@@ -62,10 +66,20 @@ class SdoClient {
   std::string read_string(std::uint8_t node, std::uint16_t index, std::uint8_t sub);
 
   double timeout_s() const noexcept { return timeout_s_; }
+  /// What went wrong and was recovered, one line each ("SDO read 0x1000:00 of
+  /// joint3 (bus arm_a node 3): no response within 500 ms; the retry was
+  /// answered"), since construction or clear_notices().
+  const std::vector<std::string>& notices() const noexcept { return notices_; }
+  void clear_notices() { notices_.clear(); }
 
  private:
+  /// One transfer step; with `retry`, a timeout aborts and sends the request
+  /// once more before failing (SdoError Timeout: "...: timed out after N ms
+  /// (no response), also on the retry").
   can_frame exchange(std::uint8_t node, const can_frame& request, const char* what, std::uint16_t index,
-                     std::uint8_t sub);
+                     std::uint8_t sub, bool retry);
+  can_frame exchange_once(std::uint8_t node, const can_frame& request, const std::string& label,
+                          std::uint16_t index, std::uint8_t sub);
   [[noreturn]] void throw_response_error(const can_frame& r, const std::string& label, std::uint16_t index,
                                          std::uint8_t sub) const;
 
@@ -74,6 +88,7 @@ class SdoClient {
   double timeout_s_;
   FrameHandler other_;
   NodeLabel label_;
+  std::vector<std::string> notices_;
 };
 
 }  // namespace foresight::hw

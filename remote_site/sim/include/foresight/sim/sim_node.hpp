@@ -47,6 +47,9 @@ class SimNode {
   void stop_answering(bool silent);
   /// The next SDO access to index:sub is aborted with `code`.
   void inject_sdo_abort(std::uint16_t index, std::uint8_t sub, std::uint32_t code);
+  /// The next `count` SDO requests (initiate: expedited read or write) to
+  /// index:sub are served, but their responses are lost on the wire.
+  void drop_sdo_responses(std::uint16_t index, std::uint8_t sub, int count);
   /// Segmented uploads answer segment 1 with the wrong toggle bit.
   void inject_bad_toggle(bool on);
   /// Send an EMCY frame (code, error register) at the next tick; no state change.
@@ -108,6 +111,8 @@ class SimNode {
   bool silent_ = false;
   bool bad_toggle_ = false;
   std::map<std::uint32_t, std::uint32_t> pending_aborts_;
+  std::map<std::uint32_t, int> dropped_responses_;
+  bool dropping_ = false;
   // segmented upload in progress
   bool seg_active_ = false;
   std::string seg_data_;
