@@ -187,6 +187,9 @@ int run_daemon(const Options& o) {
                site.hw_config.buses.size(), site.hw_config.cycle_rate_hz);
   for (const auto& load : site.drives->bus_loads()) spdlog::info("{}", load.describe());
   site.drives->configure();
+  // What bring-up recovered from (an SDO retry that was answered): worth a
+  // commissioning engineer's look, not a failure.
+  for (const auto& notice : site.drives->setup_notices()) spdlog::warn("bring-up: {}", notice);
 
   control::ControllerConfig cc;
   cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
