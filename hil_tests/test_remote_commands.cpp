@@ -376,7 +376,7 @@ TEST_F(RemoteCommands, LinkLossMidMotionFinishesTheMotionAndTheGroundSeesTheLoss
     if (auto s = ground_->status(); s && (s->value.fault_bits & 2u)) lost = true;
     std::this_thread::sleep_for(10ms);
   }
-  EXPECT_TRUE(lost) << "the ground never saw the remote report the link lost";
+  EXPECT_TRUE(lost) << "the ground never saw the remote report the link lost\n" << remote_->log();
   const auto moved = ground_->wait_final(id, 30s);
   EXPECT_EQ(moved.state, AckState::Completed) << moved.reason;  // the committed motion ran to its end
   ASSERT_EQ(moved.final_q_rad.size(), 7u);

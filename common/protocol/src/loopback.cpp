@@ -1,5 +1,7 @@
 #include "foresight/protocol/loopback.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -40,7 +42,24 @@ dds_domainid_t unique_test_domain() {
     }
     return static_cast<dds_domainid_t>(id);
   }
-  return static_cast<dds_domainid_t>(1 + getpid() % 230);
+  static const dds_domainid_t claimed = claim_free_domain(1, 230);
+  return claimed;
+}
+
+dds_domainid_t claim_free_domain(dds_domainid_t first, dds_domainid_t last) {
+  if (last < first) throw ProtocolError("claim_free_domain: empty range");
+  const dds_domainid_t span = last - first + 1;
+  const auto start = static_cast<dds_domainid_t>(getpid()) % span;
+  for (dds_domainid_t k = 0; k < span; ++k) {
+    const dds_domainid_t id = first + (start + k) % span;
+    const std::string path = "/tmp/foresight-dds-domain-" + std::to_string(id) + ".lock";
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) continue;  // another user's lock file we may not open: taken as held
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) return id;  // fd deliberately kept open: the claim lasts the process
+    ::close(fd);
+  }
+  throw ProtocolError("no free DDS domain in " + std::to_string(first) + ".." + std::to_string(last) +
+                      ": every one is held by another process (/tmp/foresight-dds-domain-*.lock)");
 }
 
 }  // namespace foresight::protocol

@@ -750,3 +750,21 @@ TEST(ProtocolNumbers, JointStateErrorNamesTheSequenceAndTheValue) {
   set({0.1, 0.2, std::numeric_limits<double>::quiet_NaN()}, three, three);
   EXPECT_STREQ(fp::joint_state_error(*s, 3, defect, buf, sizeof buf), "q_rad[2] is not finite");
 }
+
+// Two claims never share a domain, also within one process (a pid modulo the
+// range did now and then: a long HIL test met a short one's ground heartbeats
+// and never saw its link lost). 231..232 are valid ids no other claimer uses.
+TEST(DomainClaim, ClaimsAreExclusiveAndAFullRangeIsSaid) {
+  const dds_domainid_t a = fp::claim_free_domain(231, 232);
+  const dds_domainid_t b = fp::claim_free_domain(231, 232);
+  EXPECT_NE(a, b);
+  EXPECT_TRUE((a == 231 || a == 232) && (b == 231 || b == 232));
+  try {
+    (void)fp::claim_free_domain(231, 232);
+    FAIL() << "a third claim on a two-id range must be refused";
+  } catch (const fp::ProtocolError& e) {
+    EXPECT_STREQ(e.what(), "no free DDS domain in 231..232: every one is held by another process "
+                           "(/tmp/foresight-dds-domain-*.lock)");
+  }
+  EXPECT_EQ(fp::unique_test_domain(), fp::unique_test_domain());  // one claim per process
+}

@@ -565,7 +565,6 @@ int demo(Options& o) {
   if (o.rtt_s < 0) throw std::invalid_argument("--rtt must be >= 0");
   std::signal(SIGINT, on_demo_interrupt);
   std::signal(SIGTERM, on_demo_interrupt);
-  if (o.domain < 0) o.domain = 100 + static_cast<int>(::getpid() % 120);
   if (o.stage == "ground") return ground_stage(o, out);
   if (o.stage == "plot") {  // internal: (re)draw OUT/delay.png from OUT/delay.csv
     if (!fs::exists(out + "/delay.csv")) throw InputError(out + "/delay.csv", "cannot open the delay samples");
@@ -573,6 +572,7 @@ int demo(Options& o) {
     return kExitOk;
   }
   if (!o.stage.empty()) throw std::invalid_argument("--stage: 'ground', 'plot' or nothing");
+  if (o.domain < 0) o.domain = static_cast<int>(protocol::claim_free_domain(100, 219));
   fs::remove(out + "/run.jsonl");
   fs::remove(out + "/ground.json");
 
@@ -705,7 +705,7 @@ const bool registered = register_command(
                                          "cannot be made)")
            ->capture_default_str();
        sub.add_flag("--fast", o->fast, "loopback, no emulated delay, faster previews (tests)");
-       sub.add_option("--domain", o->domain, "DDS domain id (default: a fresh one from the process id)")
+       sub.add_option("--domain", o->domain, "DDS domain id (default: one in 100-219 that no other process on this host holds)")
            ->check(CLI::Range(0, 232));
        sub.add_option("--script", o->script, "the task script")->capture_default_str();
        sub.add_option("--ready-timeout", o->ready_timeout_s, "seconds to wait for the daemon's ready line")

@@ -364,6 +364,37 @@ int csv_rows(const std::string& path) {
   return n;
 }
 
+
+/// Starts `args` of `foresight` in the background on the Xvfb of `env`
+/// (stdout to out_path, stderr to err_path); returns its pid.
+pid_t start_foresight(const std::string& env, const std::string& args, const std::string& out_path,
+                      const std::string& err_path) {
+  return std::stoi(sh_out(env + "sh -c '" + FORESIGHT_BIN_DIR + "/foresight " + args + " >" + out_path + " 2>" +
+                          err_path + " & echo $!'"));
+}
+
+/// The id of the window whose name matches `name_regex`, once it is shown at
+/// its final place and size (x, width, height; negative: any), or "" after
+/// 60 s. A window exists (and `xdotool search --sync` finds it) before the
+/// first picture sizes it and before it is moved: clicks sent then land
+/// elsewhere (one lost click pair failed a loaded CI run).
+std::string wait_for_window(const std::string& env, const std::string& name_regex, int x, int width, int height) {
+  std::string id;
+  const bool shown = wait_until(
+      [&] {
+        id = sh_out(env + "xdotool search --onlyvisible --name '" + name_regex + "' 2>/dev/null | head -1");
+        if (id.empty()) return false;
+        const std::string g = sh_out(env + "xdotool getwindowgeometry --shell " + id + " 2>/dev/null");
+        auto value = [&](const std::string& key) {
+          const auto at = g.find(key + "=");
+          return at == std::string::npos ? -1 : std::atoi(g.c_str() + at + key.size() + 1);
+        };
+        return (x < 0 || value("X") == x) && (width < 0 || value("WIDTH") == width) &&
+               (height < 0 || value("HEIGHT") == height);
+      },
+      60.0);
+  return shown ? id : std::string();
+}
 }  // namespace
 
 TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
@@ -394,13 +425,14 @@ TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
     ASSERT_EQ(s.status, 0) << s.err;
     const std::string out_path = temp_path(".json"), err_path = temp_path(".err");
     const std::string snapshot = i == 0 ? " --snapshot " + temp_path("") : "";
-    const std::string pid_text = sh_out(env + "sh -c '" + FORESIGHT_BIN_DIR + "/foresight click --camera " + kCamera +
-                                        " --image " + frame + " --model robot --joints " + joints_text(q) + " --out " +
-                                        csv + " --append --json" + snapshot + " >" + out_path + " 2>" + err_path +
-                                        " & echo $!'");
-    const pid_t pid = std::stoi(pid_text);
-    const std::string model_win = sh_out(env + "timeout 60 xdotool search --sync --name '^foresight click: model$' | head -1");
-    const std::string image_win = sh_out(env + "timeout 60 xdotool search --sync --name '" + image_window + "' | head -1");
+    const pid_t pid = start_foresight(env,
+                                      "click --camera " + kCamera + " --image " + frame + " --model robot --joints " +
+                                          joints_text(q) + " --out " + csv + " --append --json" + snapshot,
+                                      out_path, err_path);
+    // Both windows the frame's size, side by side (click places them so).
+    const int w_px = w.truth.viewport.width_px, h_px = w.truth.viewport.height_px;
+    const std::string model_win = wait_for_window(env, "^foresight click: model$", 0, w_px, h_px);
+    const std::string image_win = wait_for_window(env, image_window, w_px + 16, w_px, h_px);
     ASSERT_FALSE(model_win.empty()) << read_file(err_path);
     ASSERT_FALSE(image_win.empty()) << read_file(err_path);
     // The model window's points (as the command draws them) and their true image points.
@@ -505,12 +537,11 @@ TEST(DisplayCli, RemoteCameraKeySwitchesTheRemotesVideoFirst) {
   // returns its --json.
   auto run_and_press_c = [&](const std::function<void()>& before_c) {
     const std::string out_path = temp_path(".json"), err_path = temp_path(".err");
-    const std::string pid_text =
-        sh_out(env + "sh -c '" + FORESIGHT_BIN_DIR + "/foresight display --remote --domain " + std::to_string(domain) +
-               " --cameras " + cams + " --camera " + kCamera + " --video synthetic --fps 15 --frames 150 --json >" +
-               out_path + " 2>" + err_path + " & echo $!'");
-    const pid_t pid = std::stoi(pid_text);
-    const std::string win = sh_out(env + "timeout 60 xdotool search --sync --name '^foresight display$' | head -1");
+    const pid_t pid = start_foresight(env,
+                                      "display --remote --domain " + std::to_string(domain) + " --cameras " + cams +
+                                          " --camera " + kCamera + " --video synthetic --fps 15 --frames 150 --json",
+                                      out_path, err_path);
+    const std::string win = wait_for_window(env, "^foresight display$", -1, -1, -1);
     EXPECT_FALSE(win.empty()) << read_file(err_path);
     before_c();
     EXPECT_TRUE(wait_until([&] { return sh(env + "xdotool key --window " + win + " c") == 0 || kill(pid, 0) != 0; },

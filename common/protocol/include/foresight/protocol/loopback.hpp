@@ -19,9 +19,20 @@ std::string loopback_config_xml();
 /// it (a user's own configuration wins). Returns true when it set it.
 bool use_loopback_if_unconfigured();
 
-/// A domain id for this process: derived from the pid so tests that ctest
-/// runs in parallel do not see each other's traffic. In 1..230 (Cyclone's
-/// default port mapping allows ids up to 232); FORESIGHT_DDS_DOMAIN overrides.
+/// Claims a DDS domain id in [first, last] that no other process on this host
+/// holds: an exclusive flock on /tmp/foresight-dds-domain-<id>.lock, kept until
+/// the process exits (child processes it starts on that domain need no lock of
+/// their own). The search starts at a pid-derived id so that concurrent
+/// claimers rarely contend. ProtocolError when every id in the range is held
+/// ("no free DDS domain in 1..230: every one is held by another process").
+dds_domainid_t claim_free_domain(dds_domainid_t first, dds_domainid_t last);
+
+/// The domain id of this process's tests: claimed once with
+/// claim_free_domain(1, 230) and the same on every later call, so tests that
+/// ctest runs in parallel never share a domain (a pid modulo the range did:
+/// threads use up pids, so a long test met a short one's domain now and then).
+/// Cyclone's default port mapping allows ids up to 232. FORESIGHT_DDS_DOMAIN
+/// overrides (no claim is made then).
 dds_domainid_t unique_test_domain();
 
 }  // namespace foresight::protocol
