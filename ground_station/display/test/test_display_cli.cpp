@@ -9,6 +9,7 @@
 //    in synthetic frames, writes a CSV from which `calibrate` recovers the true
 //    camera (and `calibrate --plot` draws its residual picture).
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -300,26 +301,35 @@ TEST(DisplayCli, UnopenableVideoSourceIsSaidAndRetriedBoundedByFrames) {
 
 namespace {
 
-/// An Xvfb of our own on a free display number; stops it on destruction.
+/// An Xvfb of our own on a display number the server picks itself
+/// (-displayfd: two tests started at once never share one); stops it on
+/// destruction.
 class Xvfb {
  public:
   Xvfb() {
     if (!exists("/usr/bin/Xvfb")) return;
-    for (int n = 91; n < 160 && display_.empty(); ++n) {
-      const std::string sock = "/tmp/.X11-unix/X" + std::to_string(n), lock = "/tmp/.X" + std::to_string(n) + "-lock";
-      if (exists(sock) || exists(lock)) continue;
-      pid_ = fork();
-      if (pid_ == 0) {
-        const std::string d = ":" + std::to_string(n);
-        if (freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
-        execl("/usr/bin/Xvfb", "Xvfb", d.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp", nullptr);
-        _exit(127);
-      }
-      if (wait_until([&] { return exists(sock); }, 15.0))
-        display_ = ":" + std::to_string(n);
-      else
-        stop();
+    int fds[2];
+    if (pipe(fds) != 0) return;
+    pid_ = fork();
+    if (pid_ == 0) {
+      close(fds[0]);
+      if (freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
+      const std::string fd = std::to_string(fds[1]);
+      execl("/usr/bin/Xvfb", "Xvfb", "-displayfd", fd.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp",
+            nullptr);
+      _exit(127);
     }
+    close(fds[1]);
+    // Xvfb writes its display number and a newline once it accepts clients.
+    std::string number;
+    char c = 0;
+    pollfd p{fds[0], POLLIN, 0};
+    while (number.size() < 8 && poll(&p, 1, 30000) == 1 && read(fds[0], &c, 1) == 1 && c != '\n') number += c;
+    close(fds[0]);
+    if (c == '\n' && !number.empty())
+      display_ = ":" + number;
+    else
+      stop();
   }
   ~Xvfb() { stop(); }
   const std::string& display() const { return display_; }
@@ -401,7 +411,7 @@ TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
   if (!exists("/usr/bin/Xvfb")) GTEST_SKIP() << "Xvfb is not installed (Debian package xvfb; scripts/setup.sh installs it)";
   if (!exists("/usr/bin/xdotool")) GTEST_SKIP() << "xdotool is not installed (scripts/setup.sh installs it)";
   Xvfb x;
-  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start on any display :91-:159";
+  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start (or did not say its display within 30 s)";
   World w;
   KinematicsWorkspace ws(w.model);
   // Three arm poses in front of the work site (the tool 20-40 cm before the ORU).
@@ -519,7 +529,7 @@ TEST(DisplayCli, RemoteCameraKeySwitchesTheRemotesVideoFirst) {
   if (!exists("/usr/bin/Xvfb")) GTEST_SKIP() << "Xvfb is not installed (Debian package xvfb; scripts/setup.sh installs it)";
   if (!exists("/usr/bin/xdotool")) GTEST_SKIP() << "xdotool is not installed (scripts/setup.sh installs it)";
   Xvfb x;
-  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start on any display :91-:159";
+  ASSERT_FALSE(x.display().empty()) << "Xvfb did not start (or did not say its display within 30 s)";
   protocol::use_loopback_if_unconfigured();
   const int domain = static_cast<int>(protocol::unique_test_domain());
   test::RemoteProcess::Options o;
