@@ -477,6 +477,15 @@ class ControllerFaults : public ::testing::Test {
     for (int k = 0; k < 200; ++k) b.step();
     ASSERT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
   }
+  /// The hardware layer's report of a drive EMCY on node 3 (joint 3, index 2)
+  /// that requires a stop, as the drive system sets it in the cycle's input.
+  static void inject_drive_emergency(Bench& b) {
+    b.in.hw_stop_required = true;
+    b.in.hw_drive_fault = true;
+    b.in.hw_fault = static_cast<std::uint8_t>(hw::HwFault::Emergency);
+    b.in.hw_node = 3;
+    b.in.hw_joint = 2;
+  }
   static void expect_stop(Bench& b, StopCause cause, StopCategory cat) {
     ASSERT_EQ(b.stops.size(), 1u);
     const StopEvent& s = b.stops[0];
@@ -539,11 +548,7 @@ TEST_F(ControllerFaults, EStopIsCat0AndRecoverNeedsItReleased) {
 TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
   Bench b(home_q());
   start_motion(b);
-  b.in.hw_stop_required = true;
-  b.in.hw_drive_fault = true;
-  b.in.hw_fault = 4;
-  b.in.hw_node = 3;
-  b.in.hw_joint = 2;
+  inject_drive_emergency(b);
   b.in.hw_code = 0x8611;
   b.step();
   EXPECT_TRUE(b.out.quick_stop);
@@ -563,11 +568,7 @@ TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
 TEST_F(ControllerFaults, RecoverRightAfterTheStopsDisableEnablesTheDrives) {
   Bench b(home_q());
   start_motion(b);
-  b.in.hw_stop_required = true;
-  b.in.hw_drive_fault = true;
-  b.in.hw_fault = 4;
-  b.in.hw_node = 3;
-  b.in.hw_joint = 2;
+  inject_drive_emergency(b);
   b.step();
   b.in.hw_stop_required = false;
   b.in.hw_drive_fault = false;
