@@ -1,6 +1,8 @@
 #include "foresight/align/alignment_study.hpp"
 
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -15,6 +17,14 @@
 #include "foresight/render/synthetic_camera.hpp"
 
 namespace foresight::align {
+
+namespace {
+
+bool refused_for_disagreement(const AlignResult& r) {
+  return r.status == AlignStatus::Refused && r.reason.rfind("the object moved", 0) == 0;
+}
+
+}  // namespace
 
 AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotModel& robot, const ObjectModel& object,
                                          const Scene& scene, const AlignmentStudyOptions& opt) {
@@ -98,6 +108,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
 
     // Clicks: calibration on the true arm, the believed points from the nominal arm.
     std::map<std::string, Camera> cams;
+    std::map<std::string, Eigen::Matrix<double, 7, 7>> cam_information;
     std::vector<Correspondence> oru_clicks;
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
@@ -108,7 +119,9 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       ViewClicks vc = simulate_view_clicks(view, view.calibration_points_base, true_base, setup.base_T_object,
                                            [&] { return noise(rng); });
       try {
-        cams[view.truth.name] = calibrate_camera(vc.calibration, vp, view.truth.name).camera;
+        const CalibrationResult cr = calibrate_camera(vc.calibration, vp, view.truth.name);
+        cams[view.truth.name] = cr.camera;
+        cam_information[view.truth.name] = cr.information;
       } catch (const Error&) {
         ok = false;
       }
@@ -121,6 +134,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     }
     // Clicks localization per combination.
     std::vector<std::optional<Pose>> clicks_pose(combos.size());
+    std::vector<Eigen::Matrix<double, 6, 6>> clicks_cov(combos.size(), Eigen::Matrix<double, 6, 6>::Zero());
     for (std::size_t ci = 0; ci < combos.size(); ++ci) {
       LocalizationOptions lo;
       std::vector<Correspondence> pts;
@@ -131,11 +145,28 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       }
       try {
         clicks_pose[ci] = localize_object(pts, cams, lo).base_T_object;
+        // The clicks' uncertainty for the alignment's agreement check: the
+        // joint estimate's (the cameras' calibration uncertainty included);
+        // the pose stays the paper's two-step one.
+        lo.camera_information = cam_information;
+        clicks_cov[ci] = localize_object(pts, cams, lo).covariance;
       } catch (const Error&) {
         ++combos[ci].clicks_failures;
       }
     }
     ++good;
+    // The clicks' position uncertainty for the alignment's agreement check:
+    // the joint estimate's covariance (clicks and the cameras' calibration)
+    // plus the arm model's: the calibration's 3-D points come from the
+    // nominal arm, whose link lengths the ground believes to within
+    // arm_link_prior_m each, so the cameras and the clicked ORU inherit up to
+    // sqrt(links) x that per axis (an upper estimate: the links' errors
+    // added in line). Without it the multi-view clicks covariance
+    // was 3-8x optimistic here.
+    const double arm_var = static_cast<double>(nls) * opt.arm_link_prior_m * opt.arm_link_prior_m;
+    auto clicks_position_cov = [&](std::size_t ci) -> Eigen::Matrix3d {
+      return clicks_cov[ci].bottomRightCorner<3, 3>() + arm_var * Eigen::Matrix3d::Identity();
+    };
 
     // Synthetic frames of the true arm (the ORU at its true pose).
     render::SyntheticOptions so;
@@ -184,6 +215,31 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         ++res.bundle_refused;
       }
     }
+    if (const char* dump = std::getenv("FORESIGHT_STUDY_DUMP"); dump && std::atoi(dump) == t) {
+      auto vec = [](const char* name, const double* d, int n) {
+        std::fprintf(stderr, "DUMP %s", name);
+        for (int k = 0; k < n; ++k) std::fprintf(stderr, " %.17g", d[k]);
+        std::fprintf(stderr, "\n");
+      };
+      vec("true_delta", delta.data(), static_cast<int>(delta.size()));
+      vec("arm_delta", arm_delta.data(), static_cast<int>(arm_delta.size()));
+      std::fprintf(stderr, "DUMP synth_seed %u\n", so.seed);
+      for (int v = 0; v < nv; ++v) {
+        const Eigen::Matrix4d M = bundle_cam[v].base_T_camera.matrix();
+        std::fprintf(stderr, "DUMP camera %d f %.17g", v, bundle_cam[v].f_px);
+        for (int k = 0; k < 16; ++k) std::fprintf(stderr, " %.17g", M(k % 4, k / 4));
+        std::fprintf(stderr, "\n");
+      }
+      for (std::size_t ci = 0; ci < combos.size(); ++ci) {
+        if (combos[ci].views.size() != 1 || !clicks_pose[ci]) continue;
+        const Eigen::Matrix4d M = clicks_pose[ci]->matrix();
+        std::fprintf(stderr, "DUMP clicks %s", combos[ci].label.c_str());
+        for (int k = 0; k < 16; ++k) std::fprintf(stderr, " %.17g", M(k % 4, k / 4));
+        const Eigen::Matrix3d pc = clicks_position_cov(ci);
+        for (int k = 0; k < 9; ++k) std::fprintf(stderr, " %.17g", pc(k % 3, k / 3));
+        std::fprintf(stderr, "\n");
+      }
+    }
     for (int v = 0; v < nv; ++v) res.camera_bundle_px[v] += reprojection_rms_px(bundle_cam[v], setup.views[v].truth, metric_points);
     // The ORU over each combination: with the step-5 cameras and arm, and
     // with the step-4 cameras (nominal arm) for comparison.
@@ -197,6 +253,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       }
       AlignOptions ao;
       ao.refine = Refine::Object;
+      ao.object_start_position_covariance_m2 = clicks_position_cov(ci);
       const AlignResult r0 = aligner.align(sub_cam_only, clicks_pose[ci], ao);
       if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_cameras_only_refused;
       acc_cam_only[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
@@ -204,9 +261,30 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         ao.arm_link_delta_m = arm_delta;
         const AlignResult r = aligner.align(sub, clicks_pose[ci], ao);
         if (r.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
+        if (refused_for_disagreement(r))
+          ++combos[ci].aligned_refused_disagreement;
+        if (std::getenv("FORESIGHT_STUDY_TRACE")) {
+          Pose end = r.base_T_object ? *r.base_T_object : *clicks_pose[ci];
+          // what the unrefused result would be: start + change
+          const auto ec = pose_error(*clicks_pose[ci], setup.base_T_object);
+          const auto ea = pose_error(end, setup.base_T_object);
+          const Eigen::Matrix<double, 6, 6> C = r.covariance.rows() >= 6 ? Eigen::Matrix<double, 6, 6>(r.covariance.bottomRightCorner(6, 6)) : Eigen::Matrix<double, 6, 6>::Zero();
+          std::fprintf(stderr,
+                       "TRACE t%d %-8s %s '%s' clicks_err %.1f %.1f %.1f mm -> %.1f %.1f %.1f mm | score %.2f->%.2f res %.2f vis %d match %d it %d "
+                       "| m %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm rot %.4f | clicks sd t %.1f %.1f %.1f mm\n",
+                       t, combos[ci].label.c_str(), to_string(r.status), r.reason.c_str(), ec[0] * 1e3, ec[1] * 1e3,
+                       ec[2] * 1e3, ea[0] * 1e3, ea[1] * 1e3, ea[2] * 1e3, r.start_score_px, r.final_score_px,
+                       r.residual_rms_px, r.visible_samples, r.matched_samples, r.iterations, r.start_disagreement_sigma, r.object_change[0],
+                       r.object_change[1], r.object_change[2], r.object_change[3] * 1e3, r.object_change[4] * 1e3,
+                       r.object_change[5] * 1e3, std::sqrt(C(3, 3)) * 1e3, std::sqrt(C(4, 4)) * 1e3,
+                       std::sqrt(C(5, 5)) * 1e3, std::sqrt(C(0, 0)), std::sqrt(clicks_cov[ci](3, 3)) * 1e3,
+                       std::sqrt(clicks_cov[ci](4, 4)) * 1e3, std::sqrt(clicks_cov[ci](5, 5)) * 1e3);
+        }
         acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
       } else {
         if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
+        if (refused_for_disagreement(r0))
+          ++combos[ci].aligned_refused_disagreement;
         acc_aligned[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
       }
     }

@@ -3,9 +3,12 @@
 // start 5 px off converging with noise, a start 50 px off refused or
 // converged (never silently wrong), the object pose refined over views, and
 // the refusals (model not in view, too few edges).
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <memory>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -328,6 +331,162 @@ TEST(Align, ArmLinkLengthsWithTheCameras) {
 
 // A driver for measurements (not run by ctest: DISABLED_): the alignment
 // study with FORESIGHT_STUDY_TRIALS / _SEED / _ARM_ERROR_MM / _PRIOR_MM.
+// `eval alignment` seed 2, trial 0, view 2 (oblique) alone: the ORU
+// alignment slid ~0.17 m from the clicks, along the oblique view's line of
+// sight, onto other edges, reporting a 2.5 mm sd: a silently wrong answer
+// (it passed the edge-distance and the 24 px rules; 29-30% matched, at the
+// limit). Reproduced from the study's own inputs (the true arm's link
+// errors, the synthetic camera's seed, the bundle-adjusted camera and arm,
+// the clicks pose and the clicks' position covariance: joint estimate plus
+// the arm model's 10 x (2 mm)^2), printed by the study (FORESIGHT_STUDY_DUMP).
+// The same trial's view 4 (overhead_zoom, clicks 22 mm off) is a good
+// alignment the rule keeps.
+namespace {
+
+Pose pose_from(const std::array<double, 16>& m) {  // column-major 4x4
+  Eigen::Matrix4d M = Eigen::Map<const Eigen::Matrix4d>(m.data());
+  Pose T = Pose::Identity();
+  T.matrix() = M;
+  return T;
+}
+
+Eigen::Matrix3d matrix3_from(const std::array<double, 9>& m) { return Eigen::Map<const Eigen::Matrix3d>(m.data()); }
+
+struct Seed2Trial0 {
+  World w;
+  std::vector<std::vector<int>> view_poses;
+  std::vector<Eigen::VectorXd> arm_q;
+  std::unique_ptr<SyntheticCamera> synth;
+  std::vector<double> arm_delta{-0.0022349049783701521, 0.0015114762616777564, -0.0025910361473134871,
+                                0.0004727366285684033,  0.0019093552097799668, -0.0038527906936825919,
+                                0.0028479263559763202,  -0.00067003283252899267, -0.00032939602041898744, 0};
+  RobotModel truth_arm = w.model.with_link_lengths_changed(
+      {-0.0022978332227732547, 0.001541391788480648, -0.0027292922779448038, 0.00052054273314506704,
+       0.0018545429158673375, -0.0038486163051447745, 0.0028192859748882113, -0.0017357187934516241,
+       0.00068046599337972407, -0.0019244058186935302});
+
+  Seed2Trial0() {
+    StudySetup setup = make_study_setup(w.scene, w.oru, {});
+    choose_calibration_points(setup, arm_calibration_poses(w.model));
+    arm_q = setup.arm_q;
+    for (const auto& v : setup.views) {
+      view_poses.emplace_back();
+      for (const auto& f : v.calibration_features)
+        if (view_poses.back().empty() || view_poses.back().back() != f.pose) view_poses.back().push_back(f.pose);
+    }
+    SyntheticOptions so;
+    so.noise_sigma_dn = 2.0;
+    so.blur_sigma_px = 0.6;
+    so.seed = 15838;  // 2 x 7919 + trial 0
+    synth = std::make_unique<SyntheticCamera>(*w.ctx, truth_arm, w.oru, w.scene, scene_camera(w.scene, "side").viewport, so);
+  }
+
+  AlignView view(int v, const Camera& camera) {
+    AlignView out{camera, {}};
+    const Camera truth = scene_camera(w.scene, v == 1 ? "oblique" : "overhead_zoom");
+    for (const int p : view_poses[v]) out.frames.push_back({synth->render(truth, arm_q[p]).image_bgr, arm_q[p]});
+    return out;
+  }
+};
+
+Camera camera_from(const Camera& like, double f_px, const std::array<double, 16>& m) {
+  Camera c = like;
+  c.f_px = f_px;
+  c.base_T_camera = pose_from(m);
+  return c;
+}
+
+double position_error_m(const Pose& est, const Pose& truth) { return (est.translation() - truth.translation()).norm(); }
+
+}  // namespace
+
+TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
+  Seed2Trial0 t;
+  const Camera oblique = camera_from(
+      scene_camera(t.w.scene, "oblique"), 640.17115357376872,
+      {0.75931091569290576, -0.65072800051314528, -5.1553512760573943e-05, 0, -0.29808987380653129,
+       -0.34775984303126994, -0.88893504751971186, 0, 0.57843699781705515, 0.6749934525038227, -0.45803327240863467, 0,
+       -0.40011049609425764, -1.3005145639218141, 1.5004470496227191, 1});
+  const Pose clicks = pose_from({-0.0023515161194228593, -0.9999967971331869, -0.00093599963001425232, 0,
+                                 0.0075600088782444876, 0.00091819794524421769, -0.99997100116868076, 0,
+                                 0.99996865782768452, -0.0023585240937166073, 0.0075578255072738694, 0,
+                                 0.99072633939762289, 0.13023022727093139, 0.56825723482217216, 1});
+  const Eigen::Matrix3d clicks_cov = matrix3_from(
+      {0.00010665615488197549, 7.6741995012286502e-05, -5.212486850846563e-05, 7.6741995012290527e-05,
+       0.00014011456121675747, -6.6928486125283684e-05, -5.2124868508466294e-05, -6.6928486125281475e-05,
+       8.7076109359291565e-05});
+  const AlignView view = t.view(1, oblique);
+  ModelAligner aligner(*t.w.ctx, t.w.model, &t.w.oru, oblique.viewport);
+  AlignOptions o;
+  o.refine = Refine::Object;
+  o.arm_link_delta_m = t.arm_delta;
+  const Pose& truth = t.w.scene.base_T_object;
+  const double clicks_error = position_error_m(clicks, truth);
+
+  // Without the clicks' covariance, and the matched-fraction limit a little
+  // lower (29% matched here; the study's first run had 30.1% and passed):
+  // accepted, and far off the truth. This is the silent wrong answer.
+  AlignOptions loose = o;
+  loose.min_matched_fraction = 0.25;
+  const AlignResult wrong = aligner.align({view}, clicks, loose);
+  ASSERT_EQ(wrong.status, AlignStatus::Aligned) << wrong.reason;
+  const double wrong_error = position_error_m(*wrong.base_T_object, truth);
+  const double wrong_sd = std::sqrt(wrong.covariance.block<3, 3>(3, 3).trace());
+  std::printf("seed 2 trial 0 oblique alone: clicks %.1f mm off; the alignment %.1f mm off claiming %.1f mm (sd, 3-D)\n",
+              clicks_error * 1e3, wrong_error * 1e3, wrong_sd * 1e3);
+  EXPECT_GT(wrong_error, 0.1);
+  EXPECT_LT(wrong_sd, 0.01);
+
+  // With the clicks' position covariance: refused for the disagreement, the
+  // clicks pose kept.
+  o.object_start_position_covariance_m2 = clicks_cov;
+  loose.object_start_position_covariance_m2 = clicks_cov;
+  for (const AlignOptions& opt : {o, loose}) {
+    const AlignResult r = aligner.align({view}, clicks, opt);
+    std::printf("  refused: %s\n", r.reason.c_str());
+    ASSERT_EQ(r.status, AlignStatus::Refused);
+    EXPECT_GT(r.start_disagreement_sigma, 5.0);
+    EXPECT_THAT(r.reason, ::testing::MatchesRegex(
+                              "the object moved 1[0-9][0-9] mm from its start pose, [0-9]+\\.[0-9] sigma of the start's "
+                              "and the alignment's position uncertainty together \\(limit 5\\.0\\): the edges disagree "
+                              "with the start \\(the clicks\\)"));
+    ASSERT_TRUE(r.base_T_object);
+    EXPECT_TRUE(r.base_T_object->matrix() == clicks.matrix());
+  }
+}
+
+TEST(Align, SingleViewOruCloseToTheClicksIsKept) {
+  Seed2Trial0 t;
+  const Camera zoom = camera_from(
+      scene_camera(t.w.scene, "overhead_zoom"), 1099.6116647272622,
+      {3.4949756288404522e-05, -0.99999999913784554, -2.2423719082050054e-05, 0, -0.97558135062367857,
+       -2.9171220651472302e-05, -0.21963840161574605, 0, 0.21963840077225666, 2.9552470755974696e-05,
+       -0.97558135080210295, 0, 0.50000024318799152, 0.1499487432395421, 2.5493973084880861, 1});
+  const Pose clicks = pose_from({-9.8806025369313545e-05, -0.99998877124391272, -0.0047378923013417238, 0,
+                                 0.0025548676019013766, 0.0047376244280254113, -0.99998551367823074, 0,
+                                 0.99999673143911116, -0.00011090928157542684, 0.0025543708080768297, 0,
+                                 1.0011854805732687, 0.14902589458966148, 0.57201549233889026, 1});
+  const Eigen::Matrix3d clicks_cov = matrix3_from(
+      {4.2953141175651356e-05, 9.5635387306529097e-08, -1.2657019500421706e-05, 9.5635387306616646e-08,
+       4.1907596411619036e-05, -1.2847249616000711e-06, -1.2657019500421932e-05, -1.2847249615993982e-06,
+       0.00013722567074472166});
+  const AlignView view = t.view(3, zoom);
+  ModelAligner aligner(*t.w.ctx, t.w.model, &t.w.oru, zoom.viewport);
+  AlignOptions o;
+  o.refine = Refine::Object;
+  o.arm_link_delta_m = t.arm_delta;
+  o.object_start_position_covariance_m2 = clicks_cov;
+  const AlignResult r = aligner.align({view}, clicks, o);
+  ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
+  const Pose& truth = t.w.scene.base_T_object;
+  std::printf("seed 2 trial 0 overhead_zoom alone: clicks %.1f mm off, aligned %.2f mm off, %.1f sigma from the clicks\n",
+              position_error_m(clicks, truth) * 1e3, position_error_m(*r.base_T_object, truth) * 1e3,
+              r.start_disagreement_sigma);
+  EXPECT_GT(position_error_m(clicks, truth), 0.02);
+  EXPECT_LT(position_error_m(*r.base_T_object, truth), 0.002);
+  EXPECT_LT(r.start_disagreement_sigma, 5.0);
+}
+
 TEST(AlignStudy, DISABLED_Driver) {
   World w;
   AlignmentStudyOptions o;

@@ -121,6 +121,7 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
                         {"aligned_cameras_only", summary_json(c.aligned_cameras_only)},
                         {"clicks_failures", c.clicks_failures},
                         {"aligned_refused", c.aligned_refused},
+                        {"aligned_refused_disagreement", c.aligned_refused_disagreement},
                         {"aligned_cameras_only_refused", c.aligned_cameras_only_refused}});
     nlohmann::json links = nlohmann::json::array();
     for (std::size_t j = 0; j < r.link_segments.size(); ++j)
@@ -165,14 +166,15 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
               "%.2f mm rms\n",
               a.arm_prior_mm, r.bundle_refused, r.link_true_rms_all_m * 1e3, r.link_estimate_error_rms_all_m * 1e3);
   if (r.calibration_failures) std::printf("  %d trials skipped: a calibration failed\n", r.calibration_failures);
-  std::printf("\n%-9s %28s %28s %9s\n", "views", "clicks: mm / deg / 95% cm", "aligned: mm / deg / 95% cm", "refused");
+  std::printf("\n%-9s %28s %28s %9s %s\n", "views", "clicks: mm / deg / 95% cm", "aligned: mm / deg / 95% cm", "refused",
+              "(of which the ORU moved beyond the clicks' uncertainty)");
   for (const auto& c : r.combos) {
     char cl[64], al[64];
     std::snprintf(cl, sizeof cl, "%6.2f / %6.3f / %5.3f", c.clicks.position_rmse_m * 1e3, c.clicks.rotation_rmse_rad / kDeg,
                   c.clicks.alignment95_m * 100);
     std::snprintf(al, sizeof al, "%6.2f / %6.3f / %5.3f", c.aligned.position_rmse_m * 1e3,
                   c.aligned.rotation_rmse_rad / kDeg, c.aligned.alignment95_m * 100);
-    std::printf("%-9s %28s %28s %9d\n", c.label.c_str(), cl, al, c.aligned_refused);
+    std::printf("%-9s %28s %28s %9d (%d)\n", c.label.c_str(), cl, al, c.aligned_refused, c.aligned_refused_disagreement);
   }
   std::printf("\nFour views: 95%% alignment %.3f cm by clicks, %.3f cm aligned (%.2fx lower). Single views: mean 95%% "
               "depth %.3f cm by clicks, %.3f cm aligned (%.2fx lower).  (%.1f s)\n",

@@ -29,6 +29,17 @@
 // Errors in the ORU frame as the localization study (x, y, z, theta; the
 // paper's 95% alignment |mu_xy| + 2 sigma_xy and depth |mu_z| + 2 sigma_z).
 //
+// Each ORU alignment is given the clicks' position covariance (the joint
+// estimate's, plus the arm model's sqrt(links) x arm_link_prior_m per axis)
+// and is refused when it moves further than 5 sigma from the clicks
+// (AlignOptions::object_start_position_covariance_m2).
+// Diagnostics on stderr: FORESIGHT_STUDY_TRACE=1 prints one line per ORU
+// alignment (status, reason, errors, scores, the move in sigmas, sds);
+// FORESIGHT_STUDY_DUMP=K prints trial K's inputs at full precision (true
+// and estimated link errors, the synthetic camera's seed, the cameras, the
+// single-view clicks poses and covariances): how test_align's seed-2 case
+// was taken.
+//
 // Not real-time code: renders, allocates; seconds per trial.
 
 #include <functional>
@@ -62,6 +73,10 @@ struct AlignmentComboStats {
   ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
   int clicks_failures = 0;
   int aligned_refused = 0;  ///< trials where the ORU alignment refused (clicks pose kept)
+  /// of which: the ORU moved from the clicks pose beyond the clicks' and the
+  /// alignment's position uncertainty (AlignOptions::
+  /// object_start_position_covariance_m2, the clicks' joint covariance)
+  int aligned_refused_disagreement = 0;
   int aligned_cameras_only_refused = 0;
 };
 

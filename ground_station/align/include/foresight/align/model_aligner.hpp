@@ -65,7 +65,7 @@ struct AlignOptions {
   /// The edge search's bias predicted from the model's own appearance (the
   /// model rendered lit and anti-aliased through the current camera, the
   /// search run on it where the true edge is known) and subtracted at the
-  /// fine levels: shading ramps beside silhouettes moved the gradient peaks
+  /// finest level: shading ramps beside silhouettes moved the gradient peaks
   /// 0.1-0.3 px inwards (docs/estimation.md). `optical_blur_px`: the
   /// camera's blur (Gaussian sd, px) applied to that prediction.
   bool predict_edge_bias = true;
@@ -86,6 +86,18 @@ struct AlignOptions {
   /// empty: none): the model that is rendered, sampled and (with
   /// arm_link_prior_m) the start of their refinement.
   std::vector<double> arm_link_delta_m;
+  /// The uncertainty of the object's start pose: the covariance (m^2, base
+  /// frame) of its position, e.g. the click solution's
+  /// (LocalizationResult::covariance, its position block). When given, an
+  /// object alignment whose position ends further from the start than
+  /// `max_start_disagreement_sigma` in the metric of the start's and the
+  /// alignment's position covariances together is refused: the edges and
+  /// the clicks disagree beyond both their uncertainties, and one view
+  /// cannot say which is wrong (seen: a single oblique view whose
+  /// ORU slid 0.17 m along its line of sight onto other edges, reporting a
+  /// 2.5 mm sd).
+  std::optional<Eigen::Matrix3d> object_start_position_covariance_m2;
+  double max_start_disagreement_sigma = 5.0;
 };
 
 /// One image of a camera with the arm at joint angles q.
@@ -118,6 +130,10 @@ struct AlignResult {
   int visible_samples = 0;            ///< model edge samples visible at the end (all frames)
   int matched_samples = 0;            ///< of which found an image edge within 1 px
   int iterations = 0;
+  /// With AlignOptions::object_start_position_covariance_m2: the object's
+  /// position move from the start in sigmas of (start + alignment)
+  /// position covariance (the Mahalanobis distance); else 0.
+  double start_disagreement_sigma = 0.0;
   /// Parameter change, per camera (roll,pitch,yaw rad body increment; x,y,z
   /// m; f_px), then the object (rotation vector rad, translation m).
   std::vector<Eigen::Matrix<double, 7, 1>> camera_change;
