@@ -47,6 +47,7 @@
 #include "foresight/remote/supervisor.hpp"
 #include "foresight/remote/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
+#include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/plant.hpp"
 
 namespace {
@@ -165,6 +166,7 @@ int run_daemon(const Options& o) {
   remote::SiteOptions site_options;
   site_options.remote_yaml = o.config;
   site_options.sim = o.sim;
+  site_options.sim_rt_priority = std::max(1, o.rt_priority - 1);
   if (!o.sim_faults.empty() && !o.sim)
     throw foresight::InputError("--sim-faults", "fault injection needs --sim (a real cabinet breaks by itself)");
   remote::Site site = remote::build_site(site_options);
@@ -190,6 +192,13 @@ int run_daemon(const Options& o) {
   // What bring-up recovered from (an SDO retry that was answered): worth a
   // commissioning engineer's look, not a failure.
   for (const auto& notice : site.drives->setup_notices()) spdlog::warn("bring-up: {}", notice);
+  if (site.simulated && site.simulated->can) {  // its thread answered configure(): started
+    if (site.simulated->can->realtime() == 1)
+      spdlog::info("simulated drives: SCHED_FIFO priority {}", site_options.sim_rt_priority);
+    else
+      spdlog::warn("simulated drives: SCHED_FIFO not permitted, a normal thread (late TPDOs on a busy host are "
+                   "scheduling, not the drives)");
+  }
 
   control::ControllerConfig cc;
   cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;

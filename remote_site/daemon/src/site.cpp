@@ -96,7 +96,7 @@ Site build_site(SiteOptions options) {
 
     sim.plant = sim::Plant::from_files(options.urdf, options.oru_yaml, options.scene_yaml);
     sim.plant->attach(*sim.can, sim.lst.get());
-    sim.can->start();  // power-on: the nodes send their boot-up messages
+    sim.can->start(options.sim_rt_priority);  // power-on: the nodes send their boot-up messages
     site.simulated = std::move(sim);
     spdlog::info("simulated site: {} drives and the F/T sensor on {} mock bus(es), LST on 127.0.0.1:{}, "
                  "video switch on 127.0.0.1:{}",

@@ -12,8 +12,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 
 namespace foresight::hw {
 
@@ -65,7 +67,11 @@ const char* to_string(CanIo io) noexcept {
   return "?";
 }
 
-CanBus::CanBus(std::string name, int fd) : name_(std::move(name)), fd_(fd) {}
+CanBus::CanBus(std::string name, int fd) : name_(std::move(name)), fd_(fd) {
+  // Kernel stamps for read(frame, stamp); without them (an old kernel) the stamp is 0.
+  const int on = 1;
+  (void)::setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+}
 
 CanBus::~CanBus() {
   if (fd_ >= 0) ::close(fd_);
@@ -115,9 +121,22 @@ void CanBus::note_error_frame(const can_frame& frame) noexcept {
 }
 
 CanIo CanBus::read(can_frame& frame) noexcept {
+  std::int64_t unused = 0;
+  return read(frame, unused);
+}
+
+CanIo CanBus::read(can_frame& frame, std::int64_t& stamp_ns) noexcept {
+  stamp_ns = 0;
   // Bounded: a burst of filtered frames cannot keep us here forever.
   for (int attempt = 0; attempt < 64; ++attempt) {
-    const ssize_t n = ::recv(fd_, &frame, sizeof frame, MSG_DONTWAIT | MSG_TRUNC);
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
+    iovec iov{&frame, sizeof frame};
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control;
+    msg.msg_controllen = sizeof control;
+    const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT | MSG_TRUNC);
     if (n < 0) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) return CanIo::WouldBlock;
       if (errno == EINTR) continue;
@@ -138,6 +157,15 @@ CanIo CanBus::read(can_frame& frame) noexcept {
     if (!passes_filters(id)) {
       ++health_.filtered;
       continue;
+    }
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+      if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SO_TIMESTAMPNS) continue;
+      timespec sent{}, real{}, mono{};
+      std::memcpy(&sent, CMSG_DATA(c), sizeof sent);
+      ::clock_gettime(CLOCK_REALTIME, &real);
+      ::clock_gettime(CLOCK_MONOTONIC, &mono);
+      const std::int64_t age_ns = (real.tv_sec - sent.tv_sec) * 1000000000LL + (real.tv_nsec - sent.tv_nsec);
+      stamp_ns = mono.tv_sec * 1000000000LL + mono.tv_nsec - std::max<std::int64_t>(0, age_ns);
     }
     return CanIo::Ok;
   }

@@ -60,6 +60,26 @@ TEST(MockCanBus, CarriesFramesBothWaysIntact) {
   EXPECT_EQ(f.can_dlc, 0);
 }
 
+// The read's stamp is when the frame was written, not when it was read: a
+// simulated node that reads late still times the bus by the master's clock.
+TEST(MockCanBus, ReadStampIsTheWriteTimeOnTheMonotonicClock) {
+  auto [a, b] = MockCanBus::create_pair("t");
+  auto mono_ns = [] { return std::chrono::steady_clock::now().time_since_epoch() / std::chrono::nanoseconds(1); };
+  const std::int64_t before = mono_ns();
+  ASSERT_EQ(a->write(make_frame(0x80, {})), CanIo::Ok);
+  const std::int64_t after = mono_ns();
+  // Read 30 ms later (measured, not assumed: any later read must give the same stamp).
+  while (mono_ns() < after + 30'000'000) std::this_thread::yield();
+  can_frame f{};
+  std::int64_t stamp = 0;
+  ASSERT_EQ(b->read(f, stamp), CanIo::Ok);
+  EXPECT_EQ(f.can_id, 0x80u);
+  // Kernel stamps are CLOCK_REALTIME, converted at the read: a few us of slack.
+  EXPECT_GE(stamp, before - 1'000'000);
+  EXPECT_LE(stamp, after + 1'000'000);
+  EXPECT_EQ(b->read(f, stamp), CanIo::WouldBlock);
+}
+
 TEST(MockCanBus, ReceiveFiltersFollowSocketCanSemantics) {
   auto [a, b] = MockCanBus::create_pair("t");
   const can_filter filters[] = {{0x180, 0x780}, {0x700 | CAN_INV_FILTER, 0x7FF}};

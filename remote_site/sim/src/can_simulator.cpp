@@ -2,7 +2,11 @@
 
 #include <linux/can/error.h>
 #include <poll.h>
+#include <pthread.h>
+#include <sched.h>
 
+#include <algorithm>
+#include <chrono>
 #include <numbers>
 #include <stdexcept>
 
@@ -235,10 +239,12 @@ void CanSimulator::process(int timeout_ms) {
     for (auto& b : buses_) fds.push_back({b->end->fd(), POLLIN, 0});
     ::poll(fds.data(), fds.size(), timeout_ms);
   }
-  process_at(Clock::now());
+  step(Clock::now(), true);
 }
 
-void CanSimulator::process_at(Clock::time_point now) {
+void CanSimulator::process_at(Clock::time_point now) { step(now, false); }
+
+void CanSimulator::step(Clock::time_point now, bool stamped) {
   std::lock_guard lock(step_mu_);
   power_on();
   for (auto& b : buses_) {
@@ -250,21 +256,35 @@ void CanSimulator::process_at(Clock::time_point now) {
   }
   for (std::size_t i = 0; i < buses_.size(); ++i) {
     can_frame f{};
+    Clock::time_point last{};
     for (int k = 0; k < 4096; ++k) {
-      const hw::CanIo io = buses_[i]->end->read(f);
-      if (io == hw::CanIo::Ok)
-        dispatch(i, f, now);
-      else if (io != hw::CanIo::ErrorFrame)
+      std::int64_t stamp_ns = 0;
+      const hw::CanIo io = buses_[i]->end->read(f, stamp_ns);
+      if (io == hw::CanIo::Ok) {
+        // When the master wrote it (bounded by now, and in bus order); the
+        // read time where the kernel gave no stamp.
+        Clock::time_point at = now;
+        if (stamped && stamp_ns > 0)
+          at = std::clamp(Clock::time_point(std::chrono::nanoseconds(stamp_ns)), last, now);
+        last = at;
+        dispatch(i, f, at);
+      } else if (io != hw::CanIo::ErrorFrame) {
         break;
+      }
     }
   }
   for (auto& b : buses_)
     for (SimNode* n : b->nodes) n->tick(now, *b);
 }
 
-void CanSimulator::start() {
+void CanSimulator::start(int rt_priority) {
   if (running_.exchange(true)) return;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this, rt_priority] {
+    sched_param sp{};
+    sp.sched_priority = rt_priority;
+    realtime_.store(rt_priority > 0 && pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0 ? 1 : 0);
+    run();
+  });
 }
 
 void CanSimulator::stop() {

@@ -39,6 +39,10 @@ struct SiteOptions {
   std::string scene_yaml;   ///< --sim: the simulated work site (default: scene.yaml beside remote_yaml)
   std::string oru_yaml;     ///< --sim: the ORU model (default: oru.yaml beside remote_yaml)
   bool sim = false;
+  /// --sim: SCHED_FIFO priority of the simulated drives' thread (0: a normal
+  /// thread). The daemon gives it the loop's priority minus one: simulated
+  /// hardware answers on time even on a busy host, as real drives do.
+  int sim_rt_priority = 0;
 };
 
 /// The simulated far ends (--sim only).

@@ -83,6 +83,13 @@ class CanBus {
   /// Read one frame. Data frames that do not pass the receive filters are
   /// skipped (counted in health().filtered). Real-time safe.
   CanIo read(can_frame& frame) noexcept;
+  /// read() that also gives when the kernel queued the frame, as
+  /// CLOCK_MONOTONIC ns (SO_TIMESTAMPNS, converted from CLOCK_REALTIME at the
+  /// read; 0 when the kernel gave no stamp): on the mock bus the moment the
+  /// other end wrote it, on SocketCAN its reception. A simulated node times
+  /// the bus by it, not by when its thread got round to reading (a lagging
+  /// thread would see two SYNCs at once). Real-time safe.
+  CanIo read(can_frame& frame, std::int64_t& stamp_ns) noexcept;
   /// Write one frame. Real-time safe; never blocks (WouldBlock when full).
   CanIo write(const can_frame& frame) noexcept;
   /// errno of the last SysError.

@@ -66,10 +66,19 @@ class CanSimulator {
 
   // ---- running ------------------------------------------------------------------
   /// Power on every node (boot-up messages) and run on a thread until stop().
-  void start();
+  /// rt_priority > 0: the thread asks for SCHED_FIFO at that priority, as the
+  /// drives' own processors never wait for a busy host; without the
+  /// permission it runs as a normal thread (realtime() says which; the
+  /// answer comes once the thread has started).
+  void start(int rt_priority = 0);
+  /// 1: the thread runs SCHED_FIFO, 0: normal thread, -1: not started yet.
+  int realtime() const noexcept { return realtime_.load(); }
   void stop();
   /// Single-threaded use: power on (first call), handle every frame waiting
   /// on the buses (waiting up to timeout_ms for the first), tick heartbeats.
+  /// Each frame reaches the nodes at the moment the master wrote it (the
+  /// bus's kernel stamp), so SYNC physics counts the master's real periods
+  /// even when this thread lags and reads two SYNCs at once.
   void process(int timeout_ms = 0);
   /// Single-threaded and deterministic: as process(0), at the simulated time
   /// `now` (non-decreasing; SYNC physics, heartbeats and frame delays count
@@ -118,6 +127,8 @@ class CanSimulator {
   void power_on();
   void run();
   void dispatch(std::size_t bus, const can_frame& f, Clock::time_point now);
+  // process() (frames at their bus stamps: `stamped`) and process_at() (all at `now`).
+  void step(Clock::time_point now, bool stamped);
 
   std::vector<std::unique_ptr<Bus>> buses_;
   std::vector<DriveEntry> drives_;
@@ -127,6 +138,7 @@ class CanSimulator {
   bool powered_ = false;
   std::thread thread_;
   std::atomic<bool> running_{false};
+  std::atomic<int> realtime_{-1};
   std::atomic<std::uint64_t> frames_in_{0}, frames_out_{0}, frames_dropped_{0}, frames_lost_{0};
 };
 
