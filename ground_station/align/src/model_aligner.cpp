@@ -776,6 +776,21 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
 
   // Start: visibility (the samples serve the first level too) and score.
   std::vector<Sample> samples;
+  // A sample's Tukey weight at scale c (0: unmatched or beyond c) and its
+  // row of the Jacobian over all refined parameters: the same in the
+  // Gauss-Newton steps, the step limit and the covariance.
+  auto tukey_weight = [](const Eval& ev, std::size_t i, double c) {
+    if (!ev.matched[i]) return 0.0;
+    const double u = ev.r[i] / c;
+    return std::abs(u) >= 1.0 ? 0.0 : (1 - u * u) * (1 - u * u);
+  };
+  auto jacobian_row = [&](const Eval& ev, std::size_t i, Eigen::VectorXd& row) {
+    row.setZero();
+    if (refine_camera) row.segment<7>(7 * samples[i].view) = ev.J[i].leftCols<7>().transpose();
+    if (refine_object) row.segment<6>(obj_col) = ev.J[i].rightCols<6>().transpose();
+    if (NL > 0) row.segment(link_col, NL) = ev.Jl[i].head(NL).transpose();
+  };
+
   {
     std::vector<int> per_view;
     collect(samples, &per_view, 0);
@@ -816,14 +831,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       double wsum = 0.0, wr2 = 0.0;
       Eigen::VectorXd row(P);
       for (std::size_t i = 0; i < samples.size(); ++i) {
-        if (!e.matched[i]) continue;
-        const double u = e.r[i] / c;
-        if (std::abs(u) >= 1.0) continue;
-        const double w = (1 - u * u) * (1 - u * u);
-        row.setZero();
-        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
-        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
-        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
+        const double w = tukey_weight(e, i, c);
+        if (w <= 0.0) continue;
+        jacobian_row(e, i, row);
         H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
         g += w * e.r[i] * row;
         wsum += w;
@@ -849,10 +859,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       // Limit the step to the search range (predicted pixel motion).
       double max_move = 0.0;
       for (std::size_t i = 0; i < samples.size(); i += 7) {
-        row.setZero();
-        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
-        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
-        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
+        jacobian_row(e, i, row);
         max_move = std::max(max_move, std::abs(row.dot(delta)));
       }
       if (max_move > L.search_px) delta *= L.search_px / max_move;
@@ -897,14 +904,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       Eigen::VectorXd row(P);
       int n = 0;
       for (std::size_t i = 0; i < samples.size(); ++i) {
-        if (!e.matched[i]) continue;
-        const double u = e.r[i] / c;
-        if (std::abs(u) >= 1.0) continue;
-        const double w = (1 - u * u) * (1 - u * u);
-        row.setZero();
-        if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
-        if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
-        if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
+        const double w = tukey_weight(e, i, c);
+        if (w <= 0.0) continue;
+        jacobian_row(e, i, row);
         H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
         auto it = score.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first;
         it->second += w * e.r[i] * row;
@@ -915,10 +917,8 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       if (NL > 0) {
         double wr2p = 0.0, wsump = 0.0;
         for (std::size_t i = 0; i < samples.size(); ++i) {
-          if (!e.matched[i]) continue;
-          const double u = e.r[i] / c;
-          if (std::abs(u) >= 1.0) continue;
-          const double w = (1 - u * u) * (1 - u * u);
+          const double w = tukey_weight(e, i, c);
+          if (w <= 0.0) continue;
           wr2p += w * e.r[i] * e.r[i];
           wsump += w;
         }
@@ -943,10 +943,8 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       // (by trace): the sandwich misses a bias shared by most edges.
       double wr2 = 0.0, wsum = 0.0;
       for (std::size_t i = 0; i < samples.size(); ++i) {
-        if (!e.matched[i]) continue;
-        const double u = e.r[i] / c;
-        if (std::abs(u) >= 1.0) continue;
-        const double w = (1 - u * u) * (1 - u * u);
+        const double w = tukey_weight(e, i, c);
+        if (w <= 0.0) continue;
         wr2 += w * e.r[i] * e.r[i];
         wsum += w;
       }
@@ -963,14 +961,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       if (o.edge_offset_sd_px > 0.0) {
         Eigen::VectorXd a = Eigen::VectorXd::Zero(P), au = Eigen::VectorXd::Zero(P), av = Eigen::VectorXd::Zero(P);
         for (std::size_t i = 0; i < samples.size(); ++i) {
-          if (!e.matched[i]) continue;
-          const double u = e.r[i] / c;
-          if (std::abs(u) >= 1.0) continue;
-          const double w = (1 - u * u) * (1 - u * u);
-          row.setZero();
-          if (refine_camera) row.segment<7>(7 * samples[i].view) = e.J[i].leftCols<7>().transpose();
-          if (refine_object) row.segment<6>(obj_col) = e.J[i].rightCols<6>().transpose();
-          if (NL > 0) row.segment(link_col, NL) = e.Jl[i].head(NL).transpose();
+          const double w = tukey_weight(e, i, c);
+          if (w <= 0.0) continue;
+          jacobian_row(e, i, row);
           a += w * samples[i].outward * row;
           au += w * e.n[i].x() * row;
           av += w * e.n[i].y() * row;
