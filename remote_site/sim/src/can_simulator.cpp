@@ -293,7 +293,15 @@ void CanSimulator::stop() {
 }
 
 void CanSimulator::run() {
-  while (running_.load()) process(1);
+  while (running_.load()) {
+    const std::uint64_t before = frames_in_.load();
+    const auto t0 = Clock::now();
+    process(1);
+    // poll() returns at once on a closed master end (POLLHUP): never spin,
+    // this thread may be SCHED_FIFO.
+    if (frames_in_.load() == before && Clock::now() - t0 < std::chrono::microseconds(500))
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
 }
 
 }  // namespace foresight::sim

@@ -5,7 +5,10 @@
 // the DriveSystem events not covered elsewhere. Randomness is seeded.
 
 #include <array>
+#include <chrono>
 #include <cmath>
+#include <ctime>
+#include <thread>
 #include <random>
 #include <string>
 #include <vector>
@@ -473,4 +476,27 @@ TEST(HarshBus, BusOffRestartRequestsAreBoundedAndSayWhatHappened) {
   EXPECT_EQ(n, 1);
   EXPECT_FALSE(rig.drives->bus(1).health().bus_off);
   EXPECT_EQ(bus1.restart_requests(), 1u);
+}
+
+// The simulator's thread may run SCHED_FIFO (the daemon's --sim): with the
+// master's end of the bus gone, poll() returns at once (POLLHUP), and the
+// thread must not spin on it (it would starve the host's other threads).
+TEST(CanSimulatorThread, AClosedMasterEndDoesNotMakeItSpin) {
+  auto [master, far] = hw::MockCanBus::create_pair("spin");
+  sim::CanSimulator s;
+  s.add_bus(std::move(far));
+  s.start();
+  master.reset();
+  auto cpu_s = [] {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+  };
+  const double cpu0 = cpu_s();
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(300)) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double cpu = cpu_s() - cpu0;
+  s.stop();
+  EXPECT_LT(cpu, 0.2 * wall) << cpu << " s of CPU over " << wall << " s with the master gone";
 }
