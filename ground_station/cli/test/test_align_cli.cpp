@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -127,6 +128,27 @@ TEST(AlignCli, ScaleImageResizesAFrameOfAnotherResolution) {
   EXPECT_TRUE(load_cameras(out).at("side").calibration);
 }
 
+// The object pose's covariance (as `localize --json` writes it) is read for
+// the clicks-agreement check; a malformed one is bad input, nothing written.
+TEST(AlignCli, MalformedObjectPoseCovarianceIsBadInput) {
+  auto& f = fixture();
+  const std::string pose = temp_path(".json"), out = temp_path(".json");
+  const Eigen::Vector3d t = f.scene.base_T_object.translation();
+  const Eigen::Matrix3d R = f.scene.base_T_object.linear();
+  nlohmann::json j;
+  j["base_T_object"] = {{R(0, 0), R(0, 1), R(0, 2), t.x()},
+                        {R(1, 0), R(1, 1), R(1, 2), t.y()},
+                        {R(2, 0), R(2, 1), R(2, 2), t.z()},
+                        {0.0, 0.0, 0.0, 1.0}};
+  j["covariance"] = {{1e-4, 0.0}, {0.0, 1e-4}};
+  std::ofstream(pose) << j.dump();
+  const auto r = run_foresight("align --cameras " + f.truth_yaml + " --camera side --image " + f.frame + " --joints " +
+                               f.q_text + " --object-pose " + pose + " --refine object --object-out " + out);
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_EQ(r.err, "foresight align: error: " + pose + ": covariance must be 6 rows of 6 numbers\n");
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
 TEST(AlignCli, UnknownCameraIsBadInput) {
   auto& f = fixture();
   const std::string out = temp_path(".yaml");
@@ -201,6 +223,12 @@ TEST(EvalAlignmentCli, OneTrialGivesTheJsonContract) {
   for (const auto& l : j["arm_links"])
     for (const char* f : {"true_rms_m", "estimate_error_rms_m", "sigma_mean_m"}) EXPECT_GE(l[f].get<double>(), 0.0);
   EXPECT_TRUE(j["combinations"][14].contains("aligned_cameras_only"));
+  // Refusals per combination, and of them those for moving beyond the
+  // clicks' uncertainty (never more than the refusals).
+  for (const auto& c : j["combinations"]) {
+    ASSERT_TRUE(c.contains("aligned_refused_disagreement"));
+    EXPECT_LE(c["aligned_refused_disagreement"].get<int>(), c["aligned_refused"].get<int>());
+  }
 }
 
 // `foresight health --json`: the per-frame silhouette IoU beside the edge measures.
