@@ -1,18 +1,26 @@
 #pragma once
 // What the end-to-end tests against the real daemon share: bounded polling of
-// a condition, and the daemon's journal as JSON.
+// a condition, the daemon's journal as JSON, and the fixture that starts the
+// daemon and connects the ground to it (DaemonTest).
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <csignal>
 #include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <memory>
 #include <string>
 #include <thread>
 
 #include <Eigen/Core>
 
+#include "foresight/common/robot_model.hpp"
 #include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
+#include "foresight/test/remote_process.hpp"
 
 namespace foresight::test {
 
@@ -76,5 +84,99 @@ inline std::uint64_t start_slow_motion(ground_link::GroundLink& ground, const Ei
   EXPECT_TRUE(executing) << "command " << id << " never EXECUTING";
   return id;
 }
+
+/// The set-up every test against the real daemon shares: DDS on loopback, a
+/// DDS domain this process has claimed (protocol::unique_test_domain: a lock
+/// file, so no concurrent test shares it), `foresight-remote --sim` started
+/// on it (test::RemoteProcess, ready within 60 s) and the ground's link
+/// connected to it (the remote seen within 30 s); at the end the link closed
+/// and the daemon stopped with SIGTERM, its exit status 0.
+///
+/// A derived fixture adjusts `remote_options_` and `ground_config_` (or calls
+/// use_sim_faults()) before it calls DaemonTest::SetUp(); their domain is
+/// always this test's.
+class DaemonTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    protocol::use_loopback_if_unconfigured();
+    domain_ = static_cast<int>(protocol::unique_test_domain());
+    ASSERT_NO_FATAL_FAILURE(start_remote(remote_options_));
+    ASSERT_NO_FATAL_FAILURE(connect_ground());
+  }
+  void TearDown() override {
+    ground_.reset();
+    if (remote_) {
+      const int rc = remote_->stop(SIGTERM);
+      EXPECT_EQ(rc, 0) << remote_->log();
+    }
+    if (!faults_.empty()) std::filesystem::remove_all(faults_);
+  }
+
+  /// Starts (or restarts) the daemon with `options` on this test's domain and
+  /// waits for its ready line.
+  void start_remote(test::RemoteProcess::Options options) {
+    options.domain = domain_;
+    remote_ = std::make_unique<test::RemoteProcess>(std::move(options));
+    ASSERT_TRUE(remote_->ready()) << remote_->log();
+  }
+  /// A fresh ground link (`ground_config_`) on this test's domain, once it
+  /// sees the remote.
+  void connect_ground() {
+    ground_link::Config c = ground_config_;
+    c.domain = domain_;
+    ground_ = std::make_unique<ground_link::GroundLink>(c);
+    ASSERT_TRUE(ground_->wait_for_remote(std::chrono::seconds(30))) << "no remote on DDS domain " << domain_;
+  }
+
+  /// The daemon's simulated faults from a folder (`--sim-faults`): a file
+  /// there switches its fault on (sim_faults.hpp). Call before SetUp().
+  void use_sim_faults() {
+    faults_ = test::temp_path(".faults");
+    remote_options_.extra_args.push_back("--sim-faults");
+    remote_options_.extra_args.push_back(faults_);
+  }
+  void fault_on(const std::string& name, const std::string& text = "\n") {
+    std::ofstream(faults_ + "/" + name) << text;
+  }
+  void fault_off(const std::string& name) { std::filesystem::remove(faults_ + "/" + name); }
+
+  /// One command and its final answer (`expected_s`: how long it should take);
+  /// every result also goes to after_command().
+  ground_link::CommandResult run(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+                                 double expected_s = 2.0) {
+    auto r = ground_->execute(kind, payload, expected_s);
+    after_command(r);
+    return r;
+  }
+  /// A fixture that keeps a record of what it sent overrides this.
+  virtual void after_command(const ground_link::CommandResult&) {}
+
+  /// Take control and enable the drives.
+  void take_and_recover() {
+    const auto take = run(control::CommandKind::TakeControl);
+    ASSERT_TRUE(take.succeeded()) << take.reason;
+    const auto rec = run(control::CommandKind::Recover, control::NoPayload{}, 5.0);
+    ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
+  }
+
+  Eigen::VectorXd current_q() { return test::current_q(*ground_); }
+  /// A slow GOTO_JOINT of joint 1 by `delta` from `q0` (or from where the arm
+  /// is); its id once EXECUTING.
+  std::uint64_t start_slow_motion(const Eigen::VectorXd& q0, double delta) {
+    return test::start_slow_motion(*ground_, q0, delta);
+  }
+  std::uint64_t start_slow_motion(double delta) { return start_slow_motion(current_q(), delta); }
+
+  /// The running (or stopped) daemon's journal.
+  nlohmann::json journal_json() const { return test::journal_json(remote_->journal()); }
+
+  RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
+  test::RemoteProcess::Options remote_options_;
+  ground_link::Config ground_config_;
+  int domain_ = 0;
+  std::string faults_;  ///< the --sim-faults folder ("" = none)
+  std::unique_ptr<test::RemoteProcess> remote_;
+  std::unique_ptr<ground_link::GroundLink> ground_;
+};
 
 }  // namespace foresight::test

@@ -18,9 +18,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/ground_link/ground_link.hpp"
-#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
-#include "foresight/test/remote_process.hpp"
 #include "hil_support.hpp"
 
 using namespace foresight;
@@ -31,29 +29,11 @@ using control::Reason;
 
 namespace {
 
-struct Changeout : public ::testing::Test {
-  void SetUp() override {
-    protocol::use_loopback_if_unconfigured();
-    domain = static_cast<int>(protocol::unique_test_domain());
-    test::RemoteProcess::Options o;
-    o.domain = domain;
-    remote = std::make_unique<test::RemoteProcess>(o);
-    ASSERT_TRUE(remote->ready()) << remote->log();
-    ground_link::Config c;
-    c.domain = domain;
-    ground = std::make_unique<ground_link::GroundLink>(c);
-    ASSERT_TRUE(ground->wait_for_remote(30s));
-  }
-  void TearDown() override {
-    ground.reset();
-    if (remote) {
-      EXPECT_EQ(remote->stop(SIGTERM), 0) << remote->log();
-    }
-  }
-
+class Changeout : public test::DaemonTest {
+ protected:
   ground_link::CommandResult step(const std::string& what, CommandKind kind, const control::Payload& payload,
                                   double expected_s) {
-    const auto r = ground->execute(kind, payload, expected_s);
+    const auto r = ground_->execute(kind, payload, expected_s);
     EXPECT_TRUE(r.succeeded()) << what << ": " << control::to_string(r.state) << " "
                                << control::to_string(r.code) << ": " << r.reason;
     return r;
@@ -68,15 +48,15 @@ struct Changeout : public ::testing::Test {
   }
 
   Eigen::VectorXd q_now() const {
-    const auto js = ground->joint_state();
+    const auto js = ground_->joint_state();
     return Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), 7);
   }
 
   /// Plans q -> goals with the ground's planner, uploads, runs; the final
   /// joints reported become the ground's arm (the paper's update step).
   Eigen::VectorXd move(const std::string& what, const Eigen::VectorXd& q0, const std::vector<Goal>& goals) {
-    const Plan plan = plan_motion(model, q0, goals);
-    const auto up = ground->upload(plan.trajectory, 30s);
+    const Plan plan = plan_motion(model_, q0, goals);
+    const auto up = ground_->upload(plan.trajectory, 30s);
     EXPECT_TRUE(up.committed()) << what << ": " << up.reason;
     control::RunTrajectory run;
     run.trajectory_id = up.trajectory_id;
@@ -96,26 +76,22 @@ struct Changeout : public ::testing::Test {
   }
 
   nlohmann::json last_truth() const {
-    const auto j = test::journal_json(remote->journal());
+    const auto j = journal_json();
     nlohmann::json truth;
     for (const auto& e : j["events"])
       if (e["kind"] == "sim_truth") truth = e["detail"];
     return truth;
   }
 
-  RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
   Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
-  int domain = 0;
-  std::unique_ptr<test::RemoteProcess> remote;
-  std::unique_ptr<ground_link::GroundLink> ground;
 };
 
 }  // namespace
 
 TEST_F(Changeout, WholeContactSequenceFromARealisticLocalizationError) {
   ASSERT_TRUE(step("take control", CommandKind::TakeControl, control::NoPayload{}, 1.0).succeeded());
-  ASSERT_TRUE(step("recover", CommandKind::Recover, control::NoPayload{}, 5.0).succeeded()) << remote->log();
+  ASSERT_TRUE(step("recover", CommandKind::Recover, control::NoPayload{}, 5.0).succeeded()) << remote_->log();
   ASSERT_TRUE(invoke("tare", {}, 2.0).succeeded());
 
   // The ground's estimate of the ORU: the truth off by 2.5 mm across the
@@ -130,11 +106,11 @@ TEST_F(Changeout, WholeContactSequenceFromARealisticLocalizationError) {
   Eigen::VectorXd q = move("approach", q_home,
                            {tag_goal("approach_20cm", base_T_oru, SegmentKind::Joint),
                             tag_goal("hole_entrance", base_T_oru, SegmentKind::Linear, -0.01)});
-  ASSERT_TRUE(invoke("insert", {{"depth_m", 0.07}}, 20.0).succeeded()) << remote->log();
+  ASSERT_TRUE(invoke("insert", {{"depth_m", 0.07}}, 20.0).succeeded()) << remote_->log();
   ASSERT_TRUE(invoke("latch", {}, 2.0).succeeded());
-  ASSERT_TRUE(invoke("loosen", {{"turns", 8.5}}, 12.0).succeeded()) << remote->log();
+  ASSERT_TRUE(invoke("loosen", {{"turns", 8.5}}, 12.0).succeeded()) << remote_->log();
   ASSERT_TRUE(invoke("tare", {}, 2.0).succeeded());  // the freed ORU's weight is payload, not contact
-  ASSERT_TRUE(invoke("pull_out", {{"distance_m", 0.05}}, 8.0).succeeded()) << remote->log();
+  ASSERT_TRUE(invoke("pull_out", {{"distance_m", 0.05}}, 8.0).succeeded()) << remote_->log();
   auto truth = last_truth();
   EXPECT_EQ(truth["oru_state"], "carried") << truth.dump();
 
@@ -154,7 +130,7 @@ TEST_F(Changeout, WholeContactSequenceFromARealisticLocalizationError) {
                       {"max_force_n", 120.0}},
                      60.0)
                   .succeeded())
-      << remote->log();
+      << remote_->log();
   truth = last_truth();
   EXPECT_EQ(truth["oru_state"], "seated") << truth.dump();
   ASSERT_TRUE(invoke("tighten", {}, 15.0).succeeded());
@@ -163,7 +139,7 @@ TEST_F(Changeout, WholeContactSequenceFromARealisticLocalizationError) {
   EXPECT_LT(truth["alignment_error_m"].get<double>(), 0.005) << truth.dump();
   ASSERT_TRUE(invoke("unlatch", {}, 2.0).succeeded());
   ASSERT_TRUE(invoke("tare", {}, 2.0).succeeded());  // the ORU's weight left the tool
-  ASSERT_TRUE(invoke("pull_out", {{"distance_m", 0.20}}, 25.0).succeeded()) << remote->log();
+  ASSERT_TRUE(invoke("pull_out", {{"distance_m", 0.20}}, 25.0).succeeded()) << remote_->log();
   q = q_now();
   Goal home;
   home.name = "home";

@@ -58,36 +58,13 @@ struct DriveRecord {
   double span(std::size_t j) const { return hi[j] - lo[j]; }
 };
 
-class FaultCampaign : public ::testing::Test {
+class FaultCampaign : public test::DaemonTest {
  protected:
   void SetUp() override {
-    protocol::use_loopback_if_unconfigured();
-    domain_ = static_cast<int>(protocol::unique_test_domain());
-    test::RemoteProcess::Options o;
-    o.domain = domain_;
-    faults_ = test::temp_path(".faults");
-    o.extra_args = {"--sim-faults", faults_};
-    remote_ = std::make_unique<test::RemoteProcess>(o);
-    ASSERT_TRUE(remote_->ready()) << remote_->log();
-    ground_link::Config c;
-    c.domain = domain_;
-    ground_ = std::make_unique<ground_link::GroundLink>(c);
-    ASSERT_TRUE(ground_->wait_for_remote(30s)) << "no remote on DDS domain " << domain_;
+    use_sim_faults();
+    ASSERT_NO_FATAL_FAILURE(DaemonTest::SetUp());
     ASSERT_TRUE(eventually([&] { return record().seq > 0; }, 10s)) << "no drive_record in " << faults_;
   }
-  void TearDown() override {
-    ground_.reset();
-    if (remote_) {
-      const int rc = remote_->stop(SIGTERM);
-      EXPECT_EQ(rc, 0) << remote_->log();
-    }
-    std::filesystem::remove_all(faults_);
-  }
-
-  void fault_on(const std::string& name) {
-    std::ofstream(faults_ + "/" + name) << "\n";
-  }
-  void fault_off(const std::string& name) { std::filesystem::remove(faults_ + "/" + name); }
 
   DriveRecord record() const {
     DriveRecord r;
@@ -119,8 +96,6 @@ class FaultCampaign : public ::testing::Test {
     return r;
   }
 
-  nlohmann::json journal_json() { return test::journal_json(remote_->journal()); }
-
   /// Every command this test sent (session, id) has exactly the final state
   /// we saw on the ground, in the journal, after RECEIVED.
   void expect_journal_complete() {
@@ -137,29 +112,12 @@ class FaultCampaign : public ::testing::Test {
     }
   }
 
-  ground_link::CommandResult run(CommandKind kind, const control::Payload& payload = control::NoPayload{},
-                                 double expected_s = 2.0) {
-    auto r = ground_->execute(kind, payload, expected_s);
-    note(ground_->session_id(), r);
-    return r;
-  }
+  void after_command(const ground_link::CommandResult& r) override { note(ground_->session_id(), r); }
   void note(std::uint64_t session, const ground_link::CommandResult& r) {
     if (!r.finished) return;
     std::string state = control::to_string(r.state);
     for (auto& ch : state) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
     sent_.emplace_back(std::make_pair(session, r.command_id), state);
-  }
-
-  void take_and_recover() {
-    const auto take = run(CommandKind::TakeControl);
-    ASSERT_TRUE(take.succeeded()) << take.reason;
-    const auto rec = run(CommandKind::Recover, control::NoPayload{}, 5.0);
-    ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
-  }
-
-  Eigen::VectorXd current_q() { return test::current_q(*ground_); }
-  std::uint64_t start_slow_motion(const Eigen::VectorXd& q0, double delta) {
-    return test::start_slow_motion(*ground_, q0, delta);
   }
 
   /// Waits for a status with the given stop category; returns it.
@@ -276,11 +234,6 @@ class FaultCampaign : public ::testing::Test {
     EXPECT_TRUE(cat0) << json["faults"].dump();
   }
 
-  RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  int domain_ = 0;
-  std::string faults_;
-  std::unique_ptr<test::RemoteProcess> remote_;
-  std::unique_ptr<ground_link::GroundLink> ground_;
   std::vector<std::pair<std::pair<std::uint64_t, std::uint64_t>, std::string>> sent_;
 };
 

@@ -19,9 +19,8 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/ground_link/ground_link.hpp"
-#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
-#include "foresight/test/remote_process.hpp"
+#include "hil_support.hpp"
 
 using namespace foresight;
 using namespace std::chrono_literals;
@@ -72,38 +71,18 @@ Trajectory cruise_trajectory(const std::vector<double>& q0, double sign) {
 
 }  // namespace
 
-class JointVelocity : public ::testing::Test {
+class JointVelocity : public test::DaemonTest {
  protected:
   void SetUp() override {
-    protocol::use_loopback_if_unconfigured();
-    domain_ = static_cast<int>(protocol::unique_test_domain());
-    test::RemoteProcess::Options o;
-    o.domain = domain_;
-    remote_ = std::make_unique<test::RemoteProcess>(o);
-    ASSERT_TRUE(remote_->ready()) << remote_->log();
-    ground_link::Config c;
-    c.domain = domain_;
-    c.joints = 7;
-    ground_ = std::make_unique<ground_link::GroundLink>(c);
-    ASSERT_TRUE(ground_->wait_for_remote(30s)) << "no remote on DDS domain " << domain_;
+    ground_config_.joints = 7;
+    DaemonTest::SetUp();
   }
-  void TearDown() override {
-    ground_.reset();
-    if (remote_) {
-      EXPECT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
-    }
-  }
-  int domain_ = 0;
-  std::unique_ptr<test::RemoteProcess> remote_;
-  std::unique_ptr<ground_link::GroundLink> ground_;
 };
 
 TEST_F(JointVelocity, TheGroundReceivesTheDrivesVelocityOfAKnownCruise) {
   auto& ground = *ground_;
   auto& remote = *remote_;
-  ASSERT_TRUE(ground.execute(CommandKind::TakeControl).succeeded());
-  const auto rec = ground.execute(CommandKind::Recover, control::NoPayload{}, 5.0);
-  ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote.log();
+  take_and_recover();
 
   std::vector<double> q0;
   for (int i = 0; i < 500 && q0.empty(); ++i) {
@@ -114,8 +93,7 @@ TEST_F(JointVelocity, TheGroundReceivesTheDrivesVelocityOfAKnownCruise) {
     }
   }
   ASSERT_EQ(q0.size(), 7u) << "no joint state";
-  const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  const auto& lim = model.limits()[0];
+  const auto& lim = model_.limits()[0];
   const double sign = q0[0] < 0.5 * (lim.lower_rad + lim.upper_rad) ? 1.0 : -1.0;  // towards the far limit
   const Trajectory tr = cruise_trajectory(q0, sign);
   const auto up = ground.upload(tr, 30s);

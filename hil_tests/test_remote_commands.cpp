@@ -25,46 +25,17 @@ using control::Reason;
 
 namespace {
 
-class RemoteCommands : public ::testing::Test {
+class RemoteCommands : public test::DaemonTest {
  protected:
   void SetUp() override {
-    protocol::use_loopback_if_unconfigured();
-    domain_ = static_cast<int>(protocol::unique_test_domain());
-    test::RemoteProcess::Options o;
-    o.domain = domain_;
-    o.estop_file = test::temp_path(".estop");
-    estop_ = o.estop_file;
-    faults_ = test::temp_path(".faults");
-    o.extra_args = {"--sim-faults", faults_};
-    remote_ = std::make_unique<test::RemoteProcess>(o);
-    ASSERT_TRUE(remote_->ready()) << remote_->log();
-    ground_link::Config c;
-    c.domain = domain_;
-    ground_ = std::make_unique<ground_link::GroundLink>(c);
-    ASSERT_TRUE(ground_->wait_for_remote(30s)) << "no remote on DDS domain " << domain_;
+    estop_ = test::temp_path(".estop");
+    remote_options_.estop_file = estop_;
+    use_sim_faults();
+    DaemonTest::SetUp();
   }
   void TearDown() override {
-    ground_.reset();
-    if (remote_) {
-      const int rc = remote_->stop(SIGTERM);
-      EXPECT_EQ(rc, 0) << remote_->log();
-    }
+    DaemonTest::TearDown();
     std::remove(estop_.c_str());
-    std::filesystem::remove_all(faults_);
-  }
-
-  void fault_file(const std::string& name, const std::string& text = "") {
-    std::ofstream(faults_ + "/" + name) << text;
-  }
-
-  static nlohmann::json journal_json(const std::string& db) { return test::journal_json(db); }
-
-  /// Sends a slow GOTO_JOINT of joint 1 by `delta` and returns its id once EXECUTING.
-  std::uint64_t start_slow_motion(double delta) { return test::start_slow_motion(*ground_, current_q(), delta); }
-
-  ground_link::CommandResult run(CommandKind kind, const control::Payload& payload = control::NoPayload{},
-                             double expected_s = 2.0) {
-    return ground_->execute(kind, payload, expected_s);
   }
 
   static std::vector<AckState> states(const ground_link::CommandResult& r) {
@@ -73,22 +44,7 @@ class RemoteCommands : public ::testing::Test {
     return s;
   }
 
-  /// Take control and enable the drives.
-  void take_and_recover() {
-    const auto take = run(CommandKind::TakeControl);
-    ASSERT_TRUE(take.succeeded()) << take.reason;
-    const auto rec = run(CommandKind::Recover, control::NoPayload{}, 5.0);
-    ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
-  }
-
-  Eigen::VectorXd current_q() { return test::current_q(*ground_); }
-
-  RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  int domain_ = 0;
   std::string estop_;
-  std::string faults_;
-  std::unique_ptr<test::RemoteProcess> remote_;
-  std::unique_ptr<ground_link::GroundLink> ground_;
 };
 
 const std::vector<AckState> kCompletedMotion = {AckState::Received, AckState::Queued, AckState::Executing,
@@ -235,7 +191,7 @@ TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence)
   std::remove(estop_.c_str());
   const int rc = remote_->stop(SIGTERM);
   EXPECT_EQ(rc, 0);
-  const auto json = journal_json(remote_->journal());
+  const auto json = journal_json();
   bool cat0 = false;
   for (const auto& f : json["faults"]) cat0 = cat0 || f["category"] == 0;
   EXPECT_TRUE(cat0) << json.dump().substr(0, 2000);
@@ -247,7 +203,7 @@ TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence)
 
 TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
   take_and_recover();
-  fault_file("tool_jam");
+  fault_on("tool_jam");
   control::InvokeAlgorithm loosen;
   loosen.name = "loosen";
   loosen.params = {{"turns", 2.0}};
@@ -263,7 +219,7 @@ TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(stopped);
-  std::filesystem::remove(faults_ + "/tool_jam");
+  fault_off("tool_jam");
   const Eigen::VectorXd q0 = current_q();
   control::GotoJoint g;
   g.q_rad.assign(q0.data(), q0.data() + 7);
@@ -286,7 +242,7 @@ TEST_F(RemoteCommands, CameraCommandsRunOffTheSupervisorThreadAndAHungSwitchFail
   EXPECT_EQ(r.state, AckState::Rejected);
   EXPECT_EQ(r.reason, "unknown camera 'nowhere' (expected one of: side, oblique, overhead_wide, overhead_zoom)");
 
-  fault_file("video_silent");
+  fault_on("video_silent");
   bool applied = false;
   for (int i = 0; i < 500 && !applied; ++i) {
     applied = remote_->log().find("simulated fault video_silent: on") != std::string::npos;
@@ -305,7 +261,7 @@ TEST_F(RemoteCommands, CameraCommandsRunOffTheSupervisorThreadAndAHungSwitchFail
   EXPECT_EQ(failed.code, Reason::Internal);
   EXPECT_EQ(failed.reason.rfind("video switch: ", 0), 0u) << failed.reason;
 
-  std::filesystem::remove(faults_ + "/video_silent");
+  fault_off("video_silent");
   bool back = false;
   for (int i = 0; i < 20 && !back; ++i) back = run(CommandKind::Camera, cam).succeeded();
   EXPECT_TRUE(back) << "the switch did not come back after the fault cleared";
@@ -314,7 +270,7 @@ TEST_F(RemoteCommands, CameraCommandsRunOffTheSupervisorThreadAndAHungSwitchFail
 TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidence) {
   take_and_recover();
   const std::uint64_t id = start_slow_motion(0.5);
-  fault_file("drive_emcy_3", "2310");
+  fault_on("drive_emcy_3", "2310");
   const auto moved = ground_->wait_final(id, 10s);
   EXPECT_EQ(moved.state, AckState::Canceled);
   EXPECT_NE(moved.reason.find("0x2310"), std::string::npos) << moved.reason;
@@ -325,9 +281,9 @@ TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidenc
   }
   EXPECT_TRUE(cat0);
   // Recover (fault reset, enable) and go on.
-  std::filesystem::remove(faults_ + "/drive_emcy_3");
+  fault_off("drive_emcy_3");
   ASSERT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded()) << remote_->log();
-  const auto json = journal_json(remote_->journal());
+  const auto json = journal_json();
   bool found = false;
   for (const auto& f : json["faults"])
     if (f["category"] == 0 && f["cause"] == "drive_fault") found = found || !f["evidence"]["samples"].empty();
@@ -339,7 +295,7 @@ TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHold
   const std::uint64_t id = start_slow_motion(0.5);
   EXPECT_EQ(remote_->stop(SIGKILL), 128 + SIGKILL);
   const std::string db = remote_->journal();
-  const auto json = journal_json(db);
+  const auto json = journal_json();
   std::vector<std::string> seen;
   for (const auto& c : json["commands"])
     if (c["command_id"] == id && c["kind"] == "GOTO_JOINT") seen.push_back(c["state"]);
@@ -348,15 +304,10 @@ TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHold
   // A restart on the same journal: it appends, and nothing moves until RECOVER.
   ground_.reset();
   test::RemoteProcess::Options o;
-  o.domain = domain_;
   o.journal = db;
-  remote_ = std::make_unique<test::RemoteProcess>(o);
-  ASSERT_TRUE(remote_->ready()) << remote_->log();
+  ASSERT_NO_FATAL_FAILURE(start_remote(o));
   EXPECT_NE(remote_->log().find("did not shut down cleanly"), std::string::npos) << remote_->log();
-  ground_link::Config c;
-  c.domain = domain_;
-  ground_ = std::make_unique<ground_link::GroundLink>(c);
-  ASSERT_TRUE(ground_->wait_for_remote(30s));
+  ASSERT_NO_FATAL_FAILURE(connect_ground());
   bool disabled = false;
   for (int i = 0; i < 300 && !disabled; ++i) {
     if (auto s = ground_->status(); s && s->value.mode == control::ControllerMode::Disabled) disabled = true;

@@ -25,9 +25,7 @@
 #include <thread>
 
 #include "foresight/ground_link/ground_link.hpp"
-#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
-#include "foresight/test/remote_process.hpp"
 #include "hil_support.hpp"
 
 using namespace foresight;
@@ -110,27 +108,16 @@ class PtyRun {
   std::size_t mark_ = 0;
 };
 
-class RunScript : public ::testing::Test {
+/// The ground link (ground_) only watches the joints; `foresight run` commands.
+class RunScript : public test::DaemonTest {
  protected:
   void SetUp() override {
-    protocol::use_loopback_if_unconfigured();
-    domain_ = static_cast<int>(protocol::unique_test_domain());
-    test::RemoteProcess::Options o;
-    o.domain = domain_;
-    remote_ = std::make_unique<test::RemoteProcess>(o);
-    ASSERT_TRUE(remote_->ready()) << remote_->log();
-    ground_link::Config c;
-    c.domain = domain_;
-    watcher_ = std::make_unique<ground_link::GroundLink>(c);  // watches the joints; never takes control
-    ASSERT_TRUE(watcher_->wait_for_remote(30s)) << "no remote on DDS domain " << domain_;
+    ASSERT_NO_FATAL_FAILURE(DaemonTest::SetUp());
     work_ = test::temp_path("_run");
     std::filesystem::create_directories(work_);
   }
   void TearDown() override {
-    watcher_.reset();
-    if (remote_) {
-      EXPECT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
-    }
+    DaemonTest::TearDown();
     std::filesystem::remove_all(work_);
   }
 
@@ -152,7 +139,7 @@ class RunScript : public ::testing::Test {
 
   Eigen::VectorXd joints() {
     for (int i = 0; i < 500; ++i) {
-      if (auto js = watcher_->joint_state(); js && js->value.q_rad.size() == 7)
+      if (auto js = ground_->joint_state(); js && js->value.q_rad.size() == 7)
         return Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), 7);
       std::this_thread::sleep_for(20ms);
     }
@@ -180,7 +167,7 @@ class RunScript : public ::testing::Test {
 
   /// The daemon's journal: every command it received, in order.
   nlohmann::json remote_commands() {
-    const auto j = test::journal_json(remote_->journal());
+    const auto j = journal_json();
     if (!j.contains("commands")) {
       ADD_FAILURE() << "journal without commands: " << j.dump();
       return nlohmann::json::array();
@@ -213,10 +200,7 @@ class RunScript : public ::testing::Test {
     return s;
   }
 
-  int domain_ = 0;
   std::string work_;
-  std::unique_ptr<test::RemoteProcess> remote_;
-  std::unique_ptr<ground_link::GroundLink> watcher_;
 };
 
 // Two motions and a request; the first motion is long enough to cancel.
