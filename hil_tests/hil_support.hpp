@@ -120,12 +120,23 @@ class DaemonTest : public ::testing::Test {
     ASSERT_TRUE(remote_->ready()) << remote_->log();
   }
   /// A fresh ground link (`ground_config_`) on this test's domain, once it
-  /// sees the remote.
+  /// sees the remote and the remote hears its heartbeats (30 s each).
+  ///
+  /// wait_for_remote() covers the command and upload topics and a ping; the
+  /// ground's heartbeats are a topic of their own, matched on their own: on
+  /// a loaded host the remote heard the first one 0.3-1.7 s after the start
+  /// in some runs, and in two LinkLoss runs none came before the test paused
+  /// them ~1 s after connecting, so the remote never had a link to lose. The
+  /// remote logs "remote link: link up" when it first hears one.
   void connect_ground() {
     ground_link::Config c = ground_config_;
     c.domain = domain_;
     ground_ = std::make_unique<ground_link::GroundLink>(c);
     ASSERT_TRUE(ground_->wait_for_remote(std::chrono::seconds(30))) << "no remote on DDS domain " << domain_;
+    ASSERT_TRUE(eventually([&] { return remote_->log().find("remote link: link up") != std::string::npos; },
+                           std::chrono::seconds(30)))
+        << "the remote never heard the ground's heartbeat\n"
+        << remote_->log();
   }
 
   /// The daemon's simulated faults from a folder (`--sim-faults`): a file

@@ -12,9 +12,7 @@
 #include "foresight/common/plan.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/ground_link/ground_link.hpp"
-#include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
-#include "foresight/test/remote_process.hpp"
 #include "hil_support.hpp"
 
 using namespace foresight;
@@ -354,28 +352,36 @@ TEST_F(RemoteCommands, LinkLossMidMotionFinishesTheMotionAndTheGroundSeesTheLoss
   EXPECT_TRUE(r.succeeded()) << r.reason;
 }
 
-TEST(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
-  protocol::use_loopback_if_unconfigured();
-  const std::string dir = test::temp_path(".sec");
-  const int rc = std::system(("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir + " > /dev/null 2>&1").c_str());
-  ASSERT_EQ(rc, 0) << "make_dds_security.sh failed";
-  const int domain = static_cast<int>(protocol::unique_test_domain());
-  test::RemoteProcess::Options o;
-  o.domain = domain;
-  o.extra_args = {"--security", dir};
-  test::RemoteProcess remote(o);
-  ASSERT_TRUE(remote.ready()) << remote.log();
-  ground_link::Config c;
-  c.domain = domain;
-  c.security_dir = dir;
-  c.security_identity = "ground";
-  {
-    ground_link::GroundLink ground(c);
-    ASSERT_TRUE(ground.wait_for_remote(30s));
-    EXPECT_TRUE(ground.execute(CommandKind::TakeControl, control::NoPayload{}, 1.0).succeeded());
-    EXPECT_TRUE(ground.execute(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+namespace {
+
+/// The daemon and the ground with DDS Security (scripts/make_dds_security.sh):
+/// the ground authenticated as "ground".
+class SecureRemote : public test::DaemonTest {
+ protected:
+  void SetUp() override {
+    dir_ = test::temp_path(".sec");
+    const int rc = std::system(("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir_ + " > /dev/null 2>&1").c_str());
+    ASSERT_EQ(rc, 0) << "make_dds_security.sh failed";
+    remote_options_.extra_args = {"--security", dir_};
+    ground_config_.security_dir = dir_;
+    ground_config_.security_identity = "ground";
+    DaemonTest::SetUp();
   }
-  ground_link::Config w = c;
+  void TearDown() override {
+    DaemonTest::TearDown();
+    std::filesystem::remove_all(dir_);
+  }
+  std::string dir_;
+};
+
+}  // namespace
+
+TEST_F(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
+  EXPECT_TRUE(run(CommandKind::TakeControl, control::NoPayload{}, 1.0).succeeded());
+  EXPECT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+  ground_.reset();
+  ground_link::Config w = ground_config_;
+  w.domain = domain_;
   w.security_identity = "observer";
   w.read_only = true;
   ground_link::GroundLink observer(w);
@@ -386,6 +392,5 @@ TEST(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
   }
   EXPECT_TRUE(watching);
   EXPECT_THROW(observer.send(CommandKind::TakeControl), std::logic_error);
-  EXPECT_EQ(remote.stop(SIGTERM), 0);
-  std::filesystem::remove_all(dir);
+  EXPECT_EQ(remote_->stop(SIGTERM), 0);
 }
