@@ -123,11 +123,12 @@ class DaemonTest : public ::testing::Test {
   /// sees the remote and the remote hears its heartbeats (30 s each).
   ///
   /// wait_for_remote() covers the command and upload topics and a ping; the
-  /// ground's heartbeats are a topic of their own, matched on their own: on
-  /// a loaded host the remote heard the first one 0.3-1.7 s after the start
-  /// in some runs, and in two LinkLoss runs none came before the test paused
-  /// them ~1 s after connecting, so the remote never had a link to lose. The
-  /// remote logs "remote link: link up" when it first hears one.
+  /// ground's heartbeats are a topic of their own, matched on their own: in
+  /// two loaded LinkLoss runs the remote heard none in the ~1 s between the
+  /// connection and the test pausing them (their journals: the first
+  /// link_regained only when they resumed, 16.7 and 17.1 s after the start),
+  /// so it never had a link to lose. The remote logs "remote link: link up"
+  /// when it first hears one.
   void connect_ground() {
     ground_link::Config c = ground_config_;
     c.domain = domain_;
