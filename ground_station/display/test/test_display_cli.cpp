@@ -388,13 +388,15 @@ pid_t start_foresight(const std::string& env, const std::string& args, const std
 /// 60 s. A window exists (and `xdotool search --sync` finds it) before the
 /// first picture sizes it and before it is moved: clicks sent then land
 /// elsewhere (one lost click pair failed a loaded CI run).
-std::string wait_for_window(const std::string& env, const std::string& name_regex, int x, int width, int height) {
+std::string wait_for_window(const std::string& env, const std::string& name_regex, int x, int width, int height,
+                            std::string* last_seen = nullptr) {
   std::string id;
   const bool shown = wait_until(
       [&] {
         id = sh_out(env + "xdotool search --onlyvisible --name '" + name_regex + "' 2>/dev/null | head -1");
         if (id.empty()) return false;
         const std::string g = sh_out(env + "xdotool getwindowgeometry --shell " + id + " 2>/dev/null");
+        if (last_seen != nullptr) *last_seen = g;
         auto value = [&](const std::string& key) {
           const auto at = g.find(key + "=");
           return at == std::string::npos ? -1 : std::atoi(g.c_str() + at + key.size() + 1);
@@ -441,10 +443,11 @@ TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
                                       out_path, err_path);
     // Both windows the frame's size, side by side (click places them so).
     const int w_px = w.truth.viewport.width_px, h_px = w.truth.viewport.height_px;
-    const std::string model_win = wait_for_window(env, "^foresight click: model$", 0, w_px, h_px);
-    const std::string image_win = wait_for_window(env, image_window, w_px + 16, w_px, h_px);
-    ASSERT_FALSE(model_win.empty()) << read_file(err_path);
-    ASSERT_FALSE(image_win.empty()) << read_file(err_path);
+    std::string seen;
+    const std::string model_win = wait_for_window(env, "^foresight click: model$", 0, w_px, h_px, &seen);
+    ASSERT_FALSE(model_win.empty()) << "last seen: " << seen << "\n" << read_file(err_path);
+    const std::string image_win = wait_for_window(env, image_window, w_px + 16, w_px, h_px, &seen);
+    ASSERT_FALSE(image_win.empty()) << "last seen: " << seen << "\n" << read_file(err_path);
     // The model window's points (as the command draws them) and their true image points.
     const auto points = display::arm_model_points(w.model, q);
     const Camera view = display::default_model_view(points, w.truth.viewport, true);
