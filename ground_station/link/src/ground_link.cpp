@@ -290,6 +290,11 @@ bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   if (impl_->commands && !impl_->commands->wait_for_readers(1, timeout)) return false;
   if (impl_->chunks && !impl_->chunks->wait_for_readers(1, deadline - Clock::now())) return false;
+  // The heartbeat topic matches on its own schedule (seen 17 s late on a
+  // loaded host): until the remote's heartbeat reader has matched, it never
+  // hears this station, so it could never see the link lost either. Two
+  // readers: this station's own (of the remote's beats) and the remote's.
+  if (impl_->commands && !impl_->heartbeat_out.wait_for_readers(2, deadline - Clock::now())) return false;
   const auto left = deadline - Clock::now();
   if (left <= Clock::duration::zero()) return false;
   return impl_->delay.wait_samples(1, std::chrono::duration_cast<std::chrono::nanoseconds>(left));

@@ -112,9 +112,9 @@ class GroundLink {
   GroundLink(const GroundLink&) = delete;
   GroundLink& operator=(const GroundLink&) = delete;
 
-  /// Waits until the remote's command and chunk readers matched ours (not
-  /// when read-only) and a first pong arrived (bounded by `timeout`). False
-  /// on timeout.
+  /// Waits until the remote's command, chunk and heartbeat readers matched
+  /// ours (not when read-only) and a first pong arrived (bounded by
+  /// `timeout`). False on timeout.
   bool wait_for_remote(std::chrono::nanoseconds timeout);
 
   /// Sends one command; returns its id. `lifetime_s` < 0 uses
