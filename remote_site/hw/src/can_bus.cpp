@@ -120,13 +120,12 @@ void CanBus::note_error_frame(const can_frame& frame) noexcept {
   }
 }
 
-CanIo CanBus::read(can_frame& frame) noexcept {
-  std::int64_t unused = 0;
-  return read(frame, unused);
-}
+CanIo CanBus::read(can_frame& frame) noexcept { return receive(frame, nullptr); }
 
-CanIo CanBus::read(can_frame& frame, std::int64_t& stamp_ns) noexcept {
-  stamp_ns = 0;
+CanIo CanBus::read(can_frame& frame, std::int64_t& stamp_ns) noexcept { return receive(frame, &stamp_ns); }
+
+CanIo CanBus::receive(can_frame& frame, std::int64_t* stamp_ns) noexcept {
+  if (stamp_ns != nullptr) *stamp_ns = 0;
   // Bounded: a burst of filtered frames cannot keep us here forever.
   for (int attempt = 0; attempt < 64; ++attempt) {
     alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec))];
@@ -134,8 +133,10 @@ CanIo CanBus::read(can_frame& frame, std::int64_t& stamp_ns) noexcept {
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
-    msg.msg_control = control;
-    msg.msg_controllen = sizeof control;
+    if (stamp_ns != nullptr) {  // the master's cycle reads without: no control data, no clock reads
+      msg.msg_control = control;
+      msg.msg_controllen = sizeof control;
+    }
     const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT | MSG_TRUNC);
     if (n < 0) {
       if (errno == EAGAIN || errno == EWOULDBLOCK) return CanIo::WouldBlock;
@@ -158,14 +159,14 @@ CanIo CanBus::read(can_frame& frame, std::int64_t& stamp_ns) noexcept {
       ++health_.filtered;
       continue;
     }
-    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+    for (cmsghdr* c = stamp_ns ? CMSG_FIRSTHDR(&msg) : nullptr; c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
       if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SO_TIMESTAMPNS) continue;
       timespec sent{}, real{}, mono{};
       std::memcpy(&sent, CMSG_DATA(c), sizeof sent);
       ::clock_gettime(CLOCK_REALTIME, &real);
       ::clock_gettime(CLOCK_MONOTONIC, &mono);
       const std::int64_t age_ns = (real.tv_sec - sent.tv_sec) * 1000000000LL + (real.tv_nsec - sent.tv_nsec);
-      stamp_ns = mono.tv_sec * 1000000000LL + mono.tv_nsec - std::max<std::int64_t>(0, age_ns);
+      *stamp_ns = mono.tv_sec * 1000000000LL + mono.tv_nsec - std::max<std::int64_t>(0, age_ns);
     }
     return CanIo::Ok;
   }

@@ -116,6 +116,8 @@ class CanBus {
  protected:
   CanBus(std::string name, int fd);
   bool passes_filters(canid_t id) const noexcept;
+  // read() and the stamped read(): the stamp (and its clock reads) only when asked.
+  CanIo receive(can_frame& frame, std::int64_t* stamp_ns) noexcept;
   std::uint32_t restart_requests_ = 0;
   void set_errno(int e) noexcept { last_errno_ = e; }
   void note_error_frame(const can_frame& frame) noexcept;
