@@ -93,28 +93,13 @@ int run_align(const AlignArgs& a) {
   std::optional<ObjectModel> object;
   std::optional<Pose> base_T_object;
   if (!a.object_pose.empty()) {
-    base_T_object = read_object_pose_json(a.object_pose);
+    // The click solution's uncertainty (`localize --json` writes it beside
+    // the pose): its position block lets the aligner refuse an ORU that moved
+    // further from the clicks than both uncertainties allow.
+    const ObjectPoseFile pose = read_object_pose_file(a.object_pose);
+    base_T_object = pose.base_T_object;
     object = ObjectModel::from_file(a.object);
-    // The click solution's uncertainty (`localize --json` writes its 6x6
-    // covariance, roll, pitch, yaw, x, y, z): its position block lets the
-    // aligner refuse an ORU that moved further from the clicks than both
-    // uncertainties allow.
-    std::ifstream in(a.object_pose);
-    const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-    if (!j.is_discarded() && j.is_object() && j.contains("covariance")) {
-      const auto& c = j.at("covariance");
-      auto bad = [&] { return std::invalid_argument(a.object_pose + ": covariance must be 6 rows of 6 numbers"); };
-      if (!c.is_array() || c.size() != 6) throw bad();
-      Eigen::Matrix3d C;
-      for (int r = 0; r < 6; ++r) {
-        if (!c[r].is_array() || c[r].size() != 6) throw bad();
-        for (int k = 0; k < 6; ++k)
-          if (!c[r][k].is_number() || !std::isfinite(c[r][k].get<double>())) throw bad();
-        if (r >= 3)
-          for (int k = 3; k < 6; ++k) C(r - 3, k - 3) = c[r][k].get<double>();
-      }
-      options.object_start_position_covariance_m2 = C;
-    }
+    if (pose.covariance) options.object_start_position_covariance_m2 = pose.covariance->bottomRightCorner<3, 3>();
   }
   for (std::size_t i = 0; i < a.image.size(); ++i) {
     AlignView& view = views[views.size() == 1 ? 0 : i];

@@ -23,15 +23,19 @@ nlohmann::json object_pose_json(const Pose& base_T_object) {
   return nlohmann::json{{kObjectPoseKey, pose_json(base_T_object)}};
 }
 
-Pose parse_object_pose_json(const std::string& text, const std::string& source) {
+namespace {
+
+nlohmann::json parse_json(const std::string& text, const std::string& source) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e400
+    throw InputError(source, std::string("malformed JSON: ") + e.what());
+  }
+}
+
+Pose object_pose_of(const nlohmann::json& j, const std::string& source) {
   const std::string key = kObjectPoseKey;
   auto bad = [&](const std::string& message) { return InputError(source, message); };
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for 1e400
-    throw bad(std::string("malformed JSON: ") + e.what());
-  }
   if (!j.is_object() || !j.contains(key)) throw bad("no key '" + key + "'");
   const nlohmann::json& m = j[key];
   if (!m.is_array() || m.size() != 4) throw bad(key + " must be 4 rows of 4 numbers");
@@ -54,8 +58,34 @@ Pose parse_object_pose_json(const std::string& text, const std::string& source) 
   return T;
 }
 
+}  // namespace
+
+Pose parse_object_pose_json(const std::string& text, const std::string& source) {
+  return object_pose_of(parse_json(text, source), source);
+}
+
 Pose read_object_pose_json(const std::string& path) {
   return parse_object_pose_json(read_text_file(path, "cannot open object pose file"), path);  // bounded size
+}
+
+ObjectPoseFile read_object_pose_file(const std::string& path) {
+  const nlohmann::json j = parse_json(read_text_file(path, "cannot open object pose file"), path);
+  ObjectPoseFile f;
+  f.base_T_object = object_pose_of(j, path);
+  if (!j.contains("covariance")) return f;
+  const nlohmann::json& c = j.at("covariance");
+  const InputError bad(path, "covariance must be 6 rows of 6 numbers");
+  if (!c.is_array() || c.size() != 6) throw bad;
+  Eigen::Matrix<double, 6, 6> C;
+  for (int r = 0; r < 6; ++r) {
+    if (!c[r].is_array() || c[r].size() != 6) throw bad;
+    for (int k = 0; k < 6; ++k) {
+      if (!c[r][k].is_number() || !std::isfinite(c[r][k].get<double>())) throw bad;
+      C(r, k) = c[r][k].get<double>();
+    }
+  }
+  f.covariance = C;
+  return f;
 }
 
 }  // namespace foresight

@@ -11,7 +11,9 @@
 // A 4x4 pose is always a list of 4 rows of 4 numbers (metres). Set-up code:
 // allocates; the reader throws InputError naming the file and the key.
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "foresight/common/pose.hpp"
@@ -42,5 +44,18 @@ Pose parse_object_pose_json(const std::string& text, const std::string& source);
 /// InputError "<path>: cannot open object pose file" and those of
 /// parse_object_pose_json with the path as source.
 Pose read_object_pose_json(const std::string& path);
+
+/// The pose and, where the file has it, the uncertainty `localize --json`
+/// writes beside it ("covariance": 6 rows of 6 numbers; roll, pitch, yaw,
+/// x, y, z).
+struct ObjectPoseFile {
+  Pose base_T_object;
+  std::optional<Eigen::Matrix<double, 6, 6>> covariance;
+};
+
+/// read_object_pose_json and the covariance, from one read of `path`; also
+/// InputError "<path>: covariance must be 6 rows of 6 numbers" (any
+/// non-finite or non-number entry too).
+ObjectPoseFile read_object_pose_file(const std::string& path);
 
 }  // namespace foresight
