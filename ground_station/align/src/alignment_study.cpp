@@ -177,6 +177,9 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     std::vector<AlignView> views(nv);
     const std::optional<Pose> occluder = clicks_pose.back() ? clicks_pose.back() : std::optional<Pose>(setup.base_T_object);
     std::vector<Camera> aligned_cam(nv);
+    // Each camera's uncertainty after its alignment (the block of its
+    // covariance; body rotation): held with it when the ORU is aligned.
+    std::vector<Eigen::Matrix<double, 7, 7>> aligned_cov(nv, Eigen::Matrix<double, 7, 7>::Zero());
     std::vector<int> views_aligned;
     for (int v = 0; v < nv; ++v) {
       const Camera& truth = setup.views[v].truth;
@@ -187,12 +190,14 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       const AlignResult r = aligner.align({views[v]}, occluder, ao);
       if (r.status != AlignStatus::Aligned) ++res.camera_refused[v];
       aligned_cam[v] = r.cameras[0];  // the start when refused
+      if (r.status == AlignStatus::Aligned && r.covariance.rows() >= 7) aligned_cov[v] = r.covariance.topLeftCorner<7, 7>();
       if (r.status == AlignStatus::Aligned) views_aligned.push_back(v);
       res.camera_clicks_px[v] += reprojection_rms_px(views[v].camera, truth, metric_points);
       res.camera_aligned_px[v] += reprojection_rms_px(aligned_cam[v], truth, metric_points);
     }
     // Step 5: cameras + the arm's link lengths over every aligned camera's frames.
     std::vector<Camera> bundle_cam = aligned_cam;
+    std::vector<Eigen::Matrix<double, 7, 7>> bundle_cov = aligned_cov;
     std::vector<double> arm_delta;  // empty: the nominal arm
     if (opt.arm_link_prior_m > 0.0 && !views_aligned.empty()) {
       std::vector<AlignView> all;
@@ -202,7 +207,11 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       ao.arm_link_prior_m = opt.arm_link_prior_m;
       const AlignResult r = aligner.align(all, occluder, ao);
       if (r.status == AlignStatus::Aligned) {
-        for (std::size_t i = 0; i < views_aligned.size(); ++i) bundle_cam[views_aligned[i]] = r.cameras[i];
+        for (std::size_t i = 0; i < views_aligned.size(); ++i) {
+          bundle_cam[views_aligned[i]] = r.cameras[i];
+          if (r.covariance.rows() >= 7 * static_cast<int>(i + 1))
+            bundle_cov[views_aligned[i]] = r.covariance.block<7, 7>(7 * i, 7 * i);
+        }
         arm_delta = r.arm_link_delta_m;
         for (int j = 0; j < nls; ++j) {
           const int k = res.link_segments[j];
@@ -248,8 +257,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       acc_clicks[ci].add(pose_error(*clicks_pose[ci], setup.base_T_object));
       std::vector<AlignView> sub, sub_cam_only;
       for (const int v : combos[ci].views) {
-        sub.push_back({bundle_cam[v], views[v].frames});
-        sub_cam_only.push_back({aligned_cam[v], views[v].frames});
+        sub.push_back({bundle_cam[v], views[v].frames, bundle_cov[v]});
+        sub_cam_only.push_back({aligned_cam[v], views[v].frames, aligned_cov[v]});
       }
       AlignOptions ao;
       ao.refine = Refine::Object;

@@ -595,6 +595,10 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
     if (views[v].frames.empty()) throw std::invalid_argument("camera '" + views[v].camera.name + "' has no frames");
     if (!(views[v].camera.viewport == I.vp))
       throw std::invalid_argument("camera '" + views[v].camera.name + "' has another viewport than the aligner's");
+    const auto& cc = views[v].camera_covariance;
+    if (!cc.allFinite() || (cc.diagonal().array() < 0.0).any() || !cc.isApprox(cc.transpose(), 1e-9))
+      throw std::invalid_argument("camera '" + views[v].camera.name +
+                                  "': its covariance is not a finite symmetric matrix with a non-negative diagonal");
     for (const auto& fr : views[v].frames) data[v].push_back(I.prepare(fr));
   }
 
@@ -731,7 +735,9 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       e.matched[i] = 1;
       e.n[i] = n;
       if (jac) {
-        if (refine_camera) e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
+        // The camera's columns also when it is held (its covariance is
+        // propagated into the object's below).
+        e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
         if (refine_object && s.on_object)
           e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, obj_R, s.p_local);
         if (NL > 0 && !s.on_object) {
@@ -967,6 +973,23 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         for (const Eigen::VectorXd* s : {&a, &au, &av}) {
           const Eigen::VectorXd d = Hinv * *s;
           sandwich += o.edge_offset_sd_px * o.edge_offset_sd_px * d * d.transpose();
+        }
+      }
+      // The held cameras' own uncertainty (AlignView::camera_covariance):
+      // a camera error dc moves the object by -H^-1 H_oc dc, H_oc the
+      // cross-information of the object's and that camera's columns.
+      if (!refine_camera) {
+        std::vector<Eigen::MatrixXd> H_oc(V, Eigen::MatrixXd::Zero(P, 7));
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+          const double w = tukey_weight(e, i, c);
+          if (w <= 0.0 || views[samples[i].view].camera_covariance.isZero(0.0)) continue;
+          jacobian_row(e, i, row);
+          H_oc[samples[i].view].noalias() += w * row * e.J[i].leftCols<7>();
+        }
+        for (int v = 0; v < V; ++v) {
+          if (views[v].camera_covariance.isZero(0.0)) continue;
+          const Eigen::MatrixXd K = Hinv * H_oc[v];
+          sandwich += K * views[v].camera_covariance * K.transpose();
         }
       }
     }

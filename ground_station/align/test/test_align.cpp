@@ -486,6 +486,63 @@ TEST(Align, SingleViewOruCloseToTheClicksIsKept) {
   EXPECT_LT(r.start_disagreement_sigma, 5.0);
 }
 
+// A held camera is not exact: its uncertainty (AlignView::camera_covariance)
+// enters the object's covariance. Two known answers on one side view: a
+// camera centre uncertain by sd per axis moves the object exactly as much (the
+// image depends on the relative pose only), so the object's position
+// covariance grows by sd^2 I and its rotation's not at all; an f uncertain by
+// 1% trades against depth, so the object's sd along the line of sight grows
+// by about 1% of its distance. The solution itself does not change.
+TEST(Align, HeldCameraUncertaintyEntersTheObjectCovariance) {
+  World w;
+  const Eigen::VectorXd q = w.approach_q();
+  const Camera side = scene_camera(w.scene, "side");
+  SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, side.viewport, options(2.0, 7));
+  AlignView view{side, {{synth.render(side, q).image_bgr, q}}};
+  ModelAligner aligner(*w.ctx, w.model, &w.oru, side.viewport);
+  Pose start = w.scene.base_T_object;
+  start.translation() += Eigen::Vector3d(0.003, -0.002, 0.002);
+  AlignOptions o;
+  o.refine = Refine::Object;
+  const AlignResult exact = aligner.align({view}, start, o);
+  ASSERT_EQ(exact.status, AlignStatus::Aligned) << exact.reason;
+  ASSERT_EQ(exact.covariance.rows(), 6);
+
+  constexpr double kSd = 0.003;
+  view.camera_covariance.setZero();
+  view.camera_covariance.block<3, 3>(3, 3) = kSd * kSd * Eigen::Matrix3d::Identity();
+  const AlignResult centre = aligner.align({view}, start, o);
+  ASSERT_EQ(centre.status, AlignStatus::Aligned) << centre.reason;
+  EXPECT_LT((centre.base_T_object->matrix() - exact.base_T_object->matrix()).norm(), 1e-12);
+  const Eigen::Matrix<double, 6, 6> added = centre.covariance - exact.covariance;
+  EXPECT_LT(((added.bottomRightCorner<3, 3>() - kSd * kSd * Eigen::Matrix3d::Identity()).norm()), 0.01 * kSd * kSd)
+      << added;
+  EXPECT_LT((added.topLeftCorner<3, 3>().norm()), 1e-3 * kSd * kSd) << added;
+
+  view.camera_covariance.setZero();
+  view.camera_covariance(6, 6) = std::pow(0.01 * side.f_px, 2);
+  const AlignResult focal = aligner.align({view}, start, o);
+  ASSERT_EQ(focal.status, AlignStatus::Aligned) << focal.reason;
+  const Eigen::Vector3d axis = side.base_T_camera.linear().col(2);  // the optical axis in base
+  const double depth_m = side.to_camera(focal.base_T_object->translation()).z();
+  const Eigen::Matrix3d added_f = (focal.covariance - exact.covariance).bottomRightCorner<3, 3>();
+  const double depth_sd = std::sqrt(axis.dot(added_f * axis));
+  std::printf("held side camera: +%.2f mm position sd from a 3 mm centre sd; +%.2f mm depth sd from a 1%% f sd "
+              "(1%% of the %.3f m depth: %.2f mm); edges alone %.2f mm\n",
+              std::sqrt(added.bottomRightCorner<3, 3>().trace() / 3) * 1e3, depth_sd * 1e3, depth_m, depth_m * 10,
+              std::sqrt(axis.dot(exact.covariance.bottomRightCorner<3, 3>() * axis)) * 1e3);
+  EXPECT_NEAR(depth_sd, 0.01 * depth_m, 0.2 * 0.01 * depth_m);
+
+  // A covariance that is not one is bad input, named.
+  view.camera_covariance(6, 6) = -1.0;
+  try {
+    aligner.align({view}, start, o);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "camera 'side': its covariance is not a finite symmetric matrix with a non-negative diagonal");
+  }
+}
+
 TEST(AlignStudy, DISABLED_Driver) {
   World w;
   AlignmentStudyOptions o;

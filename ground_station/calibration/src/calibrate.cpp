@@ -79,6 +79,20 @@ Eigen::Matrix3d rpy_rate_matrix(const Eigen::Vector3d& rpy) {
   return W;
 }
 
+Eigen::Matrix<double, 7, 7> camera_covariance_rpy_from_body(const Eigen::Matrix<double, 7, 7>& body,
+                                                            const Eigen::Matrix3d& base_R_camera) {
+  Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
+  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(base_R_camera)).inverse();
+  return T * body * T.transpose();
+}
+
+Eigen::Matrix<double, 7, 7> camera_covariance_body_from_rpy(const Eigen::Matrix<double, 7, 7>& rpy,
+                                                            const Eigen::Matrix3d& base_R_camera) {
+  Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
+  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(base_R_camera));
+  return T * rpy * T.transpose();
+}
+
 double robust_sigma_px(std::vector<double> r) {
   if (r.empty()) return 0.0;
   const auto mid = r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2);

@@ -233,3 +233,22 @@ TEST(Calibrate, RpyRateMatrixMatchesFiniteDifferences) {
     EXPECT_NEAR((w - W.col(k)).norm(), 0.0, 1e-6);
   }
 }
+
+// The covariance calibrate reports (roll/pitch/yaw, what cameras.yaml keeps)
+// in the body-frame rotation increment is s^2 times the inverse of its
+// information (J^T J in the body increment): the conversion and the fit
+// agree, and the two conversions undo each other.
+TEST(Calibrate, CovarianceBetweenRpyAndBodyIncrementAgreesWithTheInformation) {
+  std::mt19937 rng(11);
+  const Eigen::Vector3d target(0.8, 0.1, 0.5);
+  const Camera truth = random_camera(rng, target, 2.0, 800.0);
+  const auto pts = random_points(rng, truth, target, 0.4, 40, 1.0);
+  const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
+  const Eigen::Matrix3d R = r.camera.base_T_camera.linear();
+  const Eigen::Matrix<double, 7, 7> body = camera_covariance_body_from_rpy(r.covariance, R);
+  const Eigen::Matrix<double, 7, 7> expected = r.residual_variance_px2 * r.information.inverse();
+  for (int i = 0; i < 7; ++i)
+    for (int j = 0; j < 7; ++j)
+      EXPECT_NEAR(body(i, j), expected(i, j), 1e-6 * std::sqrt(expected(i, i) * expected(j, j))) << i << "," << j;
+  EXPECT_LT((camera_covariance_rpy_from_body(body, R) - r.covariance).norm(), 1e-9 * r.covariance.norm());
+}

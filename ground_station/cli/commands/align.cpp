@@ -24,6 +24,7 @@
 
 #include "command.hpp"
 #include "foresight/align/model_aligner.hpp"
+#include "foresight/calibration/calibrate.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
@@ -87,7 +88,13 @@ int run_align(const AlignArgs& a) {
     }
     for (const auto& v : views)
       if (v.camera.name == name) throw std::invalid_argument("camera '" + name + "' given twice");
-    views.push_back({records.at(name).camera, {}});
+    const CameraRecord& rec = records.at(name);
+    AlignView view{rec.camera, {}};
+    // The calibration's uncertainty: with --refine object the camera is held
+    // but not exact, and its error enters the object's covariance.
+    if (rec.calibration)
+      view.camera_covariance = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
+    views.push_back(std::move(view));
   }
   const RobotModel model = RobotModel::from_file(a.robot);
   std::optional<ObjectModel> object;
@@ -129,7 +136,10 @@ int run_align(const AlignArgs& a) {
       if (a.out == a.cameras) out_records = records;
       for (std::size_t v = 0; v < r.cameras.size(); ++v) {
         CameraCalibrationInfo info;
-        info.covariance = r.covariance.block<7, 7>(7 * v, 7 * v);
+        // cameras.yaml keeps roll/pitch/yaw; the aligner's rotation is a
+        // body increment (calibrate writes the same convention).
+        info.covariance = camera_covariance_rpy_from_body(r.covariance.block<7, 7>(7 * v, 7 * v),
+                                                          r.cameras[v].base_T_camera.linear());
         info.rms_px = r.residual_rms_px;
         info.max_px = 1.0;  // inliers are within 1 px by definition
         info.n_points = r.matched_samples;

@@ -17,6 +17,9 @@
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#if defined(__SANITIZE_ADDRESS__)
+#include <sanitizer/lsan_interface.h>
+#endif
 
 #include <chrono>
 #include <cmath>
@@ -44,6 +47,18 @@ using Clock = std::chrono::steady_clock;
 using control::AckState;
 
 namespace {
+
+// While alive, LeakSanitizer ignores what this thread allocates (nothing
+// outside a sanitizer build). For a third-party leak on one call that we
+// cannot fix; leak detection stays on everywhere else.
+struct LeakCheckPaused {
+#if defined(__SANITIZE_ADDRESS__)
+  LeakCheckPaused() { __lsan_disable(); }
+  ~LeakCheckPaused() { __lsan_enable(); }
+  LeakCheckPaused(const LeakCheckPaused&) = delete;
+  LeakCheckPaused& operator=(const LeakCheckPaused&) = delete;
+#endif
+};
 
 constexpr auto kConnectTimeout = 20s;
 constexpr auto kAckTimeout = 15s;
@@ -318,6 +333,10 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   auto kind = raw.sequencer.next(foresight_msg_CMD_RECOVER);
   kind->payload._d = static_cast<msg::CommandKind>(42);
   try {
+    // Cyclone 0.10.2 leaks ~200 bytes on its error path when it refuses this
+    // write (bisected: every other hostile sample here leaks nothing). Under
+    // LeakSanitizer only what is allocated during this one call is ignored.
+    [[maybe_unused]] LeakCheckPaused paused;
     raw.writer.write(kind);
     ADD_FAILURE() << "Cyclone wrote an unknown union discriminator";
   } catch (const fp::ProtocolError& e) {

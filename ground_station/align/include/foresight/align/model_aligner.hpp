@@ -110,6 +110,14 @@ struct AlignFrame {
 struct AlignView {
   Camera camera;
   std::vector<AlignFrame> frames;
+  /// The camera's uncertainty in the alignment's camera parameters (body
+  /// rotation increment rad, centre in base m, f_px; zero: taken as exact).
+  /// When only the object is refined, the camera is held where it is but
+  /// not believed exact: its error moves the object as much as the edges
+  /// do (one view's depth trades against the camera's f and distance), so
+  /// this enters the object's covariance as K C K^T, K the object's
+  /// response to a camera change (a "consider" covariance).
+  Eigen::Matrix<double, 7, 7> camera_covariance = Eigen::Matrix<double, 7, 7>::Zero();
 };
 
 enum class AlignStatus {

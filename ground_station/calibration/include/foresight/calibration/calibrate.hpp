@@ -130,6 +130,15 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& points, const 
 /// omega_body = W(rpy) * d(rpy)/dt. Used to express covariances in rpy.
 Eigen::Matrix3d rpy_rate_matrix(const Eigen::Vector3d& rpy_rad);
 
+/// A camera's 7x7 covariance (rotation rad, position m, f_px) between the
+/// roll/pitch/yaw rotation that cameras.yaml keeps and the body-frame
+/// rotation increment the estimators use: C_rpy = T C_body T^T with
+/// T = diag(W(rpy)^-1, I), W = rpy_rate_matrix at the camera's rotation.
+Eigen::Matrix<double, 7, 7> camera_covariance_rpy_from_body(const Eigen::Matrix<double, 7, 7>& body,
+                                                            const Eigen::Matrix3d& base_R_camera);
+Eigen::Matrix<double, 7, 7> camera_covariance_body_from_rpy(const Eigen::Matrix<double, 7, 7>& rpy,
+                                                            const Eigen::Matrix3d& base_R_camera);
+
 /// Per-axis robust sigma (pixels) from 2-D residual norms.
 double robust_sigma_px(std::vector<double> residual_norms_px);
 
