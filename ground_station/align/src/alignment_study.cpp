@@ -108,7 +108,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
 
     // Clicks: calibration on the true arm, the believed points from the nominal arm.
     std::map<std::string, Camera> cams;
-    std::map<std::string, Eigen::Matrix<double, 7, 7>> cam_information;
+    std::map<std::string, Eigen::Matrix<double, 7, 7>> cam_information, cam_covariance;
     std::vector<Correspondence> oru_clicks;
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
@@ -122,6 +122,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         const CalibrationResult cr = calibrate_camera(vc.calibration, vp, view.truth.name);
         cams[view.truth.name] = cr.camera;
         cam_information[view.truth.name] = cr.information;
+        cam_covariance[view.truth.name] = camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
       } catch (const Error&) {
         ok = false;
       }
@@ -177,9 +178,11 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     std::vector<AlignView> views(nv);
     const std::optional<Pose> occluder = clicks_pose.back() ? clicks_pose.back() : std::optional<Pose>(setup.base_T_object);
     std::vector<Camera> aligned_cam(nv);
-    // Each camera's uncertainty after its alignment (the block of its
-    // covariance; body rotation): held with it when the ORU is aligned.
-    std::vector<Eigen::Matrix<double, 7, 7>> aligned_cov(nv, Eigen::Matrix<double, 7, 7>::Zero());
+    // Each camera's uncertainty (body rotation): its click calibration's,
+    // replaced by its alignment's block when aligned; held with it when the
+    // ORU is aligned (a refused camera keeps its clicks error, seen at 3% in f).
+    std::vector<Eigen::Matrix<double, 7, 7>> aligned_cov(nv);
+    for (int v = 0; v < nv; ++v) aligned_cov[v] = cam_covariance.at(setup.views[v].truth.name);
     std::vector<int> views_aligned;
     for (int v = 0; v < nv; ++v) {
       const Camera& truth = setup.views[v].truth;
