@@ -17,9 +17,6 @@
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
-#if defined(__SANITIZE_ADDRESS__)
-#include <sanitizer/lsan_interface.h>
-#endif
 
 #include <chrono>
 #include <cmath>
@@ -47,18 +44,6 @@ using Clock = std::chrono::steady_clock;
 using control::AckState;
 
 namespace {
-
-// While alive, LeakSanitizer ignores what this thread allocates (nothing
-// outside a sanitizer build). For a third-party leak on one call that we
-// cannot fix; leak detection stays on everywhere else.
-struct LeakCheckPaused {
-#if defined(__SANITIZE_ADDRESS__)
-  LeakCheckPaused() { __lsan_disable(); }
-  ~LeakCheckPaused() { __lsan_enable(); }
-  LeakCheckPaused(const LeakCheckPaused&) = delete;
-  LeakCheckPaused& operator=(const LeakCheckPaused&) = delete;
-#endif
-};
 
 constexpr auto kConnectTimeout = 20s;
 constexpr auto kAckTimeout = 15s;
@@ -330,18 +315,21 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   // An unknown kind: Cyclone refuses to serialize a discriminator with no
   // case (so it cannot come from a Cyclone peer); the link's own check
   // (test_link_convert) covers other vendors' writers.
+  // Not under ASan: after refusing this write Cyclone 0.10.2 leaks 184 bytes
+  // on one of its own threads (LeakSanitizer: allocated under start_thread,
+  // every frame in libddsc; bisected: without this write no leak). Only a
+  // module-wide suppression of libddsc could hide it, which would hide our
+  // leaks through Cyclone too. The write checks Cyclone, not our code.
+#ifndef __SANITIZE_ADDRESS__
   auto kind = raw.sequencer.next(foresight_msg_CMD_RECOVER);
   kind->payload._d = static_cast<msg::CommandKind>(42);
   try {
-    // Cyclone 0.10.2 leaks ~200 bytes on its error path when it refuses this
-    // write (bisected: every other hostile sample here leaks nothing). Under
-    // LeakSanitizer only what is allocated during this one call is ignored.
-    [[maybe_unused]] LeakCheckPaused paused;
     raw.writer.write(kind);
     ADD_FAILURE() << "Cyclone wrote an unknown union discriminator";
   } catch (const fp::ProtocolError& e) {
     EXPECT_STREQ(e.what(), "write on foresight/command: Bad Parameter");
   }
+#endif
   // The link stays up and keeps serving the well-behaved ground.
   EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
 }
