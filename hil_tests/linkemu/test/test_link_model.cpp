@@ -4,33 +4,19 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <cstdlib>
-#include <new>
 #include <vector>
 
 #include "foresight/linkemu/dds_config.hpp"
 #include "foresight/linkemu/delay_line.hpp"
 #include "foresight/linkemu/link_model.hpp"
 #include "foresight/linkemu/netns.hpp"
+// Counts heap allocations, to show the per-packet path does not allocate (the
+// shared counter: it also counts under ASan, where a local operator new/delete
+// replacement mismatched the sanitizer's nothrow new, which std::stable_sort uses).
+#include "foresight/test/allocation_counter.hpp"
 
 namespace le = foresight::linkemu;
-
-// Counts heap allocations, to show the per-packet path does not allocate.
-// GCC 12 flags malloc/free inside replaced operator new/delete as mismatched
-// once inlined into a caller (a false positive: both are replaced together).
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
-std::atomic<long> g_allocations{0};
-}
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace {
 
@@ -211,7 +197,7 @@ TEST(DelayLine, PerPacketPathDoesNotAllocate) {
   p.rate_bit_s = 1e7;
   le::DirectionModel model(p, 5);
   le::DelayLine line(1024, 1500);
-  const long before = g_allocations.load();
+  foresight::test::AllocationCounter allocations;
   std::int64_t now = 0;
   for (int i = 0; i < 100000; ++i) {
     now += 200'000;
@@ -221,7 +207,7 @@ TEST(DelayLine, PerPacketPathDoesNotAllocate) {
     const auto d = model.admit(now, 1000);
     if (d.verdict == le::Verdict::kDeliver) line.commit(1000, d.deliver_ns);
   }
-  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_EQ(allocations.count(), 0);
 }
 
 TEST(Netns, OwnerPidFromName) {
