@@ -162,6 +162,7 @@ constexpr int kMaxLinks = 16;  // refined link lengths (chain segments with an o
 
 struct Gradient {
   cv::Mat gx, gy;  // CV_32F, grey levels per pixel
+  bool valid = false;  // false: the buffers are a recycled frame's, to be recomputed
 };
 
 // Bilinear sample at continuous pixel coordinates (pixel centres at i + 0.5).
@@ -269,9 +270,19 @@ struct ModelAligner::Impl {
   render::DrawList list;
   cv::Mat layer, shaded_layer;
   int next_cluster = 0;
+  // Image buffers kept from one call to the next (align is called per
+  // frame by the health check and many times by the study): a fresh
+  // full-frame buffer is fresh pages, and faulting them in was over half of
+  // an alignment's time (BM_AlignCamera 95 -> 45 ms wall with glibc told not
+  // to return freed memory). The recycled frames' Mats are rewritten in
+  // place (OpenCV reuses a destination of the same size and type).
+  cv::Mat blurred;                                      // gradient(): the blurred level
+  cv::Mat model_mask, bg_w, bg_v, predicted_grey;       // predict_bias()
+  Gradient predicted;                                   // predict_bias()
 
   Impl(render::GlContext& ctx, const RobotModel& a, const ObjectModel* o, const Viewport& v)
       : arm(a), object(o), vp(v), renderer(ctx, v, 1), shaded_renderer(ctx, v, 4), ws(a) {
+    spare_frames.reserve(kSpareFrames);  // recycle() never reallocates (it runs in a destructor)
     const auto& links = arm.links();
     for (int k = 0; k < static_cast<int>(links.size()); ++k)
       for (const auto& shape : links[k].visuals) add(k, render::make_shape(shape), shape.rgba);
@@ -299,6 +310,22 @@ struct ModelAligner::Impl {
     cv::Mat grey8, grey;
     std::map<int, Gradient> gradients;  // by level index (-1: score level)
   };
+  // Frames of finished calls, their buffers reused by prepare(); at most
+  // kSpareFrames (about 11 MB each at 646x486) are kept.
+  static constexpr std::size_t kSpareFrames = 4;
+  std::vector<FrameData> spare_frames;
+  void recycle(FrameData&& f) {
+    if (spare_frames.size() < kSpareFrames) spare_frames.push_back(std::move(f));
+  }
+  // Returns a call's frames to spare_frames however the call ends.
+  struct FramesLease {
+    Impl& impl;
+    std::vector<std::vector<FrameData>>& frames;
+    ~FramesLease() {
+      for (auto& per_view : frames)
+        for (auto& f : per_view) impl.recycle(std::move(f));
+    }
+  };
 
   static Eigen::Vector4d label_rgba(int label) {
     return {(label & 0xFF) / 255.0, ((label >> 8) & 0xFF) / 255.0, 0.0, 1.0};
@@ -311,18 +338,17 @@ struct ModelAligner::Impl {
   }
 
   const Gradient& gradient(FrameData& f, int level_index, double blur) {
-    auto it = f.gradients.find(level_index);
-    if (it != f.gradients.end()) return it->second;
-    Gradient g;
-    cv::Mat blurred;
+    Gradient& g = f.gradients[level_index];
+    if (g.valid) return g;
     // Coarse levels blur the 8-bit image (several times faster); the fine
     // levels blur in float so the sub-pixel edge is not quantized.
     if (blur >= 2.0) cv::GaussianBlur(f.grey8, blurred, cv::Size(0, 0), blur);
     else if (blur > 0.0) cv::GaussianBlur(f.grey, blurred, cv::Size(0, 0), blur);
-    else blurred = f.grey;
-    cv::Sobel(blurred, g.gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
-    cv::Sobel(blurred, g.gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
-    return f.gradients.emplace(level_index, std::move(g)).first->second;
+    const cv::Mat& src = blur > 0.0 ? blurred : f.grey;
+    cv::Sobel(src, g.gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
+    cv::Sobel(src, g.gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+    g.valid = true;
+    return g;
   }
 
   FrameData prepare(const AlignFrame& frame) {
@@ -333,10 +359,18 @@ struct ModelAligner::Impl {
     if (frame.q.size() != arm.dof())
       throw std::invalid_argument("joint vector has " + std::to_string(frame.q.size()) + " values but the arm has " +
                                   std::to_string(arm.dof()) + " joints");
+    if (frame.image_bgr.type() != CV_8UC3 && frame.image_bgr.type() != CV_8UC1)
+      throw std::invalid_argument("frame must be an 8-bit BGR or grey image");
     FrameData f;
+    if (!spare_frames.empty()) {
+      f = std::move(spare_frames.back());
+      spare_frames.pop_back();
+      for (auto& [level, g] : f.gradients) g.valid = false;
+    }
+    // A grey input is copied, not shared: the buffer is rewritten when this
+    // frame is recycled, and the caller's image is not ours to rewrite.
     if (frame.image_bgr.type() == CV_8UC3) cv::cvtColor(frame.image_bgr, f.grey8, cv::COLOR_BGR2GRAY);
-    else if (frame.image_bgr.type() == CV_8UC1) f.grey8 = frame.image_bgr;
-    else throw std::invalid_argument("frame must be an 8-bit BGR or grey image");
+    else frame.image_bgr.copyTo(f.grey8);
     f.grey8.convertTo(f.grey, CV_32F);
     f.q = frame.q;
     f.link_poses.resize(arm.links().size());
@@ -394,14 +428,13 @@ struct ModelAligner::Impl {
     // The local background: the image where no model part is (3 px clear of
     // the model, so its blurred edges stay out), spread over the model by a
     // normalized Gaussian (floor behind one silhouette, sky behind another).
-    cv::Mat model_mask(layer.rows, layer.cols, CV_8U);
+    model_mask.create(layer.rows, layer.cols, CV_8U);
     for (int y = 0; y < layer.rows; ++y) {
       const std::uint8_t* lp = layer.ptr<std::uint8_t>(y);
       std::uint8_t* m = model_mask.ptr<std::uint8_t>(y);
       for (int x = 0; x < layer.cols; ++x) m[x] = (lp[4 * x + 2] | lp[4 * x + 1]) ? 255 : 0;
     }
     cv::dilate(model_mask, model_mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(7, 7)));
-    cv::Mat bg_w, bg_v;
     cv::bitwise_not(model_mask, model_mask);
     model_mask.convertTo(bg_w, CV_32F, 1.0 / 255.0);
     cv::multiply(f.grey, bg_w, bg_v);
@@ -410,7 +443,8 @@ struct ModelAligner::Impl {
     // and 3: four-view gain 3.9x / 3.0x -> 2.2x / 0.8x).
     cv::GaussianBlur(bg_w, bg_w, cv::Size(0, 0), 6.0);
     cv::GaussianBlur(bg_v, bg_v, cv::Size(0, 0), 6.0);
-    cv::Mat grey(shaded_layer.rows, shaded_layer.cols, CV_32F);
+    cv::Mat& grey = predicted_grey;
+    grey.create(shaded_layer.rows, shaded_layer.cols, CV_32F);
     for (int y = 0; y < grey.rows; ++y) {
       const std::uint8_t* p = shaded_layer.ptr<std::uint8_t>(y);
       const float* w = bg_w.ptr<float>(y);
@@ -428,7 +462,7 @@ struct ModelAligner::Impl {
     const double total_blur = std::sqrt(std::max(0.0, o.optical_blur_px) * std::max(0.0, o.optical_blur_px) +
                                         std::max(0.0, blur) * std::max(0.0, blur));
     if (total_blur > 0.0) cv::GaussianBlur(grey, grey, cv::Size(0, 0), total_blur);
-    Gradient g;
+    Gradient& g = predicted;
     cv::Sobel(grey, g.gx, CV_32F, 1, 0, 3, 1.0 / 8.0);
     cv::Sobel(grey, g.gy, CV_32F, 0, 1, 3, 1.0 / 8.0);
     for (std::size_t i = begin; i < out.size(); ++i) {
@@ -591,6 +625,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   if (refine_object && !I.object) throw std::invalid_argument("refining the object needs the object model");
   const int V = static_cast<int>(views.size());
   std::vector<std::vector<Impl::FrameData>> data(V);
+  const Impl::FramesLease lease{I, data};
   for (int v = 0; v < V; ++v) {
     if (views[v].frames.empty()) throw std::invalid_argument("camera '" + views[v].camera.name + "' has no frames");
     if (!(views[v].camera.viewport == I.vp))
@@ -1109,7 +1144,10 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
 ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFrame& frame,
                                              const std::optional<Pose>& base_T_object, const AlignOptions& o) {
   auto& I = *impl_;
-  Impl::FrameData f = I.prepare(frame);
+  std::vector<std::vector<Impl::FrameData>> data(1);
+  const Impl::FramesLease lease{I, data};
+  data[0].push_back(I.prepare(frame));
+  Impl::FrameData& f = data[0][0];
   std::vector<Sample> samples;
   I.sample(camera, f, base_T_object, 0, 0, true, false, o, samples);
   FrameScore out;

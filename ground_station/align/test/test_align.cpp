@@ -12,6 +12,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "foresight/align/alignment_study.hpp"
 #include "foresight/align/model_aligner.hpp"
@@ -99,6 +101,49 @@ TEST(Align, NoiseFreeFramesRecoverTheTrueCamera) {
   // docs/estimation.md).
   EXPECT_LT(end, 0.05);
   EXPECT_LT(r.final_score_px, r.start_score_px);
+}
+
+// The aligner keeps its image buffers from one call to the next (fresh
+// pages were over half of an alignment's time): a frame aligned again after
+// another gives the same answer to the bit, the earlier frame's gradients
+// never leak into a later call, and a grey frame the caller gave is not
+// rewritten by the buffers' reuse.
+TEST(Align, ReusedBuffersGiveTheSameAnswerAndLeaveTheCallersFrameAlone) {
+  World w;
+  const Camera truth = scene_camera(w.scene, "oblique");
+  SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 3));
+  ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
+  const Eigen::VectorXd q = w.approach_q();
+  const Eigen::VectorXd q2 = q + Eigen::VectorXd::Constant(q.size(), 0.05);
+  cv::Mat grey_a;
+  cv::cvtColor(synth.render(truth, q).image_bgr, grey_a, cv::COLOR_BGR2GRAY);
+  const cv::Mat grey_a_copy = grey_a.clone();
+  const AlignView a{perturbed(truth, 3.0, -2.0, 1.005), {{grey_a, q}}};
+  const AlignView b{perturbed(truth, -2.0, 1.0), {{synth.render(truth, q2).image_bgr, q2}}};
+  const AlignResult first = aligner.align({a}, w.scene.base_T_object);
+  const AlignResult other = aligner.align({b}, w.scene.base_T_object);
+  const AlignResult again = aligner.align({a}, w.scene.base_T_object);
+  ASSERT_EQ(first.status, AlignStatus::Aligned) << first.reason;
+  ASSERT_EQ(other.status, AlignStatus::Aligned) << other.reason;
+  ASSERT_EQ(again.status, AlignStatus::Aligned) << again.reason;
+  EXPECT_EQ(again.iterations, first.iterations);
+  EXPECT_EQ(again.matched_samples, first.matched_samples);
+  EXPECT_EQ(again.residual_rms_px, first.residual_rms_px);
+  EXPECT_TRUE(again.cameras[0].base_T_camera.isApprox(first.cameras[0].base_T_camera, 0.0));
+  EXPECT_EQ(again.cameras[0].f_px, first.cameras[0].f_px);
+  EXPECT_EQ(again.covariance, first.covariance);
+  // b's answer is b's, not a's: the two starts were 5 px apart.
+  EXPECT_GT((other.cameras[0].base_T_camera.translation() - first.cameras[0].base_T_camera.translation()).norm() +
+                std::abs(other.cameras[0].f_px - first.cameras[0].f_px),
+            0.0);
+  EXPECT_LT(reprojection_rms_px(other.cameras[0], truth, w.points(q2)), 0.45);
+  EXPECT_EQ(cv::norm(grey_a, grey_a_copy, cv::NORM_INF), 0.0);
+  // score() (the health check, once a frame) shares the buffers too.
+  const auto s1 = aligner.score(truth, a.frames[0], w.scene.base_T_object);
+  aligner.score(truth, b.frames[0], w.scene.base_T_object);
+  const auto s2 = aligner.score(truth, a.frames[0], w.scene.base_T_object);
+  EXPECT_EQ(s1.score_px, s2.score_px);
+  EXPECT_EQ(s1.iou, s2.iou);
 }
 
 TEST(Align, FivePixelsOffConvergesWithNoise) {
