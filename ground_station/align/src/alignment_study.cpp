@@ -10,6 +10,7 @@
 
 #include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/calibrate.hpp"
+#include "foresight/calibration/robot_points.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/localization/localize.hpp"
@@ -91,6 +92,20 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     }
   }
 
+  // The calibration points' sensitivity to the link lengths (the nominal
+  // arm's; the same every trial): the click calibration's covariance
+  // carries the arm model's uncertainty (arm_link_prior_m), which the
+  // residuals cannot show.
+  std::vector<std::vector<Eigen::Matrix3Xd>> calibration_dp_dlinks(nv);
+  {
+    LinkLengthSensitivity sensitivity(robot);
+    for (int v = 0; v < nv; ++v)
+      for (const ArmFeature& f : setup.views[v].calibration_features)
+        calibration_dp_dlinks[v].push_back(sensitivity.at(setup.arm_q.at(f.pose), f.link, f.p_link));
+  }
+  CalibrationOptions calibration_options;
+  calibration_options.arm_link_sigma_m = opt.arm_link_prior_m;
+
   ModelAligner aligner(ctx, robot, &object, vp);
   std::mt19937_64 rng(opt.seed);
   std::normal_distribution<double> noise(0.0, opt.noise_px);
@@ -118,8 +133,9 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         true_base.push_back(forward_kinematics(truth_arm, tws, setup.arm_q.at(f.pose), f.link) * f.p_link);
       ViewClicks vc = simulate_view_clicks(view, view.calibration_points_base, true_base, setup.base_T_object,
                                            [&] { return noise(rng); });
+      for (std::size_t i = 0; i < vc.calibration.size(); ++i) vc.calibration[i].dp_dlinks = calibration_dp_dlinks[v][i];
       try {
-        const CalibrationResult cr = calibrate_camera(vc.calibration, vp, view.truth.name);
+        const CalibrationResult cr = calibrate_camera(vc.calibration, vp, view.truth.name, calibration_options);
         cams[view.truth.name] = cr.camera;
         cam_information[view.truth.name] = cr.information;
         cam_covariance[view.truth.name] = camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
@@ -178,8 +194,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     std::vector<AlignView> views(nv);
     const std::optional<Pose> occluder = clicks_pose.back() ? clicks_pose.back() : std::optional<Pose>(setup.base_T_object);
     std::vector<Camera> aligned_cam(nv);
-    // Each camera's uncertainty (body rotation): its click calibration's,
-    // replaced by its alignment's block when aligned; held with it when the
+    // Each camera's uncertainty (body rotation): its click calibration's
+    // (the arm model's part included), replaced by its alignment's block when aligned; held with it when the
     // ORU is aligned (a refused camera keeps its clicks error, seen at 3% in f).
     std::vector<Eigen::Matrix<double, 7, 7>> aligned_cov(nv);
     for (int v = 0; v < nv; ++v) aligned_cov[v] = cam_covariance.at(setup.views[v].truth.name);

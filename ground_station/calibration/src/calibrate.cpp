@@ -223,6 +223,9 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   check_points(pts, name);
   const std::string who = "camera '" + name + "': ";
   check_in_viewport(pts, vp, "camera '" + name + "'");
+  if (!(opt.arm_link_sigma_m >= 0.0) || !std::isfinite(opt.arm_link_sigma_m))
+    throw EstimationInputError(who + "the arm's link-length sd must be a finite number >= 0 m, not " +
+                               std::to_string(opt.arm_link_sigma_m));
   const int n = static_cast<int>(pts.size());
   const Eigen::Vector2d pp(vp.width_px / 2.0, vp.height_px / 2.0);
 
@@ -343,7 +346,35 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   const double s2 = e.squaredNorm() / dof;
   res.residual_variance_px2 = s2;
   const Eigen::Matrix<double, 7, 7> H = J.transpose() * J;
-  res.covariance = s2 * H.inverse();
+  const Eigen::Matrix<double, 7, 7> H_inv = H.inverse();
+  res.covariance = s2 * H_inv;
+  if (opt.arm_link_sigma_m > 0.0) {
+    // The camera's response to the link lengths: K = H^-1 J^T J_links, with
+    // J_links the pixels' motion per metre of each link (d uv / d p times the
+    // point's sensitivity); the links independent with sd arm_link_sigma_m.
+    Eigen::Index links = 0;
+    for (const int i : idx) links = std::max(links, pts[i].dp_dlinks.cols());
+    if (links > 0) {
+      Eigen::MatrixXd J_links = Eigen::MatrixXd::Zero(2 * m, links);
+      for (int k = 0; k < m; ++k) {
+        const Correspondence& c = pts[idx[k]];
+        if (c.dp_dlinks.cols() == 0) continue;
+        const Projection pr = project_with_jacobians(state.R, state.c, state.f, pp, c.p_m);
+        J_links.block(2 * k, 0, 2, c.dp_dlinks.cols()) = pr.d_point * c.dp_dlinks;
+      }
+      const Eigen::MatrixXd JtJl = J.transpose() * J_links;
+      const Eigen::MatrixXd K = H_inv * JtJl;
+      const double var_links = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
+      res.arm_model_covariance = var_links * K * K.transpose();
+      // The residuals carry the links' part the camera cannot take, expected
+      // var_links tr(J_links^T (I - J H^-1 J^T) J_links); counting it again as
+      // pixel noise would count the arm twice (measured: 1.4x too wide
+      // without pixel noise). The pixel noise is what is left (>= 0).
+      const double arm_in_residuals = var_links * (J_links.squaredNorm() - (JtJl.transpose() * K).trace());
+      const double noise_s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals) / dof;
+      res.covariance = noise_s2 * H_inv + res.arm_model_covariance;
+    }
+  }
   res.sigma = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   return res;
 }

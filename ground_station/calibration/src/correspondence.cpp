@@ -120,6 +120,7 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
         throw InputError(source, line_no, "point on link '" + c.link + "': " + *why);
       c.uv_px = {num(6 + dof, "u"), num(7 + dof, "v")};
       c.p_m = robot->to_base(c.link, p_link, q);
+      c.dp_dlinks = robot->link_length_sensitivity(c.link, p_link, q);
     }
     out.push_back(std::move(c));
   }

@@ -6,6 +6,28 @@
 
 namespace foresight {
 
+LinkLengthSensitivity::LinkLengthSensitivity(const RobotModel& model) : model_(model), ws_(model) {
+  const unsigned nseg = model.chain().getNrOfSegments();
+  for (unsigned k = 0; k < nseg; ++k) {
+    if (model.chain().getSegment(k).getFrameToTip().p.Norm() <= 1e-9) continue;
+    std::vector<double> d(nseg, 0.0);
+    d[k] = kStep_m;
+    segments_.push_back(static_cast<int>(k));
+    stepped_.push_back(std::make_unique<RobotModel>(model.with_link_lengths_changed(d)));
+    stepped_ws_.push_back(std::make_unique<KinematicsWorkspace>(*stepped_.back()));
+  }
+}
+
+LinkLengthSensitivity::~LinkLengthSensitivity() = default;
+
+Eigen::Matrix3Xd LinkLengthSensitivity::at(const Eigen::VectorXd& q, int link, const Eigen::Vector3d& p_link) {
+  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, model_.chain().getNrOfSegments());
+  const Eigen::Vector3d p = forward_kinematics(model_, ws_, q, link) * p_link;
+  for (std::size_t j = 0; j < segments_.size(); ++j)
+    out.col(segments_[j]) = (forward_kinematics(*stepped_[j], *stepped_ws_[j], q, link) * p_link - p) / kStep_m;
+  return out;
+}
+
 RobotLinkPoints::RobotLinkPoints(std::string urdf_path) : path_(std::move(urdf_path)) {}
 
 RobotLinkPoints::RobotLinkPoints(const RobotModel& model) : model_(model) {
@@ -54,6 +76,13 @@ Eigen::Vector3d RobotLinkPoints::to_base(const std::string& link, const Eigen::V
                                          const Eigen::VectorXd& q) const {
   const RobotModel& m = model();
   return forward_kinematics(m, *ws_, q, m.link_index(link)) * p_link;
+}
+
+Eigen::Matrix3Xd RobotLinkPoints::link_length_sensitivity(const std::string& link, const Eigen::Vector3d& p_link,
+                                                          const Eigen::VectorXd& q) const {
+  const RobotModel& m = model();
+  if (!sensitivity_) sensitivity_ = std::make_unique<LinkLengthSensitivity>(m);
+  return sensitivity_->at(q, m.link_index(link), p_link);
 }
 
 }  // namespace foresight

@@ -3,16 +3,20 @@
 // inside the viewport, bounded rows, and outlier flagging whose cost does not
 // grow with the number of outliers.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/correspondence.hpp"
 #include "foresight/calibration/robot_points.hpp"
 #include "foresight/common/error.hpp"
+#include "foresight/common/kinematics.hpp"
 #include "foresight/common/input_limits.hpp"
 #include "synthetic.hpp"
 
@@ -119,4 +123,156 @@ TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
   EXPECT_LT(r.rms_px, 1.0);
   EXPECT_LT(s, 30.0);
   EXPECT_NEAR(r.camera.f_px, 800.0, 2.0);
+}
+
+// The arm as fixture: its 2 mm link errors move many points alike, the fit
+// takes them into the camera, and the residuals cannot show it. Over 300
+// true arms (every link off by N(0, 2 mm)) clicked without pixel noise and
+// calibrated against the nominal arm, the cameras' spread in f and position
+// is what the covariance with CalibrationOptions::arm_link_sigma_m claims,
+// where the residuals' part alone claims far less; the solution itself does
+// not change.
+TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
+  const RobotModel& m = arm();
+  KinematicsWorkspace ws(m);
+  LinkLengthSensitivity sensitivity(m);
+  // The arm at five poses, points on every link (its origin and two 6 cm off it).
+  std::vector<Eigen::VectorXd> poses;
+  for (int k = 0; k < 5; ++k) {
+    Eigen::VectorXd q = m.mid_configuration();
+    for (int j = 0; j < q.size(); ++j) q[j] += 0.35 * std::sin(1.7 * k + 0.9 * j);
+    poses.push_back(q);
+  }
+  struct Feature {
+    int pose, link;
+    Eigen::Vector3d p_link;
+  };
+  std::vector<Feature> features;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 5; ++k)
+    for (int l = 1; l < static_cast<int>(m.links().size()); ++l)
+      for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.06, 0, 0), Eigen::Vector3d(0, 0.06, 0)}) {
+        features.push_back({k, l, p});
+        centroid += forward_kinematics(m, ws, poses[k], l) * p;
+      }
+  centroid /= static_cast<double>(features.size());
+  const Camera truth = Camera::look_at("side", Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
+                                       Eigen::Vector3d::UnitZ());
+  std::vector<Correspondence> believed;
+  for (const Feature& f : features) {
+    Correspondence c;
+    c.n = static_cast<int>(believed.size()) + 1;
+    c.cam = truth.name;
+    c.p_m = forward_kinematics(m, ws, poses[f.pose], f.link) * f.p_link;
+    c.dp_dlinks = sensitivity.at(poses[f.pose], f.link, f.p_link);
+    believed.push_back(c);
+  }
+  ASSERT_GE(believed.size(), 40u);
+
+  const unsigned nseg = m.chain().getNrOfSegments();
+  CalibrationOptions with_arm;
+  with_arm.arm_link_sigma_m = 0.002;
+  with_arm.outliers.enabled = false;  // a mismatch of the arm is not an outlier
+  CalibrationOptions without = with_arm;
+  without.arm_link_sigma_m = 0.0;
+  constexpr int kArms = 300;
+  for (const double noise_px : {0.0, 1.0}) {
+    std::mt19937 rng(5);
+    std::normal_distribution<double> link_error(0.0, 0.002), pixel(0.0, noise_px > 0.0 ? noise_px : 1.0);
+    Eigen::Vector4d sum2 = Eigen::Vector4d::Zero(), claimed = Eigen::Vector4d::Zero(),
+                    claimed_without = Eigen::Vector4d::Zero();
+    for (int t = 0; t < kArms; ++t) {
+      std::vector<double> delta(nseg, 0.0);
+      for (unsigned k = 0; k < nseg; ++k)
+        if (m.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(rng);
+      const RobotModel true_arm = m.with_link_lengths_changed(delta);
+      KinematicsWorkspace tws(true_arm);
+      std::vector<Correspondence> pts = believed;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        pts[i].uv_px = truth.project(forward_kinematics(true_arm, tws, poses[features[i].pose], features[i].link) *
+                                     features[i].p_link);
+        if (noise_px > 0.0) pts[i].uv_px += Eigen::Vector2d(pixel(rng), pixel(rng));
+      }
+      const CalibrationResult r = calibrate_camera(pts, truth.viewport, truth.name, with_arm);
+      const CalibrationResult r0 = calibrate_camera(pts, truth.viewport, truth.name, without);
+      // The arm's uncertainty changes the claim, not the solution.
+      ASSERT_EQ(r0.camera.f_px, r.camera.f_px);
+      ASSERT_TRUE(r0.camera.base_T_camera.isApprox(r.camera.base_T_camera, 0.0));
+      ASSERT_TRUE(r0.arm_model_covariance.isZero(0.0));
+      const Eigen::Vector4d err(r.camera.f_px - truth.f_px, r.position_m().x() - truth.base_T_camera.translation().x(),
+                                r.position_m().y() - truth.base_T_camera.translation().y(),
+                                r.position_m().z() - truth.base_T_camera.translation().z());
+      sum2 += err.cwiseProduct(err);
+      const int idx[4] = {6, 3, 4, 5};
+      for (int a = 0; a < 4; ++a) {
+        claimed[a] += r.covariance(idx[a], idx[a]);
+        claimed_without[a] += r0.covariance(idx[a], idx[a]);
+      }
+    }
+    const char* names[4] = {"f_px", "x", "y", "z"};
+    for (int a = 0; a < 4; ++a) {
+      const double spread = std::sqrt(sum2[a] / kArms), sd = std::sqrt(claimed[a] / kArms),
+                   sd_without = std::sqrt(claimed_without[a] / kArms);
+      std::printf("noise %.1f px %-4s: spread %.4g, claimed sd %.4g (without the arm's %.4g)\n", noise_px, names[a],
+                  spread, sd, sd_without);
+      // 300 arms: the spread's own sampling error is ~4%.
+      EXPECT_GT(spread / sd, 0.85) << names[a] << " at " << noise_px << " px";
+      EXPECT_LT(spread / sd, 1.15) << names[a] << " at " << noise_px << " px";
+    }
+    // The residuals alone claim f and the depth (y) too well: measured 0.25x
+    // and 0.20x of the spread without pixel noise, 0.75x and 0.66x with 1 px.
+    const double bound = noise_px > 0.0 ? 0.8 : 0.3;
+    EXPECT_LT(std::sqrt(claimed_without[0] / kArms), bound * std::sqrt(sum2[0] / kArms));
+    EXPECT_LT(std::sqrt(claimed_without[2] / kArms), bound * std::sqrt(sum2[2] / kArms));
+  }
+}
+
+// A link-form row carries how its point moves with the arm's link lengths:
+// lengthening one offset translates everything beyond it along that offset,
+// so each column is a unit vector (in base) for the segments before the
+// point's link and zero beyond it; an x,y,z row carries none.
+TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
+  RobotLinkPoints robot(arm());
+  const std::string q = "0.3,-0.4,0.2,-1.2,0.5,0.6,-0.3";
+  const auto pts = parse_correspondences_csv(header(7) + "1,side,link3,0,0,0.1," + q + ",300,200\n" + "2,side," +
+                                                 arm().links().back().name + ",0.02,0,0," + q + ",300,200\n",
+                                             "pts.csv", &robot);
+  const unsigned nseg = arm().chain().getNrOfSegments();
+  ASSERT_EQ(pts.size(), 2u);
+  ASSERT_EQ(pts[1].dp_dlinks.cols(), static_cast<Eigen::Index>(nseg));
+  int unit = 0;
+  for (unsigned k = 0; k < nseg; ++k) {
+    const bool has_offset = arm().chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9;
+    // The last link is beyond every segment.
+    EXPECT_NEAR(pts[1].dp_dlinks.col(k).norm(), has_offset ? 1.0 : 0.0, 1e-9) << "segment " << k;
+    unit += has_offset;
+  }
+  EXPECT_GE(unit, 3);
+  // link3 is beyond fewer segments than the last link.
+  int unit3 = 0;
+  for (unsigned k = 0; k < nseg; ++k) {
+    const double norm = pts[0].dp_dlinks.col(k).norm();
+    EXPECT_TRUE(std::abs(norm) < 1e-9 || std::abs(norm - 1.0) < 1e-9) << "segment " << k << ": " << norm;
+    unit3 += norm > 0.5;
+  }
+  EXPECT_GT(unit3, 0);
+  EXPECT_LT(unit3, unit);
+  EXPECT_EQ(parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,1,1\n", "pts.csv")[0].dp_dlinks.cols(), 0);
+}
+
+TEST(CalibrateArmModel, ANegativeOrNonFiniteLinkSigmaIsBadInput) {
+  std::mt19937 rng(3);
+  const Eigen::Vector3d target(0.8, 0.1, 0.5);
+  const Camera truth = foresight::testing::random_camera(rng, target, 2.0, 800.0);
+  const auto pts = foresight::testing::random_points(rng, truth, target, 0.4, 20, 0.5);
+  for (const double bad : {-0.001, std::nan("")}) {
+    CalibrationOptions o;
+    o.arm_link_sigma_m = bad;
+    try {
+      calibrate_camera(pts, truth.viewport, "cam", o);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const EstimationInputError& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("camera 'cam': the arm's link-length sd must be a finite number >= 0 m"));
+    }
+  }
 }

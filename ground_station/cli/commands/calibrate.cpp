@@ -36,6 +36,7 @@ struct CalibrateArgs {
   std::string robot = default_config("robot.urdf");
   std::string out;
   int max_iterations = 100;
+  double arm_link_sigma_m = 0.0;
   bool json = false;
   ResidualPlotArgs plot;
 };
@@ -66,6 +67,7 @@ int run_calibrate(const CalibrateArgs& a) {
   check_in_viewport(pts, vp, a.points);
   CalibrationOptions copt;
   copt.max_iterations = a.max_iterations;
+  copt.arm_link_sigma_m = a.arm_link_sigma_m;
   const CalibrationResult r = calibrate_camera(pts, vp, a.camera, copt);
   write_residual_plot(a.plot, pts, r.residuals, {{a.camera, vp}}, r.rms_px);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
@@ -73,6 +75,7 @@ int run_calibrate(const CalibrateArgs& a) {
   const double fovy_deg = r.camera.fovy_rad() / kDeg;
   const Eigen::Vector3d sigma_rpy_deg = r.sigma.head<3>() / kDeg;
   const Eigen::Vector3d sigma_pos = r.sigma.segment<3>(3);
+  const Eigen::Matrix<double, 7, 1> arm_sigma = r.arm_model_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 
   if (!a.out.empty()) {
     std::map<std::string, CameraRecord> cams;
@@ -101,6 +104,11 @@ int run_calibrate(const CalibrateArgs& a) {
                         {"outliers", r.outliers},
                         {"sigma", {{"f_px", r.sigma[6]}, {"position_m", vec_json(sigma_pos)}, {"rpy_deg", vec_json(sigma_rpy_deg)}}},
                         {"covariance", matrix_rows(r.covariance)},
+                        {"arm_model_sigma",
+                         {{"arm_link_sigma_m", a.arm_link_sigma_m},
+                          {"f_px", arm_sigma[6]},
+                          {"position_m", vec_json(Eigen::Vector3d(arm_sigma.segment<3>(3)))},
+                          {"rpy_deg", vec_json(Eigen::Vector3d(arm_sigma.head<3>() / kDeg))}}},
                         {"iterations", r.iterations},
                         {"n_points", r.n_points}};
     if (!a.out.empty()) j["out"] = a.out;
@@ -114,6 +122,10 @@ int run_calibrate(const CalibrateArgs& a) {
               sigma_pos.y(), sigma_pos.z());
   std::printf("  rpy deg     %10.3f %10.3f %10.3f  +- %.3f %.3f %.3f\n", rpy_deg.x(), rpy_deg.y(), rpy_deg.z(),
               sigma_rpy_deg.x(), sigma_rpy_deg.y(), sigma_rpy_deg.z());
+  if (a.arm_link_sigma_m > 0.0)
+    std::printf("  of which the arm model (links +- %.1f mm): f +- %.2f, position +- %.4f %.4f %.4f, rpy +- %.3f %.3f %.3f\n",
+                a.arm_link_sigma_m * 1e3, arm_sigma[6], arm_sigma[3], arm_sigma[4], arm_sigma[5], arm_sigma[0] / kDeg,
+                arm_sigma[1] / kDeg, arm_sigma[2] / kDeg);
   std::printf("  base_T_camera\n");
   for (int i = 0; i < 4; ++i)
     std::printf("    %10.6f %10.6f %10.6f %10.6f\n", r.camera.base_T_camera(i, 0), r.camera.base_T_camera(i, 1),
@@ -144,6 +156,11 @@ std::function<int()> setup(CLI::App& sub) {
   sub.add_option("--viewport", a->viewport, "viewport WIDTHxHEIGHT in pixels")->capture_default_str();
   sub.add_option("--robot", a->robot, "robot URDF for points on arm links")->capture_default_str();
   sub.add_option("--out", a->out, "cameras.yaml to add this camera to (others are kept)");
+  sub.add_option("--arm-link-sigma", a->arm_link_sigma_m,
+                 "the arm model's link-length uncertainty (sd per link, m): carried from the arm-link points into "
+                 "the camera's covariance (0: the model taken as exact)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   sub.add_option("--max-iterations", a->max_iterations, "Levenberg-Marquardt iteration limit (the fit fails, exit 1, when it "
                  "has not converged by then)")->capture_default_str();
   sub.add_flag("--json", a->json, "print one JSON object");

@@ -11,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/robot_points.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/common/object_model.hpp"
@@ -134,6 +135,30 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_NEAR(j["f_px"].get<double>(), side.f_px, 1e-4);
   EXPECT_LT(j["rms_px"].get<double>(), 1e-6);
+  EXPECT_EQ(j["arm_model_sigma"]["f_px"].get<double>(), 0.0);
+  // --arm-link-sigma: the arm model's link-length uncertainty enters the
+  // camera's covariance (JSON and cameras.yaml) as the library computes it;
+  // the camera is the same.
+  const std::string yaml = temp_path(".yaml");
+  const CliRun ra = run("calibrate " + pts + " --camera side --json --arm-link-sigma 0.002 --out " + yaml);
+  ASSERT_EQ(ra.status, 0) << ra.err;
+  const auto ja = nlohmann::json::parse(ra.out);
+  EXPECT_EQ(ja["f_px"].get<double>(), j["f_px"].get<double>());
+  CalibrationOptions arm_options;
+  arm_options.arm_link_sigma_m = 0.002;
+  const CalibrationResult lib =
+      calibrate_camera(select_camera(read_correspondences_csv(pts, &robot), "side"), side.viewport, "side", arm_options);
+  ASSERT_GT(lib.arm_model_covariance(6, 6), 0.0);
+  EXPECT_NEAR(ja["arm_model_sigma"]["f_px"].get<double>(), std::sqrt(lib.arm_model_covariance(6, 6)),
+              1e-9 * std::sqrt(lib.arm_model_covariance(6, 6)));
+  EXPECT_EQ(ja["arm_model_sigma"]["arm_link_sigma_m"].get<double>(), 0.002);
+  EXPECT_NEAR(ja["sigma"]["f_px"].get<double>(), lib.sigma[6], 1e-9 * lib.sigma[6]);
+  EXPECT_NEAR(load_cameras(yaml).at("side").calibration->covariance(6, 6), lib.covariance(6, 6),
+              1e-6 * lib.covariance(6, 6));
+  std::remove(yaml.c_str());
+  const CliRun bad_sigma = run("calibrate " + pts + " --camera side --arm-link-sigma -0.001");
+  EXPECT_EQ(bad_sigma.status, 2);
+  EXPECT_NE(bad_sigma.err.find("--arm-link-sigma"), std::string::npos) << bad_sigma.err;
   // A wrong joint count and an unknown link, with their line numbers.
   std::string text = s.str();
   const std::size_t second_line = text.find('\n') + 1;

@@ -9,8 +9,10 @@
 //     Gaussian of `arm_link_error_m` (the rendered truth); the ground believes
 //     the nominal arm (clicks' 3-D points and the aligner's model).
 //  2. Clicks: every camera calibrated from noisy clicks on the true arm at the
-//     calibration poses (arm_calibration_poses), the ORU localized from noisy
-//     clicks for every view combination: the "clicks" result.
+//     calibration poses (arm_calibration_poses), its covariance carrying the
+//     arm model's arm_link_prior_m (CalibrationOptions::arm_link_sigma_m), the
+//     ORU localized from noisy clicks for every view combination: the
+//     "clicks" result.
 //  3. Synthetic frames of the true arm at each calibration pose that a camera
 //     sees (SyntheticCamera: shading, anti-aliasing, blur, sensor noise).
 //  4. Each camera refined by alignment of the nominal arm to its frames

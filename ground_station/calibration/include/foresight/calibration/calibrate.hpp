@@ -65,6 +65,16 @@ struct CalibrationOptions {
   /// Relative singular value below which the linear system counts as rank
   /// deficient (degenerate geometry).
   double rank_tolerance = 1e-9;
+  /// The arm model's link-length uncertainty (sd per link length, m; 0: the
+  /// model taken as exact). The points of the arm as fixture come from the
+  /// nominal arm; one link's error moves every point beyond it alike, the
+  /// fit absorbs that into the camera (seen: 3% in f from 2 mm links), and
+  /// the residuals cannot show it. With it, the points' link_length
+  /// sensitivities (Correspondence::dp_dlinks) carry it into the camera:
+  /// CalibrationResult::arm_model_covariance = K (sd^2 I) K^T, K the
+  /// camera's response to the link lengths (H^-1 J^T J_links), added to the
+  /// covariance. Points without sensitivities count as exact.
+  double arm_link_sigma_m = 0.0;
 };
 
 /// One point's fit residual: measured minus predicted pixel.
@@ -81,9 +91,15 @@ struct CalibrationResult {
   Camera camera;                 ///< name, viewport, f_px, base_T_camera
   /// Covariance of (roll, pitch, yaw [rad] of base_T_camera, position x, y, z
   /// [m] of the camera in base, f_px), from the Jacobian at the solution and
-  /// the inlier residual variance: s^2 (J^T J)^-1, s^2 = SSR / (2 N - 7).
+  /// the inlier residual variance: s^2 (J^T J)^-1, s^2 = SSR / (2 N - 7)
+  /// (with the arm model's uncertainty: see arm_model_covariance).
   Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Zero();
   Eigen::Matrix<double, 7, 1> sigma = Eigen::Matrix<double, 7, 1>::Zero();  ///< sqrt(diag(covariance))
+  /// The arm model's part of `covariance` (same parameters; zero without
+  /// CalibrationOptions::arm_link_sigma_m). With it, covariance =
+  /// s_noise^2 (J^T J)^-1 + this, s_noise^2 the residual variance less the
+  /// part the arm's errors are expected to leave in the residuals (>= 0).
+  Eigen::Matrix<double, 7, 7> arm_model_covariance = Eigen::Matrix<double, 7, 7>::Zero();
   /// J^T J of the inlier reprojection errors (pixels) at the solution, in
   /// the parameters (body-frame rotation increment of base_T_camera [rad],
   /// position [m], f_px): the information the clicks carry about the camera,

@@ -33,6 +33,10 @@ struct Correspondence {
   Eigen::Vector2d uv_px = Eigen::Vector2d::Zero();
   int line = 0;             ///< 1-based line in the CSV (0: not from a file)
   std::string link;         ///< arm link for link-form rows, empty otherwise
+  /// Link-form rows: how p_m moves per metre of each arm link length
+  /// (LinkPointResolver::link_length_sensitivity, 3 x chain segments); empty
+  /// for x,y,z rows (a point taken as exact).
+  Eigen::Matrix3Xd dp_dlinks;
 };
 
 /// Turns a point given on an arm link at joint angles q into base
@@ -55,6 +59,13 @@ class LinkPointResolver {
   /// base_T_link(q) * p_link.
   virtual Eigen::Vector3d to_base(const std::string& link, const Eigen::Vector3d& p_link,
                                   const Eigen::VectorXd& q) const = 0;
+  /// How to_base(link, p_link, q) moves per metre of each of the arm's link
+  /// lengths (3 x M); empty (the default) when the resolver does not know.
+  virtual Eigen::Matrix3Xd link_length_sensitivity(const std::string& link, const Eigen::Vector3d& p_link,
+                                                   const Eigen::VectorXd& q) const {
+    (void)link, (void)p_link, (void)q;
+    return {};
+  }
 };
 
 /// Parse CSV text; `source` names the file in errors. Link-form rows need
