@@ -1029,6 +1029,10 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       }
     }
   }
+  // Diagnostic (docs/estimation.md): FORESIGHT_ALIGN_DEBUG=PATH writes the
+  // first view's first frame at 2x with every final sample at its projection
+  // (green: matched within 1 px, yellow: matched further, red: no edge found)
+  // and prints their mean signed residual (a shading bias shows there).
   if (const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG")) {
     cv::Mat img;
     cv::cvtColor(views[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
