@@ -14,6 +14,8 @@
 #include <cstdlib>
 #include <memory>
 #include <numbers>
+#include <sstream>
+#include <string>
 #include <thread>
 
 #include "foresight/common/robot_model.hpp"
@@ -198,4 +200,19 @@ TEST_F(JointVelocity, TheOperatorsJsonCarriesTheVelocities) {
   const auto rj = nlohmann::json::parse(req.out);
   ASSERT_EQ(rj["report"]["joint_velocities_rad_s"].size(), 7u) << req.out;
   ASSERT_EQ(rj["report"]["joints_rad"].size(), 7u) << req.out;
+  // `watch`'s line shows them too, after the angles: "| dq deg/s" and 7 values.
+  const auto watch = test::run_foresight("watch --count 1 --period 0.1 --domain " + std::to_string(domain_));
+  ASSERT_EQ(watch.status, 0) << watch.err;
+  const std::size_t at = watch.out.find("| dq deg/s");
+  ASSERT_NE(at, std::string::npos) << watch.out;
+  ASSERT_LT(watch.out.find("| q deg"), at) << watch.out;
+  std::istringstream dq(watch.out.substr(at + std::string("| dq deg/s").size()));
+  for (int j = 0; j < 7; ++j) {
+    double v = 1e9;
+    ASSERT_TRUE(dq >> v) << "velocity " << j + 1 << " of: " << watch.out;
+    EXPECT_LT(std::abs(v), 0.2) << watch.out;
+  }
+  std::string next;
+  dq >> next;
+  EXPECT_TRUE(next.empty() || next == "|") << "more than 7 velocities: " << watch.out;
 }

@@ -1,5 +1,6 @@
 // foresight watch: one line a second with the link's round trip, the remote's
-// mode and active command, the joints, the wrist force and the tool, until
+// mode and active command, the joints and their velocities, the wrist force
+// and the tool, until
 // Ctrl-C (or --count lines). Any station may watch; it commands nothing.
 #include <atomic>
 #include <chrono>
@@ -47,6 +48,10 @@ int run(const Options& o) {
       std::printf(" cmd %llu", static_cast<unsigned long long>(j["active_command_id"].get<std::uint64_t>()));
     std::printf(" | q deg");
     for (const auto& q : j["joints_rad"]) std::printf(" %7.2f", q.get<double>() * 180.0 / M_PI);
+    if (!j["joint_velocities_rad_s"].empty()) {
+      std::printf(" | dq deg/s");
+      for (const auto& v : j["joint_velocities_rad_s"]) std::printf(" %6.2f", v.get<double>() * 180.0 / M_PI);
+    }
     if (j.contains("wrench")) {
       const auto& f = j["wrench"]["force_tool_n"];
       std::printf(" | |F| %6.1f N",
