@@ -16,12 +16,10 @@
 // allocation hook (__sanitizer_install_malloc_and_free_hooks), which sees
 // malloc, calloc, realloc, the aligned forms and operator new alike.
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#include "foresight/test/sanitizer.hpp"
+
+#if FORESIGHT_TEST_ASAN || FORESIGHT_TEST_TSAN
 #define FORESIGHT_ALLOC_COUNT_BY_HOOK 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define FORESIGHT_ALLOC_COUNT_BY_HOOK 1
-#endif
 #endif
 
 #include <malloc.h>     // memalign, as glibc declares it
