@@ -10,7 +10,8 @@
 //                     [--remote [--domain N] [--connect-timeout S]]
 //                     [--object-pose localize.json] [--mode wire|solid|hidden|ghost] [--no-overlay] [--no-text]
 //                     [--record out.mp4] [--headless] [--frames N] [--fps F] [--retry-s S]
-//                     [--snapshot shown.png] [--scene scene.yaml] [--gl osmesa|egl] [--json]
+//                     [--snapshot shown.png] [--scene scene.yaml] [--gl osmesa|egl]
+//                     [--health [--health-every N]] [--json]
 //
 // Keys: w s h g render mode (wire, solid, hidden-line, ghost), o overlay on/off,
 // c next camera (of cameras.yaml; with --remote the remote's video switch is
@@ -25,6 +26,13 @@
 // camera_switches, compose_ms_mean, ...; with --remote also remote{controller,
 // fault, q_actual_rad, rtt_median_s (null before a measurement), alive,
 // camera_problem}: what the last frame showed.
+// --health: calibration health on the picture (as `foresight health`): every
+// N-th video frame is scored against the shown arm (the reported one with
+// --remote): the share of the arm's model edges within 1 px of the video's,
+// the silhouette IoU, and a red warning when the camera has moved or zoomed
+// (align::HealthMonitor; its baseline restarts when the camera changes).
+// --json then has health{scored, camera_moved, warnings[{frame, camera,
+// reason}], last{matched_fraction, score_px, iou}}.
 
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgproc.hpp>
@@ -38,6 +46,7 @@
 #include <vector>
 
 #include "command.hpp"
+#include "foresight/align/health.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
@@ -68,8 +77,8 @@ struct DisplayArgs {
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
   double delay_s = 1.0, fps = 15.0, retry_s = 1.0, alpha = 0.45;
-  int frames = 0;
-  bool remote = false, headless = false, no_overlay = false, no_text = false;
+  int frames = 0, health_every = 5;
+  bool remote = false, headless = false, no_overlay = false, no_text = false, health = false;
   LinkOptions link;
 };
 
@@ -179,15 +188,27 @@ int run_display(const DisplayArgs& a) {
   std::optional<PendingCamera> pending_camera;
   std::string camera_problem;
   int camera_switches = 0;
+  display::DisplayState state;
+  // Calibration health (--health): the aligner's per-frame score, a monitor per camera shown.
+  std::unique_ptr<align::ModelAligner> aligner;
+  align::HealthMonitor monitor;
+  if (a.health) aligner = std::make_unique<align::ModelAligner>(*context, robot, &object, cameras[cam_index].viewport);
+  int health_scored = 0;
+  bool camera_moved = false;
+  nlohmann::json health_warnings = nlohmann::json::array(), health_last;
   auto switch_camera = [&](std::size_t next) {
     const bool new_viewport = !(cameras[next].viewport == cameras[cam_index].viewport);
     cam_index = next;
     ++camera_switches;
     if (synthetic && new_viewport)
       synth = std::make_unique<SyntheticCamera>(*context, robot, object, *scene, cameras[cam_index].viewport);
+    if (aligner && new_viewport)
+      aligner = std::make_unique<align::ModelAligner>(*context, robot, &object, cameras[cam_index].viewport);
+    monitor = align::HealthMonitor();
+    state.health_text.clear();
+    state.health_warning = false;
   };
 
-  display::DisplayState state;
   state.mode = mode;
   state.overlay = !a.no_overlay;
   state.text = !a.no_text;
@@ -269,6 +290,25 @@ int run_display(const DisplayArgs& a) {
     last_problem = problem;
     if (!video.empty()) ++video_frames;
     state.video_problem = problem;
+    if (aligner && !video.empty() && (video_frames - 1) % a.health_every == 0) {
+      const auto score = aligner->score(camera, {video, state.q_actual}, base_T_object);
+      if (score.visible_samples == 0) {
+        state.health_text = "calibration: the arm is not in view";
+        state.health_warning = false;
+      } else {
+        const align::HealthVerdict v = monitor.update(score);
+        ++health_scored;
+        health_last = {{"matched_fraction", score.matched_fraction}, {"score_px", score.score_px}, {"iou", score.iou}};
+        if (v.warning && !state.health_warning)
+          health_warnings.push_back({{"frame", k}, {"camera", camera.name}, {"reason", v.reason}});
+        camera_moved = camera_moved || v.warning;
+        state.health_warning = v.warning;
+        state.health_text = v.warning ? "CALIBRATION: " + v.reason
+                                      : "calibration: " + fixed(100.0 * score.matched_fraction, 0) +
+                                            "% of the arm's edges within 1 px, IoU " + fixed(score.iou, 2) +
+                                            (v.in_baseline ? " (learning)" : "");
+      }
+    }
     state.footer = "frame " + std::to_string(k) + "  t " + fixed(t_s, 2) + " s  " + (a.headless ? "recording" : "w s h g mode  o overlay  c camera  q quit");
     const auto c0 = Clock::now();
     picture = composer.compose(camera, video, state);
@@ -334,6 +374,11 @@ int run_display(const DisplayArgs& a) {
                         {"camera_switches", camera_switches},
                         {"compose_ms_mean", shown > 0 ? 1000.0 * compose_s / shown : 0.0}};
     if (!a.record.empty()) j["record"] = a.record;
+    if (aligner)
+      j["health"] = {{"scored", health_scored},
+                     {"camera_moved", camera_moved},
+                     {"warnings", health_warnings},
+                     {"last", health_last}};
     if (link) {  // what the last frame showed from the remote
       const auto stats = link->delay().stats();
       j["remote"] = {{"controller", state.controller_text},
@@ -388,6 +433,12 @@ const bool registered = register_command(
        sub.add_option("--snapshot", a->snapshot, "write the last shown frame (PNG) at exit");
        sub.add_option("--scene", a->scene, "the simulated work site for --video synthetic")->capture_default_str();
        sub.add_option("--gl", a->gl, "GL back end: osmesa | egl")->capture_default_str();
+       sub.add_flag("--health", a->health,
+                    "calibration health on the picture: the arm's model edges against the video, a warning when the "
+                    "camera has moved or zoomed");
+       sub.add_option("--health-every", a->health_every, "with --health: score every N-th video frame")
+           ->check(CLI::PositiveNumber)
+           ->capture_default_str();
        sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
        sub.add_option("--object", a->object, "task object model")->capture_default_str();
        return [a] { return run_display(*a); };

@@ -13,7 +13,8 @@ struct LinkOptions {
   bool json = false;
 };
 
-inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = true) {
+/// `json`: false when the command adds its own --json (e.g. with the render options).
+inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = true, bool json = true) {
   sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
       ->check(CLI::Range(0, 232));
   sub.add_option("--connect-timeout", o.connect_timeout_s, "seconds to wait for the remote to answer")
@@ -24,7 +25,7 @@ inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = tru
                    "seconds to wait for the final acknowledgement (default: 1.5 x the expected duration + 3 x the "
                    "measured p99 round trip + 5 s)")
         ->check(CLI::PositiveNumber);
-  sub.add_flag("--json", o.json, "print one JSON object");
+  if (json) sub.add_flag("--json", o.json, "print one JSON object");
 }
 
 }  // namespace foresight::cli

@@ -110,6 +110,8 @@ cv::Mat DisplayComposer::compose(const Camera& camera, const cv::Mat& video_bgr,
     y = put_text_line(out, head, {8, y}, white, 0.45);
     if (!s.delay_text.empty()) y = put_text_line(out, s.delay_text, {8, y}, white, 0.45);
     if (!s.controller_text.empty()) y = put_text_line(out, s.controller_text, {8, y}, white, 0.45);
+    if (!s.health_text.empty())
+      y = put_text_line(out, s.health_text, {8, y}, s.health_warning ? red : white, s.health_warning ? 0.5 : 0.45);
     if (!s.fault_text.empty()) y = put_text_line(out, "FAULT: " + s.fault_text, {8, y}, red, 0.5);
     if (s.overlay && s.q_commanded)
       put_text_line(out, "ghost: commanded (ahead)   solid: actual (delayed)", {8, y}, cyan, 0.42);

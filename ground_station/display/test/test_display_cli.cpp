@@ -27,6 +27,7 @@
 #include <thread>
 
 #include "foresight/camera/camera.hpp"
+#include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/display/click_session.hpp"
 #include "foresight/render/scene_geometry.hpp"
@@ -217,6 +218,66 @@ TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
   // colours: 0.82); the exact comparison without the codec is in test_display (0.996).
   EXPECT_GT(worst, 0.9);
   EXPECT_GT(sum / frames, 0.92);
+}
+
+// `display --health`: the calibration health on the picture and in the JSON.
+// Through the true camera the synthetic video's arm edges match the model's;
+// through a camera 0.3 deg off (its calibration no longer the camera's) they
+// do not, and the display says so in numbers from the first scored frame
+// (the moved-camera warning itself needs a change after its baseline:
+// test_health).
+TEST(DisplayCli, HealthShowsHowWellTheArmsEdgesMatchTheVideo) {
+  World w;
+  const std::string cams = true_cameras();
+  auto records = load_cameras(cams);
+  Camera& bumped = records.at(kCamera).camera;
+  bumped.base_T_camera.linear() = bumped.base_T_camera.linear() * exp_so3(Eigen::Vector3d(0.0, 0.3 * M_PI / 180.0, 0.0));
+  const std::string bumped_cams = temp_path(".yaml");
+  save_cameras(bumped_cams, records);
+  KinematicsWorkspace ws(w.model);
+  const auto ik = inverse_kinematics(w.model, ws, w.scene.base_T_object * w.oru.tags.at("approach_20cm"),
+                                     w.model.mid_configuration());
+  ASSERT_TRUE(ik.success);
+  std::string q;
+  for (int i = 0; i < ik.q.size(); ++i) q += (i ? "," : "") + std::to_string(ik.q[i]);
+  const std::string common = "display --headless --camera " + kCamera + " --video synthetic --joints " + q +
+                             " --frames 12 --health --health-every 3 --json --snapshot ";
+  const std::string shot = temp_path(".png");
+  const auto good = run_foresight(common + shot + " --cameras " + cams);
+  ASSERT_EQ(good.status, 0) << good.err;
+  const auto jg = nlohmann::json::parse(good.out);
+  ASSERT_TRUE(jg.contains("health")) << good.out;
+  EXPECT_EQ(jg["health"]["scored"], 4);
+  EXPECT_EQ(jg["health"]["camera_moved"], false);
+  EXPECT_EQ(jg["health"]["warnings"].size(), 0u);
+  const double good_fraction = jg["health"]["last"]["matched_fraction"].get<double>();
+  EXPECT_GT(good_fraction, 0.5) << good.out;
+  EXPECT_GT(jg["health"]["last"]["iou"].get<double>(), 0.85) << good.out;
+  const auto bad = run_foresight(common + temp_path(".png") + " --cameras " + bumped_cams);
+  ASSERT_EQ(bad.status, 0) << bad.err;
+  const auto jb = nlohmann::json::parse(bad.out);
+  const double bad_fraction = jb["health"]["last"]["matched_fraction"].get<double>();
+  std::printf("display --health: %.0f%% of the arm's edges within 1 px through the true camera, %.0f%% through one "
+              "0.3 deg off\n",
+              100.0 * good_fraction, 100.0 * bad_fraction);
+  EXPECT_LT(bad_fraction, 0.5 * good_fraction) << bad.out;
+  // Without --health: no key, no scoring, and no third text line (the
+  // health line is under the header and the joints line: white text there).
+  const std::string off_shot = temp_path(".png");
+  const auto off = run_foresight("display --headless --camera " + kCamera + " --video synthetic --joints " + q +
+                                 " --frames 12 --json --snapshot " + off_shot + " --cameras " + cams);
+  ASSERT_EQ(off.status, 0) << off.err;
+  EXPECT_FALSE(nlohmann::json::parse(off.out).contains("health"));
+  auto white_in_third_line = [](const std::string& png) {
+    const cv::Mat img = cv::imread(png);
+    EXPECT_FALSE(img.empty()) << png;
+    if (img.empty()) return 0;
+    cv::Mat white;
+    cv::inRange(img(cv::Rect(0, 46, 440, 20)), cv::Scalar(200, 200, 200), cv::Scalar(255, 255, 255), white);
+    return cv::countNonZero(white);
+  };
+  const int with_line = white_in_third_line(shot), without_line = white_in_third_line(off_shot);
+  EXPECT_GT(with_line, without_line + 200) << with_line << " vs " << without_line;
 }
 
 // `display --remote` against the real daemon (foresight-remote --sim): the

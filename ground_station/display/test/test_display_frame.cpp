@@ -106,6 +106,18 @@ TEST(DisplayFrame, TextSaysTheVideoProblemAndTheFault) {
   EXPECT_GT(red_pixels(said, cv::Rect(0, said.rows / 2 - 15, said.cols, 30)), 50);
   EXPECT_GT(red_pixels(said, cv::Rect(0, 0, said.cols, 60)), 30);
   EXPECT_EQ(red_pixels(blank, cv::Rect(0, 0, blank.cols, blank.rows)), 0);
+  // The calibration health line: white while healthy, red on a warning.
+  DisplayState h;
+  h.q_actual = s.q_actual;
+  h.overlay = false;
+  h.health_text = "calibration: 76% of the arm's edges within 1 px, IoU 0.93";
+  const cv::Mat healthy = composer.compose(cam, cv::Mat(), h);
+  EXPECT_EQ(red_pixels(healthy, cv::Rect(0, 0, healthy.cols, 80)), 0);
+  EXPECT_GT(cv::countNonZero(healthy(cv::Rect(0, 20, healthy.cols, 30)).reshape(1) > 200), 100);
+  h.health_warning = true;
+  h.health_text = "CALIBRATION: the camera may have moved or zoomed";
+  const cv::Mat warned = composer.compose(cam, cv::Mat(), h);
+  EXPECT_GT(red_pixels(warned, cv::Rect(0, 0, warned.cols, 60)), 30);
   cv::Mat wrong(10, 10, CV_8UC3);
   EXPECT_THROW(composer.compose(cam, wrong, s), std::invalid_argument);
 }

@@ -35,6 +35,10 @@ struct DisplayState {
   std::string delay_text;                    ///< e.g. "RTT 0.62 s (median 0.60, p99 0.71)"
   std::string controller_text;               ///< e.g. "controller RUNNING"
   std::string fault_text;                    ///< empty: no fault (drawn red otherwise)
+  /// Calibration health (`display --health`), e.g. "calibration: 76% of the
+  /// arm's edges within 1 px, IoU 0.93"; drawn red when health_warning.
+  std::string health_text;
+  bool health_warning = false;
   std::string video_problem;                 ///< empty: video fine (drawn red, centred otherwise)
   std::string footer;                        ///< e.g. "frame 12  t 0.40 s"
   bool text = true;                          ///< draw the text at all
