@@ -429,7 +429,7 @@ RobotModel RobotModel::with_link_lengths_changed(const std::vector<double>& delt
     const KDL::Segment& seg = chain_.getSegment(k);
     KDL::Frame parent_T_joint = seg.getFrameToTip();  // at q = 0: the joint origin (RobotModel builds it so)
     const double length = parent_T_joint.p.Norm();
-    if (length > 1e-12) parent_T_joint.p = parent_T_joint.p * ((length + delta_m[k]) / length);
+    if (length > kMinOffset_m) parent_T_joint.p = parent_T_joint.p * ((length + delta_m[k]) / length);
     const KDL::Joint& j = seg.getJoint();
     const KDL::Joint joint = j.getType() == KDL::Joint::None
                                  ? j
@@ -437,6 +437,13 @@ RobotModel RobotModel::with_link_lengths_changed(const std::vector<double>& delt
     m.chain_.addSegment(KDL::Segment(seg.getName(), joint, parent_T_joint, seg.getInertia()));
   }
   return m;
+}
+
+std::vector<int> RobotModel::offset_segments() const {
+  std::vector<int> out;
+  for (unsigned k = 0; k < chain_.getNrOfSegments(); ++k)
+    if (chain_.getSegment(k).getFrameToTip().p.Norm() > kMinOffset_m) out.push_back(static_cast<int>(k));
+  return out;
 }
 
 int RobotModel::link_index(const std::string& name) const {

@@ -446,8 +446,23 @@ TEST(RobotModel, LinkLengthChangeMovesTheTipByExactlyThatMuch) {
   const RobotModel arm = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   KinematicsWorkspace ws(arm);
   std::mt19937 rng(9);
+  const std::vector<int> offsets = arm.offset_segments();
+  ASSERT_GE(offsets.size(), 3u);
   for (unsigned k = 0; k < arm.chain().getNrOfSegments(); ++k) {
-    if (arm.chain().getSegment(k).getFrameToTip().p.Norm() < 1e-9) continue;
+    const bool listed = std::find(offsets.begin(), offsets.end(), static_cast<int>(k)) != offsets.end();
+    if (!listed) {
+      // A segment without an offset is not listed, and a change to it changes nothing.
+      EXPECT_LT(arm.chain().getSegment(k).getFrameToTip().p.Norm(), RobotModel::kMinOffset_m) << "segment " << k;
+      std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+      delta[k] = 0.002;
+      const RobotModel same = arm.with_link_lengths_changed(delta);
+      KinematicsWorkspace ws_same(same);
+      const Eigen::VectorXd q = arm.mid_configuration();
+      EXPECT_LT((forward_kinematics(same, ws_same, q).translation() - forward_kinematics(arm, ws, q).translation()).norm(),
+                1e-15)
+          << "segment " << k;
+      continue;
+    }
     std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
     delta[k] = 0.002;
     const RobotModel changed = arm.with_link_lengths_changed(delta);

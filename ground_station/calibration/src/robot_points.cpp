@@ -8,11 +8,10 @@ namespace foresight {
 
 LinkLengthSensitivity::LinkLengthSensitivity(const RobotModel& model) : model_(model), ws_(model) {
   const unsigned nseg = model.chain().getNrOfSegments();
-  for (unsigned k = 0; k < nseg; ++k) {
-    if (model.chain().getSegment(k).getFrameToTip().p.Norm() <= 1e-9) continue;
+  for (const int k : model.offset_segments()) {
     std::vector<double> d(nseg, 0.0);
     d[k] = kStep_m;
-    segments_.push_back(static_cast<int>(k));
+    segments_.push_back(k);
     stepped_.push_back(std::make_unique<RobotModel>(model.with_link_lengths_changed(d)));
     stepped_ws_.push_back(std::make_unique<KinematicsWorkspace>(*stepped_.back()));
   }

@@ -183,8 +183,7 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
                     claimed_without = Eigen::Vector4d::Zero();
     for (int t = 0; t < kArms; ++t) {
       std::vector<double> delta(nseg, 0.0);
-      for (unsigned k = 0; k < nseg; ++k)
-        if (m.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(rng);
+      for (const int k : m.offset_segments()) delta[k] = link_error(rng);
       const RobotModel true_arm = m.with_link_lengths_changed(delta);
       KinematicsWorkspace tws(true_arm);
       std::vector<Correspondence> pts = believed;
@@ -242,7 +241,8 @@ TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
   ASSERT_EQ(pts[1].dp_dlinks.cols(), static_cast<Eigen::Index>(nseg));
   int unit = 0;
   for (unsigned k = 0; k < nseg; ++k) {
-    const bool has_offset = arm().chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9;
+    const std::vector<int> offsets = arm().offset_segments();
+    const bool has_offset = std::find(offsets.begin(), offsets.end(), static_cast<int>(k)) != offsets.end();
     // The last link is beyond every segment.
     EXPECT_NEAR(pts[1].dp_dlinks.col(k).norm(), has_offset ? 1.0 : 0.0, 1e-9) << "segment " << k;
     unit += has_offset;

@@ -228,9 +228,7 @@ int run_display(const DisplayArgs& a) {
     state.fault_text.clear();
     if (link) {
       const auto js = link->joint_state();
-      state.q_actual = js && static_cast<int>(js->value.q_rad.size()) == robot.dof()
-                           ? Eigen::Map<const Eigen::VectorXd>(js->value.q_rad.data(), robot.dof()).eval()
-                           : q_static;
+      state.q_actual = js ? joints_of(js->value, robot).value_or(q_static) : q_static;
       if (trajectory) state.q_commanded = preview::sample_trajectory(*trajectory, t_s);
       const auto stats = link->delay().stats();
       state.delay_text = stats.count == 0 ? "RTT: no measurement yet"

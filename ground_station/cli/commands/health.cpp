@@ -61,11 +61,7 @@ TelemetryJoints telemetry_joints(const ground_link::GroundLink& link, const Robo
     std::snprintf(why, sizeof why, "no joint report from the remote within %.1f s", timeout_s);
     throw LinkFailure(why);
   }
-  const auto& q = report->value.q_rad;
-  if (static_cast<int>(q.size()) != model.dof())
-    throw LinkFailure("the remote reports " + std::to_string(q.size()) + " joint angles, the robot model has " +
-                      std::to_string(model.dof()) + " joints");
-  return {Eigen::Map<const Eigen::VectorXd>(q.data(), model.dof()), report->age_s};
+  return {require_joints(report->value, model), report->age_s};
 }
 
 std::vector<Eigen::VectorXd> read_joint_lines(const std::string& path, const RobotModel& model) {

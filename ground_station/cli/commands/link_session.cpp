@@ -120,6 +120,19 @@ std::string result_line(control::CommandKind kind, const ground_link::CommandRes
 
 int exit_status(const ground_link::CommandResult& r) { return r.succeeded() ? 0 : 1; }
 
+std::optional<Eigen::VectorXd> joints_of(const control::JointReport& report, const RobotModel& model) {
+  if (static_cast<int>(report.q_rad.size()) != model.dof()) return std::nullopt;
+  return Eigen::Map<const Eigen::VectorXd>(report.q_rad.data(), model.dof());
+}
+
+Eigen::VectorXd require_joints(const control::JointReport& report, const RobotModel& model) {
+  auto q = joints_of(report, model);
+  if (!q)
+    throw LinkFailure("the remote reports " + std::to_string(report.q_rad.size()) + " joint angles, the robot model has " +
+                      std::to_string(model.dof()) + " joints");
+  return std::move(*q);
+}
+
 std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
                                                                     double timeout_s) {
   const auto deadline = Clock::now() + seconds(timeout_s);

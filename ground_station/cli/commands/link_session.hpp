@@ -73,6 +73,13 @@ std::string result_line(control::CommandKind kind, const ground_link::CommandRes
 /// Every trajectory/goto/algorithm command's exit status: 0 on COMPLETED, else 1.
 int exit_status(const ground_link::CommandResult& r);
 
+/// The arm's joint vector from a joint report: std::nullopt when the report
+/// has another number of joints than the model.
+std::optional<Eigen::VectorXd> joints_of(const control::JointReport& report, const RobotModel& model);
+/// The same, or LinkFailure "the remote reports N joint angles, the robot
+/// model has M joints".
+Eigen::VectorXd require_joints(const control::JointReport& report, const RobotModel& model);
+
 /// The latest joint angles, waiting for the first report at most `timeout_s`.
 std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
                                                                     double timeout_s);

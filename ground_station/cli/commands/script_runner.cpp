@@ -84,10 +84,7 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     }
     const auto j = wait_joints(*link_, 10.0);
     if (!j) throw LinkFailure("no joint report from the remote within 10 s");
-    q_ = Eigen::Map<const Eigen::VectorXd>(j->value.q_rad.data(), static_cast<Eigen::Index>(j->value.q_rad.size()));
-    if (q_.size() != model_.dof())
-      throw LinkFailure("the remote reports " + std::to_string(q_.size()) + " joints; the model has " +
-                        std::to_string(model_.dof()));
+    q_ = require_joints(j->value, model_);
   } else {
     if (s_.q_from.size() != model_.dof()) throw std::invalid_argument("--dry-run needs --from or --from-deg");
     q_ = s_.q_from;
@@ -216,8 +213,8 @@ Outcome ScriptRunner::run(const script::Command& c, const std::function<bool()>&
       // CANCELED carried the joints where the stop began; the arm came to
       // rest a little further on. Plan the next motion from where it holds
       // (the report after RECOVER's ack was sent once the stop had ended).
-      if (const auto j = wait_joints(*link_, 5.0); j && static_cast<int>(j->value.q_rad.size()) == model_.dof())
-        q_ = Eigen::Map<const Eigen::VectorXd>(j->value.q_rad.data(), model_.dof());
+      if (const auto j = wait_joints(*link_, 5.0))
+        if (auto q = joints_of(j->value, model_)) q_ = std::move(*q);
     }
     if (c.op == Op::Trajectory || c.op == Op::Preview) o = trajectory(c, c.op == Op::Trajectory, interrupted);
     else if (script::is_remote(c.op)) o = remote(c, interrupted);

@@ -271,8 +271,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
     if (arm_error) {
       const RobotModel& robot = *opt.robot;
       std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
-      for (unsigned k = 0; k < delta.size(); ++k)
-        if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(arm_rng);
+      for (const int k : robot.offset_segments()) delta[k] = link_error(arm_rng);
       const RobotModel model = robot.with_link_lengths_changed(delta);
       KinematicsWorkspace ws(model);
       for (int v = 0; v < nv; ++v)

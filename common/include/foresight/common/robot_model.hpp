@@ -98,6 +98,11 @@ class RobotModel {
   /// studies of arm-model error. Throws std::invalid_argument when delta_m
   /// does not have one value per chain segment (chain().getNrOfSegments()).
   RobotModel with_link_lengths_changed(const std::vector<double>& delta_m) const;
+  /// The chain segments whose origin has a length offset (longer than
+  /// kMinOffset_m), in chain order: the links whose lengths
+  /// with_link_lengths_changed changes and arm-model studies perturb.
+  std::vector<int> offset_segments() const;
+  static constexpr double kMinOffset_m = 1e-9;
 
  private:
   RobotModel() = default;
