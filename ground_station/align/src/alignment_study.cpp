@@ -67,9 +67,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       combos.push_back(c);
     }
   std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size()), acc_cam_only(combos.size());
-  const int nseg = static_cast<int>(robot.chain().getNrOfSegments());
-  for (int k = 0; k < nseg; ++k)
-    if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) res.link_segments.push_back(k);
+  res.link_segments = robot.offset_segments();
   const int nls = static_cast<int>(res.link_segments.size());
   std::vector<double> link_true2(nls, 0.0), link_err2(nls, 0.0), link_sig(nls, 0.0);
   int link_trials = 0;
@@ -116,14 +114,14 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     // The true arm (rendered and clicked); the ground believes `robot`.
     std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
     if (opt.arm_link_error_m > 0.0)
-      for (unsigned k = 0; k < delta.size(); ++k)
-        if (robot.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) delta[k] = link_error(arm_rng);
+      for (const int k : res.link_segments) delta[k] = link_error(arm_rng);
     const RobotModel truth_arm = robot.with_link_lengths_changed(delta);
     KinematicsWorkspace tws(truth_arm);
 
     // Clicks: calibration on the true arm, the believed points from the nominal arm.
     std::map<std::string, Camera> cams;
-    std::map<std::string, Eigen::Matrix<double, 7, 7>> cam_information, cam_covariance;
+    std::map<std::string, Eigen::Matrix<double, 7, 7>> cam_covariance, cam_noise_covariance;
+    std::map<std::string, Eigen::MatrixXd> cam_link_sensitivity;
     std::vector<Correspondence> oru_clicks;
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
@@ -137,8 +135,10 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       try {
         const CalibrationResult cr = calibrate_camera(vc.calibration, vp, view.truth.name, calibration_options);
         cams[view.truth.name] = cr.camera;
-        cam_information[view.truth.name] = cr.information;
+        cam_link_sensitivity[view.truth.name] = cr.link_sensitivity;
         cam_covariance[view.truth.name] = camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
+        cam_noise_covariance[view.truth.name] =
+            camera_covariance_body_from_rpy(cr.covariance - cr.arm_model_covariance, cr.camera.base_T_camera.linear());
       } catch (const Error&) {
         ok = false;
       }
@@ -152,6 +152,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     // Clicks localization per combination.
     std::vector<std::optional<Pose>> clicks_pose(combos.size());
     std::vector<Eigen::Matrix<double, 6, 6>> clicks_cov(combos.size(), Eigen::Matrix<double, 6, 6>::Zero());
+    std::vector<Eigen::Matrix<double, 6, 6>> clicks_arm_cov(combos.size(), Eigen::Matrix<double, 6, 6>::Zero());
     for (std::size_t ci = 0; ci < combos.size(); ++ci) {
       LocalizationOptions lo;
       std::vector<Correspondence> pts;
@@ -160,30 +161,22 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         for (const auto& c : oru_clicks)
           if (c.cam == setup.views[v].truth.name) pts.push_back(c);
       }
+      // The clicks' uncertainty for the alignment's agreement check: the
+      // clicks' noise, the cameras' calibration noise and the arm model's
+      // error, which the cameras share; the pose is the paper's two-step one.
+      lo.camera_covariance = cam_noise_covariance;
+      lo.camera_link_sensitivity = cam_link_sensitivity;
+      lo.arm_link_sigma_m = opt.arm_link_prior_m;
       try {
-        clicks_pose[ci] = localize_object(pts, cams, lo).base_T_object;
-        // The clicks' uncertainty for the alignment's agreement check: the
-        // joint estimate's (the cameras' calibration uncertainty included);
-        // the pose stays the paper's two-step one.
-        lo.camera_information = cam_information;
-        clicks_cov[ci] = localize_object(pts, cams, lo).covariance;
+        const LocalizationResult lr = localize_object(pts, cams, lo);
+        clicks_pose[ci] = lr.base_T_object;
+        clicks_cov[ci] = lr.covariance;
+        clicks_arm_cov[ci] = lr.arm_model_covariance;
       } catch (const Error&) {
         ++combos[ci].clicks_failures;
       }
     }
     ++good;
-    // The clicks' position uncertainty for the alignment's agreement check:
-    // the joint estimate's covariance (clicks and the cameras' calibration)
-    // plus the arm model's: the calibration's 3-D points come from the
-    // nominal arm, whose link lengths the ground believes to within
-    // arm_link_prior_m each, so the cameras and the clicked ORU inherit up to
-    // sqrt(links) x that per axis (an upper estimate: the links' errors
-    // added in line). Without it the multi-view clicks covariance
-    // was 3-8x optimistic here.
-    const double arm_var = static_cast<double>(nls) * opt.arm_link_prior_m * opt.arm_link_prior_m;
-    auto clicks_position_cov = [&](std::size_t ci) -> Eigen::Matrix3d {
-      return clicks_cov[ci].bottomRightCorner<3, 3>() + arm_var * Eigen::Matrix3d::Identity();
-    };
 
     // Synthetic frames of the true arm (the ORU at its true pose).
     render::SyntheticOptions so;
@@ -256,6 +249,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         const Eigen::Matrix4d M = bundle_cam[v].base_T_camera.matrix();
         std::fprintf(stderr, "DUMP camera %d f %.17g", v, bundle_cam[v].f_px);
         for (int k = 0; k < 16; ++k) std::fprintf(stderr, " %.17g", M(k % 4, k / 4));
+        std::fprintf(stderr, " covariance");
+        for (int k = 0; k < 49; ++k) std::fprintf(stderr, " %.17g", bundle_cov[v](k % 7, k / 7));
         std::fprintf(stderr, "\n");
       }
       for (std::size_t ci = 0; ci < combos.size(); ++ci) {
@@ -263,8 +258,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         const Eigen::Matrix4d M = clicks_pose[ci]->matrix();
         std::fprintf(stderr, "DUMP clicks %s", combos[ci].label.c_str());
         for (int k = 0; k < 16; ++k) std::fprintf(stderr, " %.17g", M(k % 4, k / 4));
-        const Eigen::Matrix3d pc = clicks_position_cov(ci);
-        for (int k = 0; k < 9; ++k) std::fprintf(stderr, " %.17g", pc(k % 3, k / 3));
+        std::fprintf(stderr, " covariance");
+        for (int k = 0; k < 36; ++k) std::fprintf(stderr, " %.17g", clicks_cov[ci](k % 6, k / 6));
         std::fprintf(stderr, "\n");
       }
     }
@@ -281,7 +276,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       }
       AlignOptions ao;
       ao.refine = Refine::Object;
-      ao.object_start_position_covariance_m2 = clicks_position_cov(ci);
+      ao.object_start_covariance = clicks_cov[ci];
       const AlignResult r0 = aligner.align(sub_cam_only, clicks_pose[ci], ao);
       if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_cameras_only_refused;
       acc_cam_only[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
@@ -295,14 +290,30 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
           Pose end = r.base_T_object ? *r.base_T_object : *clicks_pose[ci];
           // what the unrefused result would be: start + change
           const auto ec = pose_error(*clicks_pose[ci], setup.base_T_object);
+          {  // the clicks covariance's honesty: the clicks' error in sigmas (6-DoF, rotation)
+            const Eigen::AngleAxisd aa(setup.base_T_object.linear().transpose() * clicks_pose[ci]->linear());
+            Eigen::Matrix<double, 6, 1> e;
+            e << aa.angle() * aa.axis(), clicks_pose[ci]->translation() - setup.base_T_object.translation();
+            Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+            T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(clicks_pose[ci]->linear()));
+            const Eigen::Matrix<double, 6, 6> Cb = T * clicks_cov[ci] * T.transpose();
+            const Eigen::Matrix<double, 6, 6> Ca = T * clicks_arm_cov[ci] * T.transpose();
+            std::fprintf(stderr, "HONEST t%d %-8s clicks z6 %.2f zrot %.2f zpos %.2f | rot err %.2f deg sd %.2f %.2f %.2f deg (arm %.2f %.2f %.2f)\n", t,
+                         combos[ci].label.c_str(), std::sqrt(e.dot(Cb.ldlt().solve(e))),
+                         std::sqrt(e.head<3>().dot(Cb.topLeftCorner<3, 3>().ldlt().solve(e.head<3>()))),
+                         std::sqrt(e.tail<3>().dot(Cb.bottomRightCorner<3, 3>().ldlt().solve(e.tail<3>()))),
+                         aa.angle() * 180 / M_PI, std::sqrt(Cb(0, 0)) * 180 / M_PI, std::sqrt(Cb(1, 1)) * 180 / M_PI,
+                         std::sqrt(Cb(2, 2)) * 180 / M_PI, std::sqrt(Ca(0, 0)) * 180 / M_PI, std::sqrt(Ca(1, 1)) * 180 / M_PI,
+                         std::sqrt(Ca(2, 2)) * 180 / M_PI);
+          }
           const auto ea = pose_error(end, setup.base_T_object);
           const Eigen::Matrix<double, 6, 6> C = r.covariance.rows() >= 6 ? Eigen::Matrix<double, 6, 6>(r.covariance.bottomRightCorner(6, 6)) : Eigen::Matrix<double, 6, 6>::Zero();
           std::fprintf(stderr,
                        "TRACE t%d %-8s %s '%s' clicks_err %.1f %.1f %.1f mm -> %.1f %.1f %.1f mm | score %.2f->%.2f res %.2f vis %d match %d it %d "
-                       "| m %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm rot %.4f | clicks sd t %.1f %.1f %.1f mm\n",
+                       "| m %.1f p %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm rot %.4f | clicks sd t %.1f %.1f %.1f mm\n",
                        t, combos[ci].label.c_str(), to_string(r.status), r.reason.c_str(), ec[0] * 1e3, ec[1] * 1e3,
                        ec[2] * 1e3, ea[0] * 1e3, ea[1] * 1e3, ea[2] * 1e3, r.start_score_px, r.final_score_px,
-                       r.residual_rms_px, r.visible_samples, r.matched_samples, r.iterations, r.start_disagreement_sigma, r.object_change[0],
+                       r.residual_rms_px, r.visible_samples, r.matched_samples, r.iterations, r.start_disagreement_sigma, r.start_position_disagreement_sigma, r.object_change[0],
                        r.object_change[1], r.object_change[2], r.object_change[3] * 1e3, r.object_change[4] * 1e3,
                        r.object_change[5] * 1e3, std::sqrt(C(3, 3)) * 1e3, std::sqrt(C(4, 4)) * 1e3,
                        std::sqrt(C(5, 5)) * 1e3, std::sqrt(C(0, 0)), std::sqrt(clicks_cov[ci](3, 3)) * 1e3,

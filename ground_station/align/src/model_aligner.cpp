@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "foresight/calibration/calibrate.hpp"
 #include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/render/mesh.hpp"
@@ -673,9 +674,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   const std::vector<double> link_start = o.arm_link_delta_m.empty() ? std::vector<double>(nseg, 0.0) : o.arm_link_delta_m;
   std::vector<double> link_delta = link_start;
   std::vector<int> link_segs;
-  if (refine_camera && o.arm_link_prior_m > 0.0)
-    for (int k = 0; k < nseg; ++k)
-      if (I.arm.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) link_segs.push_back(k);
+  if (refine_camera && o.arm_link_prior_m > 0.0) link_segs = I.arm.offset_segments();
   const int NL = static_cast<int>(link_segs.size());
   if (NL > kMaxLinks) throw std::invalid_argument("arm link refinement: more than 16 link offsets");
   constexpr double kLinkStep_m = 1e-3;  // FK is linear in the offsets at fixed q: the difference is exact
@@ -1094,21 +1093,32 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   // The object's move against the start's own uncertainty (the clicks'):
   // a disagreement beyond both covariances means the edges or the clicks
   // are wrong, and nothing here says which.
-  if (refine_object && o.object_start_position_covariance_m2 && base_T_object_start && res.covariance.rows() == P) {
-    const Eigen::Vector3d moved_m = obj_t - base_T_object_start->translation();
-    const Eigen::Matrix3d C = *o.object_start_position_covariance_m2 + res.covariance.block<3, 3>(obj_col + 3, obj_col + 3);
-    const Eigen::LDLT<Eigen::Matrix3d> ldlt(C);
+  double turned_deg = 0.0;
+  if (refine_object && o.object_start_covariance && base_T_object_start && res.covariance.rows() == P) {
+    const Eigen::AngleAxisd turn(base_T_object_start->linear().transpose() * obj_R);
+    turned_deg = turn.angle() * 180.0 / M_PI;
+    Eigen::Matrix<double, 6, 1> moved;
+    moved << turn.angle() * turn.axis(), obj_t - base_T_object_start->translation();
+    // The start's rpy covariance in body rotation increments (the object's parameters here).
+    Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+    T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(base_T_object_start->linear()));
+    const Eigen::Matrix<double, 6, 6> C =
+        T * *o.object_start_covariance * T.transpose() + res.covariance.block<6, 6>(obj_col, obj_col);
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(C);
     if (ldlt.info() == Eigen::Success && ldlt.isPositive())
-      res.start_disagreement_sigma = std::sqrt(std::max(0.0, moved_m.dot(ldlt.solve(moved_m))));
+      res.start_disagreement_sigma = std::sqrt(std::max(0.0, moved.dot(ldlt.solve(moved))));
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt_p(C.bottomRightCorner<3, 3>());
+    if (ldlt_p.info() == Eigen::Success && ldlt_p.isPositive())
+      res.start_position_disagreement_sigma = std::sqrt(std::max(0.0, moved.tail<3>().dot(ldlt_p.solve(moved.tail<3>()))));
   }
   char buf[320];
   // The disagreement first: it is the one that names a physical conflict
   // (seen: a single view's ORU 0.17 m off the clicks, also 29% matched).
   if (res.start_disagreement_sigma > o.max_start_disagreement_sigma) {
     std::snprintf(buf, sizeof buf,
-                  "the object moved %.0f mm from its start pose, %.1f sigma of the start's and the alignment's "
-                  "position uncertainty together (limit %.1f): the edges disagree with the start (the clicks)",
-                  1e3 * (obj_t - base_T_object_start->translation()).norm(), res.start_disagreement_sigma,
+                  "the object moved %.0f mm and turned %.1f deg from its start pose, %.1f sigma of the start's and the "
+                  "alignment's pose uncertainty together (limit %.1f): the edges disagree with the start (the clicks)",
+                  1e3 * (obj_t - base_T_object_start->translation()).norm(), turned_deg, res.start_disagreement_sigma,
                   o.max_start_disagreement_sigma);
     res.status = AlignStatus::Refused;
     res.reason = buf;

@@ -315,11 +315,10 @@ TEST(Align, ArmLinkLengthsWithTheCameras) {
   const unsigned nseg = w.model.chain().getNrOfSegments();
   std::vector<double> truth_delta(nseg, 0.0);
   std::vector<int> segs;
-  for (unsigned k = 0; k < nseg; ++k)
-    if (w.model.chain().getSegment(k).getFrameToTip().p.Norm() > 1e-9) {
-      truth_delta[k] = (segs.size() % 2 ? -1.0 : 1.0) * (0.002 + 0.0005 * static_cast<double>(segs.size() % 3));
-      segs.push_back(static_cast<int>(k));
-    }
+  for (const int k : w.model.offset_segments()) {
+    truth_delta[k] = (segs.size() % 2 ? -1.0 : 1.0) * (0.002 + 0.0005 * static_cast<double>(segs.size() % 3));
+    segs.push_back(k);
+  }
   const RobotModel truth_arm = w.model.with_link_lengths_changed(truth_delta);
   const auto poses = arm_calibration_poses(w.model);
   std::vector<AlignView> views, nominal_only;
@@ -442,6 +441,15 @@ Camera camera_from(const Camera& like, double f_px, const std::array<double, 16>
 
 double position_error_m(const Pose& est, const Pose& truth) { return (est.translation() - truth.translation()).norm(); }
 
+// A start pose covariance (rpy rad, position m) from a position covariance,
+// the rotation left loose (10 deg sd a axis): the position decides.
+Eigen::Matrix<double, 6, 6> loose_rotation(const Eigen::Matrix3d& position_cov) {
+  Eigen::Matrix<double, 6, 6> c = Eigen::Matrix<double, 6, 6>::Zero();
+  c.topLeftCorner<3, 3>() = std::pow(10.0 * M_PI / 180.0, 2) * Eigen::Matrix3d::Identity();
+  c.bottomRightCorner<3, 3>() = position_cov;
+  return c;
+}
+
 }  // namespace
 
 TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
@@ -483,17 +491,17 @@ TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
 
   // With the clicks' position covariance: refused for the disagreement, the
   // clicks pose kept.
-  o.object_start_position_covariance_m2 = clicks_cov;
-  loose.object_start_position_covariance_m2 = clicks_cov;
+  o.object_start_covariance = loose_rotation(clicks_cov);
+  loose.object_start_covariance = loose_rotation(clicks_cov);
   for (const AlignOptions& opt : {o, loose}) {
     const AlignResult r = aligner.align({view}, clicks, opt);
     std::printf("  refused: %s\n", r.reason.c_str());
     ASSERT_EQ(r.status, AlignStatus::Refused);
     EXPECT_GT(r.start_disagreement_sigma, 5.0);
     EXPECT_THAT(r.reason, ::testing::MatchesRegex(
-                              "the object moved 1[0-9][0-9] mm from its start pose, [0-9]+\\.[0-9] sigma of the start's "
-                              "and the alignment's position uncertainty together \\(limit 5\\.0\\): the edges disagree "
-                              "with the start \\(the clicks\\)"));
+                              "the object moved 1[0-9][0-9] mm and turned [0-9]+\\.[0-9] deg from its start pose, "
+                              "[0-9]+\\.[0-9] sigma of the start's and the alignment's pose uncertainty together "
+                              "\\(limit 5\\.0\\): the edges disagree with the start \\(the clicks\\)"));
     ASSERT_TRUE(r.base_T_object);
     EXPECT_TRUE(r.base_T_object->matrix() == clicks.matrix());
   }
@@ -519,7 +527,7 @@ TEST(Align, SingleViewOruCloseToTheClicksIsKept) {
   AlignOptions o;
   o.refine = Refine::Object;
   o.arm_link_delta_m = t.arm_delta;
-  o.object_start_position_covariance_m2 = clicks_cov;
+  o.object_start_covariance = loose_rotation(clicks_cov);
   const AlignResult r = aligner.align({view}, clicks, o);
   ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
   const Pose& truth = t.w.scene.base_T_object;

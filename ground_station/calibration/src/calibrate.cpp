@@ -215,6 +215,11 @@ CameraCalibrationInfo CalibrationResult::info(const std::string& date_utc) const
   i.n_points = n_points;
   i.outliers = outliers;
   i.date = date_utc;
+  if (link_sensitivity.size() > 0) {  // body rotation increments -> rpy rates, as the covariance
+    i.arm_link_sigma_m = arm_link_sigma_m;
+    i.arm_link_sensitivity = link_sensitivity;
+    i.arm_link_sensitivity.topRows<3>() = rpy_rate_matrix(rpy_rad()).inverse() * link_sensitivity.topRows<3>();
+  }
   return i;
 }
 
@@ -366,6 +371,9 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
       const Eigen::MatrixXd K = H_inv * JtJl;
       const double var_links = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
       res.arm_model_covariance = var_links * K * K.transpose();
+      res.arm_link_sigma_m = opt.arm_link_sigma_m;
+      res.link_sensitivity = K;  // rpy rates -> body increments: d_body = W d_rpy
+      res.link_sensitivity.topRows<3>() = rpy_rate_matrix(rpy) * K.topRows<3>();
       // The residuals carry the links' part the camera cannot take, expected
       // var_links tr(J_links^T (I - J H^-1 J^T) J_links); counting it again as
       // pixel noise would count the arm twice (measured: 1.4x too wide

@@ -78,16 +78,27 @@ Camera Camera::look_at(const std::string& name, const Viewport& vp, double f_px,
 
 namespace {
 
+constexpr int kMaxMatrixColumns = 64;
+
+// R rows of C numbers; C = Eigen::Dynamic: as many as the first row has (1 to 64), every row alike.
 template <int R, int C>
 Eigen::Matrix<double, R, C> read_matrix(const YAML::Node& n, const std::string& file, const std::string& what) {
   Eigen::Matrix<double, R, C> M;
   if (!n || !n.IsSequence() || static_cast<int>(n.size()) != R)
     throw InputError(file, yaml::line_of(n), what + " must be a list of " + std::to_string(R) + " rows");
+  int cols = C;
+  if constexpr (C == Eigen::Dynamic) {
+    cols = n[0].IsSequence() ? static_cast<int>(n[0].size()) : 0;
+    if (cols < 1 || cols > kMaxMatrixColumns)
+      throw InputError(file, yaml::line_of(n[0]),
+                       what + " row 1 must have 1 to " + std::to_string(kMaxMatrixColumns) + " numbers");
+  }
+  M.resize(R, cols);
   for (int r = 0; r < R; ++r) {
-    if (!n[r].IsSequence() || static_cast<int>(n[r].size()) != C)
+    if (!n[r].IsSequence() || static_cast<int>(n[r].size()) != cols)
       throw InputError(file, yaml::line_of(n[r]),
-                       what + " row " + std::to_string(r + 1) + " must have " + std::to_string(C) + " numbers");
-    for (int c = 0; c < C; ++c) {
+                       what + " row " + std::to_string(r + 1) + " must have " + std::to_string(cols) + " numbers");
+    for (int c = 0; c < cols; ++c) {
       try {
         M(r, c) = n[r][c].as<double>();
       } catch (const YAML::Exception&) {
@@ -105,10 +116,10 @@ Eigen::Matrix<double, R, C> read_matrix(const YAML::Node& n, const std::string& 
 template <int R, int C>
 YAML::Node write_matrix(const Eigen::Matrix<double, R, C>& M) {
   YAML::Node n;
-  for (int r = 0; r < R; ++r) {
+  for (int r = 0; r < M.rows(); ++r) {
     YAML::Node row;
     row.SetStyle(YAML::EmitterStyle::Flow);
-    for (int c = 0; c < C; ++c) row.push_back(M(r, c));
+    for (int c = 0; c < M.cols(); ++c) row.push_back(M(r, c));
     n.push_back(row);
   }
   return n;
@@ -162,6 +173,12 @@ std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
         info.n_points = c["n_points"].as<int>(0);
         if (c["outliers"] && !c["outliers"].IsNull()) info.outliers = c["outliers"].as<std::vector<int>>();
         info.date = c["date"].as<std::string>("");
+        if (c["arm_link_sensitivity"] || c["arm_link_sigma_m"]) {
+          info.arm_link_sigma_m = c["arm_link_sigma_m"].as<double>(-1.0);
+          if (!(info.arm_link_sigma_m > 0.0) || !std::isfinite(info.arm_link_sigma_m))
+            throw InputError(path, yaml::line_of(c), where + ": arm_link_sigma_m must be a positive number beside arm_link_sensitivity");
+          info.arm_link_sensitivity = read_matrix<7, Eigen::Dynamic>(c["arm_link_sensitivity"], path, where + ": arm_link_sensitivity");
+        }
         rec.calibration = info;
       }
       out.emplace(name, std::move(rec));
@@ -197,6 +214,10 @@ void save_cameras(const std::string& path, const std::map<std::string, CameraRec
       cn["date"] = c.date;
       cn["covariance_order"] = "roll_rad, pitch_rad, yaw_rad, x_m, y_m, z_m, f_px";
       cn["covariance"] = write_matrix<7, 7>(c.covariance);
+      if (c.arm_link_sensitivity.size() > 0) {
+        cn["arm_link_sigma_m"] = c.arm_link_sigma_m;
+        cn["arm_link_sensitivity"] = write_matrix<7, Eigen::Dynamic>(c.arm_link_sensitivity);
+      }
       n["calibration"] = cn;
     }
     root[name] = n;

@@ -65,6 +65,44 @@ TEST(Camera, YamlRoundTrip) {
   ASSERT_TRUE(r.calibration.has_value());
   EXPECT_EQ(r.calibration->outliers, std::vector<int>{7});
   EXPECT_DOUBLE_EQ(r.calibration->covariance(6, 6), 4.0);
+  EXPECT_EQ(r.calibration->arm_link_sensitivity.size(), 0);
+  // With the arm model's link sensitivity (7 rows, one column per link).
+  cams["side"].calibration->arm_link_sigma_m = 0.002;
+  cams["side"].calibration->arm_link_sensitivity = Eigen::MatrixXd::Random(7, 10);
+  save_cameras(path, cams);
+  const CameraCalibrationInfo k = *load_cameras(path).at("side").calibration;
+  EXPECT_EQ(k.arm_link_sigma_m, 0.002);
+  ASSERT_EQ(k.arm_link_sensitivity.rows(), 7);
+  ASSERT_EQ(k.arm_link_sensitivity.cols(), 10);
+  EXPECT_LT((k.arm_link_sensitivity - cams["side"].calibration->arm_link_sensitivity).cwiseAbs().maxCoeff(), 1e-11);
+  std::remove(path.c_str());
+}
+
+TEST(Camera, LoadRejectsABadArmLinkSensitivity) {
+  const std::string path = "/tmp/foresight_cameras_bad_links.yaml";
+  auto message = [&](const std::string& calibration) -> std::string {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    std::fputs(("side:\n  viewport: [646, 486]\n  f_px: 700\n  base_T_camera: [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]\n"
+                "  calibration:\n" + calibration).c_str(), f);
+    std::fclose(f);
+    try {
+      load_cameras(path);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const std::string rows6 = "    arm_link_sensitivity: [[1,2],[1,2],[1,2],[1,2],[1,2],[1,2]]\n";
+  const std::string ragged = "    arm_link_sensitivity: [[1,2],[1,2],[1,2],[1,2],[1,2],[1,2],[1]]\n";
+  const std::string good = "    arm_link_sensitivity: [[1,2],[1,2],[1,2],[1,2],[1,2],[1,2],[1,2]]\n";
+  EXPECT_EQ(message("    arm_link_sigma_m: 0.002\n" + rows6),
+            path + ":7: camera 'side': arm_link_sensitivity must be a list of 7 rows");
+  EXPECT_EQ(message("    arm_link_sigma_m: 0.002\n" + ragged),
+            path + ":7: camera 'side': arm_link_sensitivity row 7 must have 2 numbers");
+  EXPECT_EQ(message(good), path + ":6: camera 'side': arm_link_sigma_m must be a positive number beside arm_link_sensitivity");
+  EXPECT_EQ(message("    arm_link_sigma_m: -1\n" + good),
+            path + ":6: camera 'side': arm_link_sigma_m must be a positive number beside arm_link_sensitivity");
+  EXPECT_EQ(message("    arm_link_sigma_m: 0.002\n" + good), "(no error)");
   std::remove(path.c_str());
 }
 

@@ -101,12 +101,12 @@ int run_align(const AlignArgs& a) {
   std::optional<Pose> base_T_object;
   if (!a.object_pose.empty()) {
     // The click solution's uncertainty (`localize --json` writes it beside
-    // the pose): its position block lets the aligner refuse an ORU that moved
+    // the pose): with it the aligner refuses an ORU that moved or turned
     // further from the clicks than both uncertainties allow.
     const ObjectPoseFile pose = read_object_pose_file(a.object_pose);
     base_T_object = pose.base_T_object;
     object = ObjectModel::from_file(a.object);
-    if (pose.covariance) options.object_start_position_covariance_m2 = pose.covariance->bottomRightCorner<3, 3>();
+    if (pose.covariance) options.object_start_covariance = *pose.covariance;
   }
   for (std::size_t i = 0; i < a.image.size(); ++i) {
     AlignView& view = views[views.size() == 1 ? 0 : i];
@@ -186,6 +186,7 @@ int run_align(const AlignArgs& a) {
                         {"matched_samples", r.matched_samples},
                         {"iterations", r.iterations},
                         {"start_disagreement_sigma", r.start_disagreement_sigma},
+                        {"start_position_disagreement_sigma", r.start_position_disagreement_sigma},
                         {"time_ms", r.time_ms},
                         {"covariance", matrix_rows(r.covariance)}};
     if (r.base_T_object) {

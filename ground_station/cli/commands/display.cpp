@@ -46,6 +46,7 @@
 #include <vector>
 
 #include "command.hpp"
+#include "format.hpp"
 #include "foresight/align/health.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
@@ -93,12 +94,6 @@ int fourcc_for(const std::string& path) {
   if (ends(".avi")) return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
   if (ends(".webm")) return cv::VideoWriter::fourcc('V', 'P', '8', '0');
   throw InputError(path, "unsupported video extension for --record (use .mp4, .avi or .webm)");
-}
-
-std::string fixed(double v, int digits) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.*f", digits, v);
-  return b;
 }
 
 int run_display(const DisplayArgs& a) {

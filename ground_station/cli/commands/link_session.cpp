@@ -1,6 +1,7 @@
 // The link commands' shared helpers (link_session.hpp). Registers no command.
 #include "link_session.hpp"
 
+#include "format.hpp"
 #include "foresight/common/plan.hpp"
 
 #include <cmath>
@@ -16,12 +17,6 @@ using Clock = std::chrono::steady_clock;
 
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
-}
-
-std::string fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
 }
 
 }  // namespace

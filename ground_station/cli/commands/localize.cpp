@@ -9,6 +9,7 @@
 // fit failed.
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "format.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/localization/localize.hpp"
@@ -83,6 +85,39 @@ int run_localize(const LocalizeArgs& a) {
       if (used && (opt.views.empty() || std::find(opt.views.begin(), opt.views.end(), name) != opt.views.end()))
         opt.camera_information[name] = calibration_information(a.cameras, name, rec);
     }
+  // The cameras held as calibrated are not exact, and cameras calibrated on
+  // one arm share its link errors (cameras.yaml's arm_link_sensitivity):
+  // both enter the pose's covariance; the pose is the same.
+  std::vector<std::string> held;
+  std::string arm_first;
+  for (const auto& [name, rec] : records) {
+    const bool used = std::any_of(pts.begin(), pts.end(), [&](const Correspondence& c) { return c.cam == name; }) &&
+                      (opt.views.empty() || std::find(opt.views.begin(), opt.views.end(), name) != opt.views.end());
+    if (!used || !rec.calibration) continue;
+    const CameraCalibrationInfo& c = *rec.calibration;
+    const Eigen::Matrix3d R = rec.camera.base_T_camera.linear();
+    Eigen::Matrix<double, 7, 7> arm_rpy = Eigen::Matrix<double, 7, 7>::Zero();
+    if (c.arm_link_sensitivity.size() > 0) {
+      if (!arm_first.empty() && c.arm_link_sigma_m != opt.arm_link_sigma_m)
+        throw std::invalid_argument(a.cameras + ": cameras '" + arm_first + "' and '" + name +
+                                    "' were calibrated with different arm link sigmas (" + fixed(opt.arm_link_sigma_m * 1e3, 2) +
+                                    " and " + fixed(c.arm_link_sigma_m * 1e3, 2) + " mm)");
+      if (arm_first.empty()) arm_first = name;
+      opt.arm_link_sigma_m = c.arm_link_sigma_m;
+      arm_rpy = c.arm_link_sigma_m * c.arm_link_sigma_m * c.arm_link_sensitivity * c.arm_link_sensitivity.transpose();
+      Eigen::MatrixXd K = c.arm_link_sensitivity;  // rpy rates -> body increments
+      K.topRows<3>() = rpy_rate_matrix(rpy_from_rotation(R)) * c.arm_link_sensitivity.topRows<3>();
+      opt.camera_link_sensitivity[name] = K;
+    }
+    if (opt.camera_information.count(name) || c.covariance.isZero(0.0)) continue;
+    // The calibration's own (noise) part, kept positive semi-definite against
+    // the file's rounding.
+    const Eigen::Matrix<double, 7, 7> body = camera_covariance_body_from_rpy(c.covariance - arm_rpy, R);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 7, 7>> eig(0.5 * (body + body.transpose()));
+    opt.camera_covariance[name] =
+        eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+    held.push_back(name);
+  }
   const LocalizationResult r = localize_object(pts, cameras, opt);
   write_residual_plot(a.plot, pts, r.residuals, plot_views(r.views, cameras), r.rms_px);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
@@ -113,6 +148,8 @@ int run_localize(const LocalizeArgs& a) {
                         {"outlier_details", outlier_details},
                         {"views", r.views},
                         {"camera_uncertainty", r.camera_uncertainty},
+                        {"held_camera_uncertainty", held},
+                        {"arm_link_sigma_m", opt.arm_link_sigma_m},
                         {"tags", tags}};
     j.update(object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
     std::cout << j.dump(2) << "\n";
@@ -132,6 +169,13 @@ int run_localize(const LocalizeArgs& a) {
   std::printf("  rms %.3f px, max %.3f px (inliers); linear stage rms %.3f px; %d iterations%s\n", r.rms_px, r.max_px,
               r.linear_rms_px, r.iterations,
               r.camera_uncertainty ? "; cameras refined under their calibration covariance" : "");
+  if (!held.empty() || opt.arm_link_sigma_m > 0.0) {
+    std::string what;
+    for (const auto& h : held) what += (what.empty() ? "" : ", ") + h;
+    std::printf("  sigma includes%s%s%s\n", held.empty() ? "" : (" the held cameras' calibration (" + what + ")").c_str(),
+                !held.empty() && opt.arm_link_sigma_m > 0.0 ? " and" : "",
+                opt.arm_link_sigma_m > 0.0 ? (" the arm model's links (" + fixed(opt.arm_link_sigma_m * 1e3, 2) + " mm each)").c_str() : "");
+  }
   if (r.outliers.empty()) std::printf("  outliers: none\n");
   for (const auto& p : r.residuals)
     if (p.outlier)

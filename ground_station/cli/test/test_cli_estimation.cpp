@@ -153,8 +153,54 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
               1e-9 * std::sqrt(lib.arm_model_covariance(6, 6)));
   EXPECT_EQ(ja["arm_model_sigma"]["arm_link_sigma_m"].get<double>(), 0.002);
   EXPECT_NEAR(ja["sigma"]["f_px"].get<double>(), lib.sigma[6], 1e-9 * lib.sigma[6]);
-  EXPECT_NEAR(load_cameras(yaml).at("side").calibration->covariance(6, 6), lib.covariance(6, 6),
-              1e-6 * lib.covariance(6, 6));
+  const CameraCalibrationInfo stored = *load_cameras(yaml).at("side").calibration;
+  EXPECT_NEAR(stored.covariance(6, 6), lib.covariance(6, 6), 1e-6 * lib.covariance(6, 6));
+  // cameras.yaml keeps the camera's response to the links (rpy, as the
+  // covariance), so localization can carry the arm's error on.
+  EXPECT_EQ(stored.arm_link_sigma_m, 0.002);
+  const Eigen::MatrixXd K_rpy = lib.info("").arm_link_sensitivity;
+  ASSERT_EQ(stored.arm_link_sensitivity.rows(), 7);
+  ASSERT_EQ(stored.arm_link_sensitivity.cols(), K_rpy.cols());
+  EXPECT_LT((stored.arm_link_sensitivity - K_rpy).norm(), 1e-9 * K_rpy.norm());
+  EXPECT_LT((0.002 * 0.002 * K_rpy * K_rpy.transpose() - lib.arm_model_covariance).norm(),
+            1e-9 * lib.arm_model_covariance.norm());
+
+  // The ORU clicked in this camera: `localize` holds the camera and its
+  // sigma carries the camera's calibration noise and the arm's links, as the
+  // library computes them from what the calibration gave.
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  std::ostringstream o;
+  o.precision(12);
+  o << "n,cam,x,y,z,u,v\n";
+  for (std::size_t i = 0; i < oru.points.size(); ++i) {
+    const Eigen::Vector3d p = oru.points[i].p_m;
+    if (p.z() > 0.0) continue;  // the back of the ORU is inside the panel
+    const Eigen::Vector2d uv = side.project(scene.base_T_object * p);
+    o << i + 1 << ",side," << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+  }
+  const std::string oru_pts = write_file(o.str());
+  const CliRun rl = run("localize " + oru_pts + " --cameras " + yaml + " --json");
+  ASSERT_EQ(rl.status, 0) << rl.err;
+  const auto jl = nlohmann::json::parse(rl.out);
+  EXPECT_EQ(jl["arm_link_sigma_m"].get<double>(), 0.002);
+  EXPECT_EQ(jl["held_camera_uncertainty"], nlohmann::json::array({"side"}));
+  LocalizationOptions lo;
+  const Eigen::Matrix3d R = lib.camera.base_T_camera.linear();
+  lo.camera_covariance["side"] = camera_covariance_body_from_rpy(lib.covariance - lib.arm_model_covariance, R);
+  lo.camera_link_sensitivity["side"] = lib.link_sensitivity;
+  lo.arm_link_sigma_m = 0.002;
+  const std::map<std::string, Camera> cams = {{"side", lib.camera}};
+  const auto oru_clicks = read_correspondences_csv(oru_pts);
+  const LocalizationResult with = localize_object(oru_clicks, cams, lo), exact = localize_object(oru_clicks, cams);
+  for (int i = 0; i < 3; ++i) {
+    const double sp = jl["sigma"]["position_m"][i];
+    EXPECT_NEAR(sp, with.sigma_position_m[i], 1e-4 * sp) << i;
+    const double srpy = with.sigma_rpy_rad[i] * 180.0 / M_PI;
+    EXPECT_NEAR(jl["sigma"]["rpy_deg"][i].get<double>(), srpy, 1e-4 * srpy) << i;
+    EXPECT_GT(sp, 3.0 * exact.sigma_position_m[i]) << i;  // the arm dominates: exact clicks
+  }
+  std::remove(oru_pts.c_str());
   std::remove(yaml.c_str());
   const CliRun bad_sigma = run("calibrate " + pts + " --camera side --arm-link-sigma -0.001");
   EXPECT_EQ(bad_sigma.status, 2);
@@ -389,10 +435,75 @@ TEST(CliLocalize, CalibrateThenLocalizeWithCameraUncertainty) {
   const auto jp = nlohmann::json::parse(plain.out), jj = nlohmann::json::parse(joint.out);
   EXPECT_EQ(jp["camera_uncertainty"], false);
   EXPECT_EQ(jj["camera_uncertainty"], true);
+  // Without --camera-uncertainty the cameras are held as calibrated, and
+  // their calibration covariance enters the sigma (the library's
+  // camera_covariance, from cameras.yaml); the pose is the paper's two-step one.
+  EXPECT_EQ(jp["held_camera_uncertainty"], nlohmann::json::array({"oblique", "overhead_wide", "side"}));
+  EXPECT_EQ(jj["held_camera_uncertainty"], nlohmann::json::array());
+  EXPECT_EQ(jp["arm_link_sigma_m"].get<double>(), 0.0);
+  std::map<std::string, Camera> calibrated;
+  LocalizationOptions held;
+  for (const auto& [name, rec] : load_cameras(cam_file)) {
+    calibrated[name] = rec.camera;
+    if (rec.calibration)
+      held.camera_covariance[name] = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
+  }
+  const auto clicks = read_correspondences_csv(pts);
+  const LocalizationResult exact = localize_object(clicks, calibrated), lib = localize_object(clicks, calibrated, held);
   for (int i = 0; i < 3; ++i) {
     const double sj = jj["sigma"]["position_m"][i], sp = jp["sigma"]["position_m"][i];
-    EXPECT_GT(sj, sp) << i;  // the calibration error is part of the uncertainty now
+    EXPECT_NEAR(jp["position_m"][i].get<double>(), exact.position_m()[i], 1e-9) << i;
+    EXPECT_NEAR(sp, lib.sigma_position_m[i], 1e-4 * sp) << i;
+    // The calibration error is part of the uncertainty, both ways.
+    EXPECT_GT(sp, 1.2 * exact.sigma_position_m[i]) << i;
+    EXPECT_GT(sj, exact.sigma_position_m[i]) << i;
     EXPECT_LT(std::abs(jj["position_m"][i].get<double>() - scene.base_T_object.translation()[i]), 5.0 * sj) << i;
   }
   for (const auto& p : {pts, cal_file, cam_file}) std::remove(p.c_str());
+}
+
+TEST(CliLocalize, CamerasCalibratedWithDifferentArmSigmasAreRefused) {
+  // The arm's links are one arm: two cameras that claim different link sds
+  // for it cannot both be right, and localize says which.
+  const auto cams = scene_cameras();
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  std::map<std::string, CameraRecord> records;
+  double sd = 0.001;
+  for (const char* name : {"oblique", "side"}) {
+    CameraRecord& rec = records[name];
+    rec.camera = cams.at(name);
+    CameraCalibrationInfo info;
+    info.covariance = 1e-8 * Eigen::Matrix<double, 7, 7>::Identity();
+    info.rms_px = 0.5;
+    info.n_points = 20;
+    info.arm_link_sigma_m = sd;
+    sd *= 2.0;
+    info.arm_link_sensitivity = Eigen::MatrixXd::Constant(7, 10, 0.01);
+    rec.calibration = info;
+  }
+  const std::string cam_file = temp_path(".yaml");
+  save_cameras(cam_file, records);
+  std::ostringstream s;
+  s.precision(12);
+  s << "n,cam,x,y,z,u,v\n";
+  for (const char* name : {"oblique", "side"})
+    for (std::size_t i = 0; i < oru.points.size(); ++i) {
+      const Eigen::Vector3d p = oru.points[i].p_m;
+      if (p.z() > 0.0) continue;
+      const Eigen::Vector2d uv = cams.at(name).project(scene.base_T_object * p);
+      s << i + 1 << ',' << name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ',' << uv.y() << '\n';
+    }
+  const std::string pts = write_file(s.str());
+  const CliRun r = run("localize " + pts + " --cameras " + cam_file + " --json");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.out, "");
+  EXPECT_NE(r.err.find(cam_file + ": cameras 'oblique' and 'side' were calibrated with different arm link sigmas (1.00 and 2.00 mm)"),
+            std::string::npos)
+      << r.err;
+  // One view alone is fine.
+  const CliRun one = run("localize " + pts + " --cameras " + cam_file + " --views side --json");
+  ASSERT_EQ(one.status, 0) << one.err;
+  EXPECT_EQ(nlohmann::json::parse(one.out)["arm_link_sigma_m"].get<double>(), 0.002);
+  for (const auto& p : {pts, cam_file}) std::remove(p.c_str());
 }

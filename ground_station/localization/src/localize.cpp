@@ -225,6 +225,44 @@ Pose localize_object_linear(const std::vector<Correspondence>& points, const std
 LocalizationResult localize_object(const std::vector<Correspondence>& points,
                                    const std::map<std::string, Camera>& cameras, const LocalizationOptions& opt) {
   LocalizationResult res;
+  if (!(opt.arm_link_sigma_m >= 0.0) || !std::isfinite(opt.arm_link_sigma_m))
+    throw EstimationInputError("arm link sigma must be a non-negative number of metres, got " +
+                               std::to_string(opt.arm_link_sigma_m));
+  Eigen::Index links = 0;
+  for (const auto& [name, K] : opt.camera_link_sensitivity) {
+    if (K.rows() != 7 || K.cols() == 0 || !K.allFinite())
+      throw EstimationInputError("camera '" + name + "': the link sensitivity must be 7 rows of finite numbers, one column per link (" +
+                                 std::to_string(K.rows()) + " x " + std::to_string(K.cols()) + " given)");
+    if (links > 0 && K.cols() != links)
+      throw EstimationInputError("camera '" + name + "': the link sensitivity has " + std::to_string(K.cols()) +
+                                 " links, another camera's " + std::to_string(links));
+    links = K.cols();
+  }
+  for (const auto& [name, C] : opt.camera_covariance) {
+    const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(C);
+    if (!C.allFinite() || !C.isApprox(C.transpose(), 1e-9) || ldlt.info() != Eigen::Success ||
+        (ldlt.vectorD().array() < -1e-12 * std::max(1.0, C.diagonal().maxCoeff())).any())
+      throw EstimationInputError("camera '" + name + "': the covariance must be a finite, symmetric, positive semi-definite 7x7 matrix");
+  }
+  const double var_links = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
+  const bool arm_term = var_links > 0.0 && links > 0;
+  auto sensitivity_of = [&](const std::string& cam) -> const Eigen::MatrixXd* {
+    const auto it = opt.camera_link_sensitivity.find(cam);
+    return it == opt.camera_link_sensitivity.end() ? nullptr : &it->second;
+  };
+  // The pose's response to the link lengths (body rotation, position; 6 x
+  // links), arm_D, and the held cameras' uncertainty carried to the pose,
+  // held_body: the fit's linear response -H^-1 J^T de/dx to a change x,
+  // where a held camera moves its points' pixels (d_camera, times K for the
+  // links) and a jointly refined camera moves its prior's centre.
+  Eigen::MatrixXd arm_D;
+  Eigen::Matrix<double, 6, 6> held_body = Eigen::Matrix<double, 6, 6>::Zero();
+  // The links' expected share of the final residuals' sum of squares,
+  // var_links ||(I - J H^-1 J^T) de/dlinks||^2: what the fit could not take
+  // (two cameras that disagree); taken out of the pixel noise's estimate, or
+  // the arm would be counted twice (measured: a joint fit's yaw sd 2.4x the
+  // spread).
+  double arm_in_residuals = 0.0;
   const std::vector<Obs> obs = resolve(points, cameras, opt.views, res.views);
   check_geometry(obs);
   const int n = static_cast<int>(obs.size());
@@ -296,6 +334,44 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   // calibration information, the cameras held to their calibration by a
   // prior (a Gaussian with information J^T J in pixel units). Asymptotically
   // the joint maximum likelihood of calibration and localization clicks.
+  auto camera_responses = [&](const Eigen::MatrixXd& J, const Eigen::MatrixXd& H, const Eigen::Matrix3d& R,
+                              const Eigen::Vector3d& t, const std::vector<std::string>& refined_names) {
+    const auto is_refined = [&](const std::string& cam) {
+      return std::find(refined_names.begin(), refined_names.end(), cam) != refined_names.end();
+    };
+    Eigen::MatrixXd dedl = Eigen::MatrixXd::Zero(J.rows(), arm_term ? links : 0);
+    std::map<std::string, Eigen::MatrixXd> dedc;  // per held camera with a covariance
+    for (int k = 0; k < m; ++k) {
+      const Obs& o = obs[idx[k]];
+      if (is_refined(o.c->cam)) continue;
+      const Eigen::MatrixXd* K = arm_term ? sensitivity_of(o.c->cam) : nullptr;
+      const auto cov = opt.camera_covariance.find(o.c->cam);
+      if (!K && cov == opt.camera_covariance.end()) continue;
+      const Eigen::Matrix<double, 2, 7> d_camera = project_with_jacobians(*o.cam, R * o.c->p_m + t).d_camera;
+      if (K) dedl.middleRows<2>(2 * k) = d_camera * *K;
+      if (cov != opt.camera_covariance.end()) {
+        Eigen::MatrixXd& d = dedc[o.c->cam];
+        if (d.size() == 0) d = Eigen::MatrixXd::Zero(J.rows(), 7);
+        d.middleRows<2>(2 * k) = d_camera;
+      }
+    }
+    if (arm_term)
+      for (std::size_t j = 0; j < refined_names.size(); ++j)  // the prior's centre moves: d e / d centre = -(d e / d camera)
+        if (const Eigen::MatrixXd* K = sensitivity_of(refined_names[j])) {
+          const Eigen::Index row = 2 * m + 7 * static_cast<Eigen::Index>(j), col = 6 + 7 * static_cast<Eigen::Index>(j);
+          dedl.middleRows<7>(row) = -J.block<7, 7>(row, col) * *K;
+        }
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
+    if (arm_term) {
+      const Eigen::MatrixXd D = -ldlt.solve(J.transpose() * dedl);
+      arm_in_residuals = var_links * (dedl + J * D).squaredNorm();
+      arm_D = D.topRows(6);
+    }
+    for (const auto& [name, d] : dedc) {
+      const Eigen::MatrixXd A = -ldlt.solve(J.transpose() * d).topRows(6);
+      held_body += A * opt.camera_covariance.at(name) * A.transpose();
+    }
+  };
   std::vector<std::string> joint_names;
   for (const auto& v : res.views)
     if (opt.camera_information.count(v)) joint_names.push_back(v);
@@ -375,6 +451,7 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
     jevaluate(js, e, &J);
     joint_H = J.transpose() * J;
     joint_ss = e.squaredNorm();
+    camera_responses(J, joint_H, js.R, js.t, joint_names);
     res.camera_uncertainty = true;
     res.refined_cameras = refined;
   }
@@ -421,18 +498,26 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
   // case), the body rotation increments mapped to rpy rates.
   Eigen::Matrix<double, 6, 6> C_body;
   if (kj > 0) {
-    const double s2 = joint_ss / std::max(2 * m - 6, 1);
+    const double s2 = std::max(0.0, joint_ss - arm_in_residuals) / std::max(2 * m - 6, 1);
     C_body = s2 * joint_H.inverse().topLeftCorner<6, 6>();
   } else {
     Eigen::VectorXd e(2 * m);
     Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m, 6);
     evaluate(state, e, &J);
-    const double s2 = e.squaredNorm() / std::max(2 * m - 6, 1);
     const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
+    camera_responses(J, H, state.R, state.t, {});
+    const double s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals) / std::max(2 * m - 6, 1);
     C_body = s2 * H.inverse();
   }
   Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
   G.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(state.R)).inverse();
+  C_body += held_body;
+  res.held_cameras_covariance = G * held_body * G.transpose();
+  if (arm_term) {
+    const Eigen::Matrix<double, 6, 6> arm_body = var_links * arm_D * arm_D.transpose();
+    C_body += arm_body;
+    res.arm_model_covariance = G * arm_body * G.transpose();
+  }
   res.covariance = G * C_body * G.transpose();
   const Eigen::Matrix<double, 6, 1> sd = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   res.sigma_rpy_rad = sd.head<3>();

@@ -31,16 +31,19 @@
 // Errors in the ORU frame as the localization study (x, y, z, theta; the
 // paper's 95% alignment |mu_xy| + 2 sigma_xy and depth |mu_z| + 2 sigma_z).
 //
-// Each ORU alignment is given the clicks' position covariance (the joint
-// estimate's, plus the arm model's sqrt(links) x arm_link_prior_m per axis)
-// and is refused when it moves further than 5 sigma from the clicks
-// (AlignOptions::object_start_position_covariance_m2).
+// Each ORU alignment is given the clicks' pose covariance (the two-step
+// pose's: the clicks' noise, the held cameras' calibration noise
+// (LocalizationOptions::camera_covariance) and the arm model's error, which
+// the cameras share (camera_link_sensitivity, arm_link_prior_m)) and is
+// refused when it moves or turns further than 5 sigma from the clicks
+// (AlignOptions::object_start_covariance).
 // Diagnostics on stderr: FORESIGHT_STUDY_TRACE=1 prints one line per ORU
 // alignment (status, reason, errors, scores, the move in sigmas, sds);
 // FORESIGHT_STUDY_DUMP=K prints trial K's inputs at full precision (true
 // and estimated link errors, the synthetic camera's seed, the cameras, the
-// single-view clicks poses and covariances): how test_align's seed-2 case
-// was taken.
+// single-view clicks poses and covariances): how test_align's seed-2 and
+// seed-11 cases were taken. The trace also prints, per combination, the
+// clicks' own error in sigmas of their covariance (HONEST lines).
 //
 // Not real-time code: renders, allocates; seconds per trial.
 
@@ -75,9 +78,9 @@ struct AlignmentComboStats {
   ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
   int clicks_failures = 0;
   int aligned_refused = 0;  ///< trials where the ORU alignment refused (clicks pose kept)
-  /// of which: the ORU moved from the clicks pose beyond the clicks' and the
-  /// alignment's position uncertainty (AlignOptions::
-  /// object_start_position_covariance_m2, the clicks' joint covariance)
+  /// of which: the ORU moved or turned from the clicks pose beyond the
+  /// clicks' and the alignment's pose uncertainty (AlignOptions::
+  /// object_start_covariance, the clicks' covariance)
   int aligned_refused_disagreement = 0;
   int aligned_cameras_only_refused = 0;
 };

@@ -86,17 +86,17 @@ struct AlignOptions {
   /// empty: none): the model that is rendered, sampled and (with
   /// arm_link_prior_m) the start of their refinement.
   std::vector<double> arm_link_delta_m;
-  /// The uncertainty of the object's start pose: the covariance (m^2, base
-  /// frame) of its position, e.g. the click solution's
-  /// (LocalizationResult::covariance, its position block). When given, an
-  /// object alignment whose position ends further from the start than
-  /// `max_start_disagreement_sigma` in the metric of the start's and the
-  /// alignment's position covariances together is refused: the edges and
-  /// the clicks disagree beyond both their uncertainties, and one view
-  /// cannot say which is wrong (seen: a single oblique view whose
-  /// ORU slid 0.17 m along its line of sight onto other edges, reporting a
-  /// 2.5 mm sd).
-  std::optional<Eigen::Matrix3d> object_start_position_covariance_m2;
+  /// The uncertainty of the object's start pose, as LocalizationResult::
+  /// covariance gives it (roll, pitch, yaw rad, position m; base frame), e.g.
+  /// the click solution's. When given, an object alignment that ends
+  /// further from the start than `max_start_disagreement_sigma` in the
+  /// metric of the start's and the alignment's pose covariances together
+  /// (rotation and position) is refused: the edges and the clicks disagree
+  /// beyond both their uncertainties, and one view cannot say which is wrong
+  /// (seen: a single oblique view whose ORU slid 0.17 m along its line of
+  /// sight onto other edges, reporting a 2.5 mm sd; a side view's ORU turned
+  /// 5.6 deg and slid 33 mm along its hole axis).
+  std::optional<Eigen::Matrix<double, 6, 6>> object_start_covariance;
   double max_start_disagreement_sigma = 5.0;
 };
 
@@ -138,10 +138,12 @@ struct AlignResult {
   int visible_samples = 0;            ///< model edge samples visible at the end (all frames)
   int matched_samples = 0;            ///< of which found an image edge within 1 px
   int iterations = 0;
-  /// With AlignOptions::object_start_position_covariance_m2: the object's
-  /// position move from the start in sigmas of (start + alignment)
-  /// position covariance (the Mahalanobis distance); else 0.
+  /// With AlignOptions::object_start_covariance: the object's move from the
+  /// start (body rotation, position) in sigmas of (start + alignment) pose
+  /// covariance (the Mahalanobis distance; the refusal rule); the position
+  /// part alone in the position blocks' metric; else 0.
   double start_disagreement_sigma = 0.0;
+  double start_position_disagreement_sigma = 0.0;
   /// Parameter change, per camera (roll,pitch,yaw rad body increment; x,y,z
   /// m; f_px), then the object (rotation vector rad, translation m).
   std::vector<Eigen::Matrix<double, 7, 1>> camera_change;

@@ -100,6 +100,14 @@ struct CalibrationResult {
   /// s_noise^2 (J^T J)^-1 + this, s_noise^2 the residual variance less the
   /// part the arm's errors are expected to leave in the residuals (>= 0).
   Eigen::Matrix<double, 7, 7> arm_model_covariance = Eigen::Matrix<double, 7, 7>::Zero();
+  /// The camera's response to the arm model's link lengths: its parameter
+  /// change per metre of each link (7 x links; body rotation increment rad,
+  /// position m, f_px, as `information`), K = H^-1 J^T J_links. Cameras
+  /// calibrated on one arm share its error, so what they measure together
+  /// inherits it correlated (LocalizationOptions::camera_link_sensitivity).
+  /// Empty without CalibrationOptions::arm_link_sigma_m.
+  Eigen::MatrixXd link_sensitivity;
+  double arm_link_sigma_m = 0.0;  ///< CalibrationOptions::arm_link_sigma_m when link_sensitivity is set
   /// J^T J of the inlier reprojection errors (pixels) at the solution, in
   /// the parameters (body-frame rotation increment of base_T_camera [rad],
   /// position [m], f_px): the information the clicks carry about the camera,

@@ -74,6 +74,13 @@ struct CameraCalibrationInfo {
   int n_points = 0;
   std::vector<int> outliers;  ///< point numbers (the `n` column)
   std::string date;           ///< ISO 8601, UTC
+  /// With the arm model's uncertainty (`calibrate --arm-link-sigma`): the
+  /// links' sd (m) and the camera's response to the link lengths (7 x links,
+  /// the covariance's parameters per metre of each link; its arm part is
+  /// sd^2 K K^T). Cameras calibrated on one arm share its error; localization
+  /// carries it correlated. Empty: none.
+  double arm_link_sigma_m = 0.0;
+  Eigen::MatrixXd arm_link_sensitivity;
 };
 
 struct CameraRecord {
@@ -83,7 +90,8 @@ struct CameraRecord {
 
 /// cameras.yaml: a map from camera name to {viewport: [W, H], f_px,
 /// base_T_camera: 4x4 rows, fovy_deg, calibration: {covariance (7x7 rows),
-/// rms_px, max_px, n_points, outliers, date}}. Throws InputError naming the
+/// rms_px, max_px, n_points, outliers, date[, arm_link_sigma_m,
+/// arm_link_sensitivity (7 rows of one number per link)]}}. Throws InputError naming the
 /// file and camera/key on any problem.
 std::map<std::string, CameraRecord> load_cameras(const std::string& path);
 /// Write all cameras (sorted by name). Throws InputError when not writable.

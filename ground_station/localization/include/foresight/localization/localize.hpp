@@ -42,12 +42,37 @@ struct LocalizationOptions {
   /// the cameras' uncertainty. Empty: the paper's 6-parameter fit with the
   /// cameras taken as exact.
   std::map<std::string, Eigen::Matrix<double, 7, 7>> camera_information;
+  /// The arm model's uncertainty, carried through the cameras: per camera
+  /// name, its calibration's response to the arm's link lengths
+  /// (CalibrationResult::link_sensitivity, 7 x links, the same links for
+  /// every camera), and the links' sd (m). Cameras calibrated on one arm
+  /// share its error, so two views' errors do not average out as
+  /// independent ones would; the pose's response to the links, D, gives
+  /// LocalizationResult::arm_model_covariance = sd^2 D D^T, added to the
+  /// covariance (rotation and position). Cameras without a sensitivity count
+  /// as exact. 0 or empty: none.
+  std::map<std::string, Eigen::MatrixXd> camera_link_sensitivity;
+  double arm_link_sigma_m = 0.0;
+  /// Optional, per camera name: the camera's own uncertainty (7x7, body
+  /// rotation increment rad, position m, f_px; CalibrationResult::
+  /// covariance less its arm_model_covariance, in body rotation:
+  /// camera_covariance_body_from_rpy). A camera held as calibrated (not in
+  /// camera_information) is not exact: its error moves the pose as the
+  /// clicks' noise does, and enters the covariance as A C A^T, A the pose's
+  /// response to the camera (a "consider" covariance). The pose itself is
+  /// the paper's two-step one, unchanged.
+  std::map<std::string, Eigen::Matrix<double, 7, 7>> camera_covariance;
 };
 
 struct LocalizationResult {
   Pose base_T_object = Pose::Identity();
   /// Covariance of (roll, pitch, yaw [rad], x, y, z [m]) of base_T_object.
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  /// The arm model's part of `covariance` (same parameters; zero without
+  /// LocalizationOptions::arm_link_sigma_m and camera_link_sensitivity).
+  Eigen::Matrix<double, 6, 6> arm_model_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  /// The held cameras' part of `covariance` (LocalizationOptions::camera_covariance).
+  Eigen::Matrix<double, 6, 6> held_cameras_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Vector3d sigma_rpy_rad = Eigen::Vector3d::Zero();
   Eigen::Vector3d sigma_position_m = Eigen::Vector3d::Zero();
   double rms_px = 0.0;         ///< over inliers, all views
