@@ -66,7 +66,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       c.label = view_combination_label(c.views);
       combos.push_back(c);
     }
-  std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size()), acc_cam_only(combos.size());
+  std::vector<ErrorAccumulator> acc_clicks(combos.size()), acc_aligned(combos.size()), acc_held(combos.size()),
+      acc_cam_only(combos.size());
   res.link_segments = robot.offset_segments();
   const int nls = static_cast<int>(res.link_segments.size());
   std::vector<double> link_true2(nls, 0.0), link_err2(nls, 0.0), link_sig(nls, 0.0);
@@ -254,7 +255,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         std::fprintf(stderr, "\n");
       }
       for (std::size_t ci = 0; ci < combos.size(); ++ci) {
-        if (combos[ci].views.size() != 1 || !clicks_pose[ci]) continue;
+        if (!clicks_pose[ci]) continue;
         const Eigen::Matrix4d M = clicks_pose[ci]->matrix();
         std::fprintf(stderr, "DUMP clicks %s", combos[ci].label.c_str());
         for (int k = 0; k < 16; ++k) std::fprintf(stderr, " %.17g", M(k % 4, k / 4));
@@ -264,13 +265,15 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       }
     }
     for (int v = 0; v < nv; ++v) res.camera_bundle_px[v] += reprojection_rms_px(bundle_cam[v], setup.views[v].truth, metric_points);
-    // The ORU over each combination: with the step-5 cameras and arm, and
-    // with the step-4 cameras (nominal arm) for comparison.
+    // The ORU over each combination (step 6): with the step-5 cameras and
+    // arm (two or more views: refined with them), and with the step-4
+    // cameras (nominal arm) for comparison.
     for (std::size_t ci = 0; ci < combos.size(); ++ci) {
       if (!clicks_pose[ci]) continue;
+      AlignmentComboStats& combo = combos[ci];
       acc_clicks[ci].add(pose_error(*clicks_pose[ci], setup.base_T_object));
       std::vector<AlignView> sub, sub_cam_only;
-      for (const int v : combos[ci].views) {
+      for (const int v : combo.views) {
         sub.push_back({bundle_cam[v], views[v].frames, bundle_cov[v]});
         sub_cam_only.push_back({aligned_cam[v], views[v].frames, aligned_cov[v]});
       }
@@ -278,53 +281,73 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       ao.refine = Refine::Object;
       ao.object_start_covariance = clicks_cov[ci];
       const AlignResult r0 = aligner.align(sub_cam_only, clicks_pose[ci], ao);
-      if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_cameras_only_refused;
+      if (r0.status != AlignStatus::Aligned) ++combo.aligned_cameras_only_refused;
       acc_cam_only[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
+      AlignResult r = r0;
+      int object_col = 0;  // the object's block in r.covariance
       if (opt.arm_link_prior_m > 0.0) {
         ao.arm_link_delta_m = arm_delta;
-        const AlignResult r = aligner.align(sub, clicks_pose[ci], ao);
-        if (r.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
-        if (refused_for_disagreement(r))
-          ++combos[ci].aligned_refused_disagreement;
-        if (std::getenv("FORESIGHT_STUDY_TRACE")) {
-          Pose end = r.base_T_object ? *r.base_T_object : *clicks_pose[ci];
-          // what the unrefused result would be: start + change
-          const auto ec = pose_error(*clicks_pose[ci], setup.base_T_object);
-          {  // the clicks covariance's honesty: the clicks' error in sigmas (6-DoF, rotation)
-            const Eigen::AngleAxisd aa(setup.base_T_object.linear().transpose() * clicks_pose[ci]->linear());
-            Eigen::Matrix<double, 6, 1> e;
-            e << aa.angle() * aa.axis(), clicks_pose[ci]->translation() - setup.base_T_object.translation();
-            Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
-            T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(clicks_pose[ci]->linear()));
-            const Eigen::Matrix<double, 6, 6> Cb = T * clicks_cov[ci] * T.transpose();
-            const Eigen::Matrix<double, 6, 6> Ca = T * clicks_arm_cov[ci] * T.transpose();
-            std::fprintf(stderr, "HONEST t%d %-8s clicks z6 %.2f zrot %.2f zpos %.2f | rot err %.2f deg sd %.2f %.2f %.2f deg (arm %.2f %.2f %.2f)\n", t,
-                         combos[ci].label.c_str(), std::sqrt(e.dot(Cb.ldlt().solve(e))),
-                         std::sqrt(e.head<3>().dot(Cb.topLeftCorner<3, 3>().ldlt().solve(e.head<3>()))),
-                         std::sqrt(e.tail<3>().dot(Cb.bottomRightCorner<3, 3>().ldlt().solve(e.tail<3>()))),
-                         aa.angle() * 180 / M_PI, std::sqrt(Cb(0, 0)) * 180 / M_PI, std::sqrt(Cb(1, 1)) * 180 / M_PI,
-                         std::sqrt(Cb(2, 2)) * 180 / M_PI, std::sqrt(Ca(0, 0)) * 180 / M_PI, std::sqrt(Ca(1, 1)) * 180 / M_PI,
-                         std::sqrt(Ca(2, 2)) * 180 / M_PI);
-          }
-          const auto ea = pose_error(end, setup.base_T_object);
-          const Eigen::Matrix<double, 6, 6> C = r.covariance.rows() >= 6 ? Eigen::Matrix<double, 6, 6>(r.covariance.bottomRightCorner(6, 6)) : Eigen::Matrix<double, 6, 6>::Zero();
-          std::fprintf(stderr,
-                       "TRACE t%d %-8s %s '%s' clicks_err %.1f %.1f %.1f mm -> %.1f %.1f %.1f mm | score %.2f->%.2f res %.2f vis %d match %d it %d "
-                       "| m %.1f p %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm rot %.4f | clicks sd t %.1f %.1f %.1f mm\n",
-                       t, combos[ci].label.c_str(), to_string(r.status), r.reason.c_str(), ec[0] * 1e3, ec[1] * 1e3,
-                       ec[2] * 1e3, ea[0] * 1e3, ea[1] * 1e3, ea[2] * 1e3, r.start_score_px, r.final_score_px,
-                       r.residual_rms_px, r.visible_samples, r.matched_samples, r.iterations, r.start_disagreement_sigma, r.start_position_disagreement_sigma, r.object_change[0],
-                       r.object_change[1], r.object_change[2], r.object_change[3] * 1e3, r.object_change[4] * 1e3,
-                       r.object_change[5] * 1e3, std::sqrt(C(3, 3)) * 1e3, std::sqrt(C(4, 4)) * 1e3,
-                       std::sqrt(C(5, 5)) * 1e3, std::sqrt(C(0, 0)), std::sqrt(clicks_cov[ci](3, 3)) * 1e3,
-                       std::sqrt(clicks_cov[ci](4, 4)) * 1e3, std::sqrt(clicks_cov[ci](5, 5)) * 1e3);
+        const AlignResult held = aligner.align(sub, clicks_pose[ci], ao);
+        if (held.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
+        acc_held[ci].add(pose_error(*held.base_T_object, setup.base_T_object));
+        r = held;
+        if (sub.size() >= 2) {
+          AlignOptions jo = ao;
+          jo.refine = Refine::Both;
+          jo.arm_link_prior_m = opt.arm_link_prior_m;
+          r = aligner.align(sub, clicks_pose[ci], jo);
+          object_col = 7 * static_cast<int>(sub.size());
         }
-        acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
       } else {
-        if (r0.status != AlignStatus::Aligned) ++combos[ci].aligned_refused;
-        if (refused_for_disagreement(r0))
-          ++combos[ci].aligned_refused_disagreement;
-        acc_aligned[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
+        acc_held[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
+        if (r0.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
+      }
+      if (r.status != AlignStatus::Aligned) ++combo.aligned_refused;
+      if (refused_for_disagreement(r)) ++combo.aligned_refused_disagreement;
+      acc_aligned[ci].add(pose_error(*r.base_T_object, setup.base_T_object));
+      // The claim: the position error against the position covariance.
+      const Eigen::Matrix3d Cp = r.covariance.rows() >= object_col + 6
+                                     ? Eigen::Matrix3d(r.covariance.block<3, 3>(object_col + 3, object_col + 3))
+                                     : Eigen::Matrix3d::Zero();
+      const Eigen::Vector3d ep = r.base_T_object->translation() - setup.base_T_object.translation();
+      double worst_axis = 0.0, z2 = 0.0;
+      if (r.status == AlignStatus::Aligned) {
+        for (int k = 0; k < 3; ++k) worst_axis = std::max(worst_axis, std::abs(ep[k]) / std::sqrt(std::max(1e-30, Cp(k, k))));
+        z2 = ep.dot(Cp.ldlt().solve(ep));
+        ++combo.aligned_accepted;
+        if (worst_axis <= 3.0) ++combo.aligned_within_3_sigma;
+        combo.aligned_mahalanobis2_mean += z2;
+      }
+      if (std::getenv("FORESIGHT_STUDY_TRACE")) {
+        // the clicks covariance's honesty: the clicks' error in sigmas (6-DoF, rotation)
+        const Eigen::AngleAxisd aa(setup.base_T_object.linear().transpose() * clicks_pose[ci]->linear());
+        Eigen::Matrix<double, 6, 1> e;
+        e << aa.angle() * aa.axis(), clicks_pose[ci]->translation() - setup.base_T_object.translation();
+        Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+        T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(clicks_pose[ci]->linear()));
+        const Eigen::Matrix<double, 6, 6> Cb = T * clicks_cov[ci] * T.transpose();
+        const Eigen::Matrix<double, 6, 6> Ca = T * clicks_arm_cov[ci] * T.transpose();
+        std::fprintf(stderr, "HONEST t%d %-8s clicks z6 %.2f zrot %.2f zpos %.2f | rot err %.2f deg sd %.2f %.2f %.2f deg (arm %.2f %.2f %.2f)\n", t,
+                     combo.label.c_str(), std::sqrt(e.dot(Cb.ldlt().solve(e))),
+                     std::sqrt(e.head<3>().dot(Cb.topLeftCorner<3, 3>().ldlt().solve(e.head<3>()))),
+                     std::sqrt(e.tail<3>().dot(Cb.bottomRightCorner<3, 3>().ldlt().solve(e.tail<3>()))),
+                     aa.angle() * 180 / M_PI, std::sqrt(Cb(0, 0)) * 180 / M_PI, std::sqrt(Cb(1, 1)) * 180 / M_PI,
+                     std::sqrt(Cb(2, 2)) * 180 / M_PI, std::sqrt(Ca(0, 0)) * 180 / M_PI, std::sqrt(Ca(1, 1)) * 180 / M_PI,
+                     std::sqrt(Ca(2, 2)) * 180 / M_PI);
+        const auto ec = pose_error(*clicks_pose[ci], setup.base_T_object);
+        const auto ea = pose_error(*r.base_T_object, setup.base_T_object);
+        std::fprintf(stderr,
+                     "TRACE t%d %-8s %s '%s' clicks_err %.1f %.1f %.1f mm -> %.1f %.1f %.1f mm | score %.2f->%.2f res %.2f vis %d match %d it %d "
+                     "| m %.1f p %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm | worst axis %.2f z3 %.2f "
+                     "| clicks sd t %.1f %.1f %.1f mm\n",
+                     t, combo.label.c_str(), to_string(r.status), r.reason.c_str(), ec[0] * 1e3, ec[1] * 1e3, ec[2] * 1e3,
+                     ea[0] * 1e3, ea[1] * 1e3, ea[2] * 1e3, r.start_score_px, r.final_score_px, r.residual_rms_px,
+                     r.visible_samples, r.matched_samples, r.iterations, r.start_disagreement_sigma,
+                     r.start_position_disagreement_sigma, r.object_change[0], r.object_change[1], r.object_change[2],
+                     r.object_change[3] * 1e3, r.object_change[4] * 1e3, r.object_change[5] * 1e3,
+                     std::sqrt(Cp(0, 0)) * 1e3, std::sqrt(Cp(1, 1)) * 1e3, std::sqrt(Cp(2, 2)) * 1e3, worst_axis,
+                     std::sqrt(z2), std::sqrt(clicks_cov[ci](3, 3)) * 1e3, std::sqrt(clicks_cov[ci](4, 4)) * 1e3,
+                     std::sqrt(clicks_cov[ci](5, 5)) * 1e3);
       }
     }
     if (opt.progress) opt.progress(t + 1, opt.trials);
@@ -333,6 +356,8 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
     combos[ci].clicks = acc_clicks[ci].stats();
     combos[ci].aligned = acc_aligned[ci].stats();
     combos[ci].aligned_cameras_only = acc_cam_only[ci].stats();
+    combos[ci].aligned_held_cameras = acc_held[ci].stats();
+    if (combos[ci].aligned_accepted > 0) combos[ci].aligned_mahalanobis2_mean /= combos[ci].aligned_accepted;
   }
   double t2 = 0.0, e2 = 0.0;
   for (int j = 0; j < nls; ++j) {

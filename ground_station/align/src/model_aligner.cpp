@@ -74,6 +74,7 @@ struct Primitive {
   int label = 0;  // 1..
   Eigen::Vector4d rgba = Eigen::Vector4d::Zero();
   std::vector<Edge> edges;
+  int first_edge = 0;  // the index of edges[0] over all primitives' edges
 };
 
 // Mesh edges with their adjacent face normals (vertices are duplicated per
@@ -151,7 +152,10 @@ struct Sample {
   bool on_object = false;
   bool silhouette = false;
   double length_px = 0.0;  // contour length it stands for
-  int cluster = 0;  // the model edge (per frame) it lies on: samples of one edge share their errors
+  // The model edge it lies on, whose samples share their errors: per frame
+  // for the arm (it moves between frames), per view for the object (static:
+  // the same image edge in every frame, seen through the same camera).
+  int cluster = 0;
   double outward = 0.0;  // silhouettes: +1 when +n (the search direction) points out of the model, else -1; creases 0
   double bias_px = 0.0;  // the edge search's offset on the predicted (shaded) model image at this level
   Eigen::Vector3d p_local, dir_local;  // object frame when on_object, else base
@@ -301,6 +305,7 @@ struct ModelAligner::Impl {
     p.label = static_cast<int>(prims.size()) + 1;
     p.rgba = rgba;
     p.edges = mesh_edges(mesh);
+    p.first_edge = prims.empty() ? 0 : prims.back().first_edge + static_cast<int>(prims.back().edges.size());
     prims.push_back(std::move(p));
   }
 
@@ -507,6 +512,7 @@ struct ModelAligner::Impl {
       Eigen::Vector3d a, b;
       Eigen::Vector2d ua, ub;
       bool silhouette;
+      int edge;  // over all primitives' edges
     };
     std::vector<Candidate> cands;
     double total_len = 0.0;
@@ -525,14 +531,17 @@ struct ModelAligner::Impl {
         const Eigen::Vector2d ua = cam.project(a), ub = cam.project(b);
         const double len = (ub - ua).norm();
         if (len < 1.0) continue;
-        cands.push_back({&p, a, b, ua, ub, silhouette});
+        cands.push_back({&p, a, b, ua, ub, silhouette, p.first_edge + static_cast<int>(&e - p.edges.data())});
         total_len += len;
       }
     }
     const double spacing = std::max(o.sample_spacing_px, total_len / std::max(1, o.max_samples_per_frame));
     const double margin = 3.0;
+    const int total_edges = prims.back().first_edge + static_cast<int>(prims.back().edges.size());
     for (const auto& c : cands) {
-      ++next_cluster;
+      // Arm edges: a new cluster per frame (positive); object edges: one per
+      // view and edge (negative, the same in every frame of the view).
+      const int cluster = c.prim->link < 0 ? -(1 + view * total_edges + c.edge) : ++next_cluster;
       const Eigen::Vector2d d = (c.ub - c.ua).normalized();
       const Eigen::Vector2d n(-d.y(), d.x());
       const int ns = std::clamp(static_cast<int>((c.ub - c.ua).norm() / spacing), 1, 400);
@@ -559,7 +568,7 @@ struct ModelAligner::Impl {
         s.on_object = c.prim->link < 0;
         s.silhouette = c.silhouette;
         if (c.silhouette) s.outward = lp == id ? -1.0 : 1.0;
-        s.cluster = next_cluster;
+        s.cluster = cluster;
         s.length_px = (c.ub - c.ua).norm() / ns;
         const Eigen::Vector3d dir = (c.b - c.a).normalized();
         if (s.on_object) {
@@ -617,6 +626,7 @@ double link_prior_weight_impl(const std::vector<Sample>& samples, const Eval& e,
 AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::optional<Pose>& base_T_object_start,
                                 const AlignOptions& o) {
   auto& I = *impl_;
+  I.next_cluster = 0;  // the clusters are this call's
   const auto t0 = std::chrono::steady_clock::now();
   if (views.empty()) throw std::invalid_argument("align: no views");
   const bool refine_camera = o.refine != Refine::Object;

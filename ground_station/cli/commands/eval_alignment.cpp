@@ -118,11 +118,16 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
       combos.push_back({{"views", c.label},
                         {"clicks", summary_json(c.clicks)},
                         {"aligned", summary_json(c.aligned)},
+                        {"aligned_held_cameras", summary_json(c.aligned_held_cameras)},
                         {"aligned_cameras_only", summary_json(c.aligned_cameras_only)},
                         {"clicks_failures", c.clicks_failures},
                         {"aligned_refused", c.aligned_refused},
                         {"aligned_refused_disagreement", c.aligned_refused_disagreement},
-                        {"aligned_cameras_only_refused", c.aligned_cameras_only_refused}});
+                        {"aligned_cameras_only_refused", c.aligned_cameras_only_refused},
+                        {"aligned_held_cameras_refused", c.aligned_held_cameras_refused},
+                        {"aligned_accepted", c.aligned_accepted},
+                        {"aligned_within_3_sigma", c.aligned_within_3_sigma},
+                        {"aligned_mahalanobis2_mean", c.aligned_mahalanobis2_mean}});
     nlohmann::json links = nlohmann::json::array();
     for (std::size_t j = 0; j < r.link_segments.size(); ++j)
       links.push_back({{"segment", r.link_segments[j]},

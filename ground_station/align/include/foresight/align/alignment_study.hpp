@@ -24,10 +24,18 @@
 //     (AlignOptions::arm_link_prior_m, the prior sd), so the cameras are no
 //     longer aligned to the wrong model arm; refused: the step-4 cameras.
 //  6. Per view combination the ORU pose refined by alignment over those views
-//     at once (Refine::Object, the combination's clicks pose as the start):
-//     with the step-5 cameras and corrected arm the "aligned" result, with the
-//     step-4 cameras and the nominal arm "aligned_cameras_only"; a refused
-//     alignment keeps the clicks pose (and is counted).
+//     at once (the combination's clicks pose as the start), the "aligned"
+//     result: with two or more views a bundle adjustment of the ORU, the
+//     combination's cameras and the arm's link lengths together over the
+//     views' frames (Refine::Both, from the step-5 cameras and arm, the
+//     link prior around step 5's estimate): the ORU's edges in every view
+//     tie the cameras to each other where the ORU is; with one view the
+//     ORU alone, the step-5 camera held (Refine::Object: one view's ORU
+//     pulls its camera along its depth). Beside it, for comparison: the ORU
+//     alone with the step-5 cameras held ("aligned_held_cameras", the same
+//     as "aligned" for one view) and with the step-4 cameras and the nominal
+//     arm ("aligned_cameras_only"). A refused alignment keeps the clicks
+//     pose (and is counted).
 // Errors in the ORU frame as the localization study (x, y, z, theta; the
 // paper's 95% alignment |mu_xy| + 2 sigma_xy and depth |mu_z| + 2 sigma_z).
 //
@@ -75,6 +83,7 @@ struct AlignmentComboStats {
   std::string label;       ///< "1+2+3+4"
   ErrorStats clicks;       ///< clicks alone (calibrate, then localize)
   ErrorStats aligned;      ///< clicks + alignment (cameras and arm, then the ORU over the views)
+  ErrorStats aligned_held_cameras;  ///< the ORU alone, the step-5 cameras held
   ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
   int clicks_failures = 0;
   int aligned_refused = 0;  ///< trials where the ORU alignment refused (clicks pose kept)
@@ -83,6 +92,14 @@ struct AlignmentComboStats {
   /// object_start_covariance, the clicks' covariance)
   int aligned_refused_disagreement = 0;
   int aligned_cameras_only_refused = 0;
+  int aligned_held_cameras_refused = 0;
+  /// The accepted ORU alignments' claims: how many there were, how many
+  /// have their position error within 3 sigma on every base axis, and the
+  /// mean of the squared Mahalanobis distance of the position error in the
+  /// claimed position covariance (3 when the claims are honest).
+  int aligned_accepted = 0;
+  int aligned_within_3_sigma = 0;
+  double aligned_mahalanobis2_mean = 0.0;
 };
 
 struct AlignmentStudyResult {
