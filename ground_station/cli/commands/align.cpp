@@ -6,14 +6,22 @@
 //                   --image FRAME [--image FRAME2 ...] --joints q | --joints-deg q (once, or once per image)
 //                   [--object-pose localize.json] [--refine camera|object|both]
 //                   [--out cameras.yaml] [--object-out pose.json] [--frame K]
+//                   [--arm-prior-mm P] [--arm-links arm_links.yaml] [--arm-out arm_links.yaml]
 //                   [--gl osmesa|egl] [--robot robot.urdf] [--object oru.yaml] [--json]
 // One camera: every image is a frame of it (several arm poses combine). Several
-// cameras: one image per camera, in the same order (localization by alignment:
-// --refine object moves the ORU over all views at once).
+// cameras: one --camera per --image, in the same order; a camera named again
+// gets that image as another frame (localization by alignment: --refine object
+// moves the ORU over all views at once; --refine both refines the cameras
+// with it, the ORU's edges tying them to each other where it stands).
+// The arm model: --arm-prior-mm P refines the arm's link lengths with the
+// cameras (a bundle adjustment over every frame, prior sd P mm around the
+// model or --arm-links); --arm-out writes the estimate, --arm-links renders
+// and samples the arm with earlier corrections (foresight/align/arm_links_file.hpp).
 // Exit: 0 aligned (and written), 1 refused (not confident; the reason is said,
 // nothing written) or GL failure, 2 bad input (wrong frame size, unknown
 // camera, the model not in view of a camera, ...; nothing written).
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,8 +31,10 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "foresight/align/arm_links_file.hpp"
 #include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/calibrate.hpp"
+#include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
@@ -37,7 +47,8 @@ namespace foresight::cli {
 namespace {
 
 struct AlignArgs {
-  std::string cameras, object_pose, refine = "camera", out, object_out, gl = "osmesa";
+  std::string cameras, object_pose, refine = "camera", out, object_out, gl = "osmesa", arm_links, arm_out;
+  double arm_prior_mm = 0.0;
   std::vector<std::string> camera, image, joints, joints_deg;
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
@@ -65,8 +76,15 @@ int run_align(const AlignArgs& a) {
   const auto& joint_texts = a.joints.empty() ? a.joints_deg : a.joints;
   const std::string joint_option = a.joints.empty() ? "--joints-deg" : "--joints";
   if (a.camera.size() > 1 && a.camera.size() != a.image.size())
-    throw std::invalid_argument("with several --camera give one --image per camera (" + std::to_string(a.camera.size()) +
-                                " cameras, " + std::to_string(a.image.size()) + " images)");
+    throw std::invalid_argument("with several --camera give one --image per --camera (" +
+                                std::to_string(a.camera.size()) + " cameras, " + std::to_string(a.image.size()) +
+                                " images)");
+  if (!(a.arm_prior_mm >= 0.0) || !std::isfinite(a.arm_prior_mm))
+    throw std::invalid_argument("--arm-prior-mm must be a non-negative number");
+  if (a.arm_prior_mm > 0.0 && options.refine == Refine::Object)
+    throw std::invalid_argument("--arm-prior-mm refines the arm with the cameras: use --refine camera or both");
+  if (!a.arm_out.empty() && a.arm_prior_mm == 0.0)
+    throw std::invalid_argument("--arm-out writes the refined arm: give --arm-prior-mm");
   if (joint_texts.size() != 1 && joint_texts.size() != a.image.size())
     throw std::invalid_argument("give " + joint_option + " once or once per --image (" +
                                 std::to_string(joint_texts.size()) + " given for " + std::to_string(a.image.size()) +
@@ -77,17 +95,21 @@ int run_align(const AlignArgs& a) {
     throw std::invalid_argument("--object-out needs --refine object or both");
   if (!a.out.empty() && options.refine == Refine::Object)
     throw std::invalid_argument("--out writes refined cameras: use --refine camera or both");
+  for (const std::string* path : {&a.out, &a.object_out, &a.arm_out})
+    if (!path->empty()) check_output_path(*path);
 
   std::map<std::string, CameraRecord> records = load_cameras(a.cameras);
   std::vector<AlignView> views;
+  std::vector<int> view_of_image;  // per --image (several cameras): its view
   for (const auto& name : a.camera) {
     if (!records.count(name)) {
       std::string known;
       for (const auto& [n, r] : records) known += (known.empty() ? "" : ", ") + n;
       throw InputError(a.cameras, "no camera '" + name + "' (known: " + known + ")");
     }
-    for (const auto& v : views)
-      if (v.camera.name == name) throw std::invalid_argument("camera '" + name + "' given twice");
+    const auto seen = std::find_if(views.begin(), views.end(), [&](const AlignView& v) { return v.camera.name == name; });
+    view_of_image.push_back(static_cast<int>(seen - views.begin()));
+    if (seen != views.end()) continue;  // another frame of that camera
     const CameraRecord& rec = records.at(name);
     AlignView view{rec.camera, {}};
     // The calibration's uncertainty: with --refine object the camera is held
@@ -97,6 +119,8 @@ int run_align(const AlignArgs& a) {
     views.push_back(std::move(view));
   }
   const RobotModel model = RobotModel::from_file(a.robot);
+  if (!a.arm_links.empty()) options.arm_link_delta_m = load_arm_links(a.arm_links, model).delta_m;
+  options.arm_link_prior_m = a.arm_prior_mm * 1e-3;
   std::optional<ObjectModel> object;
   std::optional<Pose> base_T_object;
   if (!a.object_pose.empty()) {
@@ -109,7 +133,7 @@ int run_align(const AlignArgs& a) {
     if (pose.covariance) options.object_start_covariance = *pose.covariance;
   }
   for (std::size_t i = 0; i < a.image.size(); ++i) {
-    AlignView& view = views[views.size() == 1 ? 0 : i];
+    AlignView& view = views[a.camera.size() == 1 ? 0 : view_of_image[i]];
     const std::string& jt = joint_texts[joint_texts.size() == 1 ? 0 : i];
     const Eigen::VectorXd q = parse_joints(jt, joint_option, model, !a.joints_deg.empty());
     const cv::Mat img = fit_to_viewport(read_video_frame(a.image[i], a.frame), a.image[i], view.camera, a.scale_image);
@@ -148,12 +172,12 @@ int run_align(const AlignArgs& a) {
       }
       save_cameras(a.out, out_records);
     }
+    if (!a.arm_out.empty() && !r.arm_link_sigma_m.empty())
+      save_arm_links(a.arm_out, {r.arm_link_delta_m, r.arm_link_sigma_m}, a.robot, utc_now_iso());
     if (!a.object_out.empty() && r.base_T_object) {
-      std::ofstream f(a.object_out);
-      if (!f) throw InputError(a.object_out, "cannot write object pose file");
       nlohmann::json j = object_pose_json(*r.base_T_object);
       j["source"] = "foresight align";
-      f << j.dump(2) << "\n";
+      write_file_atomic(a.object_out, j.dump(2) + "\n");
     }
   }
 
@@ -194,6 +218,8 @@ int run_align(const AlignArgs& a) {
       j["object_change"] = {{"rotation_deg", vec_json(r.object_change.head<3>() * 180.0 / M_PI)},
                             {"position_m", vec_json(r.object_change.tail<3>())}};
     }
+    if (!r.arm_link_delta_m.empty()) j["arm_link_delta_m"] = r.arm_link_delta_m;
+    if (!r.arm_link_sigma_m.empty()) j["arm_link_sigma_m"] = r.arm_link_sigma_m;
     if (r.status == AlignStatus::Aligned && !a.out.empty()) j["out"] = a.out;
     std::cout << j.dump() << "\n";
   } else {
@@ -218,7 +244,14 @@ int run_align(const AlignArgs& a) {
                   r.object_change[0] * 180 / M_PI, r.object_change[1] * 180 / M_PI, r.object_change[2] * 180 / M_PI,
                   r.object_change[3] * 1e3, r.object_change[4] * 1e3, r.object_change[5] * 1e3);
     if (r.status == AlignStatus::Aligned && !a.out.empty()) std::printf("  wrote %s\n", a.out.c_str());
+    if (!r.arm_link_sigma_m.empty()) {
+      std::printf("  arm link-length corrections (mm, sd), per chain segment with an offset:");
+      for (const int k : model.offset_segments())
+        std::printf(" %d: %+.2f (%.2f)", k, r.arm_link_delta_m[k] * 1e3, r.arm_link_sigma_m[k] * 1e3);
+      std::printf("\n");
+    }
     if (r.status == AlignStatus::Aligned && !a.object_out.empty()) std::printf("  wrote %s\n", a.object_out.c_str());
+    if (r.status == AlignStatus::Aligned && !a.arm_out.empty()) std::printf("  wrote %s\n", a.arm_out.c_str());
     if (r.status != AlignStatus::Aligned) std::printf("  nothing written\n");
   }
   if (r.status != AlignStatus::Aligned) std::cerr << "foresight align: refused: " << r.reason << "\n";
@@ -240,6 +273,11 @@ const bool registered = register_command(
        sub.add_option("--refine", a->refine, "camera | object | both")->capture_default_str();
        sub.add_option("--out", a->out, "write the refined camera(s) into this cameras.yaml");
        sub.add_option("--object-out", a->object_out, "write the refined object pose (JSON, key base_T_object)");
+       sub.add_option("--arm-prior-mm", a->arm_prior_mm,
+                      "refine the arm's link lengths with the cameras, prior sd (mm); 0: the arm model is exact")
+           ->capture_default_str();
+       sub.add_option("--arm-links", a->arm_links, "the arm's link-length corrections (arm_links.yaml from --arm-out)");
+       sub.add_option("--arm-out", a->arm_out, "write the refined link-length corrections (arm_links.yaml)");
        add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_align(*a); };
      }});

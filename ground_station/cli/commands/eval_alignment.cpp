@@ -153,6 +153,10 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
                               {"arm_link_estimate_error_rms_m", r.link_estimate_error_rms_all_m},
                               {"four_view_alignment95_ratio", four_ratio},
                               {"single_view_depth95_ratio", depth_ratio},
+                              {"four_view_alignment95_ratio_held_cameras",
+                               all.aligned_held_cameras.alignment95_m > 0
+                                   ? all.clicks.alignment95_m / all.aligned_held_cameras.alignment95_m
+                                   : 0.0},
                               {"four_view_alignment95_ratio_cameras_only", four_ratio_cam_only},
                               {"single_view_depth95_ratio_cameras_only", depth_ratio_cam_only}};
     std::cout << j.dump(2) << "\n";
@@ -185,9 +189,23 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
               "depth %.3f cm by clicks, %.3f cm aligned (%.2fx lower).  (%.1f s)\n",
               all.clicks.alignment95_m * 100, all.aligned.alignment95_m * 100, four_ratio, single_clicks_depth * 100,
               single_aligned_depth * 100, depth_ratio, r.elapsed_s);
+  std::printf("Four views with the cameras held (not refined with the ORU): %.3f cm (%.2fx)\n",
+              all.aligned_held_cameras.alignment95_m * 100,
+              all.aligned_held_cameras.alignment95_m > 0 ? all.clicks.alignment95_m / all.aligned_held_cameras.alignment95_m
+                                                         : 0.0);
   std::printf("Cameras aligned to the nominal arm only: four views %.3f cm (%.2fx), single-view depth %.3f cm (%.2fx)\n",
               all.aligned_cameras_only.alignment95_m * 100, four_ratio_cam_only, single_cam_only_depth * 100,
               depth_ratio_cam_only);
+  int accepted = 0, within = 0;
+  double z2 = 0.0;
+  for (const auto& c : r.combos) {
+    accepted += c.aligned_accepted;
+    within += c.aligned_within_3_sigma;
+    z2 += c.aligned_mahalanobis2_mean * c.aligned_accepted;
+  }
+  std::printf("Claims: %d of %d accepted ORU alignments within 3 sigma on every axis; mean Mahalanobis^2 of the position "
+              "error %.2f (3 when honest)\n",
+              within, accepted, accepted > 0 ? z2 / accepted : 0.0);
   return kExitOk;
 }
 

@@ -5,15 +5,20 @@
 //   foresight synth --camera NAME [--joints q1,...,qN (rad) | --joints-deg ...]
 //                   --out frame.png [--arm-mask mask.png] [--noise-dn 2] [--blur-px 0.6]
 //                   [--seed 1] [--write-cameras cameras_true.yaml] [--scene scene.yaml]
+//                   [--arm-links arm_links.yaml]
 //                   [--gl osmesa|egl] [--robot robot.urdf] [--object oru.yaml] [--json]
 // Without joints the arm is in the middle of its joint ranges. --write-cameras
 // writes every scene camera (the ground truth) in cameras.yaml form.
+// --arm-links renders a true arm whose link lengths differ from the model by
+// those corrections (foresight/align/arm_links_file.hpp): the arm-model error
+// that `align --arm-prior-mm` estimates.
 // Exit: 0 ok, 2 bad input, 1 GL failure.
 
 #include <cstdio>
 #include <iostream>
 
 #include "command.hpp"
+#include "foresight/align/arm_links_file.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/common/number_list.hpp"
@@ -26,7 +31,7 @@ namespace foresight::cli {
 namespace {
 
 struct SynthArgs {
-  std::string camera, joints, joints_deg, out, arm_mask, write_cameras, gl = "osmesa";
+  std::string camera, joints, joints_deg, out, arm_mask, write_cameras, arm_links, gl = "osmesa";
   std::string scene = default_config("scene.yaml");
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
@@ -42,7 +47,9 @@ int run_synth(const SynthArgs& a) {
   if (!a.joints.empty() && !a.joints_deg.empty()) throw std::invalid_argument("give only one of --joints, --joints-deg");
   const Scene scene = Scene::from_file(a.scene);
   const Camera camera = scene_camera(scene, a.camera, a.scene);
-  const RobotModel model = RobotModel::from_file(a.robot);
+  const RobotModel nominal = RobotModel::from_file(a.robot);
+  const RobotModel model =
+      a.arm_links.empty() ? nominal : nominal.with_link_lengths_changed(align::load_arm_links(a.arm_links, nominal).delta_m);
   const ObjectModel object = ObjectModel::from_file(a.object);
   const Eigen::VectorXd q = !a.joints.empty()       ? parse_joints(a.joints, "--joints", model)
                             : !a.joints_deg.empty() ? parse_joints(a.joints_deg, "--joints-deg", model, true)
@@ -94,6 +101,7 @@ const bool registered = register_command(
        sub.add_option("--noise-dn", a->noise_dn, "sensor noise sigma, digital numbers")->capture_default_str();
        sub.add_option("--blur-px", a->blur_px, "optical blur sigma, pixels")->capture_default_str();
        sub.add_option("--seed", a->seed, "noise seed")->capture_default_str();
+       sub.add_option("--arm-links", a->arm_links, "render the arm with these link-length corrections (arm_links.yaml)");
        sub.add_option("--write-cameras", a->write_cameras, "write the true cameras as cameras.yaml");
        sub.add_option("--scene", a->scene, "the work site")->capture_default_str();
        add_render_options(sub, a->gl, a->robot, a->object, a->json);

@@ -12,11 +12,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "foresight/align/arm_links_file.hpp"
 #include "foresight/camera/camera.hpp"
 #include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/localization/accuracy_study.hpp"
 #include "foresight/test/cli.hpp"
 
 using namespace foresight;
@@ -223,6 +225,14 @@ TEST(EvalAlignmentCli, OneTrialGivesTheJsonContract) {
   for (const auto& l : j["arm_links"])
     for (const char* f : {"true_rms_m", "estimate_error_rms_m", "sigma_mean_m"}) EXPECT_GE(l[f].get<double>(), 0.0);
   EXPECT_TRUE(j["combinations"][14].contains("aligned_cameras_only"));
+  EXPECT_TRUE(j["combinations"][14].contains("aligned_held_cameras"));
+  // The accepted alignments' claims: counted, and none above the accepted.
+  for (const auto& c : j["combinations"]) {
+    const int accepted = c["aligned_accepted"].get<int>();
+    EXPECT_EQ(accepted + c["aligned_refused"].get<int>(), 1);
+    EXPECT_LE(c["aligned_within_3_sigma"].get<int>(), accepted);
+    EXPECT_GE(c["aligned_mahalanobis2_mean"].get<double>(), 0.0);
+  }
   // Refusals per combination, and of them those for moving beyond the
   // clicks' uncertainty (never more than the refusals).
   for (const auto& c : j["combinations"]) {
@@ -249,4 +259,112 @@ TEST(HealthCli, JsonHasTheIouPerFrame) {
   const double iou = j["frames"][0]["iou"].get<double>();
   EXPECT_GT(iou, 0.85);
   EXPECT_LE(iou, 1.0);
+}
+
+// The operator's arm self-calibration: a true arm whose link offsets are off
+// by a known +-2-3 mm (synth --arm-links renders it), three cameras at the four
+// calibration poses, every frame in one `align` (a camera named again gets
+// another frame), the cameras started 2-3 px off: --arm-prior-mm refines the
+// link lengths with the cameras, --arm-out writes them, and they come back
+// well inside their 2 mm prior (the library's ArmLinkLengthsWithTheCameras,
+// through the command line). --arm-links reads them back.
+TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
+  auto& f = fixture();
+  const std::size_t nseg = f.model.chain().getNrOfSegments();
+  align::ArmLinkCorrections truth;
+  truth.delta_m.assign(nseg, 0.0);
+  std::vector<int> segs;
+  for (const int k : f.model.offset_segments()) {
+    truth.delta_m[k] = (segs.size() % 2 ? -1.0 : 1.0) * (0.002 + 0.0005 * static_cast<double>(segs.size() % 3));
+    segs.push_back(k);
+  }
+  const std::string truth_arm = temp_path(".yaml");
+  align::save_arm_links(truth_arm, truth, "config/robot.urdf", "2026-12-03T00:00:00Z");
+  auto start = f.truth;
+  std::string args;
+  const auto poses = arm_calibration_poses(f.model);
+  int n = 0;
+  for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
+    Camera& c = start.at(name).camera;
+    c.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(Eigen::Vector3d(1.5 / c.f_px, 2.5 / c.f_px, 0.0));
+    c.f_px *= 1.004;
+    for (const auto& p : poses) {
+      std::string q;
+      for (int i = 0; i < p.q.size(); ++i) q += (i ? "," : "") + std::to_string(p.q[i]);
+      const std::string frame = temp_path(".png");
+      const auto s = run_foresight("synth --camera " + name + " --joints " + q + " --out " + frame +
+                                   " --arm-links " + truth_arm + " --seed " + std::to_string(21 + n++));
+      ASSERT_EQ(s.status, 0) << s.err;
+      args += " --camera " + name + " --image " + frame + " --joints " + q;
+    }
+  }
+  const std::string start_yaml = temp_path(".yaml"), out = temp_path(".yaml"), arm_out = temp_path(".yaml");
+  save_cameras(start_yaml, start);
+  const auto r = run_foresight("align --cameras " + start_yaml + args + " --arm-prior-mm 2 --arm-out " + arm_out +
+                               " --out " + out + " --json");
+  ASSERT_EQ(r.status, 0) << r.err << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["cameras"].size(), 3u);  // three cameras, four frames each
+  const align::ArmLinkCorrections est = align::load_arm_links(arm_out, f.model);
+  ASSERT_EQ(est.sigma_m.size(), nseg);
+  EXPECT_EQ(j["arm_link_delta_m"].get<std::vector<double>>().size(), nseg);
+  double t2 = 0.0, e2 = 0.0;
+  for (const int k : segs) {
+    const double err = est.delta_m[k] - truth.delta_m[k];
+    std::printf("link %d: truth %+.2f mm, estimate %+.2f mm (sd %.2f)\n", k, truth.delta_m[k] * 1e3, est.delta_m[k] * 1e3,
+                est.sigma_m[k] * 1e3);
+    EXPECT_NEAR(est.delta_m[k], j["arm_link_delta_m"][k].get<double>(), 1e-9);
+    t2 += truth.delta_m[k] * truth.delta_m[k];
+    e2 += err * err;
+  }
+  std::printf("links: true error %.2f mm rms, estimate's error %.2f mm rms\n", std::sqrt(t2 / segs.size()) * 1e3,
+              std::sqrt(e2 / segs.size()) * 1e3);
+  EXPECT_LT(std::sqrt(e2), 0.5 * std::sqrt(t2));
+  EXPECT_EQ(load_cameras(out).size(), 3u);  // the refined cameras
+
+  // Read back: the model rendered and sampled with the corrections.
+  const auto back = run_foresight("align --cameras " + out + " --camera side --image " + f.frame + " --joints " +
+                                  f.q_text + " --arm-links " + arm_out + " --json");
+  ASSERT_EQ(back.status, 0) << back.err;
+  const auto jb = nlohmann::json::parse(back.out);
+  for (const int k : segs) EXPECT_NEAR(jb["arm_link_delta_m"][k].get<double>(), est.delta_m[k], 1e-9);
+}
+
+TEST(AlignCli, ArmOptionsBadInputIsExitTwoAndWritesNothing) {
+  auto& f = fixture();
+  const std::string base = "align --cameras " + f.start_yaml + " --camera side --image " + f.frame + " --joints " + f.q_text;
+  const std::string arm_out = temp_path(".yaml");
+  const auto object = run_foresight(base + " --refine object --object-pose x.json --arm-prior-mm 2");
+  EXPECT_EQ(object.status, 2);
+  EXPECT_EQ(object.err, "foresight align: error: --arm-prior-mm refines the arm with the cameras: use --refine camera or both\n");
+  const auto no_prior = run_foresight(base + " --arm-out " + arm_out);
+  EXPECT_EQ(no_prior.status, 2);
+  EXPECT_EQ(no_prior.err, "foresight align: error: --arm-out writes the refined arm: give --arm-prior-mm\n");
+  const auto negative = run_foresight(base + " --arm-prior-mm -1");
+  EXPECT_EQ(negative.status, 2);
+  EXPECT_EQ(negative.err, "foresight align: error: --arm-prior-mm must be a non-negative number\n");
+  const std::string few = temp_path(".yaml");
+  {
+    std::ofstream o(few);
+    o << "arm_link_delta_m: [0.001, 0, 0]\n";
+  }
+  const auto short_list = run_foresight(base + " --arm-links " + few + " --arm-prior-mm 2 --arm-out " + arm_out);
+  EXPECT_EQ(short_list.status, 2);
+  EXPECT_EQ(short_list.err, "foresight align: error: " + few + ": arm_link_delta_m: 3 values for the arm's " +
+                                std::to_string(f.model.chain().getNrOfSegments()) + " chain segments\n");
+  // A correction on a segment without a length offset (the base's fixed
+  // frame, if it has none) or beyond 0.1 m: not this arm's link error.
+  const std::string far = temp_path(".yaml");
+  {
+    std::vector<double> d(f.model.chain().getNrOfSegments(), 0.0);
+    d[f.model.offset_segments().front()] = 0.25;
+    align::save_arm_links(far, {d, {}}, "config/robot.urdf", "2026-12-03T00:00:00Z");
+  }
+  const auto too_far = run_foresight(base + " --arm-links " + far);
+  EXPECT_EQ(too_far.status, 2);
+  EXPECT_NE(too_far.err.find(far + ": arm_link_delta_m[" + std::to_string(f.model.offset_segments().front()) +
+                             "]: 0.250000 m is not a link-length error (limit 0.1 m): is this file for another arm?"),
+            std::string::npos)
+      << too_far.err;
+  EXPECT_FALSE(std::filesystem::exists(arm_out));
 }
