@@ -34,6 +34,37 @@ int ObjectModel::point_index(const std::string& point_name) const {
 
 namespace {
 
+/// An optional list of shapes (`visuals`, `surroundings`), object frame.
+std::vector<VisualShape> read_shapes(const YAML::Node& root, const std::string& name, const std::string& path) {
+  std::vector<VisualShape> out;
+  const YAML::Node list = root[name];
+  if (!list) return out;
+  if (!list.IsSequence()) throw InputError(path, line_of(list), "'" + name + "' must be a list");
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node v = list[i];
+    const std::string key = name + "[" + std::to_string(i) + "]";
+    VisualShape s;
+    const std::string type = v["type"] ? v["type"].as<std::string>() : "";
+    if (type == "box") {
+      s.type = VisualShape::Type::Box;
+      s.size_m = read_vector<3>(v["size_m"], path, key + ".size_m");
+    } else if (type == "cylinder") {
+      s.type = VisualShape::Type::Cylinder;
+      s.size_m = {read_positive(v["radius_m"], path, key + ".radius_m"),
+                  read_positive(v["length_m"], path, key + ".length_m"), 0.0};
+    } else if (type == "sphere") {
+      s.type = VisualShape::Type::Sphere;
+      s.size_m = {read_positive(v["radius_m"], path, key + ".radius_m"), 0.0, 0.0};
+    } else {
+      throw InputError(path, line_of(v), key + ".type must be box, cylinder or sphere (got '" + type + "')");
+    }
+    s.link_T_shape = yaml::read_xyz_rpy(v, path, key);
+    s.rgba = read_rgba(v["rgba"], path, s.rgba);
+    out.push_back(s);
+  }
+  return out;
+}
+
 ObjectModel read_object_model(const std::string& path) {
   const YAML::Node root = yaml::load_file(path, "cannot open object model file");
   if (!root.IsMap()) throw InputError(path, "expected a map at the top level");
@@ -63,31 +94,8 @@ ObjectModel read_object_model(const std::string& path) {
     m.points.push_back({name, read_vector<3>(kv.second, path, "points." + name)});
   }
 
-  if (const YAML::Node visuals = root["visuals"]) {
-    if (!visuals.IsSequence()) throw InputError(path, line_of(visuals), "'visuals' must be a list");
-    for (std::size_t i = 0; i < visuals.size(); ++i) {
-      const YAML::Node v = visuals[i];
-      const std::string key = "visuals[" + std::to_string(i) + "]";
-      VisualShape s;
-      const std::string type = v["type"] ? v["type"].as<std::string>() : "";
-      if (type == "box") {
-        s.type = VisualShape::Type::Box;
-        s.size_m = read_vector<3>(v["size_m"], path, key + ".size_m");
-      } else if (type == "cylinder") {
-        s.type = VisualShape::Type::Cylinder;
-        s.size_m = {read_positive(v["radius_m"], path, key + ".radius_m"),
-                    read_positive(v["length_m"], path, key + ".length_m"), 0.0};
-      } else if (type == "sphere") {
-        s.type = VisualShape::Type::Sphere;
-        s.size_m = {read_positive(v["radius_m"], path, key + ".radius_m"), 0.0, 0.0};
-      } else {
-        throw InputError(path, line_of(v), key + ".type must be box, cylinder or sphere (got '" + type + "')");
-      }
-      s.link_T_shape = yaml::read_xyz_rpy(v, path, key);
-      s.rgba = read_rgba(v["rgba"], path, s.rgba);
-      m.visuals.push_back(s);
-    }
-  }
+  m.visuals = read_shapes(root, "visuals", path);
+  m.surroundings = read_shapes(root, "surroundings", path);
 
   const YAML::Node tags = root["tags"];
   if (!tags || !tags.IsMap()) throw InputError(path, "missing map 'tags'");

@@ -71,3 +71,26 @@ TEST(ObjectModel, WrongSizedVectorNamesKey) {
       InputError);
   std::remove(p.c_str());
 }
+
+// The bay around the ORU (`surroundings`): read like `visuals`, kept apart
+// from them (never drawn as the ORU), its errors named by their own key.
+TEST(ObjectModel, SurroundingsAreReadApartFromTheVisuals) {
+  const ObjectModel m = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  ASSERT_EQ(m.surroundings.size(), 1u);
+  const VisualShape& bay = m.surroundings.front();
+  EXPECT_EQ(bay.type, VisualShape::Type::Box);
+  EXPECT_EQ(bay.size_m, Eigen::Vector3d(1.6, 1.2, 0.30));
+  EXPECT_LT((bay.link_T_shape.translation() - Eigen::Vector3d(0.0, 0.0, 0.20)).norm(), 1e-12);
+  EXPECT_EQ(m.visuals.size(), 4u);
+
+  const std::string p = write_temp(
+      "object: oru\nsize_m: [0.5, 0.4, 0.3]\nhole: {entrance_m: [0,0,0], axis: [0,0,1], diameter_m: 0.03, depth_m: 0.08}\n"
+      "points: {a: [0,0,0]}\ntags: {}\nsurroundings:\n  - {type: cone, size_m: [1, 1, 1]}\n");
+  try {
+    ObjectModel::from_file(p);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), p + ":7: surroundings[0].type must be box, cylinder or sphere (got 'cone')");
+  }
+  std::remove(p.c_str());
+}

@@ -67,8 +67,13 @@ struct Edge {
   bool crease = false;
 };
 
+// Primitive::link of the object's surroundings (ObjectModel::surroundings):
+// drawn into the label image with the object's pose (they hide its parts),
+// never sampled, never in the appearance render.
+constexpr int kSurroundings = -2;
+
 struct Primitive {
-  int link = -1;  // link index; -1: the object
+  int link = -1;  // link index; -1: the object; kSurroundings
   int body = -1;
   int shaded_body = -1;  // in the shaded (appearance) renderer
   int label = 0;  // 1..
@@ -294,6 +299,7 @@ struct ModelAligner::Impl {
     if (object) {
       add(-1, render::make_box(object->size_m, object->oru_T_box, object->rgba), object->rgba);
       for (const auto& shape : object->visuals) add(-1, render::make_shape(shape), shape.rgba);
+      for (const auto& shape : object->surroundings) add(kSurroundings, render::make_shape(shape), shape.rgba);
     }
   }
 
@@ -399,7 +405,7 @@ struct ModelAligner::Impl {
     if (begin >= out.size()) return;
     list.clear();
     for (const auto& p : prims) {
-      if (p.link < 0 && !base_T_object) continue;
+      if ((p.link < 0 && !base_T_object) || p.link == kSurroundings) continue;
       render::BodyInstance b;
       b.body = p.shaded_body;
       b.base_T_body = p.link >= 0 ? f.link_poses[p.link] : *base_T_object;
@@ -517,6 +523,7 @@ struct ModelAligner::Impl {
     std::vector<Candidate> cands;
     double total_len = 0.0;
     for (const auto& p : prims) {
+      if (p.link == kSurroundings) continue;
       const bool is_object = p.link < 0;
       if (is_object && (!base_T_object || !want_object)) continue;
       if (!is_object && !want_arm) continue;

@@ -36,6 +36,12 @@ struct ObjectModel {
   std::map<std::string, Pose> tags;        ///< oru_T_tag, by tag name
   /// Extra visual primitives (e.g. the hole, a handle), object frame.
   std::vector<VisualShape> visuals;
+  /// The structure around the object as installed (the satellite's bay,
+  /// object frame): not part of the object and never drawn as it, but it
+  /// hides the object's parts inside it (from the side, all of the ORU but
+  /// its front 5 cm), so the model-to-image alignment's visibility needs it.
+  /// Optional key `surroundings`, the same shapes as `visuals`.
+  std::vector<VisualShape> surroundings;
 
   /// Index of a model point by name, -1 when absent.
   int point_index(const std::string& name) const;
