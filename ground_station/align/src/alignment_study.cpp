@@ -291,7 +291,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         if (held.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
         acc_held[ci].add(pose_error(*held.base_T_object, setup.base_T_object));
         r = held;
-        if (sub.size() >= 2) {
+        if (sub.size() >= (std::getenv("FORESIGHT_STUDY_JOINT1") ? 1u : 2u)) {
           AlignOptions jo = ao;
           jo.refine = Refine::Both;
           jo.arm_link_prior_m = opt.arm_link_prior_m;

@@ -417,14 +417,19 @@ struct ModelAligner::Impl {
     st.near_m = kNear_m;
     st.clear_rgba = Eigen::Vector4d::Zero();
     shaded_renderer.render(cam, list, st, shaded_layer);
-    // The background: the image's median grey where no model part is.
+    // The background: the image's median grey where no model part is (the
+    // surroundings are background here: the image shows them as they are).
+    auto is_model = [&](const std::uint8_t* px) {
+      const int label = px[2] + 256 * px[1];
+      return label > 0 && prims[label - 1].link != kSurroundings;
+    };
     std::array<int, 256> hist{};
     int nbg = 0;
     for (int y = 0; y < layer.rows; y += 2) {
       const std::uint8_t* lp = layer.ptr<std::uint8_t>(y);
       const std::uint8_t* gp = f.grey8.ptr<std::uint8_t>(y);
       for (int x = 0; x < layer.cols; x += 2)
-        if (lp[4 * x + 2] == 0 && lp[4 * x + 1] == 0) {
+        if (!is_model(lp + 4 * x)) {
           ++hist[gp[x]];
           ++nbg;
         }
@@ -444,7 +449,7 @@ struct ModelAligner::Impl {
     for (int y = 0; y < layer.rows; ++y) {
       const std::uint8_t* lp = layer.ptr<std::uint8_t>(y);
       std::uint8_t* m = model_mask.ptr<std::uint8_t>(y);
-      for (int x = 0; x < layer.cols; ++x) m[x] = (lp[4 * x + 2] | lp[4 * x + 1]) ? 255 : 0;
+      for (int x = 0; x < layer.cols; ++x) m[x] = is_model(lp + 4 * x) ? 255 : 0;
     }
     cv::dilate(model_mask, model_mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(7, 7)));
     cv::bitwise_not(model_mask, model_mask);
