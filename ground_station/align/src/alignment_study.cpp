@@ -265,9 +265,9 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
       }
     }
     for (int v = 0; v < nv; ++v) res.camera_bundle_px[v] += reprojection_rms_px(bundle_cam[v], setup.views[v].truth, metric_points);
-    // The ORU over each combination (step 6): with the step-5 cameras and
-    // arm (two or more views: refined with them), and with the step-4
-    // cameras (nominal arm) for comparison.
+    // The ORU over each combination (step 6): refined with the step-5
+    // cameras and arm; for comparison, with those cameras held and with the
+    // step-4 cameras (nominal arm) held.
     for (std::size_t ci = 0; ci < combos.size(); ++ci) {
       if (!clicks_pose[ci]) continue;
       AlignmentComboStats& combo = combos[ci];
@@ -290,14 +290,12 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
         const AlignResult held = aligner.align(sub, clicks_pose[ci], ao);
         if (held.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
         acc_held[ci].add(pose_error(*held.base_T_object, setup.base_T_object));
-        r = held;
-        if (sub.size() >= (std::getenv("FORESIGHT_STUDY_JOINT1") ? 1u : 2u)) {
-          AlignOptions jo = ao;
-          jo.refine = Refine::Both;
-          jo.arm_link_prior_m = opt.arm_link_prior_m;
-          r = aligner.align(sub, clicks_pose[ci], jo);
-          object_col = 7 * static_cast<int>(sub.size());
-        }
+        // The ORU with the views' cameras and the arm's links (step 6).
+        AlignOptions jo = ao;
+        jo.refine = Refine::Both;
+        jo.arm_link_prior_m = opt.arm_link_prior_m;
+        r = aligner.align(sub, clicks_pose[ci], jo);
+        object_col = 7 * static_cast<int>(sub.size());
       } else {
         acc_held[ci].add(pose_error(*r0.base_T_object, setup.base_T_object));
         if (r0.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;

@@ -25,17 +25,17 @@
 //     longer aligned to the wrong model arm; refused: the step-4 cameras.
 //  6. Per view combination the ORU pose refined by alignment over those views
 //     at once (the combination's clicks pose as the start), the "aligned"
-//     result: with two or more views a bundle adjustment of the ORU, the
-//     combination's cameras and the arm's link lengths together over the
-//     views' frames (Refine::Both, from the step-5 cameras and arm, the
-//     link prior around step 5's estimate): the ORU's edges in every view
-//     tie the cameras to each other where the ORU is; with one view the
-//     ORU alone, the step-5 camera held (Refine::Object: one view's ORU
-//     pulls its camera along its depth). Beside it, for comparison: the ORU
-//     alone with the step-5 cameras held ("aligned_held_cameras", the same
-//     as "aligned" for one view) and with the step-4 cameras and the nominal
-//     arm ("aligned_cameras_only"). A refused alignment keeps the clicks
-//     pose (and is counted).
+//     result: a bundle adjustment of the ORU, the combination's cameras and
+//     the arm's link lengths together over the views' frames (Refine::Both,
+//     from the step-5 cameras and arm, the link prior around step 5's
+//     estimate): the ORU's edges tie each camera to where the ORU is, and
+//     with several views the cameras to each other. Only the combination's
+//     own views and frames enter (the links' start comes from every
+//     camera's arm edges, step 5, never from another view's ORU). Beside
+//     it, for comparison: the ORU alone with the step-5 cameras held
+//     ("aligned_held_cameras") and with the step-4 cameras and the nominal
+//     arm held ("aligned_cameras_only"). A refused alignment keeps the
+//     clicks pose (and is counted).
 // Errors in the ORU frame as the localization study (x, y, z, theta; the
 // paper's 95% alignment |mu_xy| + 2 sigma_xy and depth |mu_z| + 2 sigma_z).
 //
