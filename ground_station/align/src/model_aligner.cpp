@@ -1031,6 +1031,25 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
           sandwich += o.edge_offset_sd_px * o.edge_offset_sd_px * d * d.transpose();
         }
       }
+      // Each model edge's own offset (o.edge_model_sd_px, independent
+      // between edges): the model's and the appearance's error along one
+      // edge, which the fit absorbs where few edges decide a parameter (the
+      // ORU from one view: ~10 edges for 6 parameters) and the sandwich then
+      // cannot see. An offset b on edge e moves the parameters by H^-1 a_e b,
+      // a_e the edge's summed weighted Jacobian rows.
+      if (o.edge_model_sd_px > 0.0) {
+        std::map<int, Eigen::VectorXd> per_edge;
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+          const double w = tukey_weight(e, i, c);
+          if (w <= 0.0) continue;
+          jacobian_row(e, i, row);
+          per_edge.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first->second += w * row;
+        }
+        for (const auto& [k, a_e] : per_edge) {
+          const Eigen::VectorXd d = Hinv * a_e;
+          sandwich += o.edge_model_sd_px * o.edge_model_sd_px * d * d.transpose();
+        }
+      }
       // The held cameras' own uncertainty (AlignView::camera_covariance):
       // a camera error dc moves the object by -H^-1 H_oc dc, H_oc the
       // cross-information of the object's and that camera's columns.

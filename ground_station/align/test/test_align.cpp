@@ -708,12 +708,12 @@ TEST(Align, SingleViewOruTurnedAwayFromTheClicksIsRefused) {
 
 // `eval alignment` seed 4, trial 2, all four views: with the cameras held
 // (each aligned to its frames with the arm, step 5) the ORU aligned over the
-// four views ended 4.8 mm off; the cameras' small errors, each within its
+// four views ended 5.4 mm off; the cameras' small errors, each within its
 // own uncertainty, disagree where the ORU is. Refined together (the ORU,
 // the four cameras and the arm's link lengths, the ORU's edges in every
-// view tying the cameras to each other there) it ends within a fraction of a
-// millimetre, within 3 sigma of its covariance, and the start check over the
-// clicks' uncertainty passes. Rebuilt from the study's inputs
+// view tying the cameras to each other there) it ends 0.08 mm off, within
+// 3 sigma of its covariance, and the start check over the clicks'
+// uncertainty passes. Rebuilt from the study's inputs
 // (FORESIGHT_STUDY_DUMP=2).
 TEST(Align, OruCamerasAndArmRefinedTogetherOverFourViews) {
   StudyTrial t({-0.0025452247983518105, -0.0001058682071186133, 0.0032719496275068361,

@@ -74,6 +74,12 @@ struct AlignOptions {
   /// residuals cannot show (it trades against f and depth): added to the
   /// covariance as the parameters' response to it.
   double edge_offset_sd_px = 0.1;
+  /// The sd (px) of each model edge's own offset, independent between
+  /// edges (the model's and the appearance's error along one edge: seen,
+  /// the side view's ORU, whose edge with the satellite's bay is not a
+  /// mesh edge, 4 mm off along its line of sight claiming 0.3 mm): added
+  /// to the covariance as the parameters' response to it. 0: none.
+  double edge_model_sd_px = 0.2;
   /// Arm-model self-calibration (a bundle adjustment over the cameras and
   /// the arm's link lengths): when > 0 and the cameras are refined, the
   /// length of every non-zero link offset (RobotModel::
