@@ -29,11 +29,21 @@ pkg_check_modules(MODBUS REQUIRED IMPORTED_TARGET libmodbus)
 pkg_check_modules(OSMESA REQUIRED IMPORTED_TARGET osmesa)
 pkg_check_modules(EGL REQUIRED IMPORTED_TARGET egl)
 
+# foresight_test_only(TARGET...): a program only tests run (a protocol peer,
+# a stand-in daemon): out of `all` when FORESIGHT_BUILD_TESTS is OFF.
+function(foresight_test_only)
+  if(NOT FORESIGHT_BUILD_TESTS)
+    set_target_properties(${ARGN} PROPERTIES EXCLUDE_FROM_ALL ON)
+  endif()
+endfunction()
+
 # foresight_add_test(NAME SOURCES... LIBS ...): one gtest executable, its tests
 # discovered into ctest. Tests see FORESIGHT_CONFIG_DIR and FORESIGHT_BIN_DIR.
+# With FORESIGHT_BUILD_TESTS=OFF the executable stays out of `all` and ctest.
 function(foresight_add_test name)
   cmake_parse_arguments(T "SERIAL" "TIMEOUT;LOCK" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
+  foresight_test_only(${name})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gmock GTest::gtest_main)
   # Shared test helpers (foresight/test/cli.hpp: run the CLI, scratch files).
   target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/common/test/support)
@@ -41,6 +51,9 @@ function(foresight_add_test name)
     FORESIGHT_CONFIG_DIR="${CMAKE_SOURCE_DIR}/config"
     FORESIGHT_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     FORESIGHT_BIN_DIR="${CMAKE_BINARY_DIR}/bin")
+  if(NOT FORESIGHT_BUILD_TESTS)
+    return()
+  endif()
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()

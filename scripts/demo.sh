@@ -20,7 +20,8 @@
 # FORESIGHT_DEMO_ARGS adds options to `foresight demo` (e.g. "--fast", "--rtt 1").
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+# Only what the demo runs (the tests and benchmarks build in scripts/test.sh).
+bash scripts/setup.sh foresight foresight-remote foresight-linkemu
 BUILD=${FORESIGHT_BUILD_DIR:-build}
 F="$PWD/$BUILD/bin/foresight"
 OUT=${FORESIGHT_DEMO_DIR:-$BUILD/demo}

@@ -178,7 +178,7 @@ namespace {
 
 /// Segment count for link index `link` (-1 = tip); -1 when out of range.
 int segments_for(const RobotModel& model, int link) {
-  const int nseg = static_cast<int>(model.chain().getNrOfSegments());
+  const int nseg = model.segment_count();
   if (link < 0) return nseg;
   return link <= nseg ? link : -1;
 }

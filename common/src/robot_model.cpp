@@ -6,6 +6,8 @@
 
 #include "foresight/common/robot_model.hpp"
 
+#include <kdl/chain.hpp>
+
 #include <console_bridge/console.h>
 #include <tinyxml.h>
 #include <urdf_parser/urdf_parser.h>
@@ -358,6 +360,7 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
 
   RobotModel m;
   m.id_ = next_model_id();
+  auto chain = std::make_shared<KDL::Chain>();
   m.source_ = source_name;
   for (std::size_t k = 0; k < path.size(); ++k) {
     const urdf::Link& link = *path[k];
@@ -409,8 +412,10 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
     }
     const KDL::RigidBodyInertia inertia =
         link.inertial ? to_kdl(*link.inertial) : KDL::RigidBodyInertia::Zero();
-    m.chain_.addSegment(KDL::Segment(link.name, kdl_joint, parent_T_joint, inertia));
+    chain->addSegment(KDL::Segment(link.name, kdl_joint, parent_T_joint, inertia));
   }
+  m.segment_count_ = static_cast<int>(chain->getNrOfSegments());
+  m.chain_ = std::move(chain);
   if (m.joint_names_.empty())
     throw InputError(source_name, "no revolute joint between base link " + quoted(options.base_link) +
                                       " and tip link " + quoted(options.tip_link));
@@ -418,15 +423,15 @@ RobotModel RobotModel::from_xml(const std::string& urdf_xml, const std::string& 
 }
 
 RobotModel RobotModel::with_link_lengths_changed(const std::vector<double>& delta_m) const {
-  const unsigned nseg = chain_.getNrOfSegments();
+  const unsigned nseg = chain_->getNrOfSegments();
   if (delta_m.size() != nseg)
     throw std::invalid_argument("with_link_lengths_changed: " + std::to_string(delta_m.size()) +
                                 " length changes for " + std::to_string(nseg) + " chain segments");
   RobotModel m = *this;
   m.id_ = next_model_id();
-  m.chain_ = KDL::Chain();
+  auto chain = std::make_shared<KDL::Chain>();
   for (unsigned k = 0; k < nseg; ++k) {
-    const KDL::Segment& seg = chain_.getSegment(k);
+    const KDL::Segment& seg = chain_->getSegment(k);
     KDL::Frame parent_T_joint = seg.getFrameToTip();  // at q = 0: the joint origin (RobotModel builds it so)
     const double length = parent_T_joint.p.Norm();
     if (length > kMinOffset_m) parent_T_joint.p = parent_T_joint.p * ((length + delta_m[k]) / length);
@@ -434,15 +439,16 @@ RobotModel RobotModel::with_link_lengths_changed(const std::vector<double>& delt
     const KDL::Joint joint = j.getType() == KDL::Joint::None
                                  ? j
                                  : KDL::Joint(j.getName(), parent_T_joint.p, j.JointAxis(), KDL::Joint::RotAxis);
-    m.chain_.addSegment(KDL::Segment(seg.getName(), joint, parent_T_joint, seg.getInertia()));
+    chain->addSegment(KDL::Segment(seg.getName(), joint, parent_T_joint, seg.getInertia()));
   }
+  m.chain_ = std::move(chain);
   return m;
 }
 
 std::vector<int> RobotModel::offset_segments() const {
   std::vector<int> out;
-  for (unsigned k = 0; k < chain_.getNrOfSegments(); ++k)
-    if (chain_.getSegment(k).getFrameToTip().p.Norm() > kMinOffset_m) out.push_back(static_cast<int>(k));
+  for (unsigned k = 0; k < chain_->getNrOfSegments(); ++k)
+    if (chain_->getSegment(k).getFrameToTip().p.Norm() > kMinOffset_m) out.push_back(static_cast<int>(k));
   return out;
 }
 

@@ -3,6 +3,7 @@
 // differences, the potential energy, and FK round trips.
 
 #include <gtest/gtest.h>
+#include <kdl/chain.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -408,7 +409,7 @@ TEST(Kinematics, WorkspaceCanBeMoved) {
 TEST(KinematicsWorkspace, RefusesAnotherModel) {
   const RobotModel arm = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   // Same joint count, different kinematics: the shoulder link 5 cm longer.
-  std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+  std::vector<double> delta(arm.segment_count(), 0.0);
   delta[2] = 0.05;
   const RobotModel longer = arm.with_link_lengths_changed(delta);
   ASSERT_EQ(longer.dof(), arm.dof());
@@ -448,12 +449,12 @@ TEST(RobotModel, LinkLengthChangeMovesTheTipByExactlyThatMuch) {
   std::mt19937 rng(9);
   const std::vector<int> offsets = arm.offset_segments();
   ASSERT_GE(offsets.size(), 3u);
-  for (unsigned k = 0; k < arm.chain().getNrOfSegments(); ++k) {
+  for (unsigned k = 0; k < static_cast<unsigned>(arm.segment_count()); ++k) {
     const bool listed = std::find(offsets.begin(), offsets.end(), static_cast<int>(k)) != offsets.end();
     if (!listed) {
       // A segment without an offset is not listed, and a change to it changes nothing.
       EXPECT_LT(arm.chain().getSegment(k).getFrameToTip().p.Norm(), RobotModel::kMinOffset_m) << "segment " << k;
-      std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+      std::vector<double> delta(arm.segment_count(), 0.0);
       delta[k] = 0.002;
       const RobotModel same = arm.with_link_lengths_changed(delta);
       KinematicsWorkspace ws_same(same);
@@ -463,7 +464,7 @@ TEST(RobotModel, LinkLengthChangeMovesTheTipByExactlyThatMuch) {
           << "segment " << k;
       continue;
     }
-    std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+    std::vector<double> delta(arm.segment_count(), 0.0);
     delta[k] = 0.002;
     const RobotModel changed = arm.with_link_lengths_changed(delta);
     EXPECT_NE(changed.id(), arm.id());

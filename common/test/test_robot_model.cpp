@@ -2,6 +2,7 @@
 // message (file, line, element).
 
 #include <gtest/gtest.h>
+#include <kdl/chain.hpp>
 #include <unistd.h>
 
 #include <cmath>
@@ -93,7 +94,7 @@ TEST(RobotModel, LoadsTheArm) {
   EXPECT_DOUBLE_EQ(m.limits()[0].acceleration_rad_s2, 2.0);
   EXPECT_DOUBLE_EQ(m.limits()[6].acceleration_rad_s2, 6.0);
   EXPECT_EQ(m.chain().getNrOfJoints(), 7u);
-  EXPECT_EQ(m.chain().getNrOfSegments(), 10u);  // 7 joints + F/T sensor + tool + tip
+  EXPECT_EQ(m.segment_count(), 10);  // 7 joints + F/T sensor + tool + tip
   ASSERT_EQ(m.links().size(), 11u);
   EXPECT_EQ(m.links()[0].name, "base");
   EXPECT_EQ(m.links()[8].name, "ft_sensor");

@@ -113,7 +113,7 @@ AlignmentStudyResult run_alignment_study(render::GlContext& ctx, const RobotMode
   int good = 0;
   for (int t = 0; t < opt.trials; ++t) {
     // The true arm (rendered and clicked); the ground believes `robot`.
-    std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
+    std::vector<double> delta(robot.segment_count(), 0.0);
     if (opt.arm_link_error_m > 0.0)
       for (const int k : res.link_segments) delta[k] = link_error(arm_rng);
     const RobotModel truth_arm = robot.with_link_lengths_changed(delta);

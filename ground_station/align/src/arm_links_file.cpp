@@ -47,7 +47,7 @@ ArmLinkCorrections load_arm_links(const std::string& path, const RobotModel& arm
     throw InputError(path, e.mark.line + 1, std::string("not YAML: ") + e.msg);
   }
   if (!root.IsMap()) throw InputError(path, "expected arm_link_delta_m: [...] (m, one per chain segment)");
-  const std::size_t n = arm.chain().getNrOfSegments();
+  const std::size_t n = arm.segment_count();
   ArmLinkCorrections out;
   out.delta_m = read_list(root, "arm_link_delta_m", path, n);
   if (root["arm_link_sigma_m"]) {

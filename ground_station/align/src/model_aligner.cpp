@@ -687,7 +687,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   // The arm model's link-length corrections: given (rendered and sampled
   // with) and/or refined with the cameras under a prior (a bundle adjustment
   // over cameras + arm; the link offsets are observable over several poses).
-  const int nseg = static_cast<int>(I.arm.chain().getNrOfSegments());
+  const int nseg = I.arm.segment_count();
   if (!o.arm_link_delta_m.empty() && static_cast<int>(o.arm_link_delta_m.size()) != nseg)
     throw std::invalid_argument("arm link corrections: " + std::to_string(o.arm_link_delta_m.size()) +
                                 " values for " + std::to_string(nseg) + " chain segments");

@@ -380,7 +380,7 @@ TEST(Align, ModelNotInViewAndBadFrames) {
 // the nominal arm gets them.
 TEST(Align, ArmLinkLengthsWithTheCameras) {
   World w;
-  const unsigned nseg = w.model.chain().getNrOfSegments();
+  const unsigned nseg = w.model.segment_count();
   std::vector<double> truth_delta(nseg, 0.0);
   std::vector<int> segs;
   for (const int k : w.model.offset_segments()) {

@@ -7,7 +7,7 @@
 namespace foresight {
 
 LinkLengthSensitivity::LinkLengthSensitivity(const RobotModel& model) : model_(model), ws_(model) {
-  const unsigned nseg = model.chain().getNrOfSegments();
+  const unsigned nseg = model.segment_count();
   for (const int k : model.offset_segments()) {
     std::vector<double> d(nseg, 0.0);
     d[k] = kStep_m;
@@ -20,7 +20,7 @@ LinkLengthSensitivity::LinkLengthSensitivity(const RobotModel& model) : model_(m
 LinkLengthSensitivity::~LinkLengthSensitivity() = default;
 
 Eigen::Matrix3Xd LinkLengthSensitivity::at(const Eigen::VectorXd& q, int link, const Eigen::Vector3d& p_link) {
-  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, model_.chain().getNrOfSegments());
+  Eigen::Matrix3Xd out = Eigen::Matrix3Xd::Zero(3, model_.segment_count());
   const Eigen::Vector3d p = forward_kinematics(model_, ws_, q, link) * p_link;
   for (std::size_t j = 0; j < segments_.size(); ++j)
     out.col(segments_[j]) = (forward_kinematics(*stepped_[j], *stepped_ws_[j], q, link) * p_link - p) / kStep_m;

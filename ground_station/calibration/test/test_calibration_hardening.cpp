@@ -169,7 +169,7 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
   }
   ASSERT_GE(believed.size(), 40u);
 
-  const unsigned nseg = m.chain().getNrOfSegments();
+  const unsigned nseg = m.segment_count();
   CalibrationOptions with_arm;
   with_arm.arm_link_sigma_m = 0.002;
   with_arm.outliers.enabled = false;  // a mismatch of the arm is not an outlier
@@ -236,7 +236,7 @@ TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
   const auto pts = parse_correspondences_csv(header(7) + "1,side,link3,0,0,0.1," + q + ",300,200\n" + "2,side," +
                                                  arm().links().back().name + ",0.02,0,0," + q + ",300,200\n",
                                              "pts.csv", &robot);
-  const unsigned nseg = arm().chain().getNrOfSegments();
+  const unsigned nseg = arm().segment_count();
   ASSERT_EQ(pts.size(), 2u);
   ASSERT_EQ(pts[1].dp_dlinks.cols(), static_cast<Eigen::Index>(nseg));
   int unit = 0;

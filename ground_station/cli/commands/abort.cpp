@@ -38,10 +38,10 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"abort", "stop the remote's motion (category 2 by default; 1: then power off)",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("--category", o->category, "IEC 60204-1 stop category: 1 or 2")
-           ->check(CLI::IsMember({1, 2}))
+           ->check(check::IsMember({1, 2}))
            ->capture_default_str();
        sub.add_option("--command", o->command_id, "abort only this command id (default: whatever runs and all queued)");
        sub.add_option("--reason", o->reason, "why (journaled by the remote)")->capture_default_str();

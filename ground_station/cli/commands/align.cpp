@@ -260,12 +260,12 @@ int run_align(const AlignArgs& a) {
 
 const bool registered = register_command(
     {"align", "refine a camera (and/or the object pose) by aligning the model's edges to the image",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<AlignArgs>();
        sub.add_option("--cameras", a->cameras, "cameras.yaml from `foresight calibrate`")->required();
        sub.add_option("--camera", a->camera, "camera name in cameras.yaml (repeat for several views)")->required();
        sub.add_option("--image", a->image, "video frame of the camera: image or video file (repeatable)")->required();
-       sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(CLI::NonNegativeNumber);
+       sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")->check(check::NonNegativeNumber);
        sub.add_flag("--scale-image", a->scale_image, "resize an image whose size differs from the camera viewport");
        sub.add_option("--joints", a->joints, "arm joint angles q1,...,qN in radians (once, or once per image)");
        sub.add_option("--joints-deg", a->joints_deg, "arm joint angles in degrees (instead of --joints)");

@@ -148,7 +148,7 @@ int run_calibrate(const CalibrateArgs& a) {
   return kExitOk;
 }
 
-std::function<int()> setup(CLI::App& sub) {
+std::function<int()> setup(Command& sub) {
   auto a = std::make_shared<CalibrateArgs>();
   sub.add_option("points", a->points, "clicked points CSV (n,cam,x,y,z,u,v or n,cam,link,lx,ly,lz,q1..qN,u,v)")
       ->required();
@@ -159,7 +159,7 @@ std::function<int()> setup(CLI::App& sub) {
   sub.add_option("--arm-link-sigma", a->arm_link_sigma_m,
                  "the arm model's link-length uncertainty (sd per link, m): carried from the arm-link points into "
                  "the camera's covariance (0: the model taken as exact)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(check::NonNegativeNumber)
       ->capture_default_str();
   sub.add_option("--max-iterations", a->max_iterations, "Levenberg-Marquardt iteration limit (the fit fails, exit 1, when it "
                  "has not converged by then)")->capture_default_str();

@@ -319,12 +319,12 @@ int run_click(const ClickArgs& a) {
 
 const bool registered = register_command(
     {"click", "operator point entry: click model points and their image points, write the points CSV",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<ClickArgs>();
        sub.add_option("--camera", a->camera, "camera name (the cam column)")->required();
        sub.add_option("--image", a->image, "the video frame: an image, or a video file (see --frame)")->required();
        sub.add_option("--frame", a->frame, "frame index when --image is a video (0-based)")
-           ->check(CLI::NonNegativeNumber);
+           ->check(check::NonNegativeNumber);
        sub.add_option("--model", a->model, "robot (the arm at --joints; base-frame points) or oru (object frame)")
            ->required();
        sub.add_option("--joints", a->joints, "the arm's joint angles in the frame, q1,...,qN (rad)");

@@ -16,7 +16,7 @@ namespace foresight::cli {
 namespace {
 
 bool register_control_command(const char* name, const char* help, control::CommandKind kind, bool hold_control) {
-  return register_command({name, help, [kind, hold_control](CLI::App& sub) -> std::function<int()> {
+  return register_command({name, help, [kind, hold_control](Command& sub) -> std::function<int()> {
                              auto o = std::make_shared<LinkOptions>();
                              add_link_options(sub, *o);
                              return [o, kind, hold_control] {

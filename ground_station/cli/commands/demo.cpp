@@ -697,7 +697,7 @@ int demo(Options& o) {
 const bool registered = register_command(
     {"demo",
      "the main job: the daemon on the simulated robot, the ground chain, the ORU changeout over DDS, a report",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("--out", o->out, "folder for report.json, report.md and everything the run makes")
            ->capture_default_str();
@@ -706,10 +706,10 @@ const bool registered = register_command(
            ->capture_default_str();
        sub.add_flag("--fast", o->fast, "loopback, no emulated delay, faster previews (tests)");
        sub.add_option("--domain", o->domain, "DDS domain id (default: one in 100-219 that no other process on this host holds)")
-           ->check(CLI::Range(0, 232));
+           ->check(check::Range(0, 232));
        sub.add_option("--script", o->script, "the task script")->capture_default_str();
        sub.add_option("--ready-timeout", o->ready_timeout_s, "seconds to wait for the daemon's ready line")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        sub.add_option("--stage", o->stage)->group("");  // internal: the ground half in the emulator's namespace
        return [o] { return demo(*o); };

@@ -398,7 +398,7 @@ int run_display(const DisplayArgs& a) {
 
 const bool registered = register_command(
     {"display", "live predictive display: video with the calibrated overlay, the delayed and the commanded arm",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<DisplayArgs>();
        sub.add_option("--cameras", a->cameras, "cameras.yaml from `foresight calibrate`")->required();
        sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
@@ -430,7 +430,7 @@ const bool registered = register_command(
                     "calibration health on the picture: the arm's model edges against the video, a warning when the "
                     "camera has moved or zoomed");
        sub.add_option("--health-every", a->health_every, "with --health: score every N-th video frame")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        sub.add_option("--robot", a->robot, "robot URDF")->capture_default_str();
        sub.add_option("--object", a->object, "task object model")->capture_default_str();

@@ -35,7 +35,7 @@
 
 namespace foresight::cli {
 
-std::function<int()> setup_eval_alignment(CLI::App& eval);  // eval_alignment.cpp
+std::function<int()> setup_eval_alignment(Command& eval);  // eval_alignment.cpp
 
 namespace {
 
@@ -322,10 +322,10 @@ int run_eval(const EvalArgs& a) {
   return kExitOk;
 }
 
-std::function<int()> setup(CLI::App& sub) {
+std::function<int()> setup(Command& sub) {
   auto a = std::make_shared<EvalArgs>();
   sub.require_subcommand(1);
-  CLI::App* loc = sub.add_subcommand("localization", "Monte Carlo localization accuracy (the paper's Tables 1-3)");
+  Command* loc = sub.add_subcommand("localization", "Monte Carlo localization accuracy (the paper's Tables 1-3)");
   loc->add_option("--trials", a->trials, "Monte Carlo trials")->capture_default_str();
   loc->add_option("--noise-px", a->noise_px, "click noise standard deviation (px)")->capture_default_str();
   loc->add_option("--seed", a->seed, "random seed (the first, with --seeds)")->capture_default_str();

@@ -211,9 +211,9 @@ int run_eval_alignment(const EvalAlignmentArgs& a) {
 
 }  // namespace
 
-std::function<int()> setup_eval_alignment(CLI::App& eval) {
+std::function<int()> setup_eval_alignment(Command& eval) {
   auto a = std::make_shared<EvalAlignmentArgs>();
-  CLI::App* sub = eval.add_subcommand("alignment", "Monte Carlo: clicks alone vs clicks + model-to-image alignment");
+  Command* sub = eval.add_subcommand("alignment", "Monte Carlo: clicks alone vs clicks + model-to-image alignment");
   sub->add_option("--trials", a->trials, "Monte Carlo trials (seconds each)")->capture_default_str();
   sub->add_option("--noise-px", a->noise_px, "click noise standard deviation (px)")->capture_default_str();
   sub->add_option("--seed", a->seed, "random seed")->capture_default_str();

@@ -99,14 +99,14 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"goto", "move the arm to joint angles (GOTO_JOINT) or the tool tip to an object tag (GOTO_CART)",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("--joints", o->joints, "target joint angles q1,...,qN (rad)");
        sub.add_option("--joints-deg", o->joints_deg, "target joint angles in degrees");
        sub.add_option("--tag", o->tag, "tag frame of the object for the tool tip (straight line)");
        sub.add_option("--object-pose", o->object_pose, "JSON from `foresight localize --json` (default: scene.yaml)");
        sub.add_option("--speed", o->speed, "fraction of the joint limits, (0, 1]")
-           ->check(CLI::Range(1e-3, 1.0))
+           ->check(check::Range(1e-3, 1.0))
            ->capture_default_str();
        sub.add_option("--robot", o->robot, "robot URDF")->capture_default_str();
        sub.add_option("--object", o->object, "task object model (tags)")->capture_default_str();

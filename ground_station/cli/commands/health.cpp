@@ -171,7 +171,7 @@ int run_health(const HealthArgs& a) {
 
 const bool registered = register_command(
     {"health", "per-frame calibration health: the arm's silhouette against the video, camera-moved warning",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<HealthArgs>();
        sub.add_option("--cameras", a->cameras, "cameras.yaml")->required();
        sub.add_option("--camera", a->camera, "camera name in cameras.yaml")->required();
@@ -181,11 +181,11 @@ const bool registered = register_command(
            ->required();
        sub.add_option("--max-telemetry-age", a->max_telemetry_age_s,
                       "with telemetry: a frame whose joint report is older is not scored (s)")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        add_link_options(sub, a->link, false, false);
        sub.add_option("--object-pose", a->object_pose, "JSON with base_T_object (the object occludes the arm)");
-       sub.add_option("--max-frames", a->max_frames, "stop after N frames")->check(CLI::PositiveNumber);
+       sub.add_option("--max-frames", a->max_frames, "stop after N frames")->check(check::PositiveNumber);
        sub.add_flag("--scale-image", a->scale_image, "resize frames whose size differs from the camera viewport");
        add_render_options(sub, a->gl, a->robot, a->object, a->json);
        return [a] { return run_health(*a); };

@@ -65,12 +65,12 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"invoke", "run a remote algorithm (guarded_move, insert, latch, unlatch, loosen, tighten, pull_out) NAME=VALUE...",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("algorithm", o->algorithm, "the algorithm's name")->required();
        sub.add_option("params", o->params, "its parameters, NAME=VALUE (SI units, e.g. depth_m=0.06)");
        sub.add_option("--algorithm-timeout", o->algorithm_timeout_s, "the algorithm's own timeout, s (0: its default)")
-           ->check(CLI::NonNegativeNumber);
+           ->check(check::NonNegativeNumber);
        add_link_options(sub, o->link);
        return [o] { return run(*o); };
      }});

@@ -1,6 +1,6 @@
 #pragma once
-// The options every command that talks to the remote shares (CLI11; include
-// it only from commands/*.cpp that register a command).
+// The options every command that talks to the remote shares (include it only
+// from commands/*.cpp that register a command).
 
 #include "command.hpp"
 
@@ -14,17 +14,17 @@ struct LinkOptions {
 };
 
 /// `json`: false when the command adds its own --json (e.g. with the render options).
-inline void add_link_options(CLI::App& sub, LinkOptions& o, bool final_ack = true, bool json = true) {
+inline void add_link_options(Command& sub, LinkOptions& o, bool final_ack = true, bool json = true) {
   sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
-      ->check(CLI::Range(0, 232));
+      ->check(check::Range(0, 232));
   sub.add_option("--connect-timeout", o.connect_timeout_s, "seconds to wait for the remote to answer")
-      ->check(CLI::PositiveNumber)
+      ->check(check::PositiveNumber)
       ->capture_default_str();
   if (final_ack)
     sub.add_option("--timeout", o.timeout_s,
                    "seconds to wait for the final acknowledgement (default: 1.5 x the expected duration + 3 x the "
                    "measured p99 round trip + 5 s)")
-        ->check(CLI::PositiveNumber);
+        ->check(check::PositiveNumber);
   if (json) sub.add_flag("--json", o.json, "print one JSON object");
 }
 

@@ -2,8 +2,8 @@
 // What the link commands (status, send, abort, request, goto, invoke,
 // take-control, release-control, recover, watch) and `run` share: the DDS
 // domain, connecting to the remote, waiting for a command's final
-// acknowledgement (interruptible), and printing outcomes. No CLI11 here (it is
-// slow to compile); each command file adds its own options. Not real-time.
+// acknowledgement (interruptible), and printing outcomes. Each command file
+// adds its own options (link_options.hpp). Not real-time.
 
 #include <chrono>
 #include <functional>

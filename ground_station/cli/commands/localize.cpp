@@ -190,7 +190,7 @@ int run_localize(const LocalizeArgs& a) {
   return kExitOk;
 }
 
-std::function<int()> setup(CLI::App& sub) {
+std::function<int()> setup(Command& sub) {
   auto a = std::make_shared<LocalizeArgs>();
   sub.add_option("points", a->points, "clicked model points CSV (n,cam,x,y,z,u,v; x,y,z in the object frame)")->required();
   sub.add_option("--cameras", a->cameras, "calibrated cameras (cameras.yaml)")->required();

@@ -109,7 +109,7 @@ int run_overlay(const OverlayArgs& a) {
 
 const bool registered = register_command(
     {"overlay", "draw the arm (and the localized object) through a calibrated camera over a video frame",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<OverlayArgs>();
        add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
                                "video frame: an image file, or a video file (see --frame)");

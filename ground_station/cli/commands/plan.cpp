@@ -131,7 +131,7 @@ int run(const Args& a) {
 
 const bool registered = register_command(
     {"plan", "plan a trajectory for the tool through the object's tag frames (joint or straight-line moves)",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<Args>();
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)")
            ->required();

@@ -72,7 +72,7 @@ int run_predictive(const PredictiveArgs& a) {
 
 const bool registered = register_command(
     {"predictive", "predictive display: the commanded arm (ghost) over the delayed actual arm (solid), labelled",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<PredictiveArgs>();
        add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
                                "video frame: an image, or a video file (see --frame)");

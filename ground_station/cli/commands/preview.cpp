@@ -127,7 +127,7 @@ int run_preview(const PreviewArgs& a) {
 
 const bool registered = register_command(
     {"preview", "preview a trajectory: the simulated arm moving over the video frame, as a video and a contact sheet",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<PreviewArgs>();
        sub.add_option("trajectory", a->trajectory, "trajectory CSV t,q1,...,qN (s, rad)")->required();
        add_video_frame_options(sub, a->cameras, a->camera, a->image, a->frame,
@@ -135,7 +135,7 @@ const bool registered = register_command(
        sub.add_option("--out", a->out, "output video (.mp4, .avi or .webm)")->required();
        sub.add_option("--contact-sheet", a->sheet, "also write a PNG contact sheet of key frames");
        sub.add_option("--speed", a->speed, "playback speed relative to the trajectory's time")->capture_default_str();
-       sub.add_option("--fps", a->fps, "video frame rate")->capture_default_str()->check(CLI::PositiveNumber);
+       sub.add_option("--fps", a->fps, "video frame rate")->capture_default_str()->check(check::PositiveNumber);
        sub.add_option("--mode", a->mode, "wire | solid | hidden | ghost")->capture_default_str();
        sub.add_option("--alpha", a->alpha, "ghost opacity in [0, 1]")->capture_default_str();
        sub.add_flag("--no-path", a->no_path, "do not draw the tool tip's path");

@@ -49,11 +49,11 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"request", "ask the remote for a report (joints, wrench, tool, status, trajectories) and print it",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("what", o->what, "joints | wrench | tool | status | trajectories")
            ->required()
-           ->check(CLI::IsMember({"joints", "wrench", "tool", "status", "trajectories"}));
+           ->check(check::IsMember({"joints", "wrench", "tool", "status", "trajectories"}));
        add_link_options(sub, o->link);
        return [o] { return run(*o); };
      }});

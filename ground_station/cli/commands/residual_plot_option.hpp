@@ -2,7 +2,7 @@
 // `--plot out.png` (and `--plot-image`) for calibrate and localize: the
 // residual picture of the fit (foresight/display/residual_plot.hpp). One
 // option call and one write call in each command. Include only from
-// commands/*.cpp (CLI11).
+// commands/*.cpp.
 
 #include <cstdio>
 #include <map>
@@ -23,14 +23,14 @@ struct ResidualPlotArgs {
   double arrow_scale = 0.0;         ///< --plot-scale (0 = automatic)
 };
 
-inline void add_residual_plot_options(CLI::App& sub, ResidualPlotArgs& a) {
+inline void add_residual_plot_options(Command& sub, ResidualPlotArgs& a) {
   sub.add_option("--plot", a.out,
                  "write the residual picture (PNG): each click, its reprojection, the residual arrow scaled, "
                  "outliers marked; on --plot-image or a blank of the viewport size");
   sub.add_option("--plot-image", a.images, "background for --plot: an image, or CAM=IMAGE per view (comma-separated)")
       ->delimiter(',');
   sub.add_option("--plot-scale", a.arrow_scale, "residual arrow magnification for --plot (default: automatic)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(check::NonNegativeNumber);
 }
 
 /// The background image for `camera`: a CAM=PATH entry, else a bare PATH

@@ -152,7 +152,7 @@ int run_robot(const RobotArgs& a) {
   return status;
 }
 
-std::function<int()> setup(CLI::App& sub) {
+std::function<int()> setup(Command& sub) {
   auto a = std::make_shared<RobotArgs>();
   sub.add_option("--robot", a->robot_path, "URDF of the arm")->capture_default_str();
   auto* joints = sub.add_option("--joints", a->joints, "joint angles q1,...,qN in radians (default: mid configuration)");

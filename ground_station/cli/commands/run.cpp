@@ -219,7 +219,7 @@ int run(Options& o) {
 
 const bool registered = register_command(
     {"run", "run a task script against the remote: step / auto / cancel / abort, the current command marked",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        o->settings.robot = default_config("robot.urdf");
        o->settings.object = default_config("oru.yaml");
@@ -242,7 +242,7 @@ const bool registered = register_command(
                       "the object's pose: localize JSON, or 'scene' for the work site's true pose");
        sub.add_flag("--no-preview", o->no_preview, "do not render previews (tests only: nothing should be sent unseen)");
        sub.add_option("--preview-speed", o->settings.preview_speed, "preview playback speed")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        sub.add_option("--robot", o->settings.robot, "robot URDF")->capture_default_str();
        sub.add_option("--object", o->settings.object, "task object model")->capture_default_str();

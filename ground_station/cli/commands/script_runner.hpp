@@ -4,7 +4,7 @@
 // LOCALIZE and the preview rendering run this same executable as a child
 // (`foresight calibrate|localize|synth|preview`) so the run does exactly what
 // those commands do; planning is in-process (common plan_motion). Not
-// real-time code. No CLI11 here.
+// real-time code.
 
 #include <Eigen/Core>
 #include <fstream>

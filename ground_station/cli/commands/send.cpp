@@ -82,16 +82,16 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"send", "validate, upload and commit a trajectory on the remote (hashes compared); --run executes it",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("trajectory", o->trajectory, "trajectory CSV (t,q1,...,qN; s, rad)")->required();
        sub.add_flag("--run", o->run, "run it once committed and wait for the final ack");
        sub.add_flag("--compliant", o->compliant, "run under the wrist F/T compliance");
        sub.add_option("--upload-timeout", o->upload_timeout_s, "seconds to wait for COMMITTED (default: derived)")
-           ->check(CLI::PositiveNumber);
+           ->check(check::PositiveNumber);
        sub.add_option("--start-tolerance", o->start_tolerance_rad,
                       "max |q_actual - q(0)| to start, rad (0: the remote's default)")
-           ->check(CLI::NonNegativeNumber);
+           ->check(check::NonNegativeNumber);
        sub.add_option("--robot", o->robot, "robot URDF")->capture_default_str();
        add_link_options(sub, o->link);
        return [o] {

@@ -77,14 +77,14 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"status", "the link's delay statistics and the remote's state, joints, tool, wrench and faults",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        add_link_options(sub, o->link, false);
        sub.add_option("--samples", o->samples, "round trips to wait for before reporting")
-           ->check(CLI::Range(1, 10000))
+           ->check(check::Range(1, 10000))
            ->capture_default_str();
        sub.add_option("--sample-timeout", o->sample_timeout_s, "at most this long, s")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        return [o] { return run(*o); };
      }});

@@ -91,7 +91,7 @@ int run_synth(const SynthArgs& a) {
 
 const bool registered = register_command(
     {"synth", "render a synthetic camera frame of the true work site (stand-in for live video)",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<SynthArgs>();
        sub.add_option("--camera", a->camera, "camera name in scene.yaml")->required();
        sub.add_option("--joints", a->joints, "arm joint angles q1,...,qN in radians");

@@ -138,7 +138,7 @@ int run(const Args& a) {
 
 const bool registered = register_command(
     {"synth-clicks", "simulated operator: noisy calibration clicks on the arm and localization clicks on the ORU",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto a = std::make_shared<Args>();
        sub.add_option("--calibration-out", a->calibration_out, "arm clicks CSV for calibrate (link-form rows)");
        sub.add_option("--object-out", a->object_out, "ORU clicks CSV for localize (object-frame rows)");

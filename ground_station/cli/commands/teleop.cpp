@@ -213,35 +213,35 @@ int teleop_command(Options& o) {
 const bool registered = register_command(
     {"teleop",
      "hand-controller teleoperation of the simulated arm (world/tool/camera frames); record the motion as a trajectory",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        o->robot = default_config("robot.urdf");
        o->scene = default_config("scene.yaml");
        sub.add_option("--device", o->device, "a Linux joystick: /dev/input/eventN (evdev)");
        sub.add_option("--input", o->input, "a recorded input file: t,x,y,z,rx,ry,rz (s, deflections in [-1, 1])");
        sub.add_option("--frame", o->frame, "reference frame of the deflections: world | tool | camera")
-           ->check(CLI::IsMember({"world", "tool", "camera"}))
+           ->check(check::IsMember({"world", "tool", "camera"}))
            ->capture_default_str();
        sub.add_option("--camera", o->camera, "camera-view frame: the camera (x right, y down, z forward)");
        sub.add_option("--cameras", o->cameras, "calibrated cameras.yaml (default: the work site's layout)");
        sub.add_option("--joints", o->joints, "start joint angles (rad)");
        sub.add_option("--joints-deg", o->joints_deg, "start joint angles (deg)");
        sub.add_option("--position-gain", o->position_gain_m_s, "tool speed at full deflection, m/s")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        sub.add_option("--orientation-gain", o->orientation_gain_deg_s, "tool turn rate at full deflection, deg/s")
-           ->check(CLI::PositiveNumber)
+           ->check(check::PositiveNumber)
            ->capture_default_str();
        sub.add_option("--deadband", o->deadband, "deflections below this are zero")
-           ->check(CLI::Range(0.0, 0.99))
+           ->check(check::Range(0.0, 0.99))
            ->capture_default_str();
        sub.add_option("--rate", o->rate_hz, "steps per second (and device samples)")
-           ->check(CLI::Range(1.0, 1000.0))
+           ->check(check::Range(1.0, 1000.0))
            ->capture_default_str();
        sub.add_option("--axes", o->axes, "device: ABS axes feeding x,y,z,rx,ry,rz ('-' flips, 'none' unused)")
            ->capture_default_str();
        sub.add_option("--duration", o->duration_s, "device: stop after this many seconds (else a button or Ctrl-C)")
-           ->check(CLI::PositiveNumber);
+           ->check(check::PositiveNumber);
        sub.add_option("--record", o->record, "write the motion as a trajectory CSV (t,q1..qN)");
        sub.add_option("--record-input", o->record_input, "device: also write the deflections as a recorded input file");
        sub.add_option("--robot", o->robot, "robot URDF")->capture_default_str();

@@ -45,7 +45,7 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"validate", "Check a trajectory CSV (t,q1..qN) against the robot's joint limits, as the remote will",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("trajectory", o->trajectory, "trajectory CSV (t,q1,...,qN; s, rad)")->required();
        sub.add_option("--robot", o->robot, "robot URDF")->capture_default_str();

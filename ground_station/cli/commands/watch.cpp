@@ -70,12 +70,12 @@ int run(const Options& o) {
 
 const bool registered = register_command(
     {"watch", "a live one-line-a-second view of the link and the remote until Ctrl-C",
-     [](CLI::App& sub) -> std::function<int()> {
+     [](Command& sub) -> std::function<int()> {
        auto o = std::make_shared<Options>();
        sub.add_option("--count", o->count, "stop after this many lines (0: until Ctrl-C)")
-           ->check(CLI::NonNegativeNumber);
+           ->check(check::NonNegativeNumber);
        sub.add_option("--period", o->period_s, "seconds between lines")
-           ->check(CLI::Range(0.05, 3600.0))
+           ->check(check::Range(0.05, 3600.0))
            ->capture_default_str();
        add_link_options(sub, o->link, false);
        return [o] { return run(*o); };

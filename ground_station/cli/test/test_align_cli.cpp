@@ -270,7 +270,7 @@ TEST(HealthCli, JsonHasTheIouPerFrame) {
 // through the command line). --arm-links reads them back.
 TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
   auto& f = fixture();
-  const std::size_t nseg = f.model.chain().getNrOfSegments();
+  const std::size_t nseg = f.model.segment_count();
   align::ArmLinkCorrections truth;
   truth.delta_m.assign(nseg, 0.0);
   std::vector<int> segs;
@@ -351,12 +351,12 @@ TEST(AlignCli, ArmOptionsBadInputIsExitTwoAndWritesNothing) {
   const auto short_list = run_foresight(base + " --arm-links " + few + " --arm-prior-mm 2 --arm-out " + arm_out);
   EXPECT_EQ(short_list.status, 2);
   EXPECT_EQ(short_list.err, "foresight align: error: " + few + ": arm_link_delta_m: 3 values for the arm's " +
-                                std::to_string(f.model.chain().getNrOfSegments()) + " chain segments\n");
+                                std::to_string(f.model.segment_count()) + " chain segments\n");
   // A correction on a segment without a length offset (the base's fixed
   // frame, if it has none) or beyond 0.1 m: not this arm's link error.
   const std::string far = temp_path(".yaml");
   {
-    std::vector<double> d(f.model.chain().getNrOfSegments(), 0.0);
+    std::vector<double> d(f.model.segment_count(), 0.0);
     d[f.model.offset_segments().front()] = 0.25;
     align::save_arm_links(far, {d, {}}, "config/robot.urdf", "2026-12-03T00:00:00Z");
   }

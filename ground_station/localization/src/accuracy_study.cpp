@@ -270,7 +270,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
     for (int v = 0; v < nv; ++v) believed[v] = setup.views[v].calibration_points_base;
     if (arm_error) {
       const RobotModel& robot = *opt.robot;
-      std::vector<double> delta(robot.chain().getNrOfSegments(), 0.0);
+      std::vector<double> delta(robot.segment_count(), 0.0);
       for (const int k : robot.offset_segments()) delta[k] = link_error(arm_rng);
       const RobotModel model = robot.with_link_lengths_changed(delta);
       KinematicsWorkspace ws(model);

@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/LU>
+#include <nlohmann/json.hpp>
 #include <cmath>
 
 #include "foresight/common/error.hpp"

@@ -357,7 +357,7 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
   Eigen::Matrix<double, 6, 1> sum2[2], claimed[2], claimed_without[2], claimed_arm[2];
   for (int c = 0; c < 2; ++c) sum2[c] = claimed[c] = claimed_without[c] = claimed_arm[c] = Eigen::Matrix<double, 6, 1>::Zero();
   for (int t = 0; t < kArms; ++t) {
-    std::vector<double> delta(arm.chain().getNrOfSegments(), 0.0);
+    std::vector<double> delta(arm.segment_count(), 0.0);
     for (const int k : arm.offset_segments()) delta[k] = link_error(rng);
     const RobotModel true_arm = arm.with_link_lengths_changed(delta);
     KinematicsWorkspace tws(true_arm);

@@ -1,6 +1,8 @@
 // The object pose file: its one writer and one reader (pose_json.hpp).
 #include "foresight/localization/pose_json.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 
 #include <cstdio>

@@ -1,6 +1,7 @@
 #include "foresight/sim/plant.hpp"
 
 #include <Eigen/Geometry>
+#include <kdl/chain.hpp>
 #include <cmath>
 #include <stdexcept>
 

@@ -10,12 +10,16 @@
 // tool) are segments too, so every link of the chain has an index.
 
 #include <Eigen/Core>
-#include <kdl/chain.hpp>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "foresight/common/pose.hpp"
+
+namespace KDL {
+class Chain;  // <kdl/chain.hpp>: only the files that walk the chain include it
+}
 
 namespace foresight {
 
@@ -76,7 +80,10 @@ class RobotModel {
   /// Index of the tool tip link (options.tip_link).
   int tip_index() const { return static_cast<int>(links_.size()) - 1; }
 
-  const KDL::Chain& chain() const { return chain_; }
+  /// The KDL chain (include <kdl/chain.hpp> to use it).
+  const KDL::Chain& chain() const { return *chain_; }
+  /// Number of chain segments (joints, the F/T mount, the tool, the tip).
+  int segment_count() const { return segment_count_; }
   /// Gravity in the base frame (m/s^2), default (0, 0, -9.81).
   const Eigen::Vector3d& gravity() const { return gravity_; }
 
@@ -96,7 +103,7 @@ class RobotModel {
   /// chain segment k (the joint origin in its parent) moves by delta_m[k]
   /// along its own direction (segments with a zero offset keep it). For
   /// studies of arm-model error. Throws std::invalid_argument when delta_m
-  /// does not have one value per chain segment (chain().getNrOfSegments()).
+  /// does not have one value per chain segment (segment_count()).
   RobotModel with_link_lengths_changed(const std::vector<double>& delta_m) const;
   /// The chain segments whose origin has a length offset (longer than
   /// kMinOffset_m), in chain order: the links whose lengths
@@ -108,7 +115,8 @@ class RobotModel {
   RobotModel() = default;
   std::uint64_t id_ = 0;
   std::string source_;
-  KDL::Chain chain_;
+  std::shared_ptr<const KDL::Chain> chain_;  // immutable: copies share it
+  int segment_count_ = 0;
   std::vector<std::string> joint_names_;
   std::vector<JointLimits> limits_;
   std::vector<LinkInfo> links_;

@@ -12,7 +12,7 @@
 // allocates; the reader throws InputError naming the file and the key.
 
 #include <Eigen/Core>
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>  // callers of pose_json include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
