@@ -4,6 +4,7 @@
 #   scripts/fuzz.sh                 build all targets, run each for FUZZ_SECONDS
 #   scripts/fuzz.sh fuzz_urdf ...   only these targets
 #   FUZZ_SECONDS=300 scripts/fuzz.sh   a longer budget per target (default 20)
+#   FUZZ_BUILD_ONLY=1 scripts/fuzz.sh  build the targets, run nothing
 #
 # Clang (Debian clang-14 + libclang-rt-14-dev), ASan + UBSan, coverage over
 # the project's libraries, in build-fuzz/ (FORESIGHT_FUZZ_BUILD_DIR).
@@ -71,6 +72,7 @@ cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_COMPILER=cl
   "${LAUNCHER[@]}" >/dev/null
 ninja -C "$BUILD" -j"$JOBS" "${TARGETS[@]}"
 echo "fuzz: build $(( $(date +%s) - t0 )) s"
+if [[ ${FUZZ_BUILD_ONLY:-0} == 1 ]]; then echo "fuzz: built (FUZZ_BUILD_ONLY=1: nothing run)"; exit 0; fi
 
 export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
