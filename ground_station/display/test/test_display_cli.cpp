@@ -367,7 +367,17 @@ namespace {
 /// destruction.
 class Xvfb {
  public:
+  /// At most two servers are tried: one that announced its display but let no
+  /// client in (seen once in CI: "could not connect to display :0") is
+  /// replaced.
   Xvfb() {
+    for (int attempt = 0; attempt < 2 && display_.empty(); ++attempt) start();
+  }
+  ~Xvfb() { stop(); }
+  const std::string& display() const { return display_; }
+
+ private:
+  void start() {
     if (!exists("/usr/bin/Xvfb")) return;
     int fds[2];
     if (pipe(fds) != 0) return;
@@ -387,15 +397,17 @@ class Xvfb {
     pollfd p{fds[0], POLLIN, 0};
     while (number.size() < 8 && poll(&p, 1, 30000) == 1 && read(fds[0], &c, 1) == 1 && c != '\n') number += c;
     close(fds[0]);
-    if (c == '\n' && !number.empty())
+    if (c != '\n' || number.empty()) {
+      stop();
+      return;
+    }
+    // Ready means a client gets in: probe with one (bounded), else stop it.
+    const std::string probe = "DISPLAY=:" + number + " xdotool getdisplaygeometry >/dev/null 2>&1";
+    if (wait_until([&] { return std::system(probe.c_str()) == 0; }, 30.0))
       display_ = ":" + number;
     else
       stop();
   }
-  ~Xvfb() { stop(); }
-  const std::string& display() const { return display_; }
-
- private:
   void stop() {
     if (pid_ <= 0) return;
     kill(pid_, SIGTERM);
