@@ -8,14 +8,16 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "foresight/journal/journal.hpp"
 
 namespace foresight::journal::test {
 
-/// operator new calls so far in this process (counted in test_spsc_ring.cpp).
-std::uint64_t allocations() noexcept;
+/// Heap allocations (malloc and operator new) of this thread while `work`
+/// runs (test_spsc_ring.cpp holds the binary's allocation counter).
+long allocations_in(const std::function<void()>& work);
 
 /// A fresh directory under /tmp, removed with everything in it at the end.
 class ScratchDir {

@@ -1,7 +1,7 @@
 // The lock-free SPSC ring: exact capacity, FIFO order across wrap-around, one
 // producer and one consumer thread moving 200,000 values in order, and no
-// heap allocation in try_push / try_pop. This file also replaces operator new
-// for the whole test binary to count allocations.
+// heap allocation in try_push / try_pop. This file holds the test binary's
+// allocation counter (foresight/test/allocation_counter.hpp: one file only).
 
 #include "foresight/journal/spsc_ring.hpp"
 
@@ -9,27 +9,18 @@
 
 #include <atomic>
 #include <chrono>
-#include <cstdlib>
-#include <new>
 #include <thread>
 
+#include "foresight/test/allocation_counter.hpp"
 #include "journal_test_util.hpp"
-
-namespace {
-std::atomic<std::uint64_t> g_allocations{0};
-}
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace foresight::journal {
 namespace test {
-std::uint64_t allocations() noexcept { return g_allocations.load(std::memory_order_relaxed); }
+long allocations_in(const std::function<void()>& work) {
+  foresight::test::AllocationCounter counter;
+  work();
+  return counter.count();
+}
 }  // namespace test
 
 namespace {
@@ -63,12 +54,13 @@ TEST(SpscRing, ZeroCapacityRefused) { EXPECT_THROW(SpscRing<Item>(0), std::inval
 TEST(SpscRing, PushAndPopDoNotAllocate) {
   SpscRing<Item> ring(16);
   Item out{};
-  const std::uint64_t before = test::allocations();
-  for (std::uint64_t i = 0; i < 10'000; ++i) {
-    (void)ring.try_push(Item{i, {}});
-    if (i % 3 == 0) (void)ring.try_pop(out);
-  }
-  EXPECT_EQ(test::allocations(), before);
+  EXPECT_EQ(test::allocations_in([&] {
+              for (std::uint64_t i = 0; i < 10'000; ++i) {
+                (void)ring.try_push(Item{i, {}});
+                if (i % 3 == 0) (void)ring.try_pop(out);
+              }
+            }),
+            0);
 }
 
 TEST(SpscRing, TwoThreadsTransferEverythingInOrder) {

@@ -1,34 +1,16 @@
 // Plant::step is documented allocation-free (it runs at every SYNC on the
 // simulator thread, and in-process in benchmarks): through every ORU state.
-// Own binary: replaces global operator new/delete to count allocations.
+// Own binary: the allocation counter (foresight/test/allocation_counter.hpp).
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
 #include <vector>
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/test/allocation_counter.hpp"
 #include "foresight/sim/plant.hpp"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace foresight;
 
@@ -54,8 +36,7 @@ TEST(PlantRtSafety, StepDoesNotAllocateInAnyOruState) {
   plant.step(path[0], qd, tool);  // first call outside the window
 
   double sum = 0.0;
-  g_allocations = 0;
-  g_counting = true;
+  foresight::test::AllocationCounter counter;
   tool.latched = true;
   sum += plant.step(path[0], qd, tool).wrench_ft[2];  // gripped
   tool.engaged_turns = 0.0;
@@ -64,8 +45,8 @@ TEST(PlantRtSafety, StepDoesNotAllocateInAnyOruState) {
   tool.engaged_turns = 8.0;
   sum += plant.step(path.back(), qd, tool).wrench_ft[2];  // fastened
   const sim::OruState final_state = plant.truth().state;  // copies a Pose, no heap
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  counter.pause();
+  EXPECT_EQ(counter.count(), 0);
   EXPECT_EQ(final_state, sim::OruState::Fastened);
   EXPECT_TRUE(std::isfinite(sum));
 }
