@@ -11,8 +11,10 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -20,21 +22,11 @@
 #include "foresight/ground_link/ground_link.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
+#include "foresight/test/eventually.hpp"
 #include "foresight/test/remote_process.hpp"
 
 namespace foresight::test {
 
-/// Polls `condition` every 10 ms until it holds or `timeout` passes; the last
-/// answer (never a fixed sleep: CI machines are loaded).
-template <class F>
-bool eventually(F condition, std::chrono::nanoseconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return condition();
-}
 
 /// `foresight-remote journal --json --db DB`, parsed. A failed run or output
 /// that is not a JSON object is a test failure (and an empty object).
@@ -87,6 +79,49 @@ inline std::uint64_t start_slow_motion(ground_link::GroundLink& ground, const Ei
 
 /// The set-up every test against the real daemon shares: DDS on loopback, a
 /// DDS domain this process has claimed (protocol::unique_test_domain: a lock
+/// The simulated drives' own record (`--sim-faults DIR`: DIR/drive_record,
+/// sim_faults.hpp): what the drives did, not what the master believes.
+struct DriveRecord {
+  std::uint64_t seq = 0, marks = 0;
+  std::vector<double> q, lo, hi;            ///< joint angles now, lowest and highest since the mark (rad)
+  std::vector<std::string> state;           ///< CiA 402 state per joint, as the drive holds it (snake case)
+  std::vector<bool> powered;                ///< power stage energised
+  std::vector<unsigned> states_seen;        ///< bit per CiA 402 state value since the mark
+  double span(std::size_t j) const { return hi[j] - lo[j]; }
+  /// The drive was in `state_value` (CiA 402 order: 4 operation enabled, 5 quick stop active) since the mark.
+  bool was_in(std::size_t j, unsigned state_value) const { return (states_seen[j] >> state_value) & 1u; }
+};
+
+/// Parses DIR/drive_record; seq 0 when it is missing or incomplete.
+inline DriveRecord read_drive_record(const std::string& dir, std::size_t joints = 7) {
+  DriveRecord r;
+  std::ifstream in(dir + "/drive_record");
+  std::string line, power;
+  if (!std::getline(in, line) || !std::getline(in, power)) return r;
+  std::istringstream s(line);
+  std::vector<double> v;
+  double x;
+  if (!(s >> r.seq >> r.marks)) return DriveRecord{};
+  while (s >> x) v.push_back(x);
+  if (v.size() != 3 * joints) return DriveRecord{};
+  r.q.assign(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(joints));
+  r.lo.assign(v.begin() + static_cast<std::ptrdiff_t>(joints), v.begin() + static_cast<std::ptrdiff_t>(2 * joints));
+  r.hi.assign(v.begin() + static_cast<std::ptrdiff_t>(2 * joints), v.end());
+  std::istringstream p(power);
+  std::string word;
+  if (!(p >> word) || word != "power") return DriveRecord{};
+  for (std::size_t j = 0; j < joints; ++j) {
+    std::string name;
+    int on = 0;
+    unsigned seen = 0;
+    if (!(p >> name >> on >> seen)) return DriveRecord{};
+    r.state.push_back(name);
+    r.powered.push_back(on != 0);
+    r.states_seen.push_back(seen);
+  }
+  return r;
+}
+
 /// file, so no concurrent test shares it), `foresight-remote --sim` started
 /// on it (test::RemoteProcess, ready within 60 s) and the ground's link
 /// connected to it (the remote seen within 30 s); at the end the link closed
@@ -151,6 +186,22 @@ class DaemonTest : public ::testing::Test {
     std::ofstream(faults_ + "/" + name) << text;
   }
   void fault_off(const std::string& name) { std::filesystem::remove(faults_ + "/" + name); }
+
+  /// The simulated drives' own record (use_sim_faults()).
+  DriveRecord record() const { return read_drive_record(faults_); }
+  /// Starts a new envelope on the drives' record; returns once it is in force.
+  void mark() {
+    const std::uint64_t m = record().marks;
+    std::ofstream(faults_ + "/drive_record_mark") << "\n";
+    ASSERT_TRUE(eventually([&] { return record().marks > m; }, std::chrono::seconds(10))) << "the mark was never taken";
+  }
+  /// The record written after now (two polls later: the envelope covers everything until now).
+  DriveRecord fresh_record() {
+    const std::uint64_t s = record().seq;
+    DriveRecord r;
+    EXPECT_TRUE(eventually([&] { return (r = record()).seq >= s + 2; }, std::chrono::seconds(10)));
+    return r;
+  }
 
   /// One command and its final answer (`expected_s`: how long it should take);
   /// every result also goes to after_command().

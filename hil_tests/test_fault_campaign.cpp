@@ -51,13 +51,7 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 using test::eventually;
-
-/// The simulated drives' own record (sim_faults.hpp: drive_record).
-struct DriveRecord {
-  std::uint64_t seq = 0, marks = 0;
-  std::vector<double> q, lo, hi;
-  double span(std::size_t j) const { return hi[j] - lo[j]; }
-};
+using test::DriveRecord;
 
 class FaultCampaign : public test::DaemonTest {
  protected:
@@ -67,35 +61,6 @@ class FaultCampaign : public test::DaemonTest {
     ASSERT_TRUE(eventually([&] { return record().seq > 0; }, 10s)) << "no drive_record in " << faults_;
   }
 
-  DriveRecord record() const {
-    DriveRecord r;
-    std::ifstream in(faults_ + "/drive_record");
-    std::string line;
-    if (!std::getline(in, line)) return r;
-    std::istringstream s(line);
-    std::vector<double> v;
-    double x;
-    if (!(s >> r.seq >> r.marks)) return DriveRecord{};
-    while (s >> x) v.push_back(x);
-    if (v.size() != 21) return DriveRecord{};
-    r.q.assign(v.begin(), v.begin() + 7);
-    r.lo.assign(v.begin() + 7, v.begin() + 14);
-    r.hi.assign(v.begin() + 14, v.end());
-    return r;
-  }
-  /// Starts a new envelope on the drives' record; returns once it is in force.
-  void mark() {
-    const std::uint64_t m = record().marks;
-    std::ofstream(faults_ + "/drive_record_mark") << "\n";
-    ASSERT_TRUE(eventually([&] { return record().marks > m; }, 10s)) << "the mark was never taken";
-  }
-  /// The record written after now (two polls later: the envelope covers everything until now).
-  DriveRecord fresh_record() {
-    const std::uint64_t s = record().seq;
-    DriveRecord r;
-    EXPECT_TRUE(eventually([&] { return (r = record()).seq >= s + 2; }, 10s));
-    return r;
-  }
 
   /// Every command this test sent (session, id) has exactly the final state
   /// we saw on the ground, in the journal, after RECEIVED.
@@ -204,6 +169,17 @@ class FaultCampaign : public test::DaemonTest {
     EXPECT_GE(d.lo[0], q0[0] - 2e-3);
     EXPECT_LE(d.hi[0], q0[0] + delta + 2e-3);
     for (std::size_t j = 1; j < 7; ++j) EXPECT_LT(d.span(j), 2e-3) << "joint " << j + 1 << " moved uncommanded";
+    // Category 0 on the drives' side: every drive without power (the ones the
+    // master still reaches by Disable Voltage, the ones it cannot by their own
+    // heartbeat consumer), none ever held in Quick stop active.
+    EXPECT_TRUE(eventually([&] {
+      d = record();
+      for (bool p : d.powered)
+        if (p) return false;
+      return d.powered.size() == 7;
+    }, 10s)) << "drives still powered after a category 0 stop";
+    for (std::size_t j = 0; j < d.states_seen.size(); ++j)
+      EXPECT_FALSE(d.was_in(j, 5)) << "joint " << j + 1 << " passed through quick_stop_active";
     // Stopped: nothing moves while the fault lasts (the status says stopped).
     mark();
     EXPECT_TRUE(eventually([&] { return ground_->status() && ground_->status()->age_s < 0.5; }, 5s));

@@ -23,6 +23,8 @@ using control::Reason;
 
 namespace {
 
+using test::DriveRecord;
+
 class RemoteCommands : public test::DaemonTest {
  protected:
   void SetUp() override {
@@ -147,7 +149,15 @@ TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
   r = run(CommandKind::Trajectory, run_cmd);
   EXPECT_EQ(r.state, AckState::Rejected);
   EXPECT_EQ(r.code, Reason::StartMismatch);
-  EXPECT_EQ(r.reason.rfind("the trajectory starts 0.1000 rad from the arm at joint 1", 0), 0u) << r.reason;
+  EXPECT_EQ(r.reason, "the trajectory starts 0.1000 rad from the arm at joint 1 (tolerance 0.0100 rad): plan an "
+                      "approach segment (a GOTO_JOINT to its first sample)");
+  // A command may not widen the tolerance past 0.02 rad (issue 25: 2.5 rad let the arm jump).
+  run_cmd.start_tolerance_rad = 0.5;
+  r = run(CommandKind::Trajectory, run_cmd);
+  EXPECT_EQ(r.state, AckState::Rejected);
+  EXPECT_EQ(r.code, Reason::BadArgument);
+  EXPECT_EQ(r.reason, "start_tolerance_rad 0.5 out of range [0, 0.02] rad: a larger start offset would jump the arm; "
+                      "plan an approach segment (a GOTO_JOINT to the first sample)");
 }
 
 TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
@@ -178,14 +188,65 @@ TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
 
 TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence) {
   take_and_recover();
+  // Powered and enabled, as the drives themselves and the status say.
+  ASSERT_TRUE(test::eventually([&] {
+    const auto s = ground_->status();
+    if (!s || s->value.drives.size() != 7) return false;
+    for (const auto& d : s->value.drives)
+      if (d.state != 4 || !d.powered) return false;  // operation_enabled
+    return true;
+  }, 10s));
+  DriveRecord before = fresh_record();
+  ASSERT_EQ(before.state.size(), 7u);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(before.state[j], "operation_enabled") << j;
+  mark();
+  const double q0 = before.q[0];
+  const std::uint64_t moving = start_slow_motion(0.5);
+  ASSERT_NE(moving, 0u);
+  const auto pressed = std::chrono::steady_clock::now();
   std::ofstream(estop_) << "pressed\n";
-  // The status reports the stop.
-  bool stopped = false;
-  for (int i = 0; i < 500 && !stopped; ++i) {
-    if (auto s = ground_->status(); s && s->value.stop_category == control::StopCategory::Cat0) stopped = true;
-    std::this_thread::sleep_for(10ms);
+  // The drives' own record: every drive loses power (Disable Voltage, Switch
+  // on disabled), none ever in Quick stop active.
+  DriveRecord d;
+  const bool off = test::eventually([&] {
+    d = record();
+    if (d.powered.size() != 7) return false;
+    for (bool p : d.powered)
+      if (p) return false;
+    return true;
+  }, 10s);
+  const double to_off_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - pressed).count();
+  ASSERT_TRUE(off) << "drives still powered after the E-stop\n" << remote_->log();
+  std::printf("E-stop file to every drive unpowered (the drives' record, 20 ms file polls): %.3f s\n", to_off_s);
+  for (std::size_t j = 0; j < 7; ++j) {
+    EXPECT_EQ(d.state[j], "switch_on_disabled") << j;
+    EXPECT_FALSE(d.was_in(j, 5)) << "joint " << j + 1 << " passed through quick_stop_active";
   }
-  EXPECT_TRUE(stopped);
+  EXPECT_GT(d.hi[0], q0 + 1e-3);  // it was moving when the E-stop came
+  // The status reports the stop, and the drives as they reported themselves.
+  control::StatusReport st;
+  const bool reported = test::eventually([&] {
+    const auto s = ground_->status();
+    if (!s || s->value.stop_category != control::StopCategory::Cat0 || s->value.drives.size() != 7) return false;
+    st = s->value;
+    for (const auto& dr : st.drives)
+      if (dr.state != 1 || dr.powered) return false;  // switch_on_disabled
+    return true;
+  }, 10s);
+  EXPECT_TRUE(reported) << "status drives never showed all switch_on_disabled";
+  for (std::size_t j = 0; j < st.drives.size(); ++j) {
+    EXPECT_EQ(st.drives[j].joint, static_cast<int>(j + 1));
+    EXPECT_GT(st.drives[j].node_id, 0);
+  }
+  // Nothing moves after the stop.
+  mark();
+  const DriveRecord still = [&] {
+    DriveRecord r;
+    const std::uint64_t s0 = record().seq;
+    test::eventually([&] { return (r = record()).seq >= s0 + 25; }, 10s);  // ~0.5 s of polls
+    return r;
+  }();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(still.span(j), 1e-6) << "joint " << j + 1 << " moved after the stop";
   std::remove(estop_.c_str());
   const int rc = remote_->stop(SIGTERM);
   EXPECT_EQ(rc, 0);

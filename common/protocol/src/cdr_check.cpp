@@ -383,6 +383,12 @@ bool cdr_fits(std::type_identity<msg::ControllerStatus>, const CdrPayload& p) no
       w.string(foresight_msg_MAX_TEXT);  // stop_reason
       w.prim(kI4);                       // fault_bits
       w.string(foresight_msg_MAX_TEXT);  // fault_text
+      w.seq(foresight_msg_MAX_JOINTS, [&] {  // drives
+        w.prim(kI2);     // joint
+        w.prim(1);       // node_id
+        w.prim(kEnum8);  // state
+        w.prim(kBool);   // powered
+      });
     });
   });
 }

@@ -54,7 +54,10 @@ const char* enum_error(const msg::ToolState& t, char* buf, std::size_t size) noe
 
 const char* enum_error(const msg::ControllerStatus& s, char* buf, std::size_t size) noexcept {
   if (const char* e = past(s.mode, foresight_msg_MODE_FAULT, "mode", buf, size)) return e;
-  return past(s.stop_category, foresight_msg_STOP_CAT2, "stop_category", buf, size);
+  if (const char* e = past(s.stop_category, foresight_msg_STOP_CAT2, "stop_category", buf, size)) return e;
+  for (const auto& d : view(s.drives))
+    if (const char* e = past(d.state, foresight_msg_DRIVE_UNKNOWN, "drives[].state", buf, size)) return e;
+  return nullptr;
 }
 
 const char* enum_error(const msg::Heartbeat& h, char* buf, std::size_t size) noexcept {
@@ -184,6 +187,21 @@ const char* to_string(msg::ControllerMode value) noexcept {
     case foresight_msg_MODE_FAULT: return "MODE_FAULT";
   }
   return "UNKNOWN";
+}
+
+const char* drive_state_name(msg::DriveState value) noexcept {
+  switch (value) {
+    case foresight_msg_DRIVE_NOT_READY_TO_SWITCH_ON: return "not_ready_to_switch_on";
+    case foresight_msg_DRIVE_SWITCH_ON_DISABLED: return "switch_on_disabled";
+    case foresight_msg_DRIVE_READY_TO_SWITCH_ON: return "ready_to_switch_on";
+    case foresight_msg_DRIVE_SWITCHED_ON: return "switched_on";
+    case foresight_msg_DRIVE_OPERATION_ENABLED: return "operation_enabled";
+    case foresight_msg_DRIVE_QUICK_STOP_ACTIVE: return "quick_stop_active";
+    case foresight_msg_DRIVE_FAULT_REACTION_ACTIVE: return "fault_reaction_active";
+    case foresight_msg_DRIVE_FAULT: return "fault";
+    case foresight_msg_DRIVE_UNKNOWN: return "unknown";
+  }
+  return "unknown";
 }
 
 const char* to_string(msg::StopCategory value) noexcept {

@@ -167,6 +167,10 @@ TEST(CdrCheck, CommandAckAndStatusAtEveryLengthFit) {
     c->mode = foresight_msg_MODE_STOPPED;
     fp::set_text(c->stop_reason, text_of(nt), "stop_reason");
     fp::set_text(c->fault_text, text_of(nt == 0 ? 3 : nt - 1), "fault_text");
+    std::vector<msg::DriveStatus> drives(nt == 0 ? 0 : 7);
+    for (std::size_t j = 0; j < drives.size(); ++j)
+      drives[j] = {static_cast<std::uint16_t>(j + 1), static_cast<std::uint8_t>(j + 1), foresight_msg_DRIVE_FAULT, false};
+    fp::assign(c->drives, std::span<const msg::DriveStatus>(drives), msg::kMaxJoints, "drives");
     expect_exact(*c, "ControllerStatus texts " + std::to_string(nt));
   }
 }

@@ -3,6 +3,7 @@
 
 #include "format.hpp"
 #include "foresight/common/plan.hpp"
+#include "foresight/protocol/codec.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -211,6 +212,14 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
     j["stop_reason"] = s.stop_reason;
     j["fault_bits"] = s.fault_bits;
     j["status_age_s"] = st->age_s;
+    // Each drive as it reported itself (CiA 402 state from its statusword).
+    nlohmann::json drives = nlohmann::json::array();
+    for (const auto& d : s.drives)
+      drives.push_back({{"joint", d.joint},
+                        {"node_id", d.node_id},
+                        {"state", protocol::drive_state_name(static_cast<protocol::msg::DriveState>(d.state))},
+                        {"powered", d.powered}});
+    j["drives"] = drives;
     if (s.fault_bits != 0 || !s.fault_text.empty())
       faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
     if (s.stop_category != control::StopCategory::None)
@@ -218,6 +227,7 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
                        (s.stop_reason.empty() ? "" : ": " + s.stop_reason));
   } else {
     j["state"] = "unknown";
+    j["drives"] = nlohmann::json::array();
   }
   if (const auto t = link.tool()) {
     const auto& v = t->value;

@@ -99,7 +99,9 @@ double planned_goto_duration_s(const RobotModel& model, const std::vector<double
 /// The status object of `foresight status --json` (keys: rtt_s{median, p95,
 /// p99, max, count, share_over_0_5s, share_over_4s}, clock_offset_s,
 /// joints_rad[], joints_age_s, state, active_command_id, stop_category,
-/// stop_reason, faults[], tool{...}, wrench{...}, remote_alive).
+/// stop_reason, faults[], tool{...}, wrench{...}, remote_alive, drives[]: per
+/// joint {joint, node_id, state, powered} as the drive reported itself, state
+/// in CiA 402 snake case or "unknown" while the drive is silent).
 nlohmann::json status_json(const ground_link::GroundLink& link);
 
 }  // namespace foresight::cli

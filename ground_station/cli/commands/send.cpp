@@ -90,8 +90,8 @@ const bool registered = register_command(
        sub.add_option("--upload-timeout", o->upload_timeout_s, "seconds to wait for COMMITTED (default: derived)")
            ->check(check::PositiveNumber);
        sub.add_option("--start-tolerance", o->start_tolerance_rad,
-                      "max |q_actual - q(0)| to start, rad (0: the remote's default)")
-           ->check(check::NonNegativeNumber);
+                      "max |q_actual - q(0)| to start, rad, at most 0.02 (0: the remote's default)")
+           ->check(check::Range(0.0, kMaxStartToleranceRad));
        sub.add_option("--robot", o->robot, "robot URDF")->capture_default_str();
        add_link_options(sub, o->link);
        return [o] {

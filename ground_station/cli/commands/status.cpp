@@ -41,6 +41,13 @@ int run(const Options& o) {
   if (j.contains("active_command_id") && j["active_command_id"].get<std::uint64_t>() != 0)
     std::printf(", running command %llu", static_cast<unsigned long long>(j["active_command_id"].get<std::uint64_t>()));
   std::printf("\n");
+  if (!j["drives"].empty()) {
+    std::printf("drives:");
+    for (const auto& d : j["drives"])
+      std::printf(" %d:%s%s", d["joint"].get<int>(), d["state"].get<std::string>().c_str(),
+                  d["powered"].get<bool>() ? "(powered)" : "");
+    std::printf("\n");
+  }
   if (!j["joints_rad"].empty()) {
     std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
     for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);

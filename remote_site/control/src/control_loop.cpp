@@ -73,6 +73,8 @@ void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& f
     in.dq_drive[j] = fb.joints[j].velocity_rad_s;
     in.dq_drive_cycle[j] = fb.joints[j].velocity_cycle;
     enabled = enabled && fb.joints[j].state == hw::canopen::PowerState::OperationEnabled;
+    in.drive_state[j] =
+        fb.joints[j].state_known ? static_cast<std::uint8_t>(fb.joints[j].state) : kDriveStateUnknown;
   }
   in.drives_enabled = enabled;
   in.wrench_ft = ft.wrench_ft;
@@ -235,7 +237,7 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
 
   controller_->step(in_, out_);
 
-  if (out_.quick_stop) drives_.request_quick_stop();
+  if (out_.power_off) drives_.request_power_off();
   if (out_.tare_samples > 0) drives_.request_tare(out_.tare_samples);
   for (std::size_t j = 0; j < dof_; ++j) targets_.position_rad[j] = out_.q_cmd[j];
   drives_.cycle_write(targets_);

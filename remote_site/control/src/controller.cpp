@@ -41,7 +41,8 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   ft_link_ = model.link_index("ft_sensor");
   if (ft_link_ < 0) throw std::invalid_argument("controller: the robot model has no link 'ft_sensor'");
   tip_link_ = model.tip_index();
-  if (!finite_pos(config.start_tolerance_rad)) throw std::invalid_argument("start_tolerance_rad must be > 0");
+  if (!finite_pos(config.start_tolerance_rad) || config.start_tolerance_rad > kMaxStartToleranceRad)
+    throw std::invalid_argument("start_tolerance_rad must be in (0, 0.02] rad");
   if (!(config.position_margin_rad >= 0.0)) throw std::invalid_argument("position_margin_rad must be >= 0");
   if (!finite_pos(config.velocity_limit_fraction) || config.velocity_limit_fraction > 1.0)
     throw std::invalid_argument("velocity_limit_fraction must be in (0, 1]");
@@ -339,8 +340,8 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   pending_stop_category_ = cat;
   hold_compliant_ = false;
   if (cat == StopCategory::Cat0) {
-    quick_stop_now_ = true;
-    q_cmd_ = q_;  // the drives ramp down by themselves; targets follow the arm
+    power_off_now_ = true;
+    q_cmd_ = q_;  // power is off: the targets follow the arm
     v_cmd_ = JointArray{};
     mode_ = ControllerMode::Fault;
     if (drives_enabled_ && !drive_request_pending_) {
@@ -367,6 +368,7 @@ void Controller::controlled_stop_step() noexcept {
   }
   if (rest) {
     if (pending_stop_category_ == StopCategory::Cat1) {
+      power_off_now_ = true;  // then power off, as for Cat0
       mode_ = ControllerMode::Fault;
       if (drives_enabled_ && !drive_request_pending_) {
         drive_request_pending_ = true;
@@ -524,7 +526,7 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   cycle_ = in.cycle;
   stamp_ns_ = in.stamp_ns;
   estop_ = in.estop;
-  out.quick_stop = false;
+  out.power_off = false;
   out.tare_samples = 0;
   out.drive_request = DriveRequest::None;
   out.stop = nullptr;
@@ -662,9 +664,9 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   if (powered && mode_ != ControllerMode::Fault && mode_ != ControllerMode::Disabled) check_safety(in);
 
   // Outputs.
-  if (quick_stop_now_) {
-    out.quick_stop = true;
-    quick_stop_now_ = false;
+  if (power_off_now_) {
+    out.power_off = true;
+    power_off_now_ = false;
   }
   if (drive_request_pending_ && !drive_request_issued_) {
     out.drive_request = pending_request_;
@@ -704,6 +706,7 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   t.wrench_tool = wrench_tool_;
   t.ft_saturated = in.ft_saturated_mask != 0;
   t.drives_enabled = in.drives_enabled;
+  t.drive_state = in.drive_state;
   t.mode = mode_;
   t.active_command_id = active_id_;
   t.algorithm = active_ == Active::Algorithm ? algo_.kind() : AlgorithmKind::None;

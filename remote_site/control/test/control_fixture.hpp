@@ -44,6 +44,7 @@ struct Bench {
   Eigen::Matrix3d tare_R = Eigen::Matrix3d::Identity();
   std::vector<MotionEvent> events;
   std::vector<StopEvent> stops;
+  int power_offs = 0;  ///< cycles whose outputs asked for DriveSystem::request_power_off()
   double peak_contact_n = 0.0;
   Pose last_tip = Pose::Identity();
   void (*arm)(bool) = nullptr;  ///< allocation counting around the controller's calls only
@@ -96,6 +97,7 @@ struct Bench {
     if (arm) arm(false);
     for (std::size_t i = 0; i < out.event_count; ++i) events.push_back(out.events[i]);
     if (out.stop != nullptr) stops.push_back(*out.stop);
+    power_offs += out.power_off;
     if (out.drive_request == DriveRequest::Enable) {
       in.drives_enabled = true;
       if (arm) arm(true);

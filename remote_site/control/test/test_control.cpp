@@ -502,9 +502,11 @@ class ControllerFaults : public ::testing::Test {
     if (cat == StopCategory::Cat2) {
       EXPECT_EQ(b.ctl->mode(), ControllerMode::Stopped);
       EXPECT_TRUE(b.in.drives_enabled);
+      EXPECT_EQ(b.power_offs, 0);  // power stays on: the arm holds
     } else {
       EXPECT_EQ(b.ctl->mode(), ControllerMode::Fault);
       EXPECT_FALSE(b.in.drives_enabled);
+      EXPECT_EQ(b.power_offs, 1);  // Cat0 at once, Cat1 once at rest: Disable Voltage to every drive
     }
     const JointArray still = b.out.q_cmd;
     b.step();
@@ -525,7 +527,7 @@ TEST_F(ControllerFaults, EStopIsCat0AndRecoverNeedsItReleased) {
   start_motion(b);
   b.in.estop = true;
   b.step();
-  EXPECT_TRUE(b.out.quick_stop);
+  EXPECT_TRUE(b.out.power_off);
   expect_stop(b, StopCause::EStop, StopCategory::Cat0);
   EXPECT_EQ(b.stops[0].command_id, id_);
   bool canceled = false;
@@ -551,7 +553,7 @@ TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
   inject_drive_emergency(b);
   b.in.hw_code = 0x8611;
   b.step();
-  EXPECT_TRUE(b.out.quick_stop);
+  EXPECT_TRUE(b.out.power_off);
   expect_stop(b, StopCause::DriveFault, StopCategory::Cat0);
   EXPECT_EQ(b.stops[0].hw_code, 0x8611u);
   EXPECT_STREQ(b.stops[0].text.data(),

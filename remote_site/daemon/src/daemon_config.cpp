@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "foresight/common/text_file.hpp"
+#include "foresight/common/trajectory.hpp"
 #include "foresight/common/yaml_util.hpp"
 
 namespace foresight::remote {
@@ -36,6 +37,9 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
                 "default_algorithm_timeout_s", "control_lease_s"});
   c.start_tolerance_rad = positive(s, "start_tolerance_rad", c.start_tolerance_rad);
+  if (c.start_tolerance_rad > kMaxStartToleranceRad)
+    s.fail_key("start_tolerance_rad", "must be at most 0.02 rad (a larger start offset would jump the arm: plan an approach "
+                                          "segment)");
   c.estop_file = s.get_or<std::string>("estop_file", c.estop_file);
   c.tool_poll_hz = positive(s, "tool_poll_hz", c.tool_poll_hz);
   c.default_algorithm_timeout_s = positive(s, "default_algorithm_timeout_s", c.default_algorithm_timeout_s);

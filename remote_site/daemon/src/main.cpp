@@ -234,6 +234,7 @@ int run_daemon(const Options& o) {
   parts.tool = &tool;
   parts.camera = camera.get();
   parts.camera_names = site.camera_names;
+  for (const auto& d : site.hw_config.drives) parts.drive_nodes.push_back(d.node_id);
   parts.outbox.ack = [&](const control::Ack& a) { if (link_ptr) link_ptr->ack(a); };
   parts.outbox.joints = [&](const control::JointReport& r) { if (link_ptr) link_ptr->publish(r); };
   parts.outbox.wrench = [&](const control::WrenchReport& r) { if (link_ptr) link_ptr->publish(r); };

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "foresight/protocol/codec.hpp"
 #include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/lst_server.hpp"
 #include "foresight/sim/plant.hpp"
@@ -99,9 +100,11 @@ void SimFaultWatcher::run() {
 void SimFaultWatcher::write_record() {
   site_.simulated->can->joint_positions_rad(q_);
   std::error_code ec;
+  auto& can = *site_.simulated->can;
   if (fs::remove(fs::path(dir_) / "drive_record_mark", ec)) {
     lo_ = q_;
     hi_ = q_;
+    for (std::size_t j = 0; j < can.drive_count(); ++j) can.drive(j).clear_power_record();
     ++marks_;
   }
   for (std::size_t j = 0; j < q_.size(); ++j) {
@@ -116,6 +119,12 @@ void SimFaultWatcher::write_record() {
     out << seq_ << ' ' << marks_;
     for (const auto* v : {&q_, &lo_, &hi_})
       for (double x : *v) out << ' ' << x;
+    out << "\npower";
+    for (std::size_t j = 0; j < can.drive_count(); ++j) {
+      const sim::DrivePowerRecord r = can.drive(j).power_record();
+      out << ' ' << protocol::drive_state_name(static_cast<protocol::msg::DriveState>(r.state)) << ' '
+          << (r.powered ? 1 : 0) << ' ' << r.states_seen;
+    }
     out << '\n';
     if (!out) return;
   }

@@ -11,6 +11,12 @@
 #include <filesystem>
 
 #include "foresight/common/plan.hpp"
+#include "foresight/hw/canopen.hpp"
+
+// Telemetry's drive_state is the PowerState value (protocol DriveState numbering, remote_link/convert.cpp).
+static_assert(static_cast<int>(foresight::hw::canopen::PowerState::OperationEnabled) == 4 &&
+              static_cast<int>(foresight::hw::canopen::PowerState::QuickStopActive) == 5 &&
+              static_cast<int>(foresight::hw::canopen::PowerState::Fault) == 7);
 #include "foresight/remote/algorithm_params.hpp"
 
 namespace foresight::remote {
@@ -367,7 +373,7 @@ void Supervisor::dispatch(const control::Command& c) {
       if (err > tol) {
         reject(c, Reason::StartMismatch,
                "the trajectory starts " + fmt("%.4f rad from the arm at joint ", err) + std::to_string(joint + 1) +
-                   fmt(" (tolerance %.4f rad)", tol));
+                   fmt(" (tolerance %.4f rad): plan an approach segment (a GOTO_JOINT to its first sample)", tol));
         return;
       }
     }
@@ -394,9 +400,12 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c,
                   " differs from the committed upload's " + to_hex(upload_hash_[p.trajectory_id]);
         return nullptr;
       }
-      if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) || p.start_tolerance_rad > 0.5) {
+      if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) ||
+          p.start_tolerance_rad > kMaxStartToleranceRad) {
         *code = Reason::BadArgument;
-        *reason = fmt("start_tolerance_rad %g out of range [0, 0.5]", p.start_tolerance_rad);
+        *reason = fmt("start_tolerance_rad %g out of range [0, ", p.start_tolerance_rad) +
+                  fmt("%g] rad: a larger start offset would jump the arm; plan an approach segment (a GOTO_JOINT to "
+                      "the first sample)", kMaxStartToleranceRad);
         return nullptr;
       }
       job->kind = JobKind::Trajectory;
@@ -966,6 +975,18 @@ control::StatusReport Supervisor::status_report() const {
   if (!text.empty()) text.resize(text.size() - 2);
   s.fault_bits = bits;
   s.fault_text = text;
+  // The drives as they reported themselves (their statusword), not the
+  // controller's belief: what a category 0 stop must show unpowered.
+  const std::size_t joints = std::min<std::size_t>(have_telemetry_ ? latest_.joints : 0, control::kMaxJoints);
+  for (std::size_t j = 0; j < joints; ++j) {
+    control::DriveReport d;
+    d.joint = static_cast<int>(j + 1);
+    d.node_id = j < p_.drive_nodes.size() ? p_.drive_nodes[j] : 0;
+    d.state = latest_.drive_state[j] < control::kDriveStateUnknown ? latest_.drive_state[j] : control::kDriveStateUnknown;
+    d.powered = d.state != control::kDriveStateUnknown &&
+                hw::canopen::power_enabled(static_cast<hw::canopen::PowerState>(d.state));
+    s.drives.push_back(d);
+  }
   return s;
 }
 

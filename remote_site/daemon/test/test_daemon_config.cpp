@@ -70,6 +70,13 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
             "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s)");
+  // Issue 25: a start tolerance above 0.02 rad let a trajectory jump the arm.
+  EXPECT_EQ(error_of("controller:\n  start_tolerance_rad: 2.5\n"),
+            "r.yaml:2: controller.start_tolerance_rad: must be at most 0.02 rad (a larger start offset would jump "
+            "the arm: plan an approach segment)");
+  EXPECT_EQ(error_of("controller:\n  start_tolerance_rad: 0.0201\n"),
+            "r.yaml:2: controller.start_tolerance_rad: must be at most 0.02 rad (a larger start offset would jump "
+            "the arm: plan an approach segment)");
   EXPECT_EQ(error_of("controller:\n  link:\n    loss_policy: panic\n"),
             "r.yaml:3: controller.link.loss_policy: 'panic' is not a policy (expected finish_and_hold or stop)");
   EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: -5\n"),

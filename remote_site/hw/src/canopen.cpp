@@ -155,6 +155,11 @@ const char* to_string(PowerState s) noexcept {
   return "?";
 }
 
+bool power_enabled(PowerState s) noexcept {
+  return s == PowerState::SwitchedOn || s == PowerState::OperationEnabled || s == PowerState::QuickStopActive ||
+         s == PowerState::FaultReactionActive;
+}
+
 PowerState decode_statusword(std::uint16_t sw) noexcept {
   if ((sw & 0x4F) == 0x00) return PowerState::NotReadyToSwitchOn;
   if ((sw & 0x4F) == 0x40) return PowerState::SwitchOnDisabled;

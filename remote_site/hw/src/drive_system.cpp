@@ -166,8 +166,9 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
 }
 
 DriveSystem::~DriveSystem() {
-  // Best effort, never throws: leave enabled drives in quick stop (they
-  // decelerate and hold) rather than following a target nobody updates.
+  // Best effort, never throws: leave enabled drives in quick stop (they ramp
+  // down, then power off: 0x605A is 1 or 2, sdo_list.cpp) rather than
+  // following a target nobody updates.
   if (!configured_ || !enabled_) return;
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
     for (std::size_t j : bus_state_[bi].drives) {
@@ -328,6 +329,7 @@ void DriveSystem::configure() {
     d.miss_reported = false;
     d.controlword = controlword::kDisableVoltage;
     d.have_actual = false;
+    d.st.state_known = false;
   }
   if (ft_) {
     nmt(static_cast<std::size_t>(ft_->cfg.bus_index), NmtCommand::Start, ft_->cfg.node_id);
@@ -384,6 +386,7 @@ void DriveSystem::run_cycle_blocking(Clock::time_point& deadline, JointFeedback&
 void DriveSystem::enable() {
   if (!configured_) throw HwError("enable(): configure() has not succeeded");
   quick_stop_.store(false);
+  power_off_.store(false);
   const auto start = Clock::now();
   for (Drive& d : drives_)
     if (d.st.heartbeat_lost) {
@@ -562,14 +565,14 @@ void DriveSystem::disable() {
   for (;;) {
     for (std::size_t j = 0; j < drives_.size(); ++j) {
       Drive& d = drives_[j];
-      d.controlword = controlword::kShutdown;
+      d.controlword = controlword::kDisableVoltage;
       if (d.have_actual) d.target_counts = d.st.position_counts;
       t.position_rad[j] = d.cfg.to_rad(d.target_counts);
     }
     cycle_write(t);
     run_cycle_blocking(deadline, fb, status);
     bool all = true;
-    for (const Drive& d : drives_) all = all && d.have_actual && d.st.state != PowerState::OperationEnabled;
+    for (const Drive& d : drives_) all = all && d.have_actual && !power_enabled(d.st.state);
     if (all) break;
     if (Clock::now() > end) {
       // Not silently: a drive that never answered may still be enabled.
@@ -578,8 +581,8 @@ void DriveSystem::disable() {
       for (const Drive& d : drives_) {
         if (!d.have_actual)
           msg += " " + node_label(d.bus, d.node) + " never answered (no TPDO; state unknown, may still be enabled);";
-        else if (d.st.state == PowerState::OperationEnabled)
-          msg += " " + node_label(d.bus, d.node) + " stayed in 'Operation enabled' (statusword " +
+        else if (power_enabled(d.st.state))
+          msg += " " + node_label(d.bus, d.node) + " still powered in '" + to_string(d.st.state) + "' (statusword " +
                  hex(d.st.statusword, 4) + ");";
       }
       throw HwError(msg);  // enabled_ stays true: the destructor still sends quick stop
@@ -608,6 +611,7 @@ void DriveSystem::cycle_write(const JointTargets& targets) noexcept { cycle_writ
 void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now) noexcept {
   if (!configured_) return;  // nothing is sent to nodes that configure() has not checked
   const bool quick_stop = quick_stop_.load(std::memory_order_acquire);
+  const bool power_off = power_off_.load(std::memory_order_acquire);
   const bool send_heartbeat = now - last_master_hb_ >= master_hb_period_;
   if (send_heartbeat) last_master_hb_ = now;
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
@@ -651,6 +655,7 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
         d.target_counts = counts;
       }
       if (quick_stop && enabled_) d.controlword = controlword::kQuickStop;
+      if (power_off) d.controlword = controlword::kDisableVoltage;  // category 0 wins over everything
       can_frame f{};
       f.can_id = kRpdo1Base + d.node;
       f.can_dlc = 6;
@@ -715,6 +720,7 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       d.st.torque_nm = torque_pm * 1e-3 * d.rated_torque_nm * d.cfg.gear_ratio * d.cfg.direction;
       d.st.state = decode_statusword(d.st.statusword);
       d.st.fresh = true;
+      d.st.state_known = true;
       d.have_actual = true;
       if ((d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive) &&
           before != PowerState::Fault && before != PowerState::FaultReactionActive)
@@ -885,6 +891,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
                   static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - d.last_hb).count()),
                   0});
     }
+    if (d.st.heartbeat_lost || d.miss_reported) d.st.state_known = false;  // a TPDO makes it known again
     if (d.st.heartbeat_lost || d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive ||
         d.miss_reported) {
       if (active++ == 0) {

@@ -88,6 +88,12 @@ DriveInfo NodeConfigurator::configure_drive(const DriveSetup& s) {
       write_verified(n, e);
       ++info.verified;
     }
+  // The drive's own quick stop must end without power (sdo_list.cpp): a
+  // drive whose default the file left alone is checked here.
+  if (const auto qs = static_cast<std::int16_t>(sdo_.read(n, od::kQuickStopOption, 0)); qs != 1 && qs != 2)
+    throw HwError(label_(n) + ": quick stop option code 0x605A:00 is " + std::to_string(qs) +
+                  "; the master's stop handling needs 1 or 2 (ramp, then Switch on disabled): set it in the "
+                  "drive's SDO file");
   write_checked(n, od::kProducerHeartbeat, 0, s.producer_heartbeat_ms, 2, false, info);
   // The drive watches the master's heartbeat: a silent master triggers the
   // abort-connection option (0x6007) instead of leaving it following a stale target.

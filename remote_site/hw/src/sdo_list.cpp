@@ -20,6 +20,66 @@ bool parse_int(const std::string& s, long long& out) {
     return false;
   }
 }
+/// Objects the master writes itself at every boot (node_config.cpp, from
+/// remote.yaml and the URDF): a file that wrote them too would be silently
+/// overwritten, or would fight the cycle. Name, or nullptr when not one.
+const char* master_owned(std::uint16_t index) noexcept {
+  switch (index) {
+    case 0x1005: return "SYNC COB-ID";
+    case 0x1006: return "communication cycle period";
+    case 0x1016: return "consumer heartbeat time";
+    case 0x1017: return "producer heartbeat time";
+    case 0x1019: return "SYNC counter overflow";
+    case 0x6040: return "controlword";
+    case 0x6060: return "modes of operation";
+    case 0x6065: return "following error window";
+    case 0x6066: return "following error time out";
+    case 0x607A: return "target position";
+    case 0x607D: return "software position limit";
+    case 0x607F: return "max profile velocity";
+    case 0x60C2: return "interpolation time period";
+    default: break;
+  }
+  if (index >= 0x1400 && index <= 0x1BFF) return "PDO communication or mapping";
+  return nullptr;
+}
+
+/// The objects that govern how a drive stops, checked against what the
+/// master's stop handling relies on (docs/control.md, stop table): throws
+/// InputError naming the line, the object and the allowed values.
+void check_stop_object(const SdoEntry& e, long long v, const std::string& source, int n) {
+  auto refuse = [&](const char* what, const std::string& allowed) {
+    char obj[16];
+    std::snprintf(obj, sizeof obj, "0x%04X:%02X", e.index, e.sub);
+    throw InputError(source, n, std::string(what) + " " + obj + " = " + std::to_string(v) + " " + allowed);
+  };
+  switch (e.index) {
+    case 0x605A:  // quick stop option code
+      // The master stops category 0 with Disable Voltage, and uses Quick
+      // Stop only when it shuts down with the drives enabled: the drive must
+      // then end without power, never hold in Quick stop active with nobody
+      // commanding it.
+      if (v != 1 && v != 2)
+        refuse("quick stop option code",
+               "contradicts the master's stop handling: allowed 1 or 2 (ramp, then Switch on disabled: power off)");
+      return;
+    case 0x605E:  // fault reaction option code
+      if (v < 0 || v > 2) refuse("fault reaction option code", "is outside 0..2 (coast, or ramp; then Fault)");
+      return;
+    case 0x6007:  // abort connection option code
+      if (v < 1 || v > 3)
+        refuse("abort connection option code",
+               "is outside 1..3 (fault, disable voltage, quick stop): with 0 a drive whose master died keeps "
+               "following its last target");
+      return;
+    case 0x6084:  // profile deceleration (the slow-down ramp)
+    case 0x6085:  // quick stop deceleration
+      if (v <= 0) refuse(e.index == 0x6084 ? "profile deceleration" : "quick stop deceleration",
+                         "must be above 0 counts/s^2 (a zero ramp never stops)");
+      return;
+    default: return;
+  }
+}
 }  // namespace
 
 std::vector<SdoEntry> parse_sdo_list(const std::string& text, const std::string& source) {
@@ -69,6 +129,10 @@ std::vector<SdoEntry> parse_sdo_list(const std::string& text, const std::string&
                                       std::to_string(hi) + ")");
     const std::uint64_t mask = bits == 32 ? 0xFFFFFFFFull : ((1ull << bits) - 1);
     e.value = static_cast<std::uint32_t>(static_cast<std::uint64_t>(v) & mask);
+    if (const char* owned = master_owned(e.index); owned != nullptr && !e.expect_only)
+      throw InputError(source, n, "object " + object + " (" + owned +
+                                      ") is written by the master itself at every boot; remove it from the file");
+    check_stop_object(e, v, source, n);
     out.push_back(e);
   }
   return out;

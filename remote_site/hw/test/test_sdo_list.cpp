@@ -24,12 +24,12 @@ std::string error_of(const std::string& text) {
 
 TEST(SdoList, ParsesWritesAndExpectsWithTheirTypes) {
   const auto l = parse_sdo_list(
-      "# comment\n\n0x605A:00 i16 6   # quick stop\nexpect 0x1018:01 u32 0x00F0E5E7\n0x60C2:02 i8 -3\n0x1A00:1A u8 255\n",
+      "# comment\n\n0x605A:00 i16 2   # quick stop\nexpect 0x1018:01 u32 0x00F0E5E7\n0x2000:02 i8 -3\n0x2001:1A u8 255\n",
       "d.sdo");
   ASSERT_EQ(l.size(), 4u);
   EXPECT_EQ(l[0].index, 0x605A);
   EXPECT_EQ(l[0].sub, 0);
-  EXPECT_EQ(l[0].value, 6u);
+  EXPECT_EQ(l[0].value, 2u);
   EXPECT_EQ(l[0].size, 2);
   EXPECT_TRUE(l[0].is_signed);
   EXPECT_FALSE(l[0].expect_only);
@@ -55,6 +55,49 @@ TEST(SdoList, BadLinesAreNamedWithFileAndLine) {
   EXPECT_EQ(error_of("expect\n"), "d.sdo:1: 'expect' needs index:sub type value");
 }
 
+// The objects that govern stopping, against the master's stop handling
+// (category 0 is Disable Voltage; quick stop only when the master leaves,
+// and it must end without power): refused at load, naming the line.
+TEST(SdoList, StopObjectsMustMatchTheMastersStopHandling) {
+  EXPECT_EQ(error_of("0x605A:00 i16 6\n"),
+            "d.sdo:1: quick stop option code 0x605A:00 = 6 contradicts the master's stop handling: allowed 1 or 2 "
+            "(ramp, then Switch on disabled: power off)");
+  EXPECT_EQ(error_of("\nexpect 0x605A:00 i16 5\n"),
+            "d.sdo:2: quick stop option code 0x605A:00 = 5 contradicts the master's stop handling: allowed 1 or 2 "
+            "(ramp, then Switch on disabled: power off)");
+  EXPECT_EQ(error_of("0x605A:00 i16 0\n"),
+            "d.sdo:1: quick stop option code 0x605A:00 = 0 contradicts the master's stop handling: allowed 1 or 2 "
+            "(ramp, then Switch on disabled: power off)");
+  EXPECT_EQ(error_of("0x6007:00 i16 0\n"),
+            "d.sdo:1: abort connection option code 0x6007:00 = 0 is outside 1..3 (fault, disable voltage, quick "
+            "stop): with 0 a drive whose master died keeps following its last target");
+  EXPECT_EQ(error_of("0x605E:00 i16 -1\n"),
+            "d.sdo:1: fault reaction option code 0x605E:00 = -1 is outside 0..2 (coast, or ramp; then Fault)");
+  EXPECT_EQ(error_of("0x6085:00 u32 0\n"),
+            "d.sdo:1: quick stop deceleration 0x6085:00 = 0 must be above 0 counts/s^2 (a zero ramp never stops)");
+  EXPECT_EQ(error_of("0x6084:00 u32 0\n"),
+            "d.sdo:1: profile deceleration 0x6084:00 = 0 must be above 0 counts/s^2 (a zero ramp never stops)");
+  EXPECT_EQ(parse_sdo_list("0x605A:00 i16 1\n0x6007:00 i16 3\n0x605E:00 i16 0\n", "d.sdo").size(), 3u);
+}
+
+// What the master writes itself at every boot cannot be in the file (it would
+// be overwritten, or fight the cycle); reading it back with `expect` is fine.
+TEST(SdoList, ObjectsTheMasterWritesAreRefused) {
+  EXPECT_EQ(error_of("0x6040:00 u16 15\n"),
+            "d.sdo:1: object 0x6040:00 (controlword) is written by the master itself at every boot; remove it from "
+            "the file");
+  EXPECT_EQ(error_of("0x607A:00 i32 1000\n"),
+            "d.sdo:1: object 0x607A:00 (target position) is written by the master itself at every boot; remove it "
+            "from the file");
+  EXPECT_EQ(error_of("0x1A01:01 u32 0x60640020\n"),
+            "d.sdo:1: object 0x1A01:01 (PDO communication or mapping) is written by the master itself at every "
+            "boot; remove it from the file");
+  EXPECT_EQ(error_of("0x1016:01 u32 0x007F00C8\n"),
+            "d.sdo:1: object 0x1016:01 (consumer heartbeat time) is written by the master itself at every boot; "
+            "remove it from the file");
+  EXPECT_EQ(parse_sdo_list("expect 0x6060:00 i8 8\n", "d.sdo").size(), 1u);
+}
+
 TEST(SdoList, TheProjectConfigLoadsEachDrivesFile) {
   const RemoteConfig c = load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
   EXPECT_EQ(c.interpolation_exponent, -3);
@@ -65,7 +108,7 @@ TEST(SdoList, TheProjectConfigLoadsEachDrivesFile) {
     bool quick_stop = false;
     for (const SdoEntry& e : d.sdo_entries) {
       expects += e.expect_only;
-      if (e.index == 0x605A) quick_stop = e.value == 6;
+      if (e.index == 0x605A) quick_stop = e.value == 2;
     }
     EXPECT_EQ(expects, 3) << d.joint;  // 0x1018:01..03
     EXPECT_TRUE(quick_stop) << d.joint;

@@ -22,6 +22,9 @@ using protocol::view;
 
 // The control enums mirror the IDL's order and values (control/command.hpp).
 static_assert(static_cast<int>(control::CommandKind::Abort) == foresight_msg_CMD_ABORT);
+// Drive states travel as their CiA 402 value (hw::canopen::PowerState, checked in supervisor.cpp).
+static_assert(control::kDriveStateUnknown == foresight_msg_DRIVE_UNKNOWN && foresight_msg_DRIVE_FAULT == 7 &&
+              foresight_msg_DRIVE_OPERATION_ENABLED == 4 && foresight_msg_DRIVE_QUICK_STOP_ACTIVE == 5);
 static_assert(static_cast<int>(control::CommandKind::TakeControl) == foresight_msg_CMD_TAKE_CONTROL);
 static_assert(static_cast<int>(control::CommandKind::ReleaseControl) == foresight_msg_CMD_RELEASE_CONTROL);
 static_assert(static_cast<int>(control::CommandKind::Recover) == foresight_msg_CMD_RECOVER);
@@ -378,7 +381,7 @@ void to_wire(msg::ToolState& out, const control::ToolReport& r) noexcept {
   out.fault_bits = r.fault_bits;
 }
 
-void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) noexcept {
+void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) {
   out.stamp_ns = r.stamp_ns;
   out.mode = static_cast<msg::ControllerMode>(r.mode);
   out.active_command_id = r.active_command_id;
@@ -388,6 +391,16 @@ void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) noexcep
   protocol::set_text_truncated(out.stop_reason, r.stop_reason);
   out.fault_bits = r.fault_bits;
   protocol::set_text_truncated(out.fault_text, r.fault_text);
+  std::array<msg::DriveStatus, msg::kMaxJoints> drives{};
+  const std::size_t n = std::min<std::size_t>(r.drives.size(), drives.size());
+  for (std::size_t j = 0; j < n; ++j) {
+    const control::DriveReport& d = r.drives[j];
+    drives[j].joint = static_cast<std::uint16_t>(d.joint);
+    drives[j].node_id = static_cast<std::uint8_t>(d.node_id);
+    drives[j].state = static_cast<msg::DriveState>(std::min<std::uint8_t>(d.state, control::kDriveStateUnknown));
+    drives[j].powered = d.powered;
+  }
+  protocol::assign(out.drives, std::span<const msg::DriveStatus>(drives.data(), n), msg::kMaxJoints, "status drives");
 }
 
 control::JointReport from_wire(const msg::JointState& s) {
@@ -435,6 +448,8 @@ control::StatusReport from_wire(const msg::ControllerStatus& s) {
   out.stop_reason = std::string(text(s.stop_reason));
   out.fault_bits = s.fault_bits;
   out.fault_text = std::string(text(s.fault_text));
+  for (const auto& d : view(s.drives))
+    out.drives.push_back({d.joint, d.node_id, static_cast<std::uint8_t>(protocol::raw(d.state)), d.powered});
   return out;
 }
 

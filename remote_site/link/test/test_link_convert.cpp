@@ -221,10 +221,20 @@ TEST(LinkConvert, AcksAndReportsRoundTrip) {
   s.mode = control::ControllerMode::Stopped;
   s.stop_category = control::StopCategory::Cat1;
   s.stop_reason = "link lost";
+  s.drives = {{1, 1, 1, false}, {2, 2, 4, true}, {3, 5, control::kDriveStateUnknown, false}};
   fp::Sample<msg::ControllerStatus> cs;
   rl::to_wire(*cs, s);
+  ASSERT_EQ(cs->drives._length, 3u);
+  EXPECT_EQ(cs->drives._buffer[1].state, foresight_msg_DRIVE_OPERATION_ENABLED);
+  EXPECT_STREQ(fp::drive_state_name(cs->drives._buffer[0].state), "switch_on_disabled");
+  EXPECT_STREQ(fp::drive_state_name(cs->drives._buffer[2].state), "unknown");
   const auto sb = rl::from_wire(*cs);
   EXPECT_EQ(sb.mode, control::ControllerMode::Stopped);
   EXPECT_EQ(sb.stop_category, control::StopCategory::Cat1);
   EXPECT_EQ(sb.stop_reason, "link lost");
+  ASSERT_EQ(sb.drives.size(), 3u);
+  EXPECT_EQ(sb.drives[2].node_id, 5);
+  EXPECT_EQ(sb.drives[1].state, 4u);
+  EXPECT_TRUE(sb.drives[1].powered);
+  EXPECT_EQ(sb.drives[2].state, control::kDriveStateUnknown);
 }

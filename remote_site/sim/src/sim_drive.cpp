@@ -47,6 +47,21 @@ std::uint32_t SimDrive::following_error_window() const {
   std::lock_guard lock(mu_);
   return get(od::kFollowingErrorWindow, 0);
 }
+DrivePowerRecord SimDrive::power_record() const {
+  std::lock_guard lock(mu_);
+  DrivePowerRecord r;
+  r.state = state_;
+  r.powered = power_enabled(state_);
+  r.states_seen = states_seen_ | (1u << static_cast<unsigned>(state_));
+  r.syncs = syncs_;
+  r.power_off_sync = power_off_sync_;
+  r.power_off_at = power_off_at_;
+  return r;
+}
+void SimDrive::clear_power_record() {
+  std::lock_guard lock(mu_);
+  states_seen_ = 1u << static_cast<unsigned>(state_);
+}
 void SimDrive::inject_fault(std::uint16_t emcy_code) {
   std::lock_guard lock(mu_);
   injected_fault_ = true;
@@ -286,10 +301,17 @@ void SimDrive::quick_stop() {
 void SimDrive::on_tick(Clock::time_point now, FrameSink& out) {
   const double dt = last_tick_ == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(now - last_tick_).count();
   last_tick_ = now;
-  if (state_ == PowerState::FaultReactionActive) {  // the ramp runs on the drive's own clock, SYNC or not
+  // The stop ramps run on the drive's own clock, SYNC or not (a master that
+  // quick-stops and goes away sends no more SYNCs).
+  if (state_ == PowerState::FaultReactionActive) {
     const auto reaction = static_cast<std::int16_t>(get(od::kFaultReaction, 0));
     ramp(std::min(dt, 0.01), static_cast<double>(get(reaction == 1 ? 0x6084 : od::kQuickStopDeceleration, 0)));
     if (ramp_v_ == 0.0) state_ = PowerState::Fault;
+    update_statusword();
+  } else if (state_ == PowerState::QuickStopActive) {
+    const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
+    ramp(std::min(dt, 0.01), static_cast<double>(get(option == 1 || option == 5 ? 0x6084 : od::kQuickStopDeceleration, 0)));
+    if (ramp_v_ == 0.0 && (option == 1 || option == 2)) state_ = PowerState::SwitchOnDisabled;  // then power off
     update_statusword();
   }
   const std::uint32_t consumer = get(od::kConsumerHeartbeat, 1);
@@ -302,6 +324,7 @@ void SimDrive::on_tick(Clock::time_point now, FrameSink& out) {
                         state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::QuickStopActive;
     if (option == 1 && state_ != PowerState::Fault && state_ != PowerState::FaultReactionActive) {
       fault(0x8130, out);
+      update_statusword();
       return;
     }
     if (option == 2 && active) {
@@ -429,6 +452,13 @@ void SimDrive::step_physics(double dt) {
 }
 
 void SimDrive::update_statusword() {
+  states_seen_ |= 1u << static_cast<unsigned>(state_);
+  const bool powered = power_enabled(state_);
+  if (powered_ && !powered) {
+    power_off_sync_ = syncs_;
+    power_off_at_ = now_;
+  }
+  powered_ = powered;
   std::uint16_t sw = statusword_bits(state_);
   if (state_ == PowerState::OperationEnabled || state_ == PowerState::SwitchedOn ||
       state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::QuickStopActive)
@@ -475,11 +505,8 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
   last_sync_ = now;
   const bool homing_mode = static_cast<std::int8_t>(get(od::kModesOfOperation, 0)) == 6;
   if (homing_mode) step_homing(dt);
-  if (state_ == PowerState::QuickStopActive) {
-    const auto option = static_cast<std::int16_t>(get(od::kQuickStopOption, 0));
-    ramp(dt, static_cast<double>(get(option == 1 || option == 5 ? 0x6084 : od::kQuickStopDeceleration, 0)));
-    if (ramp_v_ == 0.0 && (option == 1 || option == 2)) state_ = PowerState::SwitchOnDisabled;  // then power off
-  } else if (state_ != PowerState::FaultReactionActive && !homing_mode) {
+  if (state_ != PowerState::QuickStopActive && state_ != PowerState::FaultReactionActive && !homing_mode) {
+    // (the quick-stop and fault-reaction ramps run in on_tick)
     step_physics(dt);
   }
   // Following error: beyond the window (0x6065) for longer than the timeout (0x6066, ms).

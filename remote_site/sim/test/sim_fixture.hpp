@@ -11,6 +11,7 @@
 
 #include "foresight/hw/drive_system.hpp"
 #include "foresight/sim/can_simulator.hpp"
+#include "foresight/test/eventually.hpp"
 
 namespace foresight::test {
 

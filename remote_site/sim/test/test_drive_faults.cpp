@@ -196,16 +196,88 @@ TEST(DriveFaults, FullTransmitQueueIsReportedOncePerBus) {
   EXPECT_FALSE(rig.drives->bus(0).health().bus_off);  // a full queue is not bus-off
 }
 
-TEST(DriveFaults, QuickStopHoldsPosition) {
+// The shipped quick stop option (0x605A = 2): the drives' own ramp, then
+// Switch on disabled; never left in Quick stop active with voltage on.
+TEST(DriveFaults, QuickStopRampsThenPowersOff) {
   SimRig rig(project_config());
   rig.bring_up();
   rig.drives->request_quick_stop();
-  rig.run_until([&](const CycleStatus&) { return rig.fb.joints[0].state == PowerState::QuickStopActive; }, 500);
-  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.fb.joints[j].state, PowerState::QuickStopActive) << j;
+  rig.run_until([&](const CycleStatus&) {
+    for (std::size_t j = 0; j < 7; ++j)
+      if (rig.fb.joints[j].state != PowerState::SwitchOnDisabled) return false;
+    return true;
+  }, 500);
+  for (std::size_t j = 0; j < 7; ++j) {
+    EXPECT_EQ(rig.fb.joints[j].state, PowerState::SwitchOnDisabled) << j;
+    EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+  }
   const double x = rig.sim->drive(0).position_counts();
-  rig.targets.position_rad[0] += 0.01;  // ignored in quick stop
+  rig.targets.position_rad[0] += 0.01;  // ignored: no power
   rig.run_until([](const CycleStatus&) { return false; }, 10);
   EXPECT_NEAR(rig.sim->drive(0).position_counts(), x, 1.0);
+}
+
+// Category 0 as the drives see it (stepped: counted in cycles). Mid-motion,
+// request_power_off() puts Disable Voltage in the very next cycle's RPDOs;
+// each drive latches it at the following SYNC and is unpowered there (Switch
+// on disabled) within two cycles, never passing through Quick stop active;
+// the master reads the new state one cycle later; disable() then confirms
+// at once; and the arm no longer follows any target.
+TEST(DriveFaults, PowerOffIsCategoryZeroWithinTwoCycles) {
+  SimRig rig(project_config());
+  rig.bring_up_stepped();
+  for (int i = 0; i < 50; ++i) {  // moving: 0.2 rad/s on every joint
+    for (std::size_t j = 0; j < 7; ++j) rig.targets.position_rad[j] += 0.2 * 0.002;
+    rig.cycle();
+  }
+  for (std::size_t j = 0; j < 7; ++j) {
+    ASSERT_EQ(rig.sim->drive(j).power_state(), PowerState::OperationEnabled) << j;
+    ASSERT_GT(std::abs(rig.sim->drive(j).velocity_counts_s()), 1000.0) << j;
+    rig.sim->drive(j).clear_power_record();
+  }
+  rig.drives->request_power_off();
+  int cycles = 0;
+  auto all_unpowered = [&] {
+    for (std::size_t j = 0; j < 7; ++j)
+      if (rig.sim->drive(j).power_record().powered) return false;
+    return true;
+  };
+  while (!all_unpowered() && cycles < 10) {
+    rig.cycle();
+    ++cycles;
+  }
+  EXPECT_LE(cycles, 2);
+  for (std::size_t j = 0; j < 7; ++j) {
+    const sim::DrivePowerRecord r = rig.sim->drive(j).power_record();
+    EXPECT_EQ(r.state, PowerState::SwitchOnDisabled) << j;
+    EXPECT_FALSE(r.powered) << j;
+    EXPECT_EQ(r.states_seen & (1u << static_cast<unsigned>(PowerState::QuickStopActive)), 0u) << j;
+    EXPECT_EQ(r.states_seen & (1u << static_cast<unsigned>(PowerState::ReadyToSwitchOn)), 0u) << j;
+  }
+  rig.cycle();
+  rig.cycle();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.fb.joints[j].state, PowerState::SwitchOnDisabled) << j;
+  // Latched: later cycles keep commanding Disable Voltage whatever was set.
+  const double x = rig.sim->drive(2).position_counts();
+  rig.targets.position_rad[2] += 0.005;
+  for (int i = 0; i < 20; ++i) rig.cycle();
+  EXPECT_EQ(rig.sim->drive(2).controlword(), hw::canopen::controlword::kDisableVoltage);
+  EXPECT_NEAR(rig.sim->drive(2).position_counts(), x, 1.0);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+}
+
+// disable() succeeds only once every drive reports a state without power;
+// after it, enable() brings them back.
+TEST(DriveFaults, DisableEndsWithEveryDriveUnpoweredAndEnableReturns) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.drives->disable();
+  for (std::size_t j = 0; j < 7; ++j) {
+    EXPECT_FALSE(hw::canopen::power_enabled(rig.sim->drive(j).power_state())) << j;
+    EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::SwitchOnDisabled) << j;
+  }
+  rig.drives->enable();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::OperationEnabled) << j;
 }
 
 TEST(FtSensorOnBus, ReadsTheTrueWrenchTaresAndReportsSaturation) {
@@ -251,17 +323,23 @@ TEST(FtSensorOnBus, SilentSensorAndSensorFaultAreNamed) {
       << rig.drives->describe(*e);
 }
 
-TEST(DriveFaults, DestroyingTheMasterQuickStopsEnabledDrives) {
+// A master that goes away with the drives enabled quick-stops them: their
+// own ramp (on their own clock: no more SYNCs come), then power off.
+TEST(DriveFaults, DestroyingTheMasterQuickStopsEnabledDrivesThenTheyPowerOff) {
   SimRig rig(project_config());
   rig.bring_up();
+  for (std::size_t j = 0; j < 7; ++j) rig.sim->drive(j).clear_power_record();
   rig.drives.reset();
-  for (int i = 0; i < 200; ++i) {
-    bool all = true;
-    for (std::size_t j = 0; j < 7; ++j) all = all && rig.sim->drive(j).power_state() == PowerState::QuickStopActive;
-    if (all) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_TRUE(eventually([&] {
+    for (std::size_t j = 0; j < 7; ++j)
+      if (rig.sim->drive(j).power_record().powered) return false;
+    return true;
+  }, std::chrono::seconds(5)));
+  for (std::size_t j = 0; j < 7; ++j) {
+    const sim::DrivePowerRecord r = rig.sim->drive(j).power_record();
+    EXPECT_EQ(r.state, PowerState::SwitchOnDisabled) << j;
+    EXPECT_NE(r.states_seen & (1u << static_cast<unsigned>(PowerState::QuickStopActive)), 0u) << j;
   }
-  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::QuickStopActive) << j;
 }
 
 TEST(FtSensorOnBus, WrenchSourceSeesTheSimulatedArm) {

@@ -54,6 +54,7 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
       rig.targets.position_rad[0] = std::nan("");                      // invalid target
       rig.drives->request_quick_stop();
     }
+    if (i == 280) rig.drives->request_power_off();                     // category 0: Disable Voltage to all
     std::this_thread::sleep_until(rig.deadline);
     rig.deadline += std::chrono::milliseconds(2);
     counter.resume();

@@ -20,6 +20,13 @@
 
 namespace foresight {
 
+/// The largest start tolerance either side accepts, rad: a trajectory runs only
+/// when its first sample is this close to the arm on every joint (the remote's
+/// configured default is at most this; a command may ask for less). The
+/// residual offset is faded out, so a larger one would be a jump: plan an
+/// approach segment instead (a GOTO_JOINT to the first sample).
+inline constexpr double kMaxStartToleranceRad = 0.02;
+
 struct Trajectory {
   std::vector<double> time_s;    ///< one per sample, strictly increasing
   Eigen::MatrixXd positions_rad; ///< samples x joints

@@ -211,6 +211,9 @@ const char* to_string(msg::AckState state) noexcept;
 const char* to_string(msg::ReasonCode code) noexcept;
 const char* to_string(msg::UploadState state) noexcept;
 const char* to_string(msg::ControllerMode mode) noexcept;
+/// The CiA 402 state name in snake case ("operation_enabled", "unknown"), as
+/// `foresight status --json` prints it.
+const char* drive_state_name(msg::DriveState state) noexcept;
 const char* to_string(msg::StopCategory category) noexcept;
 
 }  // namespace foresight::protocol

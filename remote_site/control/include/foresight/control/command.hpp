@@ -181,6 +181,19 @@ struct ToolReport {
   std::uint32_t fault_bits = 0;
 };
 
+/// A drive's power state in telemetry and status: hw::canopen::PowerState's
+/// value (CiA 402 order, as protocol DriveState numbers it), or this while
+/// the drive is silent.
+inline constexpr std::uint8_t kDriveStateUnknown = 8;
+
+/// One drive as it reported itself (StatusReport::drives).
+struct DriveReport {
+  int joint = 0;                            ///< 1-based
+  int node_id = 0;                          ///< CANopen node id
+  std::uint8_t state = kDriveStateUnknown;  ///< hw::canopen::PowerState value (protocol DriveState)
+  bool powered = false;                     ///< power stage energised (hw::canopen::power_enabled)
+};
+
 struct StatusReport {
   std::int64_t stamp_ns = 0;
   ControllerMode mode = ControllerMode::Disabled;
@@ -191,6 +204,7 @@ struct StatusReport {
   std::string stop_reason;
   std::uint32_t fault_bits = 0;
   std::string fault_text;
+  std::vector<DriveReport> drives;  ///< one per joint, joint order
 };
 
 /// An upload's state as the link reports it on the trajectory status topic.

@@ -28,8 +28,10 @@
 // Drive power: the controller never calls the drives. It asks through
 // CycleOutputs::drive_request (Enable / Disable); whoever runs the drives
 // (ControlLoop, or a test) performs it and reports back with
-// drive_request_done(). Cat0 additionally sets CycleOutputs::quick_stop for
-// the drive system's request_quick_stop().
+// drive_request_done(). Cat0, and Cat1 once the arm is at rest, additionally
+// set CycleOutputs::power_off for the drive system's request_power_off():
+// Disable Voltage goes to every drive in the same cycle, before the blocking
+// disable() confirms it.
 //
 // Set-up (allocates, throws std::invalid_argument naming the field): the
 // constructor. Real-time (noexcept, no allocation, no locks, no logging):
@@ -85,6 +87,9 @@ struct CycleInputs {
   /// The cycle whose read delivered dq_drive[j] (hw JointState::velocity_cycle); 0 = none (TPDO2 not mapped).
   std::array<std::uint64_t, kMaxJoints> dq_drive_cycle{};
   bool drives_enabled = false;         ///< every drive in Operation enabled
+  /// Per joint, the drive's reported power state (hw::canopen::PowerState value,
+  /// kDriveStateUnknown when silent): passed through to telemetry.
+  std::array<std::uint8_t, kMaxJoints> drive_state{};
   Wrench6 wrench_ft{};                 ///< hw::FtReading::wrench_ft (sensor frame, bias removed)
   bool ft_fresh = false;
   std::uint8_t ft_saturated_mask = 0;
@@ -106,7 +111,7 @@ enum class DriveRequest : std::uint8_t { None = 0, Enable, Disable };
 struct CycleOutputs {
   static constexpr std::size_t kMaxEvents = 8;
   JointArray q_cmd{};                  ///< targets for cycle_write
-  bool quick_stop = false;             ///< call DriveSystem::request_quick_stop() (Cat0)
+  bool power_off = false;              ///< call DriveSystem::request_power_off() (Cat0; Cat1 at rest)
   int tare_samples = 0;                ///< > 0: call DriveSystem::request_tare(tare_samples)
   DriveRequest drive_request = DriveRequest::None;  ///< perform, then drive_request_done()
   std::size_t event_count = 0;
@@ -187,7 +192,7 @@ class Controller {
   std::uint64_t tare_id_ = 0;
   bool tare_seen_ = false;
   bool estop_ = false;
-  bool quick_stop_now_ = false;
+  bool power_off_now_ = false;
   bool drive_request_issued_ = false;
 
   const PreparedTrajectory* traj_ = nullptr;

@@ -218,6 +218,8 @@ struct TelemetrySample {
   Wrench6 wrench_tool{}; ///< contact wrench: bias and tool gravity compensated, filtered; tool frame about the tip
   bool ft_saturated = false;
   bool drives_enabled = false;
+  /// Per joint, the drive's own reported power state (kDriveStateUnknown when silent).
+  std::array<std::uint8_t, kMaxJoints> drive_state{};
   ControllerMode mode = ControllerMode::Disabled;
   std::uint64_t active_command_id = 0;
   AlgorithmKind algorithm = AlgorithmKind::None;

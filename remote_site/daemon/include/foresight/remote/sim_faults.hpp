@@ -17,9 +17,15 @@
 //
 // And one output, the simulated drives' own record (not the master's view of
 // them), for tests that check no motion happened that was not commanded:
-//   drive_record    written each poll (temp file + rename): "seq marks" then
-//                   the simulated joint angles (rad), then per joint the lowest
-//                   and the highest angle since the last mark: 2 + 3 x 7 numbers
+//   drive_record    written each poll (temp file + rename). Line 1: "seq marks"
+//                   then the simulated joint angles (rad), then per joint the
+//                   lowest and the highest angle since the last mark: 2 + 3 x 7
+//                   numbers. Line 2: "power" then per joint its CiA 402 state
+//                   as the drive itself holds it (snake case, as `foresight
+//                   status --json`), 1 if its power stage is energised else 0,
+//                   and the states it was in since the last mark (a bit mask,
+//                   bit = the state's CiA 402 value: 0 not ready to switch on
+//                   .. 4 operation enabled, 5 quick stop active .. 7 fault)
 //   drive_record_mark  create it to start a new envelope (the watcher deletes
 //                   it and counts the mark in `marks`)
 //

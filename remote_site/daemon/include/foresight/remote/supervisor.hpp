@@ -74,6 +74,7 @@ struct SupervisorParts {
   ToolWorker* tool = nullptr;                  ///< may be null: tool steps are then refused
   CameraWorker* camera = nullptr;              ///< may be null: CAMERA is then refused
   std::vector<std::string> camera_names;       ///< video switch index = position
+  std::vector<int> drive_nodes;                ///< CANopen node id per joint (status: drives)
   Outbox outbox;
   /// --sim only: the simulated plant's ground truth as JSON (the ORU's state
   /// and pose, its alignment against its slot), journaled as a `sim_truth`

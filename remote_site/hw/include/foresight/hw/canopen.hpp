@@ -147,6 +147,12 @@ enum class PowerState : std::uint8_t {
   Fault,
 };
 const char* to_string(PowerState s) noexcept;
+/// True in the states where the drive's power stage is energised (CiA 402's
+/// "power enabled" group: Switched on, Operation enabled, Quick stop active,
+/// and Fault reaction active while it ramps). False in Not ready to switch
+/// on, Switch on disabled, Ready to switch on and Fault: the motor gets no
+/// torque. A category 0 stop ends in a state where this is false.
+bool power_enabled(PowerState s) noexcept;
 /// Decode the power state from statusword bits 0-3, 5, 6.
 PowerState decode_statusword(std::uint16_t statusword) noexcept;
 /// Statusword bits 0-3,5,6 for a state (what a drive reports; sim side).

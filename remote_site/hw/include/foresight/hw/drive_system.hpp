@@ -22,7 +22,19 @@
 //                     (0x700 + heartbeat.master_node_id) every producer period,
 //                     which the drives consume (0x1016): a master that stops
 //                     cycling faults the drives (EMCY 0x8130).
-//      request_quick_stop() and request_tare() may be called from any thread.
+//      request_power_off(), request_quick_stop() and request_tare() may be
+//      called from any thread.
+// Stops as the drives see them (docs/control.md, the stop table):
+//   request_power_off()  category 0: from the next cycle_write on, every drive
+//                        gets Disable Voltage (controlword 0x0000) and goes to
+//                        Switch on disabled at the next SYNC: no torque, never
+//                        Quick stop active. Latched until enable().
+//   disable()            power off after a controlled stop (category 1), the
+//                        same command, confirmed: every drive must report a
+//                        state without power (canopen::power_enabled false).
+//   request_quick_stop() the drives' own ramp (0x605A, which must be 1 or 2:
+//                        ramp, then Switch on disabled); what the destructor
+//                        sends when the master goes away with drives enabled.
 // Errors in the cycle are values (CycleStatus events), never exceptions.
 // Set-up calls and cycle calls must not overlap: run set-up before the
 // real-time thread starts, or from it while it is not cycling.
@@ -71,6 +83,10 @@ struct JointState {
   std::uint16_t last_emcy = 0;  ///< last EMCY error code (0: none / reset)
   bool fresh = false;           ///< a TPDO for the last SYNC arrived
   bool heartbeat_lost = false;
+  /// `state` is the drive's present state: a TPDO arrived since configure()
+  /// and neither its TPDOs (tpdo_miss_limit) nor its heartbeat went missing
+  /// since. False: the drive is silent and its state unknown.
+  bool state_known = false;
 };
 
 struct JointFeedback {
@@ -187,7 +203,11 @@ class DriveSystem {
   /// positions at enable time, then the last cycle_write). The controller's
   /// first cycle_write starts from these, so nothing jumps.
   void held_targets(JointTargets& out) const noexcept;
-  /// Set-up: shutdown (Ready to switch on) every drive, holding position.
+  /// Set-up: power off every drive (Disable Voltage: Switch on disabled),
+  /// holding the actual positions as targets. Succeeds only when every drive
+  /// reports a state without power (canopen::power_enabled false); throws
+  /// HwError naming each drive still powered, with its state and statusword,
+  /// or silent, after enable_timeout_s.
   void disable();
   /// Set-up: send an NMT command to every configured node (e.g. Stop after
   /// disable(); EnterPreOperational for SDO-only service). The heartbeat
@@ -208,7 +228,11 @@ class DriveSystem {
   /// Drain the buses and decode; fills `joints` and `ft`.
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft) noexcept;
   CycleStatus cycle_read(JointFeedback& joints, FtReading& ft, Clock::time_point now) noexcept;
-  /// The next cycle_write commands Quick stop to every drive. Any thread.
+  /// Category 0: the next cycle_write, and every one after it until enable(),
+  /// commands Disable Voltage to every drive (powered or not). Any thread.
+  void request_power_off() noexcept { power_off_.store(true, std::memory_order_release); }
+  /// The next cycle_write commands Quick stop to every enabled drive (their
+  /// own ramp per 0x605A, then power off). Any thread.
   void request_quick_stop() noexcept { quick_stop_.store(true, std::memory_order_release); }
   /// Tare the F/T sensor with the next `samples` samples. Any thread.
   void request_tare(int samples) noexcept { tare_request_.store(samples, std::memory_order_release); }
@@ -300,6 +324,7 @@ class DriveSystem {
   bool configured_ = false;
   bool enabled_ = false;
   std::atomic<bool> quick_stop_{false};
+  std::atomic<bool> power_off_{false};
   std::atomic<int> tare_request_{0};
 };
 

@@ -56,7 +56,7 @@ control::Ack from_wire(const protocol::msg::CommandAck& ack);
 void to_wire(protocol::msg::JointState& out, const control::JointReport& report);
 void to_wire(protocol::msg::Wrench& out, const control::WrenchReport& report) noexcept;
 void to_wire(protocol::msg::ToolState& out, const control::ToolReport& report) noexcept;
-void to_wire(protocol::msg::ControllerStatus& out, const control::StatusReport& report) noexcept;
+void to_wire(protocol::msg::ControllerStatus& out, const control::StatusReport& report);
 control::JointReport from_wire(const protocol::msg::JointState& state);
 control::WrenchReport from_wire(const protocol::msg::Wrench& wrench) noexcept;
 control::ToolReport from_wire(const protocol::msg::ToolState& tool) noexcept;

@@ -24,6 +24,7 @@
 // predefined connection set has them (the master must switch them off).
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <string>
 
@@ -46,6 +47,17 @@ struct SimDriveParams {
   std::uint32_t revision = 0x00010000;      ///< 0x1018:03
 };
 
+/// The drive's own record of its power stage: what it did, not what the
+/// master believes (tests of the stop categories check this).
+struct DrivePowerRecord {
+  hw::canopen::PowerState state = hw::canopen::PowerState::NotReadyToSwitchOn;
+  bool powered = false;            ///< hw::canopen::power_enabled(state): the motor gets torque
+  std::uint32_t states_seen = 0;   ///< bit (1 << PowerState) for every state since clear_power_record()
+  std::uint64_t syncs = 0;         ///< SYNCs received
+  std::uint64_t power_off_sync = 0;  ///< sync count at the last powered -> unpowered change (0: none)
+  std::chrono::steady_clock::time_point power_off_at{};  ///< and its time
+};
+
 class SimDrive final : public SimNode {
  public:
   explicit SimDrive(const SimDriveParams& p);
@@ -58,6 +70,9 @@ class SimDrive final : public SimNode {
   std::uint16_t controlword() const;
   std::uint64_t sync_count() const;
   std::uint32_t following_error_window() const;
+  DrivePowerRecord power_record() const;
+  /// Starts a new record of the states seen (states_seen = the present state).
+  void clear_power_record();
 
   // ---- fault injection / plant inputs (any thread) ----------------------------------
   /// Go to Fault and send EMCY `code` (e.g. 0x2310 over-current) at the next tick.
@@ -88,7 +103,7 @@ class SimDrive final : public SimNode {
   void ramp(double dt_s, double decel);  // decelerate v_ toward 0, move x_
   void step_physics(double dt_s);
   void step_homing(double dt_s);  // mode 6
-  void update_statusword();
+  void update_statusword();  // also notes the power state in the record
   std::uint32_t check_mapping(std::uint16_t map_index, std::uint8_t count) const;
 
   SimDriveParams p_;
@@ -117,6 +132,10 @@ class SimDrive final : public SimNode {
   bool homing_slow_ = false;
   bool homing_start_prev_ = false;  // within the last stretch: zero search speed
   double home_switch_ = 0.0;  // counts
+  std::uint32_t states_seen_ = 0;
+  bool powered_ = false;
+  std::uint64_t power_off_sync_ = 0;
+  Clock::time_point power_off_at_{};
   bool injected_fault_ = false;
   std::uint16_t injected_code_ = 0;
 };
