@@ -206,7 +206,7 @@ TEST(DriveBringUp, DisableThenNmtStopIsSeenByTheHeartbeatConsumer) {
   SimRig rig(project_config());
   rig.bring_up();
   rig.drives->disable();
-  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::ReadyToSwitchOn) << j;
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::SwitchOnDisabled) << j;
   rig.drives->nmt_all(hw::canopen::NmtCommand::Stop);
   // Stopped nodes send no PDOs, but their heartbeat says "stopped" (0x04).
   int stopped = 0;
@@ -278,5 +278,5 @@ TEST(DriveBringUp, DisableReportsDrivesThatNeverAnswered) {
               "disable(): not confirmed after 300 ms: joint4 (bus arm_a node 4) never answered (no TPDO; state "
               "unknown, may still be enabled);");
   }
-  for (std::size_t j : {0u, 1u, 2u, 4u, 5u, 6u}) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::ReadyToSwitchOn) << j;
+  for (std::size_t j : {0u, 1u, 2u, 4u, 5u, 6u}) EXPECT_EQ(rig.sim->drive(j).power_state(), PowerState::SwitchOnDisabled) << j;
 }

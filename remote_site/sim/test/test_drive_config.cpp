@@ -288,7 +288,7 @@ TEST(DriveConfigFile, HomingRunsToTheSwitchAndRedefinesThePosition) {
   EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x609A, 0), static_cast<std::uint32_t>(std::lround(1.0 * cpr)));
   EXPECT_EQ(rig.drives->sdo_read(0, 2, 0x6061, 0), 8u);  // back in CSP
   EXPECT_EQ(rig.drives->sdo_read(1, 5, 0x6061, 0), 8u);
-  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::ReadyToSwitchOn);  // disabled after homing
+  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::SwitchOnDisabled);  // disabled (no power) after homing
   // CSP from the new zero.
   rig.drives->enable();
   rig.drives->held_targets(rig.targets);
@@ -316,7 +316,7 @@ TEST(DriveConfigFile, HomingThatDoesNotFinishInTimeNamesTheDrive) {
     EXPECT_NE(std::string(e.what()).find("home(): not homed within 200 ms: joint2 (bus arm_a node 2) (statusword 0x"),
               std::string::npos) << e.what();
   }
-  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::ReadyToSwitchOn);  // left disabled
+  EXPECT_EQ(rig.sim->drive(1).power_state(), PowerState::SwitchOnDisabled);  // left disabled (no power)
   EXPECT_FALSE(rig.sim->drive(1).homing_attained());
 }
 
