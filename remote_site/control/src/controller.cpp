@@ -317,7 +317,19 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   const Reason code = cause == StopCause::Command ? Reason::Aborted : Reason::Faulted;
   const std::uint64_t running_id =
       (active_ == Active::Trajectory || active_ == Active::Algorithm) ? active_id_ : 0;
-  finish_active(MotionEventKind::Canceled, code, text);
+  // A controlled stop of a trajectory stays on its path (path_stop_step),
+  // unless the trajectory's own command is what broke a limit.
+  const bool on_path = cat != StopCategory::Cat0 && active_ == Active::Trajectory && traj_ != nullptr &&
+                       cause != StopCause::JointPositionLimit && cause != StopCause::JointVelocityLimit;
+  if (on_path) {
+    if (!stop_on_path_) path_scale_ = 1.0;
+    stop_on_path_ = true;
+    path_cancel_code_ = code;
+    set_text(path_cancel_text_, text);
+  } else {
+    stop_on_path_ = false;
+    finish_active(MotionEventKind::Canceled, code, text);
+  }
   if (active_ == Active::Disable || active_ == Active::Enable || active_ == Active::Recover) {
     // a power change in progress keeps its own outcome
   }
@@ -353,6 +365,61 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   }
 }
 
+void Controller::follow_trajectory_at(double t) noexcept {
+  JointArray q_ref{}, dq_ref{};
+  traj_->evaluate(t, traj_hint_, q_ref, dq_ref);
+  if (t < traj_fade_s_) {  // fade out the start offset (smoothstep): C1, no jump
+    const double u = t / traj_fade_s_;
+    const double keep = 1.0 - u * u * (3.0 - 2.0 * u);
+    for (std::size_t j = 0; j < dof_; ++j) q_ref[j] += keep * traj_offset_[j];
+  }
+  if (traj_compliant_) {
+    for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_ref[j];
+    const Pose ref = forward_kinematics(model_, ws_, qv2_, tip_link_);
+    compliant_offset_to_joints(ref, q_ref, false);
+  } else {
+    q_cmd_ = q_ref;
+  }
+}
+
+void Controller::path_stop_step() noexcept {
+  // The path velocity the joints have now (ds/dt = path_scale_): the scaling
+  // may fall as fast as the joint closest to its acceleration limit allows
+  // (|dq_ref_j| x d(scale)/dt <= amax_j), so all decelerate together.
+  JointArray q_ref{}, dq_ref{};
+  traj_->evaluate(traj_t_, traj_hint_, q_ref, dq_ref);
+  double rate = 1.0 / dt_;  // at most to zero in one cycle (a path at rest)
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const double v = std::abs(dq_ref[j]);
+    if (v > 1e-9) rate = std::min(rate, amax_[j] / v);
+  }
+  path_scale_ = std::max(0.0, path_scale_ - rate * dt_);
+  traj_t_ = std::min(traj_t_ + path_scale_ * dt_, traj_->duration_s());
+  follow_trajectory_at(traj_t_);
+  for (std::size_t j = 0; j < dof_; ++j) v_cmd_[j] = (q_cmd_[j] - q_cmd_prev_[j]) / dt_;
+  if (path_scale_ == 0.0 || traj_t_ >= traj_->duration_s()) {
+    stop_on_path_ = false;
+    const std::array<char, 96> text = path_cancel_text_;
+    finish_active(MotionEventKind::Canceled, path_cancel_code_, text.data());  // at rest, on the path
+    v_cmd_ = JointArray{};
+    stop_at_rest();
+  }
+}
+
+void Controller::stop_at_rest() noexcept {
+  if (pending_stop_category_ == StopCategory::Cat1) {
+    power_off_now_ = true;  // then power off, as for Cat0
+    mode_ = ControllerMode::Fault;
+    if (drives_enabled_ && !drive_request_pending_) {
+      drive_request_pending_ = true;
+      pending_request_ = DriveRequest::Disable;
+    }
+  } else {
+    mode_ = ControllerMode::Stopped;
+  }
+  q_hold_ = q_cmd_;
+}
+
 void Controller::controlled_stop_step() noexcept {
   bool rest = true;
   for (std::size_t j = 0; j < dof_; ++j) {
@@ -366,19 +433,7 @@ void Controller::controlled_stop_step() noexcept {
     q_cmd_[j] = q_cmd_prev_[j] + v * dt_;
     if (v != 0.0) rest = false;
   }
-  if (rest) {
-    if (pending_stop_category_ == StopCategory::Cat1) {
-      power_off_now_ = true;  // then power off, as for Cat0
-      mode_ = ControllerMode::Fault;
-      if (drives_enabled_ && !drive_request_pending_) {
-        drive_request_pending_ = true;
-        pending_request_ = DriveRequest::Disable;
-      }
-    } else {
-      mode_ = ControllerMode::Stopped;
-    }
-    q_hold_ = q_cmd_;
-  }
+  if (rest) stop_at_rest();
 }
 
 void Controller::record_evidence(const CycleInputs& in) noexcept {
@@ -606,20 +661,7 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
       break;
     case ControllerMode::Trajectory: {
       traj_t_ += dt_;
-      JointArray q_ref{}, dq_ref{};
-      traj_->evaluate(traj_t_, traj_hint_, q_ref, dq_ref);
-      if (traj_t_ < traj_fade_s_) {  // fade out the start offset (smoothstep): C1, no jump
-        const double u = traj_t_ / traj_fade_s_;
-        const double keep = 1.0 - u * u * (3.0 - 2.0 * u);
-        for (std::size_t j = 0; j < dof_; ++j) q_ref[j] += keep * traj_offset_[j];
-      }
-      if (traj_compliant_) {
-        for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_ref[j];
-        const Pose ref = forward_kinematics(model_, ws_, qv2_, tip_link_);
-        compliant_offset_to_joints(ref, q_ref, false);
-      } else {
-        q_cmd_ = q_ref;
-      }
+      follow_trajectory_at(traj_t_);
       if (traj_t_ >= traj_->duration_s()) {
         const bool compliant = traj_compliant_;
         const JointArray end = traj_->end();
@@ -656,7 +698,12 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
       }
       break;
     }
-    case ControllerMode::Stopping: controlled_stop_step(); break;
+    case ControllerMode::Stopping:
+      if (stop_on_path_ && traj_ != nullptr)
+        path_stop_step();
+      else
+        controlled_stop_step();
+      break;
     case ControllerMode::Stopped: q_cmd_ = q_hold_; break;
   }
 

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "control_fixture.hpp"
+#include "foresight/common/plan.hpp"
 #include "foresight/control/control_loop.hpp"
 #include "foresight/control/spsc_ring.hpp"
 #include "foresight/control/trajectory_executor.hpp"
@@ -623,6 +624,71 @@ TEST_F(ControllerFaults, ForceAndTorqueLimitsAreCat2) {
     for (int k = 0; k < 50 && b.stops.empty(); ++k) b.step();
     expect_stop(b, StopCause::TorqueLimit, StopCategory::Cat2);
   }
+}
+
+// Issue 25: a controlled stop of a trajectory stays on its path (the time
+// scaling ramps to zero). A straight tool line of 0.2 m at up to 0.2 m/s, a
+// category 2 stop half-way: every commanded tip position until rest within
+// 1 mm of the line, the arm at rest short of the line's end, holding powered,
+// and the motion's Canceled event comes at rest (not at the stop).
+TEST_F(ControllerFaults, ACategory2StopHalfWayThroughAStraightLineLeavesTheToolOnTheLine) {
+  Bench b(home_q());
+  b.enable();
+  const Pose start = b.tip(home_q());
+  const Eigen::Vector3d u = Eigen::Vector3d(0.0, 0.0, -1.0);
+  Goal g;
+  g.name = "line";
+  g.kind = SegmentKind::Linear;
+  g.base_T_tip = start;
+  g.base_T_tip.translation() += 0.2 * u;
+  PlanOptions po;
+  po.tool_speed_m_s = 0.2;
+  po.tool_accel_m_s2 = 0.4;
+  const Plan plan = plan_motion(robot(), b.qvec(home_q()), {g}, po);
+  const PreparedTrajectory traj(plan.trajectory, 9);
+  MotionCommand c;
+  c.kind = MotionCommandKind::RunTrajectory;
+  c.trajectory = &traj;
+  const std::uint64_t id = b.send(c);
+  double along = 0.0;
+  for (int k = 0; k < 5000 && along < 0.1; ++k) {
+    b.step();
+    along = (b.tip(b.out.q_cmd).translation() - start.translation()).dot(u);
+  }
+  ASSERT_GE(along, 0.1);
+  MotionCommand stop;
+  stop.kind = MotionCommandKind::Stop;
+  stop.category = StopCategory::Cat2;
+  b.send(stop);
+  double worst = 0.0, last_along = along;
+  bool canceled_before_rest = false;
+  int k = 0;
+  for (; k < 5000 && b.ctl->mode() != ControllerMode::Stopped; ++k) {
+    b.step();
+    const Eigen::Vector3d d = b.tip(b.out.q_cmd).translation() - start.translation();
+    worst = std::max(worst, (d - d.dot(u) * u).norm());
+    last_along = d.dot(u);
+    for (const auto& e : b.events)
+      if (e.command_id == id && e.kind == MotionEventKind::Canceled && b.ctl->mode() == ControllerMode::Stopping)
+        canceled_before_rest = true;
+  }
+  ASSERT_EQ(b.ctl->mode(), ControllerMode::Stopped);
+  std::printf("stop on the path: %d cycles to rest, %.1f mm further along, off the line by %.4f mm at most\n", k,
+              1e3 * (last_along - along), 1e3 * worst);
+  EXPECT_LT(worst, 1e-3);
+  EXPECT_GT(last_along, along);        // it decelerated, not jumped back
+  EXPECT_LT(last_along, 0.2 - 1e-3);   // and stopped short of the end
+  EXPECT_FALSE(canceled_before_rest);
+  ASSERT_FALSE(b.events.empty());
+  bool canceled = false;
+  for (const auto& e : b.events) canceled = canceled || (e.command_id == id && e.kind == MotionEventKind::Canceled);
+  EXPECT_TRUE(canceled);
+  EXPECT_TRUE(b.in.drives_enabled);
+  EXPECT_EQ(b.power_offs, 0);
+  // At rest: the command does not move any more.
+  const JointArray rest = b.out.q_cmd;
+  for (int i = 0; i < 50; ++i) b.step();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(b.out.q_cmd[j], rest[j]) << j;
 }
 
 TEST_F(ControllerFaults, SensorFaultIsCat1) {

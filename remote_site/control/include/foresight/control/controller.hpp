@@ -9,8 +9,14 @@
 //     Trajectory  running a PreparedTrajectory (optionally compliant; the
 //               daemon's GOTO moves are trajectories too: Goto is not used here)
 //     Algorithm   running guarded_move / insert / pull_out (algorithms.hpp)
-//     Stopping  controlled stop: every joint decelerates at stop_decel_fraction of
-//               its URDF acceleration limit to rest
+//     Stopping  controlled stop. During a trajectory (unless the trajectory's
+//               own command broke a joint limit) the stop stays on the path:
+//               the trajectory's time scaling ramps to zero, as fast as the
+//               joint closest to its acceleration limit allows, so the joints
+//               decelerate together along the planned path and the motion's
+//               Canceled event comes at rest. Otherwise every joint
+//               decelerates at stop_decel_fraction of its URDF acceleration
+//               limit to rest
 //     Stopped   after a Cat2 stop: holding, powered; leaves only on Recover
 //     Fault     after a Cat0/Cat1 stop: drives disabled; leaves only on Recover
 //
@@ -160,6 +166,12 @@ class Controller {
   void hold_here() noexcept;
   bool check_safety(const CycleInputs& in) noexcept;
   void controlled_stop_step() noexcept;
+  /// A stop on the trajectory's path: the time scaling ramps to zero.
+  void path_stop_step() noexcept;
+  /// Rest reached by a controlled stop: Cat1 powers off, Cat2 holds.
+  void stop_at_rest() noexcept;
+  /// The trajectory's command at its time t (start offset faded, compliance on top).
+  void follow_trajectory_at(double t) noexcept;
   /// Admittance step on the shaped wrench, then joints: tracking = one DLS
   /// step from the previous command towards reference + offset; otherwise
   /// q_seed (the reference joints) + DLS(J(q_seed)) x offset.
@@ -200,6 +212,10 @@ class Controller {
   std::size_t traj_hint_ = 0;
   JointArray traj_offset_{};  // command - first sample at the start, faded out
   double traj_fade_s_ = 1.0;
+  bool stop_on_path_ = false;   // Stopping along traj_ (path_stop_step)
+  double path_scale_ = 1.0;     // d(trajectory time)/dt, ramping 1 -> 0
+  Reason path_cancel_code_ = Reason::Aborted;
+  std::array<char, 96> path_cancel_text_{};  // the Canceled event's text, sent at rest
 
   JointArray q_{}, q_prev_{}, dq_{}, q_cmd_{}, q_cmd_prev_{}, q_hold_{}, v_cmd_{};
   bool have_q_ = false;
