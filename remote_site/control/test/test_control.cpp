@@ -714,12 +714,36 @@ TEST_F(ControllerFaults, CommandedPositionAndVelocityLimitsAreCat2) {
     c.kind = MotionCommandKind::RunTrajectory;
     c.trajectory = &t;
     b.send(c);
-    for (int k = 0; k < 3000 && b.stops.empty(); ++k) b.step();
+    // Issue 25: the limit is reached by a planned deceleration (braking
+    // distance), never a one-cycle stop: the commanded velocity of joint 6
+    // changes by at most its acceleration limit per cycle, and it comes to
+    // rest at or inside the limit.
+    const double amax = robot().limits()[5].acceleration_rad_s2;
+    double v_prev = 0.0, worst_dv = 0.0, q_prev = b.out.q_cmd[5];
+    auto track = [&] {
+      const double v = (b.out.q_cmd[5] - q_prev) / 0.002;
+      worst_dv = std::max(worst_dv, std::abs(v - v_prev) / 0.002);
+      v_prev = v;
+      q_prev = b.out.q_cmd[5];
+    };
+    for (int k = 0; k < 3000 && b.stops.empty(); ++k) {
+      b.step();
+      track();
+    }
     expect_stop(b, StopCause::JointPositionLimit, StopCategory::Cat2);
     EXPECT_EQ(b.stops[0].joint, 5);
     EXPECT_NEAR(b.stops[0].limit, 2.181662, 1e-6);
-    for (int k = 0; k < 2000; ++k) b.step();
-    for (int k = 0; k < 7; ++k) EXPECT_LE(b.out.q_cmd[5], 2.181662);
+    EXPECT_GT(b.stops[0].value, 2.181662);              // where it would have stopped
+    EXPECT_LT(b.out.q_cmd[5], 2.181662 - 1e-3);         // braking begins before the limit
+    EXPECT_EQ(std::string(b.stops[0].text.data()).rfind("joint 6 would stop at ", 0), 0u) << b.stops[0].text.data();
+    for (int k = 0; k < 2000; ++k) {
+      b.step();
+      track();
+    }
+    EXPECT_EQ(b.ctl->mode(), ControllerMode::Stopped);
+    EXPECT_LE(b.out.q_cmd[5], 2.181662);
+    EXPECT_GT(b.out.q_cmd[5], 2.181662 - 0.02);  // it used the room it had
+    EXPECT_LE(worst_dv, amax * 1.05) << "a velocity step beyond the acceleration limit";
   }
   {
     Bench b(home_q());
