@@ -554,14 +554,14 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
   }
   // Braking distance: every joint must be able to stop inside its limits at
   // the controlled stop's deceleration from the velocity commanded now
-  // (q + v|v| / 2a, plus one cycle of travel for the discrete ramp), so
+  // (q + v|v| / 2a; controlled_stop_step's discrete ramp travels v dt / 2 less), so
   // reaching a limit is a planned deceleration (a Cat2 stop begun early
   // enough), not a one-cycle stop at the limit. The check of the command
   // itself below stays as the last resort.
   if (mode_ != ControllerMode::Stopping) {
     for (std::size_t j = 0; j < dof_; ++j) {
       const double v = (q_cmd_[j] - q_cmd_prev_[j]) / dt_;
-      const double stop_at = q_cmd_[j] + v * std::abs(v) / (2.0 * amax_[j]) + v * dt_;
+      const double stop_at = q_cmd_[j] + v * std::abs(v) / (2.0 * amax_[j]);
       if (stop_at > upper_[j] || stop_at < lower_[j]) {
         const double limit = stop_at > upper_[j] ? upper_[j] : lower_[j];
         std::snprintf(buf, sizeof buf, "joint %zu would stop at %.4f rad, beyond its limit %.4f: braking", j + 1,
