@@ -160,6 +160,35 @@ TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
                       "plan an approach segment (a GOTO_JOINT to the first sample)");
 }
 
+// Issue 25: the control loop knows each command by an id of the
+// supervisor's own, so another session's ABORT that happens to carry the
+// running command's id stops the arm without finishing that command in its
+// name (it used to be acked COMPLETED, the ABORT FAILED with its text).
+TEST_F(RemoteCommands, AnAbortCarryingTheRunningCommandsIdFromAnotherSessionDoesNotFinishIt) {
+  take_and_recover();
+  const std::uint64_t id = start_slow_motion(0.4);
+  ASSERT_GT(id, 1u);
+  ground_link::Config c = ground_config_;
+  c.domain = domain_;
+  ground_link::GroundLink other(c);
+  ASSERT_TRUE(other.wait_for_remote(30s));
+  control::Request status;
+  status.what = control::RequestWhat::Status;
+  std::uint64_t last = 0;
+  for (int i = 0; i < 100 && last + 1 < id; ++i) last = other.send(CommandKind::Request, status);
+  control::Abort a;
+  a.category = control::StopCategory::Cat2;
+  a.reason = "second session";
+  const std::uint64_t abort_id = other.send(CommandKind::Abort, a);
+  ASSERT_EQ(abort_id, id);
+  const auto stopped = other.wait_final(abort_id, 10s);
+  EXPECT_EQ(stopped.state, AckState::Completed) << stopped.reason;
+  const auto moved = ground_->wait_final(id, 15s);
+  EXPECT_EQ(moved.state, AckState::Canceled) << control::to_string(moved.state) << ": " << moved.reason;
+  EXPECT_EQ(moved.code, Reason::Aborted);
+  EXPECT_NE(moved.reason.find("stop commanded"), std::string::npos) << moved.reason;
+}
+
 TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();

@@ -580,7 +580,7 @@ void Supervisor::start_next() {
       continue;
     }
     MotionCommand mc;
-    mc.command_id = job->command.command_id;
+    mc.command_id = job->loop_id = internal_id();
     switch (job->kind) {
       case JobKind::Trajectory:
       case JobKind::Goto:
@@ -681,14 +681,14 @@ void Supervisor::do_abort(const control::Command& c) {
   }
   // Stop the arm with the requested category; the loop cancels what runs.
   MotionCommand stop;
-  stop.command_id = c.command_id;
+  stop.command_id = internal_id();
   stop.kind = MotionCommandKind::Stop;
   stop.category = a.category;
   if (!p_.loop->send(stop)) {
     ack(c, AckState::Failed, Reason::Internal, "the control loop's command ring is full", current_q());
     return;
   }
-  aborts_[c.command_id] = c;
+  aborts_[stop.command_id] = c;
   ack(c, AckState::Executing);
 }
 
@@ -861,7 +861,10 @@ void Supervisor::poll_loop() {
     row.cause = control::to_string(s.cause);
     row.text = s.text.data();
     nlohmann::json ev;
-    ev["command_id"] = s.command_id;
+    // The running command as the ground knows it (the loop knows it by its loop id).
+    const bool ours = running_ && s.command_id != 0 && running_->loop_id == s.command_id;
+    ev["command_id"] = ours ? running_->command.command_id : 0;
+    ev["session_id"] = ours ? running_->command.session_id : 0;
     ev["joint"] = s.joint;
     ev["value"] = s.value;
     ev["limit"] = s.limit;
@@ -900,7 +903,7 @@ void Supervisor::poll_loop() {
       }
       continue;
     }
-    if (!running_ || running_->command.command_id != e.command_id) continue;  // internal (holds) or stale
+    if (!running_ || running_->loop_id != e.command_id) continue;  // internal (holds) or stale
     if (running_->kind == JobKind::ToolStep) continue;  // the hold under a tool step
     switch (e.kind) {
       case MotionEventKind::Started:

@@ -84,6 +84,7 @@ const char* to_string(HwFault f) noexcept {
     case HwFault::UnknownCobId: return "unknown COB-ID";
     case HwFault::UnexpectedSdo: return "unexpected SDO frame";
     case HwFault::InvalidTarget: return "invalid joint target (not finite or out of range)";
+    case HwFault::EmergencyWarning: return "emergency message, a warning (EMCY, error register 0)";
   }
   return "?";
 }
@@ -92,6 +93,7 @@ bool requires_stop(HwFault f) noexcept {
   switch (f) {
     case HwFault::None:
     case HwFault::EmergencyCleared:
+    case HwFault::EmergencyWarning:
     case HwFault::FtFrameMismatch:
     case HwFault::BusErrorPassive:
     case HwFault::BusRestarted:
@@ -747,11 +749,18 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       const std::int8_t j = r.kind == kDriveEmcy ? static_cast<std::int8_t>(r.slot) : -1;
       if (f.can_dlc != 8) return malformed(j);
       const std::uint16_t code = get_u16(f.data);
-      if (r.kind == kDriveEmcy)
-        drives_[r.slot].st.last_emcy = code;
-      else
-        ft_->last_emcy = code;
-      push_event({code ? HwFault::Emergency : HwFault::EmergencyCleared, bus8, node_of(id), j, code, f.data[2]});
+      // CiA 301: the error register (byte 2) has bit 0 set while any error is
+      // present; an EMCY with a code and an empty register is a warning.
+      const HwFault kind = code == 0 ? HwFault::EmergencyCleared
+                           : f.data[2] == 0 ? HwFault::EmergencyWarning
+                                            : HwFault::Emergency;
+      if (kind != HwFault::EmergencyWarning) {
+        if (r.kind == kDriveEmcy)
+          drives_[r.slot].st.last_emcy = code;
+        else
+          ft_->last_emcy = code;
+      }
+      push_event({kind, bus8, node_of(id), j, code, f.data[2]});
       return;
     }
     case kDriveHb:
@@ -976,6 +985,7 @@ std::string DriveSystem::describe(const HwEvent& e) const {
   std::string msg = who + ": " + to_string(e.fault);
   switch (e.fault) {
     case HwFault::Emergency:
+    case HwFault::EmergencyWarning:
       msg += " " + hex(e.code, 4) + " " + to_string(classify_emcy(static_cast<std::uint16_t>(e.code))) +
              " (error register " + hex(e.detail, 2) + ")";
       break;

@@ -196,6 +196,27 @@ TEST(DriveFaults, FullTransmitQueueIsReportedOncePerBus) {
   EXPECT_FALSE(rig.drives->bus(0).health().bus_off);  // a full queue is not bus-off
 }
 
+// Issue 25: an EMCY is classified by its error register (CiA 301): a code
+// with an empty register is a warning (a notice; the arm goes on), with bit 0
+// set an error (a stop).
+TEST(DriveFaults, AnEmcyWithAnEmptyErrorRegisterIsAWarningNotAStop) {
+  SimRig rig(project_config());
+  rig.bring_up_stepped();
+  rig.sim->inject(0, hw::make_frame(0x83, {0x10, 0x42, 0x00, 0, 0, 0, 0, 0}));  // 0x4210 temperature, register 0
+  CycleStatus s = rig.run_until(has(HwFault::EmergencyWarning), 5);
+  const HwEvent* w = find_event(s, HwFault::EmergencyWarning);
+  ASSERT_NE(w, nullptr);
+  EXPECT_FALSE(s.stop_required);
+  EXPECT_FALSE(hw::requires_stop(HwFault::EmergencyWarning));
+  EXPECT_EQ(rig.drives->describe(*w),
+            "joint3 (bus arm_a node 3): emergency message, a warning (EMCY, error register 0) 0x4210 "
+            "over-temperature (error register 0x00)");
+  rig.sim->inject(0, hw::make_frame(0x83, {0x10, 0x42, 0x09, 0, 0, 0, 0, 0}));  // the same code, generic + temperature
+  s = rig.run_until(has(HwFault::Emergency), 5);
+  ASSERT_NE(find_event(s, HwFault::Emergency), nullptr);
+  EXPECT_TRUE(s.stop_required);
+}
+
 // The shipped quick stop option (0x605A = 2): the drives' own ramp, then
 // Switch on disabled; never left in Quick stop active with voltage on.
 TEST(DriveFaults, QuickStopRampsThenPowersOff) {

@@ -122,6 +122,10 @@ class Supervisor {
     bool compliant = false;
     double start_tolerance_rad = 0.0;
     bool executing = false;
+    /// The id the control loop knows this job's MotionCommand by: internal_id(),
+    /// unique whatever the sessions' own command ids (a loop event is matched
+    /// by it, so another session's command with the same id cannot finish it).
+    std::uint64_t loop_id = 0;
   };
   using Clock = std::chrono::steady_clock;
   using Inbox = std::variant<remote_link::CommandEvent, remote_link::UploadEvent, remote_link::LinkEvent>;
@@ -176,7 +180,7 @@ class Supervisor {
   using CommandKey = std::pair<std::uint64_t, std::uint64_t>;  ///< (session, command id): ids restart per session
   std::map<CommandKey, control::Ack> last_ack_;  ///< the last ack of each command (bounded)
   std::deque<CommandKey> last_ack_order_;
-  std::map<std::uint64_t, control::Command> aborts_;  ///< Stop sent for these ABORT commands
+  std::map<std::uint64_t, control::Command> aborts_;  ///< ABORT commands by the loop id of the Stop sent for them
   std::optional<control::Command> camera_command_;   ///< the CAMERA command the camera thread runs
 
   std::deque<std::unique_ptr<Job>> queue_;

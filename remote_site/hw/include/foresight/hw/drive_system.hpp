@@ -100,7 +100,7 @@ enum class HwFault : std::uint8_t {
   HeartbeatLost,      ///< node silent longer than heartbeat.consumer_ms (stop)
   NodeRebooted,       ///< boot-up message from an operational node (stop)
   NodeNotOperational, ///< heartbeat says stopped / pre-operational (stop)
-  Emergency,          ///< EMCY with a non-zero code; code = error code (stop)
+  Emergency,          ///< EMCY with a non-zero code and an error register bit set; code = error code (stop)
   EmergencyCleared,   ///< EMCY 0x0000 (notice)
   DriveFault,         ///< statusword went to Fault / fault reaction (stop)
   QuickStopActive,    ///< statusword left Operation enabled to Quick stop (stop)
@@ -124,6 +124,8 @@ enum class HwFault : std::uint8_t {
   InvalidTarget,      ///< NaN or out-of-range target (detail 0), or a step from the last target larger
                       ///< than the following-error window (detail 1, code = step in counts):
                       ///< refused before it reaches the drive, previous target kept (stop)
+  EmergencyWarning,   ///< EMCY with a code but an empty error register (CiA 301: no error
+                      ///< is present, a warning); code = error code (notice, not a stop)
 };
 const char* to_string(HwFault f) noexcept;
 /// True for faults that require the controller to stop the arm.
