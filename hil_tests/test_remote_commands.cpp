@@ -184,7 +184,7 @@ TEST_F(RemoteCommands, AnAbortCarryingTheRunningCommandsIdFromAnotherSessionDoes
   const auto stopped = other.wait_final(abort_id, 10s);
   EXPECT_EQ(stopped.state, AckState::Completed) << stopped.reason;
   const auto moved = ground_->wait_final(id, 15s);
-  EXPECT_EQ(moved.state, AckState::Canceled) << control::to_string(moved.state) << ": " << moved.reason;
+  EXPECT_EQ(moved.state, AckState::Canceled) << moved.reason;
   EXPECT_EQ(moved.code, Reason::Aborted);
   EXPECT_NE(moved.reason.find("stop commanded"), std::string::npos) << moved.reason;
 }
