@@ -6,6 +6,7 @@
 
 #include <bit>
 #include <charconv>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -159,16 +160,60 @@ const char* to_string(Violation::Rule rule) {
   return "unknown";
 }
 
+namespace hermite {
+
+Extremes extremes(double p0, double p1, double m0, double m1, double h) noexcept {
+  // P(s) = a s^3 + b s^2 + c s + p0 on s in [0, 1]; velocity P'/h, acceleration P''/h^2.
+  const double c = h * m0;
+  const double b = 3.0 * (p1 - p0) - h * (2.0 * m0 + m1);
+  const double a = 2.0 * (p0 - p1) + h * (m0 + m1);
+  Extremes e;
+  e.q_min = std::min(p0, p1);
+  e.q_max = std::max(p0, p1);
+  auto at = [&](double s) { return ((a * s + b) * s + c) * s + p0; };
+  auto take_root = [&](double s) {
+    if (s > 0.0 && s < 1.0) {
+      const double q = at(s);
+      e.q_min = std::min(e.q_min, q);
+      e.q_max = std::max(e.q_max, q);
+    }
+  };
+  const double scale = std::abs(a) + std::abs(b) + std::abs(c);
+  if (std::abs(a) <= 1e-12 * scale) {  // P' = 2b s + c
+    if (b != 0.0) take_root(-c / (2.0 * b));
+  } else {
+    const double disc = 4.0 * b * b - 12.0 * a * c;
+    if (disc >= 0.0) {
+      const double r = std::sqrt(disc);
+      take_root((-2.0 * b + r) / (6.0 * a));
+      take_root((-2.0 * b - r) / (6.0 * a));
+    }
+  }
+  e.v_abs = std::max(std::abs(m0), std::abs(m1));
+  if (std::abs(a) > 1e-12 * scale) {
+    const double s = -b / (3.0 * a);  // the vertex of P'
+    if (s > 0.0 && s < 1.0) e.v_abs = std::max(e.v_abs, std::abs(c - b * b / (3.0 * a)) / h);
+  }
+  e.a_abs = std::max(std::abs(2.0 * b), std::abs(6.0 * a + 2.0 * b)) / (h * h);
+  return e;
+}
+
+}  // namespace hermite
+
 std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim, std::size_t* total) {
   using R = Violation::Rule;
   std::vector<Violation> out;
   std::size_t count = 0;
   const int n = traj.samples();
   const int dof = traj.joints();
+  // (row, joint) pairs a sample rule flagged: the interpolant check leaves them be.
+  std::vector<char> flagged;
   // Every violation is counted; only the first max_listed_violations are kept,
   // and their messages are built only then (7e6 violations took minutes).
   auto add = [&](R rule, int row, int joint, double value, double limit, auto&& message) {
     ++count;
+    if (row >= 1 && joint >= 1 && !flagged.empty())
+      flagged[static_cast<std::size_t>(row - 1) * static_cast<std::size_t>(dof) + static_cast<std::size_t>(joint - 1)] = 1;
     if (out.size() < lim.max_listed_violations) out.push_back({rule, row, joint, value, limit, message()});
   };
   auto finish = [&] {
@@ -209,6 +254,7 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
   // One pass over the rows: the row's own checks, then the rates of the
   // interval ending at it (only across rows that are finite and strictly
   // increasing in time).
+  flagged.assign(static_cast<std::size_t>(std::max(n, 0)) * static_cast<std::size_t>(dof), 0);
   std::vector<bool> row_ok(n, true);  // finite t and q
   auto interval_ok = [&](int i) {     // interval (i-1, i)
     return i > 0 && row_ok[i] && row_ok[i - 1] && traj.time_s[i] > traj.time_s[i - 1];
@@ -268,6 +314,58 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
                    " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2";
           });
       }
+    }
+  }
+
+  // What the remote executes: the interpolant over every segment (i, i+1),
+  // from rest at the first sample to rest at the last. A tangent needs its
+  // row's neighbours well formed; a joint a sample rule flagged near the
+  // segment is not reported twice.
+  auto tangent = [&](int i, int j, double& m) {
+    if (i == 0 || i == n - 1) {
+      m = 0.0;
+      return row_ok[i];
+    }
+    if (!interval_ok(i) || !interval_ok(i + 1)) return false;
+    m = hermite::tangent(traj.positions_rad(i - 1, j), traj.positions_rad(i, j), traj.positions_rad(i + 1, j),
+                         traj.time_s[i] - traj.time_s[i - 1], traj.time_s[i + 1] - traj.time_s[i]);
+    return true;
+  };
+  auto near_flagged = [&](int i, int j) {
+    for (int r = std::max(0, i - 1); r <= std::min(n - 1, i + 2); ++r)
+      if (flagged[static_cast<std::size_t>(r) * static_cast<std::size_t>(dof) + static_cast<std::size_t>(j)]) return true;
+    return false;
+  };
+  for (int i = 0; i + 1 < n; ++i) {
+    if (!interval_ok(i + 1)) continue;
+    const double h = traj.time_s[i + 1] - traj.time_s[i];
+    for (int j = 0; j < dof; ++j) {
+      double m0 = 0.0, m1 = 0.0;
+      if (!tangent(i, j, m0) || !tangent(i + 1, j, m1) || near_flagged(i, j)) continue;
+      const hermite::Extremes e =
+          hermite::extremes(traj.positions_rad(i, j), traj.positions_rad(i + 1, j), m0, m1, h);
+      const JointLimits& jl = lim.joint_limits[j];
+      auto where = [&] {
+        return "between rows " + std::to_string(i + 1) + " and " + std::to_string(i + 2) + ", joint " + qname(j + 1);
+      };
+      if (e.q_min < jl.lower_rad || e.q_max > jl.upper_rad) {
+        const double q = e.q_min < jl.lower_rad ? e.q_min : e.q_max;
+        add(R::PositionLimit, i + 2, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad, [&] {
+          return where() + ": the executed position reaches " + fmt(q) + " rad, outside [" + fmt(jl.lower_rad) +
+                 ", " + fmt(jl.upper_rad) + "] rad";
+        });
+      }
+      if (e.v_abs > jl.velocity_rad_s * slack)
+        add(R::VelocityLimit, i + 2, j + 1, e.v_abs, jl.velocity_rad_s, [&] {
+          return where() + ": the executed velocity reaches " + fmt(e.v_abs) + " rad/s, over the limit " +
+                 fmt(jl.velocity_rad_s) + " rad/s";
+        });
+      if (e.a_abs > jl.acceleration_rad_s2 * slack)
+        add(R::AccelerationLimit, i + 2, j + 1, e.a_abs, jl.acceleration_rad_s2, [&] {
+          return where() + ": the executed acceleration reaches " + fmt(e.a_abs) + " rad/s^2, over the limit " +
+                 fmt(jl.acceleration_rad_s2) + " rad/s^2" + (i == 0 ? " (the arm starts at rest)" : "") +
+                 (i + 2 == n ? " (the arm ends at rest)" : "");
+        });
     }
   }
   return finish();

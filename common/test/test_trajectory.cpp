@@ -2,7 +2,9 @@
 
 #include <cmath>
 #include <limits>
+#include <algorithm>
 #include <set>
+#include <tuple>
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/trajectory.hpp"
@@ -26,8 +28,8 @@ TrajectoryLimits two_joint_limits() {
   return l;
 }
 
-// A smooth, legal move: cosine blend of 0.5 rad over 2 s at 100 Hz
-// (peak velocity pi/4*0.5... well inside the limits).
+// A smooth, legal move, from rest to rest on both joints (cosine blends over
+// 2 s at 100 Hz, well inside the limits).
 Trajectory smooth() {
   Trajectory t;
   const int n = 201;
@@ -36,7 +38,7 @@ Trajectory smooth() {
     const double s = i * 0.01;
     t.time_s.push_back(s);
     t.positions_rad(i, 0) = 0.25 * (1 - std::cos(M_PI * s / 2.0));
-    t.positions_rad(i, 1) = -0.1 * s;
+    t.positions_rad(i, 1) = -0.1 * (1 - std::cos(M_PI * s / 2.0));
   }
   return t;
 }
@@ -110,10 +112,10 @@ TEST(Trajectory, PositionLimit) {
     EXPECT_EQ(x.joint, 2);
     EXPECT_LT(x.value, -1.0);
   }
-  // -0.9 - 0.1 s < -1 from s > 1 s: rows 102..201 (1-based).
+  // -0.9 - 0.1 (1 - cos(pi s / 2)) < -1 from s > 1 s: rows 102..201 (1-based).
   EXPECT_EQ(v.front().row, 102);
   EXPECT_EQ(v.size(), 100u);
-  EXPECT_EQ(v.front().message, "row 102, joint q2: position -1.001 rad outside [-1, 1] rad");
+  EXPECT_EQ(v.front().message, "row 102, joint q2: position -1.00157 rad outside [-1, 1] rad");
 }
 
 TEST(Trajectory, VelocityLimitAtLaterRow) {
@@ -142,11 +144,73 @@ TEST(Trajectory, AccelerationLimitAtMiddleRow) {
     t.positions_rad(i, 1) = 0.0;
   }
   const auto v = validate(t, two_joint_limits());
-  ASSERT_EQ(v.size(), 1u);
-  EXPECT_EQ(v[0].rule, Rule::AccelerationLimit);
-  EXPECT_EQ(v[0].row, 101);
+  // The turn at row 101, and what the remote would execute: from rest at the
+  // first sample to 0.5 rad/s in one 10 ms segment (200 rad/s^2), and back to
+  // rest in the last one, which the sample differences cannot see.
+  ASSERT_EQ(v.size(), 3u);
+  EXPECT_EQ(rules(v), std::vector<Rule>(3, Rule::AccelerationLimit));
+  EXPECT_EQ(v[1].row, 101);
+  EXPECT_EQ(v[1].joint, 1);
+  EXPECT_NEAR(v[1].value, -100.0, 1e-9);
+  EXPECT_EQ(v[0].row, 2);
+  EXPECT_NEAR(v[0].value, 200.0, 1e-6);
+  EXPECT_EQ(v[0].message,
+            "between rows 1 and 2, joint q1: the executed acceleration reaches 200 rad/s^2, over the limit 4 rad/s^2 "
+            "(the arm starts at rest)");
+  EXPECT_EQ(v[2].row, 201);
+  EXPECT_EQ(v[2].message,
+            "between rows 200 and 201, joint q1: the executed acceleration reaches 200 rad/s^2, over the limit 4 "
+            "rad/s^2 (the arm ends at rest)");
+}
+
+// Issue 25: samples that pass every sample rule (velocity 1 rad/s at the
+// limit, acceleration 1 rad/s^2) whose interpolant, the motion the remote
+// executes, reaches 1.39x the velocity limit and 1.25x the acceleration limit
+// between them: refused with the rows, the joint and the limit.
+TEST(Trajectory, TheExecutedInterpolantIsBoundedNotOnlyTheSamples) {
+  Trajectory t;
+  t.time_s = {0.0, 1.0, 2.0};
+  t.positions_rad = Eigen::MatrixXd::Zero(3, 2);
+  t.positions_rad(2, 0) = 1.0;
+  const auto v = validate(t, two_joint_limits());
+  ASSERT_EQ(v.size(), 2u);
+  EXPECT_EQ(v[0].rule, Rule::VelocityLimit);
+  EXPECT_EQ(v[0].row, 3);
   EXPECT_EQ(v[0].joint, 1);
-  EXPECT_NEAR(v[0].value, -100.0, 1e-9);
+  EXPECT_NEAR(v[0].value, 0.5 + 4.0 / 4.5, 1e-12);  // the tangent 0.5 plus the cubic's bulge
+  EXPECT_EQ(v[0].message,
+            "between rows 2 and 3, joint q1: the executed velocity reaches 1.38889 rad/s, over the limit 1 rad/s");
+  EXPECT_EQ(v[1].rule, Rule::AccelerationLimit);
+  EXPECT_NEAR(v[1].value, 5.0, 1e-12);
+  EXPECT_EQ(v[1].message,
+            "between rows 2 and 3, joint q1: the executed acceleration reaches 5 rad/s^2, over the limit 4 rad/s^2 "
+            "(the arm ends at rest)");
+  // The same motion with time to spare passes.
+  t.time_s = {0.0, 2.0, 4.0};
+  EXPECT_TRUE(validate(t, two_joint_limits()).empty());
+}
+
+// The extremes are of the whole cubic: sampled densely, nothing exceeds them.
+TEST(Trajectory, HermiteExtremesBoundTheDenselySampledSegment) {
+  for (const auto& [p0, p1, m0, m1, h] : {std::tuple{0.0, 1.0, 0.5, 0.0, 1.0}, std::tuple{0.3, -0.2, -1.0, 2.0, 0.01},
+                                          std::tuple{1.0, 1.0, 3.0, -3.0, 0.5}}) {
+    const hermite::Extremes e = hermite::extremes(p0, p1, m0, m1, h);
+    double qmin = 1e9, qmax = -1e9, vmax = 0.0, amax = 0.0, v_prev = 0.0;
+    const int k = 20000;
+    for (int i = 0; i <= k; ++i) {
+      double q = 0.0, dq = 0.0;
+      hermite::evaluate(p0, p1, m0, m1, h, static_cast<double>(i) / k, q, dq);
+      qmin = std::min(qmin, q);
+      qmax = std::max(qmax, q);
+      vmax = std::max(vmax, std::abs(dq));
+      if (i > 0) amax = std::max(amax, std::abs(dq - v_prev) / (h / k));
+      v_prev = dq;
+    }
+    EXPECT_NEAR(e.q_min, qmin, 1e-6);
+    EXPECT_NEAR(e.q_max, qmax, 1e-6);
+    EXPECT_NEAR(e.v_abs, vmax, 1e-6 * std::max(1.0, vmax));
+    EXPECT_NEAR(e.a_abs, amax, 1e-3 * std::max(1.0, amax));
+  }
 }
 
 TEST(Trajectory, TimeMustIncrease) {

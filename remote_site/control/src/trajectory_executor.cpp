@@ -1,4 +1,5 @@
-// PreparedTrajectory: C1 cubic Hermite interpolation (trajectory_executor.hpp).
+// PreparedTrajectory: the C1 cubic Hermite interpolant of common/trajectory.hpp
+// (hermite::, the one validate() bounds), prepared for the loop.
 #include "foresight/control/trajectory_executor.hpp"
 
 #include <cmath>
@@ -37,11 +38,7 @@ PreparedTrajectory::PreparedTrajectory(const Trajectory& trajectory, std::uint64
   for (std::size_t i = 1; i + 1 < N; ++i) {
     const double h0 = time_s_[i] - time_s_[i - 1];
     const double h1 = time_s_[i + 1] - time_s_[i];
-    for (std::size_t j = 0; j < joints_; ++j) {
-      const double d0 = (q_[i][j] - q_[i - 1][j]) / h0;
-      const double d1 = (q_[i + 1][j] - q_[i][j]) / h1;
-      v_[i][j] = (h0 * d1 + h1 * d0) / (h0 + h1);
-    }
+    for (std::size_t j = 0; j < joints_; ++j) v_[i][j] = hermite::tangent(q_[i - 1][j], q_[i][j], q_[i + 1][j], h0, h1);
   }
   start_ = q_.front();
   end_ = q_.back();
@@ -82,14 +79,8 @@ void PreparedTrajectory::evaluate(double t_s, std::size_t& hint, JointArray& q, 
   hint = i;
   const double h = time_s_[i + 1] - time_s_[i];
   const double s = (t_s - time_s_[i]) / h;
-  const double s2 = s * s, s3 = s2 * s;
-  const double h00 = 2 * s3 - 3 * s2 + 1, h10 = s3 - 2 * s2 + s, h01 = -2 * s3 + 3 * s2, h11 = s3 - s2;
-  const double d00 = (6 * s2 - 6 * s) / h, d10 = 3 * s2 - 4 * s + 1, d01 = (-6 * s2 + 6 * s) / h, d11 = 3 * s2 - 2 * s;
-  for (std::size_t j = 0; j < joints_; ++j) {
-    const double p0 = q_[i][j], p1 = q_[i + 1][j], m0 = v_[i][j], m1 = v_[i + 1][j];
-    q[j] = h00 * p0 + h10 * h * m0 + h01 * p1 + h11 * h * m1;
-    dq[j] = d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1;
-  }
+  for (std::size_t j = 0; j < joints_; ++j)
+    hermite::evaluate(q_[i][j], q_[i + 1][j], v_[i][j], v_[i + 1][j], h, s, q[j], dq[j]);
   for (std::size_t j = joints_; j < kMaxJoints; ++j) q[j] = dq[j] = 0.0;
 }
 

@@ -1,8 +1,9 @@
 #pragma once
 // A trajectory prepared for the real-time loop: piecewise cubic Hermite
 // interpolation of the samples (C1: position and velocity continuous at every
-// sample), evaluable at any time, so any cycle rate can run samples taken at
-// any rate (the ground plans at 100 Hz; the loop runs at 500 Hz).
+// sample; common/trajectory.hpp hermite::, the interpolant validate() bounds
+// over every segment), evaluable at any time, so any cycle rate can run
+// samples taken at any rate (the ground plans at 100 Hz; the loop runs at 500 Hz).
 //
 // Tangents: at interior samples the weighted three-point derivative
 //   v_i = (h_{i-1} d_i + h_i d_{i-1}) / (h_{i-1} + h_i),  d_i = (q_{i+1} - q_i) / h_i
