@@ -321,7 +321,7 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
   // from rest at the first sample to rest at the last. A tangent needs its
   // row's neighbours well formed; a joint a sample rule flagged near the
   // segment is not reported twice.
-  auto tangent = [&](int i, int j, double& m) {
+  auto tangent = [&](int i, int j, double& m) -> bool {
     if (i == 0 || i == n - 1) {
       m = 0.0;
       return row_ok[i];
