@@ -436,6 +436,23 @@ void Controller::controlled_stop_step() noexcept {
   if (rest) stop_at_rest();
 }
 
+void Controller::back_off(const char* text) noexcept {
+  char why[96];
+  std::snprintf(why, sizeof why, "%s: backing off into a compliant hold", text);
+  finish_active(MotionEventKind::Failed, Reason::ForceLimit, why);
+  // The compliant hold anchored where the tip is measured, not where it was
+  // commanded: the admittance gives way to the contact and the force falls.
+  mode_ = ControllerMode::Idle;
+  hold_compliant_ = true;
+  base_T_hold_ = base_T_tip_;
+  adm_.configure(config_.admittance);
+  adm_.reset();
+  compliant_offset_to_joints(base_T_hold_, q_cmd_prev_, true);
+  q_hold_ = q_cmd_;
+  backoff_active_ = true;
+  backoff_cycles_ = 0;
+}
+
 void Controller::record_evidence(const CycleInputs& in) noexcept {
   EvidenceSample& s = evidence_[evidence_head_];
   s.cycle = in.cycle;
@@ -540,18 +557,36 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
   }
   const double f = std::sqrt(wrench_tool_[0] * wrench_tool_[0] + wrench_tool_[1] * wrench_tool_[1] +
                              wrench_tool_[2] * wrench_tool_[2]);
-  if (!(f <= config_.force_limit_n)) {
-    std::snprintf(buf, sizeof buf, "contact force %.1f N > %.1f N", f, config_.force_limit_n);
-    begin_stop(StopCause::ForceLimit, StopCategory::Cat2, -1, f, config_.force_limit_n, buf);
-    return false;
-  }
   const double t = std::sqrt(wrench_tool_[3] * wrench_tool_[3] + wrench_tool_[4] * wrench_tool_[4] +
                              wrench_tool_[5] * wrench_tool_[5]);
-  if (!(t <= config_.torque_limit_nm)) {
-    std::snprintf(buf, sizeof buf, "contact torque %.2f N m > %.2f N m", t, config_.torque_limit_nm);
-    begin_stop(StopCause::TorqueLimit, StopCategory::Cat2, -1, t, config_.torque_limit_nm, buf);
+  const bool over_f = !(f <= config_.force_limit_n);
+  if (over_f || !(t <= config_.torque_limit_nm)) {
+    const StopCause cause = over_f ? StopCause::ForceLimit : StopCause::TorqueLimit;
+    const double value = over_f ? f : t, limit = over_f ? config_.force_limit_n : config_.torque_limit_nm;
+    if (over_f)
+      std::snprintf(buf, sizeof buf, "contact force %.1f N > %.1f N", f, config_.force_limit_n);
+    else
+      std::snprintf(buf, sizeof buf, "contact torque %.2f N m > %.2f N m", t, config_.torque_limit_nm);
+    if (backoff_active_) {
+      // Backing off did not bring the contact below the limit in time: Cat1.
+      if (static_cast<double>(++backoff_cycles_) * dt_ >= kBackoffTimeS) {
+        backoff_active_ = false;
+        char why[96];
+        std::snprintf(why, sizeof why, "%s %.0f ms after backing off", buf, 1e3 * kBackoffTimeS);
+        begin_stop(cause, StopCategory::Cat1, -1, value, limit, why);
+      }
+      return false;
+    }
+    const bool compliant = active_ == Active::Algorithm || (active_ == Active::Trajectory && traj_compliant_) ||
+                           (mode_ == ControllerMode::Idle && hold_compliant_);
+    if (compliant && mode_ != ControllerMode::Stopping) {
+      back_off(buf);
+      return false;
+    }
+    begin_stop(cause, StopCategory::Cat2, -1, value, limit, buf);
     return false;
   }
+  backoff_active_ = false;
   // Braking distance: every joint must be able to stop inside its limits at
   // the controlled stop's deceleration from the velocity commanded now
   // (q + v|v| / 2a; controlled_stop_step's discrete ramp travels v dt / 2 less), so

@@ -183,6 +183,44 @@ TEST(InsertFailure, ForceLimitFailsCleanlyAndHolds) {
   EXPECT_LT(now.sensor.force_n.norm(), 8.0);
 }
 
+// Issue 25: a force limit in a compliant motion backs off instead of
+// pushing on through a controlled stop. A guarded move that would push to
+// 100 N, against a 30 N safety limit: it FAILS with FORCE_LIMIT, the arm holds
+// compliantly at the measured pose, and the simulated contact's force falls
+// below the limit within 200 ms and stays there; no safety stop.
+TEST(ForceLimit, ACompliantMotionBacksOffBelowTheLimitWithin200ms) {
+  ControllerConfig cfg;
+  cfg.force_limit_n = 30.0;
+  Bench b(start_q(0.06, 0.0, 0.010, 0.0), cfg);  // 6 cm beside the hole, 10 mm in front of the face
+  AlgorithmParams p;
+  p.kind = AlgorithmKind::GuardedMove;
+  p.guarded_move.force_threshold_n = 100.0;
+  p.guarded_move.speed_m_s = 0.05;
+  const AlgoRun r = run_algorithm(b, p, 10000);
+  ASSERT_EQ(r.final_event.kind, MotionEventKind::Failed) << r.final_event.text.data();
+  EXPECT_EQ(r.final_event.code, Reason::ForceLimit);
+  const std::string text = r.final_event.text.data();
+  EXPECT_EQ(text.rfind("contact force ", 0), 0u) << text;
+  EXPECT_NE(text.find("> 30.0 N: backing off into a compliant hold"), std::string::npos) << text;
+  auto contact_n = [&] { return scene().contact.compute(b.tip(b.q_arm), scene().base_T_oru).sensor.force_n.norm(); };
+  const double at_limit = contact_n();
+  int k = 0;
+  while (k < 100 && contact_n() >= 30.0) {
+    b.step();
+    ++k;
+  }
+  std::printf("back-off: contact %.1f N at the limit, below 30 N after %d cycles (%.0f ms)\n", at_limit, k, 2.0 * k);
+  EXPECT_LT(k, 100);  // within 200 ms
+  double worst = 0.0;
+  for (int i = 0; i < 1000; ++i) {
+    b.step();
+    worst = std::max(worst, contact_n());
+  }
+  EXPECT_LT(worst, 30.0);
+  EXPECT_TRUE(b.stops.empty());
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
+}
+
 TEST(InsertFailure, NoHoleWithinTheSearchRadius) {
   Bench b(start_q(0.02, 0.0, 0.010, 0.0));  // 2 cm off: the spiral cannot find it
   AlgorithmParams p;

@@ -691,6 +691,33 @@ TEST_F(ControllerFaults, ACategory2StopHalfWayThroughAStraightLineLeavesTheToolO
   for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(b.out.q_cmd[j], rest[j]) << j;
 }
 
+// Issue 25: a compliant hold backs off from a force over the limit; a force
+// that does not relent (here a constant 200 N the admittance cannot escape)
+// is Cat1 200 ms after the back-off began.
+TEST_F(ControllerFaults, AForceThatDoesNotRelentAfterBackingOffIsCat1) {
+  Bench b(home_q());
+  b.enable();
+  MotionCommand h;
+  h.kind = MotionCommandKind::Hold;
+  h.compliant = true;
+  b.send(h);
+  for (int k = 0; k < 20; ++k) b.step();
+  b.extra_ft = {0.0, 0.0, 200.0, 0.0, 0.0, 0.0};
+  int first_over = -1, k = 0;
+  for (; k < 2000 && b.stops.empty(); ++k) {
+    b.step();
+    const auto& w = b.out.telemetry.wrench_tool;
+    if (first_over < 0 && std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) > 150.0) first_over = k;
+  }
+  ASSERT_GE(first_over, 0);
+  expect_stop(b, StopCause::ForceLimit, StopCategory::Cat1);
+  EXPECT_NEAR(k - 1 - first_over, 100, 2);  // 200 ms of backing off at 500 Hz
+  EXPECT_NE(std::string(b.stops[0].text.data()).find("200 ms after backing off"), std::string::npos)
+      << b.stops[0].text.data();
+  b.extra_ft = {};
+  expect_after(b, StopCategory::Cat1);
+}
+
 TEST_F(ControllerFaults, SensorFaultIsCat1) {
   Bench b(home_q());
   start_motion(b);

@@ -26,8 +26,13 @@
 //     Cat1 (controlled stop, then drives off): following error, F/T sensor
 //          faults/saturation/missing, Stop{Cat1}
 //     Cat2 (controlled stop, hold powered): joint position/velocity limit of
-//          the command (the offending command is dropped), force/torque
-//          safety limits, link loss with policy Stop, Stop{Cat2}
+//          the command (the offending command is dropped; position limits by
+//          braking distance), force/torque safety limits of a stiff motion,
+//          link loss with policy Stop, Stop{Cat2}
+//     Not a stop: a force/torque limit in a compliant mode (an algorithm, a
+//          compliant trajectory or hold) backs off: the motion FAILS with
+//          ForceLimit and the arm holds compliantly at the measured pose; a
+//          contact still over the limit 200 ms later is Cat1
 //   Link loss with policy FinishThenHold: what runs runs to its end, then the
 //   arm holds; new motions are rejected (NotInControl) while the link is lost.
 //
@@ -168,6 +173,11 @@ class Controller {
   void controlled_stop_step() noexcept;
   /// A stop on the trajectory's path: the time scaling ramps to zero.
   void path_stop_step() noexcept;
+  /// A force or torque limit in a compliant mode: the running motion FAILS
+  /// (ForceLimit) and the arm holds compliantly at the measured tip pose; if the
+  /// contact is still over the limit kBackoffTimeS later, Cat1.
+  void back_off(const char* text) noexcept;
+  static constexpr double kBackoffTimeS = 0.2;
   /// Rest reached by a controlled stop: Cat1 powers off, Cat2 holds.
   void stop_at_rest() noexcept;
   /// The trajectory's command at its time t (start offset faded, compliance on top).
@@ -212,6 +222,8 @@ class Controller {
   std::size_t traj_hint_ = 0;
   JointArray traj_offset_{};  // command - first sample at the start, faded out
   double traj_fade_s_ = 1.0;
+  bool backoff_active_ = false;  // back_off(): waiting for the contact to fall below the limit
+  int backoff_cycles_ = 0;
   bool stop_on_path_ = false;   // Stopping along traj_ (path_stop_step)
   double path_scale_ = 1.0;     // d(trajectory time)/dt, ramping 1 -> 0
   Reason path_cancel_code_ = Reason::Aborted;
