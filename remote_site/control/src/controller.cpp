@@ -437,7 +437,7 @@ void Controller::controlled_stop_step() noexcept {
 }
 
 void Controller::back_off(const char* text) noexcept {
-  char why[96];
+  char why[160];
   std::snprintf(why, sizeof why, "%s: backing off into a compliant hold", text);
   finish_active(MotionEventKind::Failed, Reason::ForceLimit, why);
   // The compliant hold anchored where the tip is measured, not where it was
@@ -571,7 +571,7 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
       // Backing off did not bring the contact below the limit in time: Cat1.
       if (static_cast<double>(++backoff_cycles_) * dt_ >= kBackoffTimeS) {
         backoff_active_ = false;
-        char why[96];
+        char why[160];
         std::snprintf(why, sizeof why, "%s %.0f ms after backing off", buf, 1e3 * kBackoffTimeS);
         begin_stop(cause, StopCategory::Cat1, -1, value, limit, why);
       }
