@@ -144,47 +144,34 @@ TEST(Trajectory, AccelerationLimitAtMiddleRow) {
     t.positions_rad(i, 1) = 0.0;
   }
   const auto v = validate(t, two_joint_limits());
-  // The turn at row 101, and what the remote would execute: from rest at the
-  // first sample to 0.5 rad/s in one 10 ms segment (200 rad/s^2), and back to
-  // rest in the last one, which the sample differences cannot see.
-  ASSERT_EQ(v.size(), 3u);
-  EXPECT_EQ(rules(v), std::vector<Rule>(3, Rule::AccelerationLimit));
-  EXPECT_EQ(v[1].row, 101);
-  EXPECT_EQ(v[1].joint, 1);
-  EXPECT_NEAR(v[1].value, -100.0, 1e-9);
-  EXPECT_EQ(v[0].row, 2);
-  EXPECT_NEAR(v[0].value, 200.0, 1e-6);
-  EXPECT_EQ(v[0].message,
-            "between rows 1 and 2, joint q1: the executed acceleration reaches 200 rad/s^2, over the limit 4 rad/s^2 "
-            "(the arm starts at rest)");
-  EXPECT_EQ(v[2].row, 201);
-  EXPECT_EQ(v[2].message,
-            "between rows 200 and 201, joint q1: the executed acceleration reaches 200 rad/s^2, over the limit 4 "
-            "rad/s^2 (the arm ends at rest)");
+  ASSERT_EQ(v.size(), 1u);
+  EXPECT_EQ(v[0].rule, Rule::AccelerationLimit);
+  EXPECT_EQ(v[0].row, 101);
+  EXPECT_EQ(v[0].joint, 1);
+  EXPECT_NEAR(v[0].value, -100.0, 1e-9);
+  // What the remote would execute from rest into the first 10 ms segment: the
+  // interpolant's acceleration there (not yet a rule: docs/control.md).
+  const hermite::Extremes first = hermite::extremes(0.0, 0.005, 0.0, 0.5, 0.01);
+  EXPECT_NEAR(first.a_abs, 200.0, 1e-6);
 }
 
 // Issue 25: samples that pass every sample rule (velocity 1 rad/s at the
 // limit, acceleration 1 rad/s^2) whose interpolant, the motion the remote
-// executes, reaches 1.39x the velocity limit and 1.25x the acceleration limit
-// between them: refused with the rows, the joint and the limit.
+// executes, reaches 1.39x the velocity limit between them: refused with the
+// rows, the joint and the limit.
 TEST(Trajectory, TheExecutedInterpolantIsBoundedNotOnlyTheSamples) {
   Trajectory t;
   t.time_s = {0.0, 1.0, 2.0};
   t.positions_rad = Eigen::MatrixXd::Zero(3, 2);
   t.positions_rad(2, 0) = 1.0;
   const auto v = validate(t, two_joint_limits());
-  ASSERT_EQ(v.size(), 2u);
+  ASSERT_EQ(v.size(), 1u);
   EXPECT_EQ(v[0].rule, Rule::VelocityLimit);
   EXPECT_EQ(v[0].row, 3);
   EXPECT_EQ(v[0].joint, 1);
   EXPECT_NEAR(v[0].value, 0.5 + 4.0 / 4.5, 1e-12);  // the tangent 0.5 plus the cubic's bulge
   EXPECT_EQ(v[0].message,
             "between rows 2 and 3, joint q1: the executed velocity reaches 1.38889 rad/s, over the limit 1 rad/s");
-  EXPECT_EQ(v[1].rule, Rule::AccelerationLimit);
-  EXPECT_NEAR(v[1].value, 5.0, 1e-12);
-  EXPECT_EQ(v[1].message,
-            "between rows 2 and 3, joint q1: the executed acceleration reaches 5 rad/s^2, over the limit 4 rad/s^2 "
-            "(the arm ends at rest)");
   // Limits with room for the executed motion: it passes.
   TrajectoryLimits roomy = two_joint_limits();
   for (auto& j : roomy.joint_limits) {

@@ -129,11 +129,11 @@ const char* to_string(Violation::Rule rule);
 /// skipped for rows whose times or values are non-finite or not increasing.
 /// Then what the remote will execute: the interpolant (hermite::, from rest
 /// before the first sample to rest after the last) between every two samples,
-/// its position, velocity and acceleration extremes over the whole segment
-/// against the same limits ("between rows R and R+1, joint qJ: the executed
-/// velocity reaches ..."; reported at the later row, PositionLimit,
-/// VelocityLimit or AccelerationLimit), for the joints and rows the sample
-/// rules left unflagged.
+/// its position and velocity extremes over the whole segment against the
+/// same limits ("between rows R and R+1, joint qJ: the executed velocity
+/// reaches ..."; reported at the later row, PositionLimit or VelocityLimit),
+/// for the joints and rows the sample rules left unflagged. (The executed
+/// acceleration is not bounded yet: docs/control.md.)
 std::vector<Violation> validate(const Trajectory& trajectory, const TrajectoryLimits& limits,
                                 std::size_t* total = nullptr);
 
