@@ -352,14 +352,9 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   pending_stop_category_ = cat;
   hold_compliant_ = false;
   if (cat == StopCategory::Cat0) {
-    power_off_now_ = true;
     q_cmd_ = q_;  // power is off: the targets follow the arm
     v_cmd_ = JointArray{};
-    mode_ = ControllerMode::Fault;
-    if (drives_enabled_ && !drive_request_pending_) {
-      drive_request_pending_ = true;
-      pending_request_ = DriveRequest::Disable;
-    }
+    power_off();
   } else {
     mode_ = ControllerMode::Stopping;
   }
@@ -406,14 +401,18 @@ void Controller::path_stop_step() noexcept {
   }
 }
 
+void Controller::power_off() noexcept {
+  power_off_now_ = true;  // Disable Voltage to every drive this cycle
+  mode_ = ControllerMode::Fault;
+  if (drives_enabled_ && !drive_request_pending_) {  // then disable() confirms it
+    drive_request_pending_ = true;
+    pending_request_ = DriveRequest::Disable;
+  }
+}
+
 void Controller::stop_at_rest() noexcept {
   if (pending_stop_category_ == StopCategory::Cat1) {
-    power_off_now_ = true;  // then power off, as for Cat0
-    mode_ = ControllerMode::Fault;
-    if (drives_enabled_ && !drive_request_pending_) {
-      drive_request_pending_ = true;
-      pending_request_ = DriveRequest::Disable;
-    }
+    power_off();  // then power off, as for Cat0
   } else {
     mode_ = ControllerMode::Stopped;
   }

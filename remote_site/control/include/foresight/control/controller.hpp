@@ -178,6 +178,8 @@ class Controller {
   /// contact is still over the limit kBackoffTimeS later, Cat1.
   void back_off(const char* text) noexcept;
   static constexpr double kBackoffTimeS = 0.2;
+  /// Cat0, and Cat1 at rest: power_off this cycle, mode Fault, then disable().
+  void power_off() noexcept;
   /// Rest reached by a controlled stop: Cat1 powers off, Cat2 holds.
   void stop_at_rest() noexcept;
   /// The trajectory's command at its time t (start offset faded, compliance on top).
