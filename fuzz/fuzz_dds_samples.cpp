@@ -33,7 +33,7 @@
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/messages.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 #include "fuzz_support.hpp"
 
 namespace {
@@ -109,13 +109,13 @@ struct Remote {
   foresight::protocol::TrajectoryAssembler assembler;
   void on(const msg::Command& c) {
     const std::int64_t now = foresight::protocol::now_ns();
-    (void)foresight::remote_link::envelope_of(c, now);
+    (void)foresight::protocol::envelope_of(c, now);
     const auto verdict = checker.check(c, now, 0);
     if (!verdict.ok()) return;
-    foresight::remote_link::PayloadLimits pl;
+    foresight::protocol::PayloadLimits pl;
     pl.joints = limits().joints;
-    const auto payload = foresight::remote_link::check_payload(c, pl);
-    if (payload.ok()) (void)foresight::remote_link::to_control(c, now);
+    const auto payload = foresight::protocol::check_payload(c, pl);
+    if (payload.ok()) (void)foresight::protocol::to_control(c, now);
   }
   void on(const msg::TrajectoryChunk& chunk) {
     const auto progress = assembler.add(chunk);
@@ -144,10 +144,10 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t encoding) {
       if constexpr (std::is_same_v<T, msg::Command> || std::is_same_v<T, msg::TrajectoryChunk>) {
         remote.on(v);
       } else if constexpr (std::is_same_v<T, msg::CommandAck>) {
-        (void)foresight::remote_link::from_wire(v);
+        (void)foresight::protocol::from_wire(v);
       } else if constexpr (std::is_same_v<T, msg::TrajectoryStatus>) {
-        (void)foresight::protocol::to_string(v.state);
-        (void)foresight::protocol::to_string(v.code);
+        (void)foresight::protocol::to_string(static_cast<foresight::protocol::UploadState>(v.state));
+        (void)foresight::protocol::to_string(static_cast<foresight::protocol::Reason>(v.code));
         (void)foresight::protocol::get_hash(v.content_hash);
         (void)std::string(foresight::protocol::text(v.reason));
       } else if constexpr (std::is_same_v<T, msg::Pong>) {
@@ -158,7 +158,7 @@ void run(const std::uint8_t* data, std::size_t size, std::uint8_t encoding) {
       } else if constexpr (std::is_same_v<T, msg::Heartbeat> || std::is_same_v<T, msg::Ping>) {
         (void)v;
       } else {
-        (void)foresight::remote_link::from_wire(v);
+        (void)foresight::protocol::from_wire(v);
       }
     });
   }

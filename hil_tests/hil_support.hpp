@@ -60,16 +60,16 @@ inline Eigen::VectorXd current_q(const ground_link::GroundLink& ground) {
 /// Sends a slow GOTO_JOINT (10% speed) of joint 1 by `delta` from `q0`;
 /// returns its command id once the remote reports it EXECUTING (within 5 s).
 inline std::uint64_t start_slow_motion(ground_link::GroundLink& ground, const Eigen::VectorXd& q0, double delta) {
-  control::GotoJoint g;
+  protocol::GotoJoint g;
   g.q_rad.assign(q0.data(), q0.data() + 7);
   g.q_rad[0] += delta;
   g.speed_fraction = 0.1;
-  const std::uint64_t id = ground.send(control::CommandKind::GotoJoint, g);
+  const std::uint64_t id = ground.send(protocol::CommandKind::GotoJoint, g);
   const bool executing = eventually(
       [&] {
         const auto partial = ground.wait_final(id, std::chrono::milliseconds(0));
         for (const auto& a : partial.acks)
-          if (a.state == control::AckState::Executing) return true;
+          if (a.state == protocol::AckState::Executing) return true;
         return false;
       },
       std::chrono::seconds(5));
@@ -205,7 +205,7 @@ class DaemonTest : public ::testing::Test {
 
   /// One command and its final answer (`expected_s`: how long it should take);
   /// every result also goes to after_command().
-  ground_link::CommandResult run(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+  ground_link::CommandResult run(protocol::CommandKind kind, const protocol::Payload& payload = protocol::NoPayload{},
                                  double expected_s = 2.0) {
     auto r = ground_->execute(kind, payload, expected_s);
     after_command(r);
@@ -216,9 +216,9 @@ class DaemonTest : public ::testing::Test {
 
   /// Take control and enable the drives.
   void take_and_recover() {
-    const auto take = run(control::CommandKind::TakeControl);
+    const auto take = run(protocol::CommandKind::TakeControl);
     ASSERT_TRUE(take.succeeded()) << take.reason;
-    const auto rec = run(control::CommandKind::Recover, control::NoPayload{}, 5.0);
+    const auto rec = run(protocol::CommandKind::Recover, protocol::NoPayload{}, 5.0);
     ASSERT_TRUE(rec.succeeded()) << rec.reason << "\n" << remote_->log();
   }
 

@@ -26,8 +26,8 @@
 
 using namespace foresight;
 using namespace std::chrono_literals;
-using control::AckState;
-using control::CommandKind;
+using protocol::AckState;
+using protocol::CommandKind;
 
 namespace {
 
@@ -101,7 +101,7 @@ TEST_F(JointVelocity, TheGroundReceivesTheDrivesVelocityOfAKnownCruise) {
   const auto up = ground.upload(tr, 30s);
   ASSERT_TRUE(up.committed()) << up.reason;
 
-  control::RunTrajectory run;
+  protocol::RunTrajectory run;
   run.trajectory_id = up.trajectory_id;
   run.content_hash = up.local_hash;
   const std::uint64_t id = ground.send(CommandKind::Trajectory, run);

@@ -17,9 +17,9 @@
 
 using namespace foresight;
 using namespace std::chrono_literals;
-using control::AckState;
-using control::CommandKind;
-using control::Reason;
+using protocol::AckState;
+using protocol::CommandKind;
+using protocol::Reason;
 
 namespace {
 
@@ -53,7 +53,7 @@ const std::vector<AckState> kCompletedMotion = {AckState::Received, AckState::Qu
 }  // namespace
 
 TEST_F(RemoteCommands, ControlMustBeTakenAndDrivesEnabledBeforeAnythingMoves) {
-  control::GotoJoint g;
+  protocol::GotoJoint g;
   g.q_rad.assign(7, 0.1);
   auto r = run(CommandKind::GotoJoint, g);
   EXPECT_EQ(r.state, AckState::Rejected);
@@ -71,17 +71,17 @@ TEST_F(RemoteCommands, ControlMustBeTakenAndDrivesEnabledBeforeAnythingMoves) {
   c.domain = domain_;
   ground_link::GroundLink other(c);
   ASSERT_TRUE(other.wait_for_remote(30s));
-  const auto take = other.execute(CommandKind::TakeControl, control::NoPayload{}, 1.0);
+  const auto take = other.execute(CommandKind::TakeControl, protocol::NoPayload{}, 1.0);
   EXPECT_EQ(take.state, AckState::Rejected);
   EXPECT_EQ(take.code, Reason::NotInControl);
-  const auto req = other.execute(CommandKind::Request, control::Request{control::RequestWhat::Status}, 1.0);
+  const auto req = other.execute(CommandKind::Request, protocol::Request{protocol::RequestWhat::Status}, 1.0);
   EXPECT_TRUE(req.succeeded()) << req.reason;
 }
 
 TEST_F(RemoteCommands, GotoJointRunsTheWholeLifecycleAndReportsTheFinalJoints) {
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();
-  control::GotoJoint g;
+  protocol::GotoJoint g;
   g.q_rad.resize(7);
   for (int j = 0; j < 7; ++j) g.q_rad[static_cast<std::size_t>(j)] = q0[j] + (j % 2 ? -0.05 : 0.05);
   g.speed_fraction = 0.5;
@@ -92,7 +92,7 @@ TEST_F(RemoteCommands, GotoJointRunsTheWholeLifecycleAndReportsTheFinalJoints) {
   for (int j = 0; j < 7; ++j) EXPECT_NEAR(r.final_q_rad[static_cast<std::size_t>(j)], g.q_rad[static_cast<std::size_t>(j)], 2e-3) << "joint " << j + 1;
 
   // Bad inputs: nothing moves, the reason names what is wrong.
-  control::GotoJoint bad = g;
+  protocol::GotoJoint bad = g;
   bad.q_rad.pop_back();
   auto b = run(CommandKind::GotoJoint, bad);
   EXPECT_EQ(b.code, Reason::JointCount);
@@ -102,7 +102,7 @@ TEST_F(RemoteCommands, GotoJointRunsTheWholeLifecycleAndReportsTheFinalJoints) {
   b = run(CommandKind::GotoJoint, bad);
   EXPECT_EQ(b.code, Reason::BadArgument);
   EXPECT_NE(b.reason.find("joint 3: 9.0000 rad outside its limits"), std::string::npos) << b.reason;
-  control::InvokeAlgorithm alg;
+  protocol::InvokeAlgorithm alg;
   alg.name = "dance";
   b = run(CommandKind::InvokeAlgorithm, alg);
   EXPECT_EQ(b.code, Reason::UnknownAlgorithm);
@@ -111,6 +111,22 @@ TEST_F(RemoteCommands, GotoJointRunsTheWholeLifecycleAndReportsTheFinalJoints) {
   b = run(CommandKind::InvokeAlgorithm, alg);
   EXPECT_EQ(b.code, Reason::BadArgument);
   EXPECT_EQ(b.reason.rfind("insert: unknown parameter 'depth' (expected one of: depth_m,", 0), 0u) << b.reason;
+  // Issue 26: every parameter has a range; a value outside is refused, nothing moves.
+  const Eigen::VectorXd q_before = current_q();
+  alg.params = {{"depth_m", 1e300}};
+  b = run(CommandKind::InvokeAlgorithm, alg);
+  EXPECT_EQ(b.state, AckState::Rejected);
+  EXPECT_EQ(b.code, Reason::BadArgument);
+  EXPECT_EQ(b.reason, "insert: depth_m 1e+300 out of range [0.001, 0.2] m");
+  alg.params = {{"speed_m_s", 1e-300}};
+  b = run(CommandKind::InvokeAlgorithm, alg);
+  EXPECT_EQ(b.reason, "insert: speed_m_s 1e-300 out of range [0.0001, 0.1] m/s");
+  alg.params = {};
+  alg.timeout_s = 1e300;
+  b = run(CommandKind::InvokeAlgorithm, alg);
+  EXPECT_EQ(b.code, Reason::BadArgument);
+  EXPECT_EQ(b.reason, "insert: timeout_s 1e+300 out of range [0, 600] s (0: the default)");
+  EXPECT_LT((current_q() - q_before).cwiseAbs().maxCoeff(), 1e-4);
 }
 
 TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
@@ -128,7 +144,7 @@ TEST_F(RemoteCommands, UploadedTrajectoryRunsOnlyWithItsCommittedHash) {
   ASSERT_TRUE(up.committed()) << up.reason;
   EXPECT_EQ(up.remote_hash, trajectory_hash(plan.trajectory));
 
-  control::RunTrajectory run_cmd;
+  protocol::RunTrajectory run_cmd;
   run_cmd.trajectory_id = up.trajectory_id;
   run_cmd.content_hash = up.local_hash;
   run_cmd.content_hash[0] ^= 1;
@@ -172,12 +188,12 @@ TEST_F(RemoteCommands, AnAbortCarryingTheRunningCommandsIdFromAnotherSessionDoes
   c.domain = domain_;
   ground_link::GroundLink other(c);
   ASSERT_TRUE(other.wait_for_remote(30s));
-  control::Request status;
-  status.what = control::RequestWhat::Status;
+  protocol::Request status;
+  status.what = protocol::RequestWhat::Status;
   std::uint64_t last = 0;
   for (int i = 0; i < 100 && last + 1 < id; ++i) last = other.send(CommandKind::Request, status);
-  control::Abort a;
-  a.category = control::StopCategory::Cat2;
+  protocol::Abort a;
+  a.category = protocol::StopCategory::Cat2;
   a.reason = "second session";
   const std::uint64_t abort_id = other.send(CommandKind::Abort, a);
   ASSERT_EQ(abort_id, id);
@@ -193,11 +209,11 @@ TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();
   const std::uint64_t id = start_slow_motion(0.6);
-  control::GotoJoint g;
+  protocol::GotoJoint g;
   g.q_rad.assign(q0.data(), q0.data() + 7);
   g.q_rad[0] += 0.6;
-  control::Abort a;
-  a.category = control::StopCategory::Cat2;
+  protocol::Abort a;
+  a.category = protocol::StopCategory::Cat2;
   a.reason = "test";
   const auto ab = run(CommandKind::Abort, a);
   EXPECT_TRUE(ab.succeeded()) << ab.reason;
@@ -206,10 +222,10 @@ TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
   ASSERT_EQ(moved.final_q_rad.size(), 7u);
   EXPECT_LT(moved.final_q_rad[0], q0[0] + 0.6 - 0.05);  // stopped well short of the goal
 
-  control::GotoJoint again = g;
+  protocol::GotoJoint again = g;
   auto r = run(CommandKind::GotoJoint, again);
   EXPECT_EQ(r.code, Reason::Faulted);
-  ASSERT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+  ASSERT_TRUE(run(CommandKind::Recover, protocol::NoPayload{}, 5.0).succeeded());
   again.speed_fraction = 0.5;
   r = run(CommandKind::GotoJoint, again, 10.0);
   EXPECT_TRUE(r.succeeded()) << r.reason;
@@ -253,10 +269,10 @@ TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence)
     EXPECT_FALSE(d.was_in(j, 5)) << "joint " << j + 1 << " passed through quick_stop_active";
   }
   // The status reports the stop, and the drives as they reported themselves.
-  control::StatusReport st;
+  protocol::StatusReport st;
   const bool reported = test::eventually([&] {
     const auto s = ground_->status();
-    if (!s || s->value.stop_category != control::StopCategory::Cat0 || s->value.drives.size() != 7) return false;
+    if (!s || s->value.stop_category != protocol::StopCategory::Cat0 || s->value.drives.size() != 7) return false;
     st = s->value;
     for (const auto& dr : st.drives)
       if (dr.state != 1 || dr.powered) return false;  // switch_on_disabled
@@ -292,7 +308,7 @@ TEST_F(RemoteCommands, EstopInputStopsCategoryZeroAndTheJournalKeepsTheEvidence)
 TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
   take_and_recover();
   fault_on("tool_jam");
-  control::InvokeAlgorithm loosen;
+  protocol::InvokeAlgorithm loosen;
   loosen.name = "loosen";
   loosen.params = {{"turns", 2.0}};
   const auto r = run(CommandKind::InvokeAlgorithm, loosen, 5.0);
@@ -309,7 +325,7 @@ TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
   EXPECT_TRUE(stopped);
   fault_off("tool_jam");
   const Eigen::VectorXd q0 = current_q();
-  control::GotoJoint g;
+  protocol::GotoJoint g;
   g.q_rad.assign(q0.data(), q0.data() + 7);
   g.q_rad[1] += 0.02;
   EXPECT_TRUE(run(CommandKind::GotoJoint, g, 3.0).succeeded());
@@ -320,7 +336,7 @@ TEST_F(RemoteCommands, AJammedToolFailsItsStepCleanlyAndTheArmHolds) {
 // (a second CAMERA is refused as busy at once instead of queuing behind it).
 TEST_F(RemoteCommands, CameraCommandsRunOffTheSupervisorThreadAndAHungSwitchFailsCleanly) {
   ASSERT_TRUE(run(CommandKind::TakeControl).succeeded());
-  control::CameraCommand cam;
+  protocol::CameraCommand cam;
   cam.camera = "oblique";
   auto r = run(CommandKind::Camera, cam);
   EXPECT_TRUE(r.succeeded()) << r.reason;
@@ -364,13 +380,13 @@ TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidenc
   EXPECT_NE(moved.reason.find("0x2310"), std::string::npos) << moved.reason;
   bool cat0 = false;
   for (int i = 0; i < 300 && !cat0; ++i) {
-    if (auto s = ground_->status(); s && s->value.stop_category == control::StopCategory::Cat0) cat0 = true;
+    if (auto s = ground_->status(); s && s->value.stop_category == protocol::StopCategory::Cat0) cat0 = true;
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(cat0);
   // Recover (fault reset, enable) and go on.
   fault_off("drive_emcy_3");
-  ASSERT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded()) << remote_->log();
+  ASSERT_TRUE(run(CommandKind::Recover, protocol::NoPayload{}, 5.0).succeeded()) << remote_->log();
   const auto json = journal_json();
   bool found = false;
   for (const auto& f : json["faults"])
@@ -398,7 +414,7 @@ TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHold
   ASSERT_NO_FATAL_FAILURE(connect_ground());
   bool disabled = false;
   for (int i = 0; i < 300 && !disabled; ++i) {
-    if (auto s = ground_->status(); s && s->value.mode == control::ControllerMode::Disabled) disabled = true;
+    if (auto s = ground_->status(); s && s->value.mode == protocol::ControllerMode::Disabled) disabled = true;
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(disabled);
@@ -425,11 +441,11 @@ TEST_F(RemoteCommands, LinkLossMidMotionFinishesTheMotionAndTheGroundSeesTheLoss
   bool holding_lost = false;
   for (int i = 0; i < 500 && !holding_lost; ++i) {
     const auto s = ground_->status();
-    holding_lost = s && (s->value.fault_bits & 2u) && s->value.mode == control::ControllerMode::Idle;
+    holding_lost = s && (s->value.fault_bits & 2u) && s->value.mode == protocol::ControllerMode::Idle;
     std::this_thread::sleep_for(10ms);
   }
   EXPECT_TRUE(holding_lost);
-  control::GotoJoint back;
+  protocol::GotoJoint back;
   back.q_rad.assign(q0.data(), q0.data() + 7);
   ground_->resume_heartbeat();
   bool back_up = false;
@@ -467,8 +483,8 @@ class SecureRemote : public test::DaemonTest {
 }  // namespace
 
 TEST_F(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
-  EXPECT_TRUE(run(CommandKind::TakeControl, control::NoPayload{}, 1.0).succeeded());
-  EXPECT_TRUE(run(CommandKind::Recover, control::NoPayload{}, 5.0).succeeded());
+  EXPECT_TRUE(run(CommandKind::TakeControl, protocol::NoPayload{}, 1.0).succeeded());
+  EXPECT_TRUE(run(CommandKind::Recover, protocol::NoPayload{}, 5.0).succeeded());
   ground_.reset();
   ground_link::Config w = ground_config_;
   w.domain = domain_;

@@ -450,4 +450,17 @@ IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, co
   return result;
 }
 
+void dls_step(const Jacobian& J, const Vector6& e, JointVector& dq, double lambda_max, double w0) noexcept {
+  Eigen::Matrix<double, 6, 6> JJt;
+  JJt.noalias() = J * J.transpose();
+  const double det = JJt.determinant();
+  const double w = det > 0.0 ? std::sqrt(det) : 0.0;
+  double lambda2 = 1e-6;
+  if (w < w0) lambda2 += lambda_max * lambda_max * (1.0 - (w / w0) * (w / w0));
+  JJt.diagonal().array() += lambda2;
+  const Vector6 y = JJt.ldlt().solve(e);
+  dq.resize(J.cols());
+  dq.noalias() = J.transpose() * y;
+}
+
 }  // namespace foresight

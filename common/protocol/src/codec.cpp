@@ -109,86 +109,6 @@ const char* to_string(JointStateDefect defect) noexcept {
   return "?";
 }
 
-const char* to_string(msg::CommandKind value) noexcept {
-  switch (value) {
-    case foresight_msg_CMD_TRAJECTORY: return "CMD_TRAJECTORY";
-    case foresight_msg_CMD_INVOKE_ALGORITHM: return "CMD_INVOKE_ALGORITHM";
-    case foresight_msg_CMD_REQUEST: return "CMD_REQUEST";
-    case foresight_msg_CMD_CAMERA: return "CMD_CAMERA";
-    case foresight_msg_CMD_GOTO_JOINT: return "CMD_GOTO_JOINT";
-    case foresight_msg_CMD_GOTO_CART: return "CMD_GOTO_CART";
-    case foresight_msg_CMD_ABORT: return "CMD_ABORT";
-    case foresight_msg_CMD_TAKE_CONTROL: return "CMD_TAKE_CONTROL";
-    case foresight_msg_CMD_RELEASE_CONTROL: return "CMD_RELEASE_CONTROL";
-    case foresight_msg_CMD_RECOVER: return "CMD_RECOVER";
-  }
-  return "UNKNOWN";
-}
-
-const char* to_string(msg::AckState value) noexcept {
-  switch (value) {
-    case foresight_msg_ACK_RECEIVED: return "ACK_RECEIVED";
-    case foresight_msg_ACK_REJECTED: return "ACK_REJECTED";
-    case foresight_msg_ACK_QUEUED: return "ACK_QUEUED";
-    case foresight_msg_ACK_EXECUTING: return "ACK_EXECUTING";
-    case foresight_msg_ACK_COMPLETED: return "ACK_COMPLETED";
-    case foresight_msg_ACK_FAILED: return "ACK_FAILED";
-    case foresight_msg_ACK_CANCELED: return "ACK_CANCELED";
-  }
-  return "UNKNOWN";
-}
-
-const char* to_string(msg::ReasonCode value) noexcept {
-  switch (value) {
-    case foresight_msg_REASON_NONE: return "REASON_NONE";
-    case foresight_msg_REASON_VERSION_MISMATCH: return "REASON_VERSION_MISMATCH";
-    case foresight_msg_REASON_BAD_SEQUENCE: return "REASON_BAD_SEQUENCE";
-    case foresight_msg_REASON_EXPIRED: return "REASON_EXPIRED";
-    case foresight_msg_REASON_BAD_ARGUMENT: return "REASON_BAD_ARGUMENT";
-    case foresight_msg_REASON_JOINT_COUNT: return "REASON_JOINT_COUNT";
-    case foresight_msg_REASON_UNKNOWN_TRAJECTORY: return "REASON_UNKNOWN_TRAJECTORY";
-    case foresight_msg_REASON_INCOMPLETE_UPLOAD: return "REASON_INCOMPLETE_UPLOAD";
-    case foresight_msg_REASON_HASH_MISMATCH: return "REASON_HASH_MISMATCH";
-    case foresight_msg_REASON_VALIDATION_FAILED: return "REASON_VALIDATION_FAILED";
-    case foresight_msg_REASON_START_MISMATCH: return "REASON_START_MISMATCH";
-    case foresight_msg_REASON_UNREACHABLE: return "REASON_UNREACHABLE";
-    case foresight_msg_REASON_UNKNOWN_ALGORITHM: return "REASON_UNKNOWN_ALGORITHM";
-    case foresight_msg_REASON_BUSY: return "REASON_BUSY";
-    case foresight_msg_REASON_FAULTED: return "REASON_FAULTED";
-    case foresight_msg_REASON_ABORTED: return "REASON_ABORTED";
-    case foresight_msg_REASON_TIMEOUT: return "REASON_TIMEOUT";
-    case foresight_msg_REASON_FORCE_LIMIT: return "REASON_FORCE_LIMIT";
-    case foresight_msg_REASON_TOOL_FAULT: return "REASON_TOOL_FAULT";
-    case foresight_msg_REASON_INTERNAL: return "REASON_INTERNAL";
-    case foresight_msg_REASON_NOT_IN_CONTROL: return "REASON_NOT_IN_CONTROL";
-  }
-  return "UNKNOWN";
-}
-
-const char* to_string(msg::UploadState value) noexcept {
-  switch (value) {
-    case foresight_msg_UPLOAD_ASSEMBLING: return "UPLOAD_ASSEMBLING";
-    case foresight_msg_UPLOAD_COMMITTED: return "UPLOAD_COMMITTED";
-    case foresight_msg_UPLOAD_REJECTED: return "UPLOAD_REJECTED";
-    case foresight_msg_UPLOAD_DISCARDED: return "UPLOAD_DISCARDED";
-  }
-  return "UNKNOWN";
-}
-
-const char* to_string(msg::ControllerMode value) noexcept {
-  switch (value) {
-    case foresight_msg_MODE_DISABLED: return "MODE_DISABLED";
-    case foresight_msg_MODE_IDLE: return "MODE_IDLE";
-    case foresight_msg_MODE_TRAJECTORY: return "MODE_TRAJECTORY";
-    case foresight_msg_MODE_GOTO: return "MODE_GOTO";
-    case foresight_msg_MODE_ALGORITHM: return "MODE_ALGORITHM";
-    case foresight_msg_MODE_STOPPING: return "MODE_STOPPING";
-    case foresight_msg_MODE_STOPPED: return "MODE_STOPPED";
-    case foresight_msg_MODE_FAULT: return "MODE_FAULT";
-  }
-  return "UNKNOWN";
-}
-
 const char* drive_state_name(msg::DriveState value) noexcept {
   switch (value) {
     case foresight_msg_DRIVE_NOT_READY_TO_SWITCH_ON: return "not_ready_to_switch_on";
@@ -202,16 +122,6 @@ const char* drive_state_name(msg::DriveState value) noexcept {
     case foresight_msg_DRIVE_UNKNOWN: return "unknown";
   }
   return "unknown";
-}
-
-const char* to_string(msg::StopCategory value) noexcept {
-  switch (value) {
-    case foresight_msg_STOP_NONE: return "STOP_NONE";
-    case foresight_msg_STOP_CAT0: return "STOP_CAT0";
-    case foresight_msg_STOP_CAT1: return "STOP_CAT1";
-    case foresight_msg_STOP_CAT2: return "STOP_CAT2";
-  }
-  return "UNKNOWN";
 }
 
 }  // namespace foresight::protocol

@@ -49,4 +49,9 @@ Qos security_qos(const std::string& dir, const std::string& identity) {
   return qos;
 }
 
+Participant make_participant(dds_domainid_t domain, const std::string& security_dir, const std::string& identity) {
+  if (security_dir.empty()) return Participant(domain);
+  return Participant(domain, security_qos(security_dir, identity));
+}
+
 }  // namespace foresight::protocol

@@ -8,11 +8,13 @@
 #include <algorithm>
 #include <cstdint>
 #include <chrono>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <numeric>
 #include <random>
 
+#include "foresight/protocol/command.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
@@ -217,16 +219,42 @@ TEST(ProtocolCodec, DelayFromHostilePongStampsIsInvalidNotOverflowed) {
   EXPECT_EQ(d.offset_ns, 0);
 }
 
-TEST(ProtocolCodec, EnumNames) {
-  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_GOTO_CART), "CMD_GOTO_CART");
-  EXPECT_STREQ(fp::to_string(foresight_msg_ACK_CANCELED), "ACK_CANCELED");
-  EXPECT_STREQ(fp::to_string(foresight_msg_REASON_HASH_MISMATCH), "REASON_HASH_MISMATCH");
-  EXPECT_STREQ(fp::to_string(foresight_msg_UPLOAD_COMMITTED), "UPLOAD_COMMITTED");
-  EXPECT_STREQ(fp::to_string(foresight_msg_MODE_STOPPED), "MODE_STOPPED");
-  EXPECT_STREQ(fp::to_string(foresight_msg_STOP_CAT1), "STOP_CAT1");
-  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_TAKE_CONTROL), "CMD_TAKE_CONTROL");
-  EXPECT_STREQ(fp::to_string(foresight_msg_CMD_RECOVER), "CMD_RECOVER");
-  EXPECT_STREQ(fp::to_string(foresight_msg_REASON_NOT_IN_CONTROL), "REASON_NOT_IN_CONTROL");
+// One name table for both sides: the plain enums' to_string (command.hpp),
+// reached from a wire value by a static_cast. Every IDL value has a name, the
+// value after the IDL's last has none, and the names are the IDL's own in
+// snake case without the prefix.
+template <typename Plain>
+void expect_names(std::initializer_list<std::pair<int, const char*>> idl, int count) {
+  for (const auto& [value, idl_name] : idl) {
+    std::string expected = std::string(idl_name).substr(std::string(idl_name).find('_') + 1);
+    for (char& ch : expected) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    EXPECT_EQ(fp::to_string(static_cast<Plain>(value)), expected) << idl_name;
+  }
+  for (int v = 0; v < count; ++v) EXPECT_STRNE(fp::to_string(static_cast<Plain>(v)), "unknown") << v;
+  EXPECT_STREQ(fp::to_string(static_cast<Plain>(count)), "unknown");
+}
+
+TEST(ProtocolCodec, EnumNamesAreTheIdlsInSnakeCase) {
+  expect_names<fp::CommandKind>({{foresight_msg_CMD_TRAJECTORY, "CMD_TRAJECTORY"},
+                                 {foresight_msg_CMD_INVOKE_ALGORITHM, "CMD_INVOKE_ALGORITHM"},
+                                 {foresight_msg_CMD_GOTO_CART, "CMD_GOTO_CART"},
+                                 {foresight_msg_CMD_TAKE_CONTROL, "CMD_TAKE_CONTROL"},
+                                 {foresight_msg_CMD_RELEASE_CONTROL, "CMD_RELEASE_CONTROL"},
+                                 {foresight_msg_CMD_RECOVER, "CMD_RECOVER"}},
+                                foresight_msg_CMD_RECOVER + 1);
+  expect_names<fp::AckState>({{foresight_msg_ACK_RECEIVED, "ACK_RECEIVED"}, {foresight_msg_ACK_CANCELED, "ACK_CANCELED"}},
+                             foresight_msg_ACK_CANCELED + 1);
+  expect_names<fp::Reason>({{foresight_msg_REASON_NONE, "REASON_NONE"},
+                            {foresight_msg_REASON_HASH_MISMATCH, "REASON_HASH_MISMATCH"},
+                            {foresight_msg_REASON_NOT_IN_CONTROL, "REASON_NOT_IN_CONTROL"}},
+                           foresight_msg_REASON_NOT_IN_CONTROL + 1);
+  expect_names<fp::UploadState>({{foresight_msg_UPLOAD_COMMITTED, "UPLOAD_COMMITTED"},
+                                 {foresight_msg_UPLOAD_DISCARDED, "UPLOAD_DISCARDED"}},
+                                foresight_msg_UPLOAD_DISCARDED + 1);
+  expect_names<fp::ControllerMode>({{foresight_msg_MODE_STOPPED, "MODE_STOPPED"}, {foresight_msg_MODE_FAULT, "MODE_FAULT"}},
+                                   foresight_msg_MODE_FAULT + 1);
+  expect_names<fp::StopCategory>({{foresight_msg_STOP_NONE, "STOP_NONE"}, {foresight_msg_STOP_CAT1, "STOP_CAT1"}},
+                                 foresight_msg_STOP_CAT2 + 1);
   EXPECT_EQ(msg::kProtocolVersion, 2u);
 }
 

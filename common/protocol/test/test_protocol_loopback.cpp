@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/command.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
@@ -516,7 +517,7 @@ TEST_F(ProtocolLoopback, GotoJointIsAcknowledgedThroughCompletionWithFinalJointA
   const msg::AckState expected[] = {foresight_msg_ACK_RECEIVED, foresight_msg_ACK_QUEUED, foresight_msg_ACK_EXECUTING,
                                     foresight_msg_ACK_COMPLETED};
   for (std::size_t i = 0; i < 4; ++i) {
-    EXPECT_EQ(acks[i]->state, expected[i]) << fp::to_string(acks[i]->state);
+    EXPECT_EQ(acks[i]->state, expected[i]) << fp::to_string(static_cast<fp::AckState>(acks[i]->state));
     EXPECT_EQ(acks[i]->session_id, c->session_id);
     EXPECT_EQ(acks[i]->sequence_number, c->sequence_number);
     EXPECT_EQ(acks[i]->kind, foresight_msg_CMD_GOTO_JOINT);

@@ -19,11 +19,11 @@ struct Options {
 
 int run(const Options& o) {
   auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
-  control::Abort a;
+  protocol::Abort a;
   a.target_command_id = o.command_id;
-  a.category = o.category == 1 ? control::StopCategory::Cat1 : control::StopCategory::Cat2;
+  a.category = o.category == 1 ? protocol::StopCategory::Cat1 : protocol::StopCategory::Cat2;
   a.reason = o.reason;
-  const auto kind = control::CommandKind::Abort;
+  const auto kind = protocol::CommandKind::Abort;
   const auto r = send_and_wait(*link, kind, a, final_ack_timeout(*link, 0.0, o.link.timeout_s));
   if (o.link.json) {
     auto j = result_json(kind, r);

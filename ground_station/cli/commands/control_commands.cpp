@@ -15,7 +15,7 @@
 namespace foresight::cli {
 namespace {
 
-bool register_control_command(const char* name, const char* help, control::CommandKind kind, bool hold_control) {
+bool register_control_command(const char* name, const char* help, protocol::CommandKind kind, bool hold_control) {
   return register_command({name, help, [kind, hold_control](Command& sub) -> std::function<int()> {
                              auto o = std::make_shared<LinkOptions>();
                              add_link_options(sub, *o);
@@ -23,7 +23,7 @@ bool register_control_command(const char* name, const char* help, control::Comma
                                auto link = connect_remote(resolve_domain(o->domain), o->connect_timeout_s);
                                std::optional<ControlGuard> guard;
                                if (hold_control) guard.emplace(*link);
-                               const auto r = send_and_wait(*link, kind, control::NoPayload{},
+                               const auto r = send_and_wait(*link, kind, protocol::NoPayload{},
                                                             final_ack_timeout(*link, 0.0, o->timeout_s));
                                if (o->json) std::cout << result_json(kind, r).dump(2) << "\n";
                                else std::cout << result_line(kind, r) << "\n";
@@ -35,13 +35,13 @@ bool register_control_command(const char* name, const char* help, control::Comma
 const bool registered =
     register_control_command("take-control",
                              "make this ground session the remote's commander; waits for the final acknowledgement",
-                             control::CommandKind::TakeControl, false) &&
+                             protocol::CommandKind::TakeControl, false) &&
     register_control_command("release-control",
                              "give up command of the remote; waits for the final acknowledgement",
-                             control::CommandKind::ReleaseControl, false) &&
+                             protocol::CommandKind::ReleaseControl, false) &&
     register_control_command(
         "recover", "leave STOPPED/FAULT: fault reset, enable the drives, hold; waits for the final acknowledgement",
-        control::CommandKind::Recover, true);
+        protocol::CommandKind::Recover, true);
 
 }  // namespace
 }  // namespace foresight::cli

@@ -386,10 +386,10 @@ json ground_chain(const Options& o, const std::string& self, const std::string& 
 
 /// TAKE_CONTROL, RECOVER (the drives come up) and a first tare, as an operator does first.
 void take_control(ground_link::GroundLink& link) {
-  const std::vector<std::pair<control::CommandKind, control::Payload>> first = {
-      {control::CommandKind::TakeControl, control::NoPayload{}},
-      {control::CommandKind::Recover, control::NoPayload{}},
-      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"tare", {}, 0.0}}};
+  const std::vector<std::pair<protocol::CommandKind, protocol::Payload>> first = {
+      {protocol::CommandKind::TakeControl, protocol::NoPayload{}},
+      {protocol::CommandKind::Recover, protocol::NoPayload{}},
+      {protocol::CommandKind::InvokeAlgorithm, protocol::InvokeAlgorithm{"tare", {}, 0.0}}};
   for (const auto& [kind, payload] : first) {
     const auto r = send_and_wait(link, kind, payload, final_ack_timeout(link, 5.0, 0.0), [] { return g_interrupt.load(); });
     say("  " + result_line(kind, r));

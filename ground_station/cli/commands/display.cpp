@@ -231,9 +231,9 @@ int run_display(const DisplayArgs& a) {
                                                 ", p99 " + fixed(stats.p99_s, 2) + ")" +
                                                 (js ? ", joints " + fixed(js->age_s, 2) + " s old" : "");
       if (const auto st = link->status()) {
-        state.controller_text = std::string("controller ") + control::to_string(st->value.mode);
-        if (st->value.stop_category != control::StopCategory::None)
-          state.fault_text = std::string(control::to_string(st->value.stop_category)) + ": " + st->value.stop_reason;
+        state.controller_text = std::string("controller ") + protocol::to_string(st->value.mode);
+        if (st->value.stop_category != protocol::StopCategory::None)
+          state.fault_text = std::string(protocol::to_string(st->value.stop_category)) + ": " + st->value.stop_reason;
         if (!st->value.fault_text.empty())
           state.fault_text += (state.fault_text.empty() ? "" : "; ") + st->value.fault_text;
       } else {
@@ -249,7 +249,7 @@ int run_display(const DisplayArgs& a) {
           pending_camera.reset();
         } else if (r.finished || Clock::now() > pending_camera->deadline) {
           camera_problem = "camera " + name + " not switched at the remote: " +
-                           (r.finished ? std::string(control::to_string(r.code)) + ": " + r.reason : "no answer");
+                           (r.finished ? std::string(protocol::to_string(r.code)) + ": " + r.reason : "no answer");
           std::cerr << "foresight display: " << camera_problem << "\n";
           pending_camera.reset();
         }
@@ -341,13 +341,13 @@ int run_display(const DisplayArgs& a) {
       if (!link) {
         switch_camera(next);
       } else if (!pending_camera) {
-        control::CameraCommand select;
+        protocol::CameraCommand select;
         select.camera = cameras[next].name;
-        select.action = control::CameraAction::Select;
-        link->send(control::CommandKind::TakeControl, control::NoPayload{});
-        pending_camera = PendingCamera{link->send(control::CommandKind::Camera, select), next,
+        select.action = protocol::CameraAction::Select;
+        link->send(protocol::CommandKind::TakeControl, protocol::NoPayload{});
+        pending_camera = PendingCamera{link->send(protocol::CommandKind::Camera, select), next,
                                        Clock::now() + link->timeout_for(1.0)};
-        link->send(control::CommandKind::ReleaseControl, control::NoPayload{});
+        link->send(protocol::CommandKind::ReleaseControl, protocol::NoPayload{});
       }
     }
   }

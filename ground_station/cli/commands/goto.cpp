@@ -31,8 +31,8 @@ int run(const Options& o) {
   const int given = !o.joints.empty() + !o.joints_deg.empty() + !o.tag.empty();
   if (given != 1) throw std::invalid_argument("give exactly one of --joints, --joints-deg or --tag");
   const RobotModel model = RobotModel::from_file(o.robot);
-  control::Payload payload;
-  control::CommandKind kind;
+  protocol::Payload payload;
+  protocol::CommandKind kind;
   std::string target, pose_source;
   if (!o.tag.empty()) {
     const ObjectModel object = ObjectModel::from_file(o.object);
@@ -50,21 +50,21 @@ int run(const Options& o) {
       base_T_object = Scene::from_file(o.scene).base_T_object;
       pose_source = o.scene + " (the work site's true pose; give --object-pose for the localized one)";
     }
-    control::GotoCart c;
+    protocol::GotoCart c;
     c.frame = "lst_tip";
     c.base_T_frame = base_T_object * tag->second;
     c.speed_fraction = o.speed;
     payload = c;
-    kind = control::CommandKind::GotoCart;
+    kind = protocol::CommandKind::GotoCart;
     target = "tag " + o.tag;
   } else {
     const Eigen::VectorXd q = !o.joints.empty() ? parse_joints(o.joints, "--joints", model)
                                                 : parse_joints(o.joints_deg, "--joints-deg", model, true);
-    control::GotoJoint g;
+    protocol::GotoJoint g;
     g.q_rad.assign(q.data(), q.data() + q.size());
     g.speed_fraction = o.speed;
     payload = g;
-    kind = control::CommandKind::GotoJoint;
+    kind = protocol::CommandKind::GotoJoint;
     target = "joints";
   }
   auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);

@@ -20,14 +20,14 @@ struct Options {
   double algorithm_timeout_s = 0.0;
 };
 
-control::InvokeAlgorithm parse(const Options& o) {
+protocol::InvokeAlgorithm parse(const Options& o) {
   const auto& names = script::algorithm_names();
   if (std::find(names.begin(), names.end(), o.algorithm) == names.end()) {
     std::string list;
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
     throw std::invalid_argument("unknown algorithm '" + o.algorithm + "' (algorithms: " + list + ")");
   }
-  control::InvokeAlgorithm inv;
+  protocol::InvokeAlgorithm inv;
   inv.name = o.algorithm;
   inv.timeout_s = o.algorithm_timeout_s;
   for (const auto& p : o.params) {
@@ -45,9 +45,9 @@ control::InvokeAlgorithm parse(const Options& o) {
 }
 
 int run(const Options& o) {
-  const control::InvokeAlgorithm inv = parse(o);  // bad input before connecting
+  const protocol::InvokeAlgorithm inv = parse(o);  // bad input before connecting
   auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
-  const auto kind = control::CommandKind::InvokeAlgorithm;
+  const auto kind = protocol::CommandKind::InvokeAlgorithm;
   // The algorithm's own timeout bounds it; 60 s when it uses its default.
   const double expected = o.algorithm_timeout_s > 0 ? o.algorithm_timeout_s : 60.0;
   const ControlGuard control_guard(*link);

@@ -48,8 +48,8 @@ std::chrono::nanoseconds final_ack_timeout(const ground_link::GroundLink& link, 
   return override_s > 0 ? seconds(override_s) : link.timeout_for(expected_s);
 }
 
-ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control::CommandKind kind,
-                                         const control::Payload& payload, std::chrono::nanoseconds timeout,
+ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, protocol::CommandKind kind,
+                                         const protocol::Payload& payload, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted) {
   const auto t0 = Clock::now();
   const std::uint64_t id = link.send(kind, payload);
@@ -63,11 +63,11 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control:
     if (r.finished) break;
     if (!aborted && interrupted && interrupted()) {
       aborted = true;
-      control::Abort a;
+      protocol::Abort a;
       a.target_command_id = id;
-      a.category = control::StopCategory::Cat2;
+      a.category = protocol::StopCategory::Cat2;
       a.reason = "canceled by the operator";
-      link.send(control::CommandKind::Abort, a);
+      link.send(protocol::CommandKind::Abort, a);
     }
   }
   r.elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -75,25 +75,25 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control:
 }
 
 ControlGuard::ControlGuard(ground_link::GroundLink& link) : link_(link) {
-  const auto r = send_and_wait(link_, control::CommandKind::TakeControl, control::NoPayload{}, link_.timeout_for(0.0));
-  if (!r.succeeded()) throw LinkFailure("cannot take control: " + result_line(control::CommandKind::TakeControl, r));
+  const auto r = send_and_wait(link_, protocol::CommandKind::TakeControl, protocol::NoPayload{}, link_.timeout_for(0.0));
+  if (!r.succeeded()) throw LinkFailure("cannot take control: " + result_line(protocol::CommandKind::TakeControl, r));
 }
 
 ControlGuard::~ControlGuard() {
   try {
-    send_and_wait(link_, control::CommandKind::ReleaseControl, control::NoPayload{}, link_.timeout_for(0.0));
+    send_and_wait(link_, protocol::CommandKind::ReleaseControl, protocol::NoPayload{}, link_.timeout_for(0.0));
   } catch (const std::exception&) {
   }
 }
 
-nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r) {
+nlohmann::json result_json(protocol::CommandKind kind, const ground_link::CommandResult& r) {
   nlohmann::json acks = nlohmann::json::array();
   for (const auto& a : r.acks)
-    acks.push_back({{"state", control::to_string(a.state)}, {"code", control::to_string(a.code)}, {"reason", a.reason}});
-  return {{"command", control::to_string(kind)},
+    acks.push_back({{"state", protocol::to_string(a.state)}, {"code", protocol::to_string(a.code)}, {"reason", a.reason}});
+  return {{"command", protocol::to_string(kind)},
           {"command_id", r.command_id},
-          {"state", r.finished ? control::to_string(r.state) : "timeout"},
-          {"code", control::to_string(r.code)},
+          {"state", r.finished ? protocol::to_string(r.state) : "timeout"},
+          {"code", protocol::to_string(r.code)},
           {"reason", r.reason},
           {"finished", r.finished},
           {"elapsed_s", r.elapsed_s},
@@ -101,27 +101,27 @@ nlohmann::json result_json(control::CommandKind kind, const ground_link::Command
           {"acks", acks}};
 }
 
-std::string result_line(control::CommandKind kind, const ground_link::CommandResult& r) {
-  std::string s = std::string(control::to_string(kind)) + " " + std::to_string(r.command_id) + ": ";
+std::string result_line(protocol::CommandKind kind, const ground_link::CommandResult& r) {
+  std::string s = std::string(protocol::to_string(kind)) + " " + std::to_string(r.command_id) + ": ";
   if (!r.finished) {
-    const std::string last = r.acks.empty() ? "no ack" : control::to_string(r.acks.back().state);
+    const std::string last = r.acks.empty() ? "no ack" : protocol::to_string(r.acks.back().state);
     return s + "timed out after " + fixed(r.elapsed_s, 1) + " s waiting for the final ack (last: " + last + ")";
   }
-  s += control::to_string(r.state);
-  if (r.state == control::AckState::Completed) return s + " in " + fixed(r.elapsed_s, 2) + " s";
-  s += std::string(" (") + control::to_string(r.code) + ")";
+  s += protocol::to_string(r.state);
+  if (r.state == protocol::AckState::Completed) return s + " in " + fixed(r.elapsed_s, 2) + " s";
+  s += std::string(" (") + protocol::to_string(r.code) + ")";
   if (!r.reason.empty()) s += ": " + r.reason;
   return s;
 }
 
 int exit_status(const ground_link::CommandResult& r) { return r.succeeded() ? 0 : 1; }
 
-std::optional<Eigen::VectorXd> joints_of(const control::JointReport& report, const RobotModel& model) {
+std::optional<Eigen::VectorXd> joints_of(const protocol::JointReport& report, const RobotModel& model) {
   if (static_cast<int>(report.q_rad.size()) != model.dof()) return std::nullopt;
   return Eigen::Map<const Eigen::VectorXd>(report.q_rad.data(), model.dof());
 }
 
-Eigen::VectorXd require_joints(const control::JointReport& report, const RobotModel& model) {
+Eigen::VectorXd require_joints(const protocol::JointReport& report, const RobotModel& model) {
   auto q = joints_of(report, model);
   if (!q)
     throw LinkFailure("the remote reports " + std::to_string(report.q_rad.size()) + " joint angles, the robot model has " +
@@ -129,7 +129,7 @@ Eigen::VectorXd require_joints(const control::JointReport& report, const RobotMo
   return std::move(*q);
 }
 
-std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
+std::optional<ground_link::Timed<protocol::JointReport>> wait_joints(const ground_link::GroundLink& link,
                                                                     double timeout_s) {
   const auto deadline = Clock::now() + seconds(timeout_s);
   while (true) {
@@ -142,33 +142,33 @@ std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground
 ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const Trajectory& trajectory,
                                            double timeout_s) {
   const auto r = link.upload(trajectory, seconds(timeout_s));
-  if (r.state == control::UploadState::Committed && r.local_hash != r.remote_hash)
+  if (r.state == protocol::UploadState::Committed && r.local_hash != r.remote_hash)
     throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": the remote committed hash " +
                       to_hex(r.remote_hash) + " but the local hash is " + to_hex(r.local_hash));
-  if (r.state == control::UploadState::Rejected || r.state == control::UploadState::Discarded)
-    throw LinkFailure("upload " + std::to_string(r.trajectory_id) + " rejected (" + control::to_string(r.code) +
+  if (r.state == protocol::UploadState::Rejected || r.state == protocol::UploadState::Discarded)
+    throw LinkFailure("upload " + std::to_string(r.trajectory_id) + " rejected (" + protocol::to_string(r.code) +
                       ")" + (r.reason.empty() ? "" : ": " + r.reason));
-  if (r.state != control::UploadState::Committed)
+  if (r.state != protocol::UploadState::Committed)
     throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": not committed within " + fixed(timeout_s, 1) +
                       " s");
   return r;
 }
 
 double planned_goto_duration_s(const RobotModel& model, const std::vector<double>& q_now,
-                               const control::Payload& payload) {
+                               const protocol::Payload& payload) {
   if (static_cast<int>(q_now.size()) != model.dof())
     throw PlanError("the remote reported " + std::to_string(q_now.size()) + " joints; the model has " +
                     std::to_string(model.dof()));
   const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(q_now.data(), model.dof());
   Goal goal;
   PlanOptions options;
-  if (const auto* gj = std::get_if<control::GotoJoint>(&payload)) {
+  if (const auto* gj = std::get_if<protocol::GotoJoint>(&payload)) {
     goal.name = "goto_joint";
     goal.kind = SegmentKind::Joint;
     goal.is_pose = false;
     goal.q = Eigen::Map<const Eigen::VectorXd>(gj->q_rad.data(), static_cast<Eigen::Index>(gj->q_rad.size()));
     options.limit_fraction = gj->speed_fraction;
-  } else if (const auto* gc = std::get_if<control::GotoCart>(&payload)) {
+  } else if (const auto* gc = std::get_if<protocol::GotoCart>(&payload)) {
     goal.name = "goto_cart";
     goal.kind = SegmentKind::Linear;
     goal.base_T_tip = gc->base_T_frame;
@@ -205,10 +205,10 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
                                {"not_finite", dropped.joint_state_not_finite}};
   if (const auto st = link.status()) {
     const auto& s = st->value;
-    j["state"] = control::to_string(s.mode);
+    j["state"] = protocol::to_string(s.mode);
     j["active_command_id"] = s.active_command_id;
     j["active_trajectory_id"] = s.active_trajectory_id;
-    j["stop_category"] = control::to_string(s.stop_category);
+    j["stop_category"] = protocol::to_string(s.stop_category);
     j["stop_reason"] = s.stop_reason;
     j["fault_bits"] = s.fault_bits;
     j["status_age_s"] = st->age_s;
@@ -222,8 +222,8 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
     j["drives"] = drives;
     if (s.fault_bits != 0 || !s.fault_text.empty())
       faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
-    if (s.stop_category != control::StopCategory::None)
-      faults.push_back(std::string("stop ") + control::to_string(s.stop_category) +
+    if (s.stop_category != protocol::StopCategory::None)
+      faults.push_back(std::string("stop ") + protocol::to_string(s.stop_category) +
                        (s.stop_reason.empty() ? "" : ": " + s.stop_reason));
   } else {
     j["state"] = "unknown";

@@ -16,7 +16,7 @@
 #include "foresight/common/error.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
-#include "foresight/control/command.hpp"
+#include "foresight/protocol/command.hpp"
 #include "foresight/ground_link/ground_link.hpp"
 
 namespace foresight::cli {
@@ -46,8 +46,8 @@ std::chrono::nanoseconds final_ack_timeout(const ground_link::GroundLink& link, 
 /// empty). When it returns true the command is aborted (ABORT of its id,
 /// category 2) and the wait goes on for its final ack (CANCELED). A timeout
 /// leaves result.finished false.
-ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, control::CommandKind kind,
-                                         const control::Payload& payload, std::chrono::nanoseconds timeout,
+ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, protocol::CommandKind kind,
+                                         const protocol::Payload& payload, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted = {});
 
 /// Each CLI process is its own ground session: a command that moves the arm
@@ -65,23 +65,23 @@ class ControlGuard {
 };
 
 /// {"command", "command_id", "state", "code", "reason", "finished", "elapsed_s", "final_q_rad", "acks"}.
-nlohmann::json result_json(control::CommandKind kind, const ground_link::CommandResult& r);
+nlohmann::json result_json(protocol::CommandKind kind, const ground_link::CommandResult& r);
 /// One line: "goto_joint 12: completed in 3.2 s" or "... rejected (busy): reason"
 /// or "... timed out after 5.0 s waiting for the final ack (last: queued)".
-std::string result_line(control::CommandKind kind, const ground_link::CommandResult& r);
+std::string result_line(protocol::CommandKind kind, const ground_link::CommandResult& r);
 
 /// Every trajectory/goto/algorithm command's exit status: 0 on COMPLETED, else 1.
 int exit_status(const ground_link::CommandResult& r);
 
 /// The arm's joint vector from a joint report: std::nullopt when the report
 /// has another number of joints than the model.
-std::optional<Eigen::VectorXd> joints_of(const control::JointReport& report, const RobotModel& model);
+std::optional<Eigen::VectorXd> joints_of(const protocol::JointReport& report, const RobotModel& model);
 /// The same, or LinkFailure "the remote reports N joint angles, the robot
 /// model has M joints".
-Eigen::VectorXd require_joints(const control::JointReport& report, const RobotModel& model);
+Eigen::VectorXd require_joints(const protocol::JointReport& report, const RobotModel& model);
 
 /// The latest joint angles, waiting for the first report at most `timeout_s`.
-std::optional<ground_link::Timed<control::JointReport>> wait_joints(const ground_link::GroundLink& link,
+std::optional<ground_link::Timed<protocol::JointReport>> wait_joints(const ground_link::GroundLink& link,
                                                                     double timeout_s);
 
 /// Uploads and waits for COMMITTED with the remote's hash equal to the local
@@ -94,7 +94,7 @@ ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const 
 /// remote's supervisor). Throws PlanError when the goal cannot be planned (the
 /// remote would answer Unreachable).
 double planned_goto_duration_s(const RobotModel& model, const std::vector<double>& q_now,
-                               const control::Payload& payload);
+                               const protocol::Payload& payload);
 
 /// The status object of `foresight status --json` (keys: rtt_s{median, p95,
 /// p99, max, count, share_over_0_5s, share_over_4s}, clock_offset_s,

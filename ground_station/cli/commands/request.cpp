@@ -17,14 +17,14 @@ struct Options {
 };
 
 int run(const Options& o) {
-  control::Request req;
-  if (o.what == "joints") req.what = control::RequestWhat::JointState;
-  else if (o.what == "wrench") req.what = control::RequestWhat::Wrench;
-  else if (o.what == "tool") req.what = control::RequestWhat::ToolState;
-  else if (o.what == "trajectories") req.what = control::RequestWhat::Trajectories;
-  else req.what = control::RequestWhat::Status;
+  protocol::Request req;
+  if (o.what == "joints") req.what = protocol::RequestWhat::JointState;
+  else if (o.what == "wrench") req.what = protocol::RequestWhat::Wrench;
+  else if (o.what == "tool") req.what = protocol::RequestWhat::ToolState;
+  else if (o.what == "trajectories") req.what = protocol::RequestWhat::Trajectories;
+  else req.what = protocol::RequestWhat::Status;
   auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
-  const auto kind = control::CommandKind::Request;
+  const auto kind = protocol::CommandKind::Request;
   const auto r = send_and_wait(*link, kind, req, final_ack_timeout(*link, 0.0, o.link.timeout_s));
   // The report the request made travels beside the ack: give it a moment (bounded).
   if (r.succeeded()) wait_joints(*link, 1.0);

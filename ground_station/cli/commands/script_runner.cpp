@@ -46,12 +46,12 @@ Outcome done(const std::string& message, Clock::time_point t0) {
   return {CommandState::Completed, message, since(t0)};
 }
 
-Outcome from_result(control::CommandKind kind, const ground_link::CommandResult& r, Clock::time_point t0) {
+Outcome from_result(protocol::CommandKind kind, const ground_link::CommandResult& r, Clock::time_point t0) {
   Outcome o;
   o.seconds = since(t0);
   o.message = result_line(kind, r);
   if (r.succeeded()) o.state = CommandState::Completed;
-  else if (r.finished && r.state == control::AckState::Canceled) o.state = CommandState::Canceled;
+  else if (r.finished && r.state == protocol::AckState::Canceled) o.state = CommandState::Canceled;
   else o.state = CommandState::Failed;
   return o;
 }
@@ -76,9 +76,9 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     pose_source_ = s_.object_pose;
   }
   if (link_) {
-    for (const auto kind : {control::CommandKind::TakeControl, control::CommandKind::Recover}) {
-      if (kind == control::CommandKind::Recover && !s_.recover) continue;
-      const auto r = send_and_wait(*link_, kind, control::NoPayload{}, link_->timeout_for(5.0));
+    for (const auto kind : {protocol::CommandKind::TakeControl, protocol::CommandKind::Recover}) {
+      if (kind == protocol::CommandKind::Recover && !s_.recover) continue;
+      const auto r = send_and_wait(*link_, kind, protocol::NoPayload{}, link_->timeout_for(5.0));
       if (!r.succeeded()) throw LinkFailure(result_line(kind, r));
       say(result_line(kind, r));
     }
@@ -95,7 +95,7 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
 ScriptRunner::~ScriptRunner() {
   if (!link_) return;
   try {  // give control back so another station (or the next run) may take it
-    send_and_wait(*link_, control::CommandKind::ReleaseControl, control::NoPayload{}, link_->timeout_for(0.0));
+    send_and_wait(*link_, protocol::CommandKind::ReleaseControl, protocol::NoPayload{}, link_->timeout_for(0.0));
   } catch (const std::exception&) {
   }
 }
@@ -203,12 +203,12 @@ Outcome ScriptRunner::run(const script::Command& c, const std::function<bool()>&
       ground_link::CommandResult r;
       const auto deadline = Clock::now() + std::chrono::seconds(10);
       do {
-        r = send_and_wait(*link_, control::CommandKind::Recover, control::NoPayload{}, link_->timeout_for(5.0));
-        if (r.succeeded() || r.code != control::Reason::Busy) break;
+        r = send_and_wait(*link_, protocol::CommandKind::Recover, protocol::NoPayload{}, link_->timeout_for(5.0));
+        if (r.succeeded() || r.code != protocol::Reason::Busy) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(200));
       } while (Clock::now() < deadline);
-      say(result_line(control::CommandKind::Recover, r) + " (after the cancel)");
-      if (!r.succeeded()) throw LinkFailure(result_line(control::CommandKind::Recover, r));
+      say(result_line(protocol::CommandKind::Recover, r) + " (after the cancel)");
+      if (!r.succeeded()) throw LinkFailure(result_line(protocol::CommandKind::Recover, r));
       recover_before_next_ = false;
       // CANCELED carried the joints where the stop began; the arm came to
       // rest a little further on. Plan the next motion from where it holds
@@ -363,11 +363,11 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
   say("committed trajectory " + std::to_string(up.trajectory_id) + ": remote sha256 " + to_hex(up.remote_hash) +
       " = local");
   pending_journal_["remote_sha256"] = to_hex(up.remote_hash);
-  control::RunTrajectory run;
+  protocol::RunTrajectory run;
   run.trajectory_id = up.trajectory_id;
   run.content_hash = up.remote_hash;
   run.compliant = c.flag_or("compliant", false);
-  const auto kind = control::CommandKind::Trajectory;
+  const auto kind = protocol::CommandKind::Trajectory;
   const auto r = send_and_wait(*link_, kind, run, final_ack_timeout(*link_, plan.trajectory.duration_s(), s_.timeout_s),
                                interrupted);
   Outcome o = from_result(kind, r, t0);
@@ -377,48 +377,48 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
 
 Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool()>& interrupted) {
   const auto t0 = Clock::now();
-  control::Payload payload;
-  control::CommandKind kind = control::CommandKind::Request;
+  protocol::Payload payload;
+  protocol::CommandKind kind = protocol::CommandKind::Request;
   double expected_s = 0.0;
   std::optional<Eigen::VectorXd> predicted;
   switch (c.op) {
     case Op::InvokeAlgorithm: {
-      control::InvokeAlgorithm inv;
+      protocol::InvokeAlgorithm inv;
       inv.name = c.positional[0].text;
       inv.timeout_s = c.number_or("timeout_s", 0.0);
       for (const auto& [k, v] : c.parameters()) inv.params.push_back({k, v});
       payload = inv;
-      kind = control::CommandKind::InvokeAlgorithm;
+      kind = protocol::CommandKind::InvokeAlgorithm;
       expected_s = inv.timeout_s > 0 ? inv.timeout_s : 60.0;
       break;
     }
     case Op::Request: {
-      control::Request r;
+      protocol::Request r;
       const std::string w = c.positional[0].text;
-      r.what = w == "joints"   ? control::RequestWhat::JointState
-               : w == "wrench" ? control::RequestWhat::Wrench
-               : w == "tool"   ? control::RequestWhat::ToolState
-               : w == "trajectories" ? control::RequestWhat::Trajectories
-                                     : control::RequestWhat::Status;
+      r.what = w == "joints"   ? protocol::RequestWhat::JointState
+               : w == "wrench" ? protocol::RequestWhat::Wrench
+               : w == "tool"   ? protocol::RequestWhat::ToolState
+               : w == "trajectories" ? protocol::RequestWhat::Trajectories
+                                     : protocol::RequestWhat::Status;
       payload = r;
       break;
     }
     case Op::Camera: {
-      control::CameraCommand cam;
+      protocol::CameraCommand cam;
       cam.camera = c.positional[0].text;
       const std::string a = c.text_or("action", "select");
-      cam.action = a == "point" ? control::CameraAction::Point
-                   : a == "grab" ? control::CameraAction::Grab
-                                 : control::CameraAction::Select;
+      cam.action = a == "point" ? protocol::CameraAction::Point
+                   : a == "grab" ? protocol::CameraAction::Grab
+                                 : protocol::CameraAction::Select;
       cam.pan_rad = c.number_or("pan_deg", 0.0) * M_PI / 180.0;
       cam.tilt_rad = c.number_or("tilt_deg", 0.0) * M_PI / 180.0;
       cam.focal_px = c.number_or("focal_px", 0.0);
       payload = cam;
-      kind = control::CommandKind::Camera;
+      kind = protocol::CommandKind::Camera;
       break;
     }
     case Op::GotoJoint: {
-      control::GotoJoint g;
+      protocol::GotoJoint g;
       Eigen::VectorXd q = q_start_;
       if (c.has("q") || c.has("q_deg")) {
         const bool deg = c.has("q_deg");
@@ -428,12 +428,12 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
       g.q_rad.assign(q.data(), q.data() + q.size());
       g.speed_fraction = c.number_or("speed", 0.5);
       payload = g;
-      kind = control::CommandKind::GotoJoint;
+      kind = protocol::CommandKind::GotoJoint;
       predicted = q;
       break;
     }
     case Op::GotoCart: {
-      control::GotoCart g;
+      protocol::GotoCart g;
       g.frame = "lst_tip";
       if (c.has("tag")) {
         if (!base_T_object_) return failed("no object pose: LOCALIZE first, OBJECT oru pose=FILE, or --object-pose", t0);
@@ -447,13 +447,13 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
       }
       g.speed_fraction = c.number_or("speed", 0.5);
       payload = g;
-      kind = control::CommandKind::GotoCart;
+      kind = protocol::CommandKind::GotoCart;
       break;
     }
     default:
       return failed(std::string("not a remote command: ") + script::to_string(c.op), t0);
   }
-  if (kind == control::CommandKind::GotoJoint || kind == control::CommandKind::GotoCart) {
+  if (kind == protocol::CommandKind::GotoJoint || kind == protocol::CommandKind::GotoCart) {
     // Plan the remote's path here first: its duration bounds the wait, and a
     // goal that cannot be planned is not sent.
     try {
@@ -463,7 +463,7 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
       return failed(std::string("not sent: ") + e.what(), t0);
     }
     if (!predicted) {  // GOTO_CART: the IK end point of the same plan
-      const auto& gc = std::get<control::GotoCart>(payload);
+      const auto& gc = std::get<protocol::GotoCart>(payload);
       Goal goal;
       goal.kind = SegmentKind::Linear;
       goal.base_T_tip = gc.base_T_frame;
@@ -475,7 +475,7 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
   }
   if (s_.dry_run) {
     if (predicted) q_ = *predicted;
-    return done(std::string("dry run: ") + control::to_string(kind) + " not sent", t0);
+    return done(std::string("dry run: ") + protocol::to_string(kind) + " not sent", t0);
   }
   const auto r = send_and_wait(*link_, kind, payload, final_ack_timeout(*link_, expected_s, s_.timeout_s), interrupted);
   Outcome o = from_result(kind, r, t0);

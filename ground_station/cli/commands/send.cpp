@@ -57,12 +57,12 @@ int run(const Options& o) {
   int status = kExitOk;
   if (o.run) {
     const ControlGuard control_guard(*link);
-    control::RunTrajectory run;
+    protocol::RunTrajectory run;
     run.trajectory_id = up.trajectory_id;
     run.content_hash = up.remote_hash;
     run.compliant = o.compliant;
     run.start_tolerance_rad = o.start_tolerance_rad;
-    const auto kind = control::CommandKind::Trajectory;
+    const auto kind = protocol::CommandKind::Trajectory;
     const auto r = send_and_wait(*link, kind, run, final_ack_timeout(*link, traj.duration_s(), o.link.timeout_s));
     j["run"] = result_json(kind, r);
     j["compliant"] = o.compliant;

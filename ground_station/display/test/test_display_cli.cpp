@@ -643,7 +643,7 @@ TEST(DisplayCli, RemoteCameraKeySwitchesTheRemotesVideoFirst) {
 
   // 1. Another session holds control: refused, the display stays on side.
   const auto [refused, refused_err] = run_and_press_c([&] {
-    ASSERT_TRUE(holder.execute(control::CommandKind::TakeControl, control::NoPayload{}, 0.0).succeeded());
+    ASSERT_TRUE(holder.execute(protocol::CommandKind::TakeControl, protocol::NoPayload{}, 0.0).succeeded());
   });
   EXPECT_EQ(refused["camera"], kCamera) << refused.dump();
   EXPECT_EQ(refused["camera_switches"], 0);
@@ -654,7 +654,7 @@ TEST(DisplayCli, RemoteCameraKeySwitchesTheRemotesVideoFirst) {
   EXPECT_NE(refused_err.find(problem), std::string::npos) << refused_err;
 
   // 2. Control released: the remote switches, then the display follows.
-  ASSERT_TRUE(holder.execute(control::CommandKind::ReleaseControl, control::NoPayload{}, 0.0).succeeded());
+  ASSERT_TRUE(holder.execute(protocol::CommandKind::ReleaseControl, protocol::NoPayload{}, 0.0).succeeded());
   const auto [switched, switched_err] = run_and_press_c([] {});
   EXPECT_EQ(switched["camera"], "oblique") << switched.dump() << switched_err;
   EXPECT_EQ(switched["camera_switches"], 1);

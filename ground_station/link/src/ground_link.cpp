@@ -16,7 +16,7 @@
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 
 namespace foresight::ground_link {
 
@@ -32,20 +32,15 @@ enum Token : dds_attach_t { kStop = 1, kAck, kUpload, kJoint, kWrench, kTool, kS
 constexpr int kTakeBatch = 64;
 constexpr std::size_t kUploadHistory = 64;
 
-protocol::Participant make_participant(const Config& config) {
-  if (config.security_dir.empty()) return protocol::Participant(config.domain);
-  return protocol::Participant(config.domain, protocol::security_qos(config.security_dir, config.security_identity));
-}
-
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
 }
 
 struct UploadSeen {
-  control::UploadState state = control::UploadState::Assembling;
+  protocol::UploadState state = protocol::UploadState::Assembling;
   std::uint32_t chunks_received = 0, chunk_count = 0;
   TrajectoryHash hash{};
-  control::Reason code = control::Reason::None;
+  protocol::Reason code = protocol::Reason::None;
   std::string reason;
   Clock::time_point when{};
 };
@@ -55,7 +50,7 @@ struct UploadSeen {
 struct GroundLink::Impl {
   explicit Impl(Config c)
       : config(std::move(c)),
-        participant(make_participant(config)),
+        participant(protocol::make_participant(config.domain, config.security_dir, config.security_identity)),
         commands(config.read_only ? nullptr : std::make_unique<Writer<msg::Command>>(participant)),
         chunks(config.read_only ? nullptr : std::make_unique<Writer<msg::TrajectoryChunk>>(participant)),
         heartbeat_out(participant),
@@ -113,16 +108,16 @@ struct GroundLink::Impl {
 
   mutable std::mutex mutex;
   std::condition_variable changed;
-  std::map<std::uint64_t, std::vector<control::Ack>> ack_log;  // by command id (our session only)
+  std::map<std::uint64_t, std::vector<protocol::Ack>> ack_log;  // by command id (our session only)
   std::deque<std::uint64_t> ack_order;
   std::map<std::uint64_t, Clock::time_point> sent_at;
   std::map<std::uint64_t, UploadSeen> upload_log;
   std::deque<std::uint64_t> upload_order;
-  std::optional<Timed<control::JointReport>> joint_state;
+  std::optional<Timed<protocol::JointReport>> joint_state;
   DroppedSamples drops;
-  std::optional<Timed<control::WrenchReport>> wrench;
-  std::optional<Timed<control::ToolReport>> tool;
-  std::optional<Timed<control::StatusReport>> status;
+  std::optional<Timed<protocol::WrenchReport>> wrench;
+  std::optional<Timed<protocol::ToolReport>> tool;
+  std::optional<Timed<protocol::StatusReport>> status;
   std::optional<Clock::time_point> remote_heard;
   std::uint64_t remote_boot = 0;
   // Link thread only: reused take buffers.
@@ -172,7 +167,7 @@ void GroundLink::Impl::take_all() {
       spdlog::warn("ground link: ack of command {} ignored: {}", ack->command_id, bad);
       continue;
     }
-    control::Ack a = remote_link::from_wire(*ack);
+    protocol::Ack a = protocol::from_wire(*ack);
     std::lock_guard lock(mutex);
     auto [it, fresh] = ack_log.try_emplace(a.command_id);
     if (fresh) {
@@ -193,11 +188,11 @@ void GroundLink::Impl::take_all() {
       continue;
     }
     UploadSeen seen;
-    seen.state = static_cast<control::UploadState>(protocol::raw(up->state));
+    seen.state = static_cast<protocol::UploadState>(protocol::raw(up->state));
     seen.chunks_received = up->chunks_received;
     seen.chunk_count = up->chunk_count;
     seen.hash = protocol::get_hash(up->content_hash);
-    seen.code = static_cast<control::Reason>(protocol::raw(up->code));
+    seen.code = static_cast<protocol::Reason>(protocol::raw(up->code));
     seen.reason = std::string(protocol::text(up->reason));
     seen.when = Clock::now();
     std::lock_guard lock(mutex);
@@ -230,14 +225,14 @@ void GroundLink::Impl::take_all() {
                      protocol::to_string(defect), bad);
       continue;
     }
-    auto v = remote_link::from_wire(*js);
+    auto v = protocol::from_wire(*js);
     std::lock_guard lock(mutex);
-    joint_state = Timed<control::JointReport>{std::move(v), now, 0.0};
+    joint_state = Timed<protocol::JointReport>{std::move(v), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && wrenches.take(wr); ++i) {
     std::lock_guard lock(mutex);
-    wrench = Timed<control::WrenchReport>{remote_link::from_wire(*wr), now, 0.0};
+    wrench = Timed<protocol::WrenchReport>{protocol::from_wire(*wr), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && tools.take(ts); ++i) {
@@ -247,7 +242,7 @@ void GroundLink::Impl::take_all() {
       continue;
     }
     std::lock_guard lock(mutex);
-    tool = Timed<control::ToolReport>{remote_link::from_wire(*ts), now, 0.0};
+    tool = Timed<protocol::ToolReport>{protocol::from_wire(*ts), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && statuses.take(cs); ++i) {
@@ -256,9 +251,9 @@ void GroundLink::Impl::take_all() {
       spdlog::warn("ground link: controller status ignored: {}", bad);
       continue;
     }
-    auto v = remote_link::from_wire(*cs);
+    auto v = protocol::from_wire(*cs);
     std::lock_guard lock(mutex);
-    status = Timed<control::StatusReport>{std::move(v), now, 0.0};
+    status = Timed<protocol::StatusReport>{std::move(v), now, 0.0};
     any = true;
   }
   for (int i = 0; i < kTakeBatch && heartbeats.take(hb); ++i) {
@@ -300,12 +295,12 @@ bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
   return impl_->delay.wait_samples(1, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
 }
 
-std::uint64_t GroundLink::send(control::CommandKind kind, const control::Payload& payload, double lifetime_s) {
+std::uint64_t GroundLink::send(protocol::CommandKind kind, const protocol::Payload& payload, double lifetime_s) {
   if (!impl_->commands) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot send commands");
   const double lifetime = lifetime_s < 0.0 ? impl_->config.command_lifetime_s : lifetime_s;
   std::lock_guard send_lock(impl_->send_mutex);
   auto c = impl_->sequencer.next(static_cast<msg::CommandKind>(kind), lifetime);
-  remote_link::fill_payload(*c, kind, payload);  // throws before the sequence is used on the wire
+  protocol::fill_payload(*c, kind, payload);  // throws before the sequence is used on the wire
   const std::uint64_t id = c->command_id;
   {
     std::lock_guard lock(impl_->mutex);
@@ -324,15 +319,15 @@ CommandResult GroundLink::wait_final(std::uint64_t command_id, std::chrono::nano
     const auto it = impl_->ack_log.find(command_id);
     if (it == impl_->ack_log.end()) return false;
     return std::any_of(it->second.begin(), it->second.end(),
-                       [](const control::Ack& a) { return remote_link::is_final(a.state); });
+                       [](const protocol::Ack& a) { return protocol::is_terminal(a.state); });
   };
   r.finished = impl_->changed.wait_for(lock, timeout, terminal);
   const auto it = impl_->ack_log.find(command_id);
   if (it != impl_->ack_log.end()) {
     r.acks = it->second;
-    const control::Ack* last = &r.acks.back();
+    const protocol::Ack* last = &r.acks.back();
     for (const auto& a : r.acks) {
-      if (remote_link::is_final(a.state)) last = &a;
+      if (protocol::is_terminal(a.state)) last = &a;
     }
     r.state = last->state;
     r.code = last->code;
@@ -353,7 +348,7 @@ std::chrono::nanoseconds GroundLink::timeout_for(double expected_duration_s) con
   return seconds(1.5 * std::max(0.0, expected_duration_s) + 3.0 * p99 + impl_->config.timeout_margin_s);
 }
 
-CommandResult GroundLink::execute(control::CommandKind kind, const control::Payload& payload,
+CommandResult GroundLink::execute(protocol::CommandKind kind, const protocol::Payload& payload,
                                   double expected_duration_s) {
   const auto id = send(kind, payload);
   return wait_final(id, timeout_for(expected_duration_s));
@@ -379,7 +374,7 @@ UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanos
   std::unique_lock lock(impl_->mutex);
   const auto final_state = [&] {
     const auto it = impl_->upload_log.find(r.trajectory_id);
-    return it != impl_->upload_log.end() && it->second.state != control::UploadState::Assembling;
+    return it != impl_->upload_log.end() && it->second.state != protocol::UploadState::Assembling;
   };
   impl_->changed.wait_until(lock, start + timeout, final_state);
   const auto it = impl_->upload_log.find(r.trajectory_id);
@@ -387,13 +382,13 @@ UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanos
     r.state = it->second.state;
     r.code = it->second.code;
     r.reason = it->second.reason;
-    if (r.state != control::UploadState::Assembling) r.remote_hash = it->second.hash;
+    if (r.state != protocol::UploadState::Assembling) r.remote_hash = it->second.hash;
   }
   r.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
   return r;
 }
 
-std::optional<Timed<control::JointReport>> GroundLink::joint_state() const {
+std::optional<Timed<protocol::JointReport>> GroundLink::joint_state() const {
   std::lock_guard lock(impl_->mutex);
   auto v = impl_->joint_state;
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
@@ -403,19 +398,19 @@ DroppedSamples GroundLink::dropped() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->drops;
 }
-std::optional<Timed<control::WrenchReport>> GroundLink::wrench() const {
+std::optional<Timed<protocol::WrenchReport>> GroundLink::wrench() const {
   std::lock_guard lock(impl_->mutex);
   auto v = impl_->wrench;
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
   return v;
 }
-std::optional<Timed<control::ToolReport>> GroundLink::tool() const {
+std::optional<Timed<protocol::ToolReport>> GroundLink::tool() const {
   std::lock_guard lock(impl_->mutex);
   auto v = impl_->tool;
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
   return v;
 }
-std::optional<Timed<control::StatusReport>> GroundLink::status() const {
+std::optional<Timed<protocol::StatusReport>> GroundLink::status() const {
   std::lock_guard lock(impl_->mutex);
   auto v = impl_->status;
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);

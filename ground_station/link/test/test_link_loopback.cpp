@@ -31,18 +31,18 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/ros2.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 #include "foresight/test/sanitizer.hpp"
 
 extern char** environ;
 
 namespace gl = foresight::ground_link;
-namespace control = foresight::control;
+namespace protocol = foresight::protocol;
 namespace fp = foresight::protocol;
 namespace msg = foresight::protocol::msg;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
-using control::AckState;
+using protocol::AckState;
 
 namespace {
 
@@ -146,7 +146,7 @@ class LinkLoopback : public ::testing::Test {
     remote_.reset();
   }
 
-  gl::CommandResult run(control::CommandKind kind, const control::Payload& payload = control::NoPayload{}) {
+  gl::CommandResult run(protocol::CommandKind kind, const protocol::Payload& payload = protocol::NoPayload{}) {
     const auto id = ground_->send(kind, payload);
     return ground_->wait_final(id, kAckTimeout);
   }
@@ -165,15 +165,15 @@ class RawCommander {
     EXPECT_TRUE(acks.wait_for_writers(1, kConnectTimeout));
   }
   /// All acks of `command_id` until a terminal one (bounded).
-  std::vector<control::Ack> acks_of(std::uint64_t command_id, std::size_t at_least_final = 1) {
-    std::vector<control::Ack> out;
+  std::vector<protocol::Ack> acks_of(std::uint64_t command_id, std::size_t at_least_final = 1) {
+    std::vector<protocol::Ack> out;
     std::size_t finals = 0;
     const auto deadline = Clock::now() + kAckTimeout;
     fp::Sample<msg::CommandAck> a;
     while (finals < at_least_final && Clock::now() < deadline) {
       for (auto it = pending.begin(); it != pending.end();) {
         if (it->command_id == command_id) {
-          if (foresight::remote_link::is_final(it->state)) ++finals;
+          if (foresight::protocol::is_terminal(it->state)) ++finals;
           out.push_back(*it);
           it = pending.erase(it);
         } else {
@@ -183,14 +183,14 @@ class RawCommander {
       if (finals >= at_least_final) break;
       if (!acks.wait_take(a, 100ms)) continue;
       if (a->session_id != sequencer.session_id()) continue;
-      pending.push_back(foresight::remote_link::from_wire(*a));
+      pending.push_back(foresight::protocol::from_wire(*a));
     }
     return out;
   }
   fp::CommandSequencer sequencer;
   fp::Writer<msg::Command> writer;
   fp::Reader<msg::CommandAck> acks;
-  std::vector<control::Ack> pending;
+  std::vector<protocol::Ack> pending;
 };
 
 }  // namespace
@@ -198,25 +198,25 @@ class RawCommander {
 TEST_F(LinkLoopback, EveryCommandKindRoundTripsWithItsAckSequence) {
   const std::vector<double> target{0.1, -0.2, 0.3, -0.4, 0.5, -0.6, 0.7};
   struct Case {
-    control::CommandKind kind;
-    control::Payload payload;
+    protocol::CommandKind kind;
+    protocol::Payload payload;
   };
-  control::GotoCart cart;
+  protocol::GotoCart cart;
   cart.frame = "lst_tip";
   const std::vector<Case> cases = {
-      {control::CommandKind::TakeControl, control::NoPayload{}},
-      {control::CommandKind::Request, control::Request{control::RequestWhat::JointState}},
-      {control::CommandKind::Camera, control::CameraCommand{"oblique", control::CameraAction::Select, 0, 0, 0}},
-      {control::CommandKind::GotoJoint, control::GotoJoint{target, 0.5}},
-      {control::CommandKind::GotoCart, cart},
-      {control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"guarded_insert", {{"depth_m", 0.05}}, 10}},
-      {control::CommandKind::Abort, control::Abort{0, control::StopCategory::Cat2, "operator"}},
-      {control::CommandKind::Recover, control::NoPayload{}},
-      {control::CommandKind::ReleaseControl, control::NoPayload{}},
+      {protocol::CommandKind::TakeControl, protocol::NoPayload{}},
+      {protocol::CommandKind::Request, protocol::Request{protocol::RequestWhat::JointState}},
+      {protocol::CommandKind::Camera, protocol::CameraCommand{"oblique", protocol::CameraAction::Select, 0, 0, 0}},
+      {protocol::CommandKind::GotoJoint, protocol::GotoJoint{target, 0.5}},
+      {protocol::CommandKind::GotoCart, cart},
+      {protocol::CommandKind::InvokeAlgorithm, protocol::InvokeAlgorithm{"guarded_insert", {{"depth_m", 0.05}}, 10}},
+      {protocol::CommandKind::Abort, protocol::Abort{0, protocol::StopCategory::Cat2, "operator"}},
+      {protocol::CommandKind::Recover, protocol::NoPayload{}},
+      {protocol::CommandKind::ReleaseControl, protocol::NoPayload{}},
   };
   for (const auto& c : cases) {
     const auto r = run(c.kind, c.payload);
-    SCOPED_TRACE(foresight::remote_link::name_of(c.kind));
+    SCOPED_TRACE(foresight::protocol::to_string(c.kind));
     ASSERT_TRUE(r.finished);
     EXPECT_EQ(states(r), kLifecycle);
     EXPECT_TRUE(r.succeeded());
@@ -226,15 +226,15 @@ TEST_F(LinkLoopback, EveryCommandKindRoundTripsWithItsAckSequence) {
       EXPECT_EQ(a.command_id, r.command_id);
     }
     ASSERT_EQ(r.final_q_rad.size(), 7u);
-    if (c.kind == control::CommandKind::GotoJoint) {
+    if (c.kind == protocol::CommandKind::GotoJoint) {
       EXPECT_EQ(r.final_q_rad, target);
     }
   }
   // FAILED carries its reason and where the arm stopped.
-  const auto failed = run(control::CommandKind::InvokeAlgorithm, control::InvokeAlgorithm{"fail_me", {}, 1.0});
+  const auto failed = run(protocol::CommandKind::InvokeAlgorithm, protocol::InvokeAlgorithm{"fail_me", {}, 1.0});
   EXPECT_EQ(states(failed), (std::vector<AckState>{AckState::Received, AckState::Queued, AckState::Executing,
                                                    AckState::Failed}));
-  EXPECT_EQ(failed.code, control::Reason::ForceLimit);
+  EXPECT_EQ(failed.code, protocol::Reason::ForceLimit);
   EXPECT_EQ(failed.reason, "force limit: 61 N > 60 N");
   EXPECT_EQ(failed.final_q_rad, target);
   EXPECT_FALSE(failed.succeeded());
@@ -242,26 +242,26 @@ TEST_F(LinkLoopback, EveryCommandKindRoundTripsWithItsAckSequence) {
   const auto timeout = ground_->timeout_for(2.0);
   const auto p99 = ground_->delay().stats().p99_s;
   EXPECT_NEAR(std::chrono::duration<double>(timeout).count(), 1.5 * 2.0 + 3.0 * p99 + 5.0, 1e-6);
-  const auto done = ground_->execute(control::CommandKind::Request, control::Request{}, 0.0);
+  const auto done = ground_->execute(protocol::CommandKind::Request, protocol::Request{}, 0.0);
   EXPECT_TRUE(done.succeeded());
   EXPECT_GT(done.elapsed_s, 0.0);
 }
 
 TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   RawCommander raw(ground_->participant());
-  auto expect_rejected = [&](fp::Sample<msg::Command>& c, control::Reason code, const std::string& reason) {
+  auto expect_rejected = [&](fp::Sample<msg::Command>& c, protocol::Reason code, const std::string& reason) {
     raw.writer.write(c);
     const auto acks = raw.acks_of(c->command_id);
     ASSERT_EQ(acks.size(), 2u) << reason;
     EXPECT_EQ(acks[0].state, AckState::Received);
     EXPECT_EQ(acks[1].state, AckState::Rejected);
-    EXPECT_EQ(acks[1].code, code) << foresight::remote_link::name_of(acks[1].code);
+    EXPECT_EQ(acks[1].code, code) << foresight::protocol::to_string(acks[1].code);
     EXPECT_EQ(acks[1].reason, reason);
   };
   // Version.
   auto v = raw.sequencer.next(foresight_msg_CMD_REQUEST);
   v->protocol_version = 1;
-  expect_rejected(v, control::Reason::VersionMismatch,
+  expect_rejected(v, protocol::Reason::VersionMismatch,
                   "command " + std::to_string(v->command_id) + ": protocol version 1, this remote speaks 2");
   // An accepted command, then an older sequence number (a replay or reorder).
   auto ok = raw.sequencer.next(foresight_msg_CMD_REQUEST);
@@ -269,7 +269,7 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   auto newer = raw.sequencer.next(foresight_msg_CMD_REQUEST);
   raw.writer.write(newer);
   EXPECT_EQ(raw.acks_of(newer->command_id).back().state, AckState::Completed);
-  expect_rejected(older, control::Reason::BadSequence,
+  expect_rejected(older, protocol::Reason::BadSequence,
                   "command " + std::to_string(older->command_id) + ": sequence " +
                       std::to_string(older->sequence_number) + " is not after " +
                       std::to_string(newer->sequence_number) + " (replayed or reordered)");
@@ -281,37 +281,37 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   EXPECT_EQ(again[0].state, AckState::Completed);
   // A re-sent command that was rejected for its payload gets its REJECTED again.
   auto bad = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
-  foresight::remote_link::fill_payload(*bad, control::CommandKind::GotoJoint, control::GotoJoint{{0, 0}, 0.5});
+  foresight::protocol::fill_payload(*bad, protocol::CommandKind::GotoJoint, protocol::GotoJoint{{0, 0}, 0.5});
   raw.writer.write(bad);
-  ASSERT_EQ(raw.acks_of(bad->command_id).back().code, control::Reason::JointCount);
+  ASSERT_EQ(raw.acks_of(bad->command_id).back().code, protocol::Reason::JointCount);
   raw.writer.write(bad);
   const auto bad_again = raw.acks_of(bad->command_id);
   ASSERT_EQ(bad_again.size(), 1u);
   EXPECT_EQ(bad_again[0].state, AckState::Rejected);
-  EXPECT_EQ(bad_again[0].code, control::Reason::JointCount);
+  EXPECT_EQ(bad_again[0].code, protocol::Reason::JointCount);
   // Expired on the ground's clock.
   auto expired = raw.sequencer.next(foresight_msg_CMD_REQUEST);
   expired->expires_ns = expired->issued_ns - 1'000'000'000;
   raw.writer.write(expired);
   const auto e = raw.acks_of(expired->command_id);
   ASSERT_EQ(e.size(), 2u);
-  EXPECT_EQ(e[1].code, control::Reason::Expired);
+  EXPECT_EQ(e[1].code, protocol::Reason::Expired);
   EXPECT_EQ(e[1].reason.rfind("command " + std::to_string(expired->command_id) + ": expired 1.", 0), 0u)
       << e[1].reason;
   // Hostile values.
   auto nan = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
-  foresight::remote_link::fill_payload(*nan, control::CommandKind::GotoJoint,
-                                       control::GotoJoint{{0, 0, std::nan(""), 0, 0, 0, 0}, 0.5});
-  expect_rejected(nan, control::Reason::BadArgument,
+  foresight::protocol::fill_payload(*nan, protocol::CommandKind::GotoJoint,
+                                       protocol::GotoJoint{{0, 0, std::nan(""), 0, 0, 0, 0}, 0.5});
+  expect_rejected(nan, protocol::Reason::BadArgument,
                   "command " + std::to_string(nan->command_id) + ": goto_joint.q_rad[2] is not finite");
   auto count = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
-  foresight::remote_link::fill_payload(*count, control::CommandKind::GotoJoint, control::GotoJoint{{0, 0, 0}, 0.5});
-  expect_rejected(count, control::Reason::JointCount,
+  foresight::protocol::fill_payload(*count, protocol::CommandKind::GotoJoint, protocol::GotoJoint{{0, 0, 0}, 0.5});
+  expect_rejected(count, protocol::Reason::JointCount,
                   "command " + std::to_string(count->command_id) + ": goto_joint.q_rad has 3 angles; the arm has 7 joints");
   auto name = raw.sequencer.next(foresight_msg_CMD_INVOKE_ALGORITHM);
-  foresight::remote_link::fill_payload(*name, control::CommandKind::InvokeAlgorithm,
-                                       control::InvokeAlgorithm{"in\x1bsert", {}, 1.0});
-  expect_rejected(name, control::Reason::BadArgument,
+  foresight::protocol::fill_payload(*name, protocol::CommandKind::InvokeAlgorithm,
+                                       protocol::InvokeAlgorithm{"in\x1bsert", {}, 1.0});
+  expect_rejected(name, protocol::Reason::BadArgument,
                   "command " + std::to_string(name->command_id) + ": algorithm.name has a non-printable character");
   // An unknown kind: Cyclone refuses to serialize a discriminator with no
   // case (so it cannot come from a Cyclone peer); the link's own check
@@ -328,7 +328,7 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
     }
   }
   // The link stays up and keeps serving the well-behaved ground.
-  EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
+  EXPECT_TRUE(run(protocol::CommandKind::Request, protocol::Request{}).succeeded());
 }
 
 TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
@@ -336,12 +336,12 @@ TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
   constexpr int kFlood = 300;
   for (int i = 0; i < kFlood; ++i) {
     auto c = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
-    foresight::remote_link::fill_payload(*c, control::CommandKind::GotoJoint,
-                                         control::GotoJoint{{0, 0, 0, 0, 0, 0, std::nan("")}, 0.5});
+    foresight::protocol::fill_payload(*c, protocol::CommandKind::GotoJoint,
+                                         protocol::GotoJoint{{0, 0, 0, 0, 0, 0, std::nan("")}, 0.5});
     raw.writer.write(c);
   }
   // Meanwhile the well-behaved ground is served.
-  EXPECT_TRUE(run(control::CommandKind::Request, control::Request{}).succeeded());
+  EXPECT_TRUE(run(protocol::CommandKind::Request, protocol::Request{}).succeeded());
   int rejected = 0;
   fp::Sample<msg::CommandAck> a;
   const auto deadline = Clock::now() + 30s;
@@ -352,33 +352,33 @@ TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
     ++rejected;
   }
   EXPECT_EQ(rejected, kFlood);
-  EXPECT_TRUE(run(control::CommandKind::GotoJoint, control::GotoJoint{std::vector<double>(7, 0.1), 0.5}).succeeded());
+  EXPECT_TRUE(run(protocol::CommandKind::GotoJoint, protocol::GotoJoint{std::vector<double>(7, 0.1), 0.5}).succeeded());
 }
 
 TEST_F(LinkLoopback, AnUploadCommitsWholeWithTheSameHashAndThenRuns) {
   const auto trajectory = slow_sine();
   ASSERT_TRUE(foresight::validate(trajectory, robot_limits()).empty());
   const auto up = ground_->upload(trajectory, 30s);
-  ASSERT_EQ(up.state, control::UploadState::Committed) << up.reason;
+  ASSERT_EQ(up.state, protocol::UploadState::Committed) << up.reason;
   EXPECT_EQ(up.remote_hash, up.local_hash);
   EXPECT_EQ(up.local_hash, foresight::trajectory_hash(trajectory));
   EXPECT_TRUE(up.committed());
   EXPECT_EQ(up.chunk_count, 2u);  // 1,800 samples of 8 doubles, 1,024 per chunk
-  control::RunTrajectory runp;
+  protocol::RunTrajectory runp;
   runp.trajectory_id = up.trajectory_id;
   runp.content_hash = up.remote_hash;
-  const auto r = run(control::CommandKind::Trajectory, runp);
+  const auto r = run(protocol::CommandKind::Trajectory, runp);
   EXPECT_EQ(states(r), kLifecycle);
   ASSERT_EQ(r.final_q_rad.size(), 7u);
   for (int j = 0; j < 7; ++j) EXPECT_EQ(r.final_q_rad[static_cast<std::size_t>(j)], trajectory.positions_rad(1799, j));
   // Running with another hash, or an id never uploaded, is refused.
   runp.content_hash[0] ^= 1;
-  const auto wrong = run(control::CommandKind::Trajectory, runp);
+  const auto wrong = run(protocol::CommandKind::Trajectory, runp);
   EXPECT_EQ(states(wrong), kRejected);
-  EXPECT_EQ(wrong.code, control::Reason::HashMismatch);
+  EXPECT_EQ(wrong.code, protocol::Reason::HashMismatch);
   runp.trajectory_id = 12345;
-  const auto unknown = run(control::CommandKind::Trajectory, runp);
-  EXPECT_EQ(unknown.code, control::Reason::UnknownTrajectory);
+  const auto unknown = run(protocol::CommandKind::Trajectory, runp);
+  EXPECT_EQ(unknown.code, protocol::Reason::UnknownTrajectory);
   EXPECT_EQ(unknown.reason, "trajectory 12345 is not committed");
 }
 
@@ -410,8 +410,8 @@ TEST_F(LinkLoopback, CorruptedAndOverLimitUploadsAreRejected) {
   auto fast = slow_sine(200);
   fast.positions_rad(100, 0) += 1.0;
   const auto up = ground_->upload(fast, 30s);
-  EXPECT_EQ(up.state, control::UploadState::Rejected);
-  EXPECT_EQ(up.code, control::Reason::ValidationFailed);
+  EXPECT_EQ(up.state, protocol::UploadState::Rejected);
+  EXPECT_EQ(up.code, protocol::Reason::ValidationFailed);
   EXPECT_NE(up.reason.find("velocity"), std::string::npos) << up.reason;
   EXPECT_FALSE(up.committed());
 }
@@ -439,7 +439,7 @@ TEST_F(LinkLoopback, DelayStatisticsAndTelemetryAgesAreSane) {
   EXPECT_LT(j->age_s, 1.0);
   EXPECT_EQ(ground_->wrench()->value.force_tool_n[2], 3.0);
   EXPECT_EQ(ground_->tool()->value.turns, 2.5);
-  EXPECT_TRUE(eventually([&] { return ground_->status()->value.mode == control::ControllerMode::Idle; }, 10s));
+  EXPECT_TRUE(eventually([&] { return ground_->status()->value.mode == protocol::ControllerMode::Idle; }, 10s));
   EXPECT_TRUE(ground_->remote_alive());
   EXPECT_NE(ground_->remote_boot_id(), 0u);
 }
@@ -469,17 +469,17 @@ TEST_F(LinkLoopback, TheRemoteDetectsLinkLossAndRegain) {
   // IDLE: the remote has heard our heartbeat (the link is up).
   ASSERT_TRUE(eventually([&] {
     const auto s = ground_->status();
-    return s && s->value.mode == control::ControllerMode::Idle;
+    return s && s->value.mode == protocol::ControllerMode::Idle;
   }, 10s));
   ground_->pause_heartbeat();
   EXPECT_TRUE(eventually([&] {
     const auto s = ground_->status();
-    return s && s->value.mode == control::ControllerMode::Stopped && s->value.stop_reason == "link lost";
+    return s && s->value.mode == protocol::ControllerMode::Stopped && s->value.stop_reason == "link lost";
   }, 15s));
   ground_->resume_heartbeat();
   EXPECT_TRUE(eventually([&] {
     const auto s = ground_->status();
-    return s && s->value.mode == control::ControllerMode::Idle && s->value.stop_reason.empty();
+    return s && s->value.mode == protocol::ControllerMode::Idle && s->value.stop_reason.empty();
   }, 15s));
 }
 
@@ -505,7 +505,7 @@ TEST_F(LinkLoopbackRos2, JointStateAndWrenchAlsoGoOutAsRos2Types) {
   EXPECT_NEAR(stamp_s, 1e-9 * static_cast<double>(fp::now_ns()), 5.0);
   // The commanded target shows up in the ROS 2 joint state too.
   const std::vector<double> target{0.1, -0.2, 0.3, -0.4, 0.5, -0.6, 0.7};
-  ASSERT_TRUE(run(control::CommandKind::GotoJoint, control::GotoJoint{target, 0.5}).succeeded());
+  ASSERT_TRUE(run(protocol::CommandKind::GotoJoint, protocol::GotoJoint{target, 0.5}).succeeded());
   EXPECT_TRUE(eventually([&] {
     while (joints.take(j)) {
       if (j->position._length == 7 && std::vector<double>(j->position._buffer, j->position._buffer + 7) == target) {
@@ -545,12 +545,12 @@ TEST_F(LinkLoopbackTwoKept, TheOldestCommittedUploadIsDiscardedBeyondTheLimit) {
   }
   EXPECT_TRUE(discarded);
   auto run_upload = [&](const gl::UploadResult& u) {
-    control::RunTrajectory p;
+    protocol::RunTrajectory p;
     p.trajectory_id = u.trajectory_id;
     p.content_hash = u.remote_hash;
-    return run(control::CommandKind::Trajectory, p);
+    return run(protocol::CommandKind::Trajectory, p);
   };
-  EXPECT_EQ(run_upload(ups[0]).code, control::Reason::UnknownTrajectory);
+  EXPECT_EQ(run_upload(ups[0]).code, protocol::Reason::UnknownTrajectory);
   EXPECT_TRUE(run_upload(ups[1]).succeeded());
   EXPECT_TRUE(run_upload(ups[2]).succeeded());
 }

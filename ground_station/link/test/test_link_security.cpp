@@ -25,7 +25,7 @@
 extern char** environ;
 
 namespace gl = foresight::ground_link;
-namespace control = foresight::control;
+namespace protocol = foresight::protocol;
 namespace fp = foresight::protocol;
 namespace msg = foresight::protocol::msg;
 namespace fs = std::filesystem;
@@ -91,7 +91,7 @@ TEST_F(SecureLink, TheGroundIdentityCommandsTheSecureRemote) {
   config.delay.rate_hz = 20.0;
   gl::GroundLink ground(config);
   ASSERT_TRUE(ground.wait_for_remote(kConnectTimeout));
-  const auto r = ground.execute(control::CommandKind::GotoJoint, control::GotoJoint{{0.1, 0, 0, 0, 0, 0, 0}, 0.5});
+  const auto r = ground.execute(protocol::CommandKind::GotoJoint, protocol::GotoJoint{{0.1, 0, 0, 0, 0, 0, 0}, 0.5});
   EXPECT_TRUE(r.succeeded()) << r.reason;
   EXPECT_EQ(r.final_q_rad.size(), 7u);
   const auto deadline = Clock::now() + 10s;
@@ -128,7 +128,7 @@ TEST_F(SecureLink, AnObserverReadsTelemetryButCannotCommand) {
   const auto deadline = Clock::now() + 10s;
   while (!watcher.joint_state() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
   EXPECT_TRUE(watcher.joint_state().has_value());
-  EXPECT_THROW(watcher.send(control::CommandKind::Recover), std::logic_error);
+  EXPECT_THROW(watcher.send(protocol::CommandKind::Recover), std::logic_error);
   for (const char* topic : {fp::topics::kCommand, fp::topics::kTrajectoryChunk}) {
     try {
       if (std::string(topic) == fp::topics::kCommand) {

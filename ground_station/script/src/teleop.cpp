@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "foresight/common/error.hpp"
-#include "foresight/control/compliance.hpp"
+#include "foresight/common/kinematics.hpp"
 
 namespace foresight::teleop {
 
@@ -105,10 +105,10 @@ void TeleopModel::step(const Axes& axes, double dt_s) {
   twist_.head<3>() += dv;
   twist_.tail<3>() += dw;
   const Eigen::Matrix<double, 6, 1> twist = twist_;
-  control::Jacobian J(6, model_.dof());
+  Jacobian J(6, model_.dof());
   jacobian(model_, ws_, q_, J);
-  control::JointVector dq;
-  control::dls_step(J, twist * dt_s, dq, o_.lambda_max);
+  JointVector dq;
+  dls_step(J, twist * dt_s, dq, o_.lambda_max);
   // Within the velocity limits (scaled together, so the direction holds)...
   double scale = 1.0;
   for (int i = 0; i < model_.dof(); ++i) {

@@ -1,5 +1,5 @@
 // foresight-linkemu: a user-space link emulator between two network
-// namespaces (no netem in this kernel; ../shared/STACK.md). See
+// namespaces (this kernel has no netem). See
 // docs/linkemu.md.
 //
 //   foresight-linkemu [--delay-ms D] [--jitter-ms J] [--loss P] [--reorder P]

@@ -55,6 +55,8 @@ bool AlgorithmRunner::start(const AlgorithmParams& params, const Pose& base_T_ti
       if (!finite_pos(p.spiral_pitch_m) || !finite_pos(p.spiral_speed_m_s) || !finite_pos(p.spiral_max_radius_m))
         return fail_arg(code, text, "insert: spiral parameters must be > 0"), false;
       if (!finite_pos(p.timeout_s)) return fail_arg(code, text, "insert: timeout_s must be > 0"), false;
+      if (!finite_nonneg(p.lateral_damping_n_s_m) || !finite_nonneg(p.rotational_damping_nm_s_rad))
+        return fail_arg(code, text, "insert: dampings must be >= 0 (0: the controller's)"), false;
       dir_task_ = Eigen::Vector3d::UnitZ();
       timeout_s_ = p.timeout_s;
       break;
@@ -238,6 +240,9 @@ void AlgorithmRunner::step_insert(const Pose& tip, const Eigen::Vector3d& f_task
   const double lateral_k = phase_ == 2 ? p.lateral_stiffness_n_m : p.search_stiffness_n_m;
   out_.admittance.stiffness = {lateral_k, lateral_k, p.axial_stiffness_n_m, p.rotational_stiffness_nm_rad,
                                p.rotational_stiffness_nm_rad, 50.0};
+  if (p.lateral_damping_n_s_m > 0.0) out_.admittance.damping[0] = out_.admittance.damping[1] = p.lateral_damping_n_s_m;
+  if (p.rotational_damping_nm_s_rad > 0.0)
+    out_.admittance.damping[3] = out_.admittance.damping[4] = p.rotational_damping_nm_s_rad;
   out_.base_T_ref.translation() = base_T_start_.translation() +
                                   base_R_task_ * Eigen::Vector3d(lateral_ref_.x(), lateral_ref_.y(), s_ref_);
 }

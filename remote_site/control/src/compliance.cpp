@@ -194,17 +194,4 @@ Vector6 pose_error(const Pose& from, const Pose& to) noexcept {
   return e;
 }
 
-void dls_step(const Jacobian& J, const Vector6& e, JointVector& dq, double lambda_max, double w0) noexcept {
-  Eigen::Matrix<double, 6, 6> JJt;
-  JJt.noalias() = J * J.transpose();
-  const double det = JJt.determinant();
-  const double w = det > 0.0 ? std::sqrt(det) : 0.0;
-  double lambda2 = 1e-6;
-  if (w < w0) lambda2 += lambda_max * lambda_max * (1.0 - (w / w0) * (w / w0));
-  JJt.diagonal().array() += lambda2;
-  const Vector6 y = JJt.ldlt().solve(e);
-  dq.resize(J.cols());
-  dq.noalias() = J.transpose() * y;
-}
-
 }  // namespace foresight::control

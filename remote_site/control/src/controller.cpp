@@ -729,7 +729,9 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     case ControllerMode::Algorithm: {
       const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
       if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
-        if (s.admittance.stiffness != adm_.params().stiffness) adm_.configure(s.admittance);
+        const AdmittanceParams& now = adm_.params();
+        if (s.admittance.stiffness != now.stiffness || s.admittance.damping != now.damping)
+          adm_.configure(s.admittance);
         compliant_offset_to_joints(s.base_T_ref, q_cmd_prev_, true);
       }
       if (s.status == AlgorithmStatus::Succeeded) {

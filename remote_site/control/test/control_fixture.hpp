@@ -1,13 +1,18 @@
 #pragma once
-// Test helpers: the robot model, a perfectly tracking in-process plant
-// (measured q = last command, one cycle late) with the ORU contact model as
-// the F/T sensor, and a Controller stepped by hand.
+// Test helpers: the robot model, an in-process plant (by default perfectly
+// tracking: measured q = last command, one cycle late; optionally the real
+// loop's delay and the drives' servo lag) with the ORU contact model, or the
+// whole simulated plant (tool, carried ORU, slot), as the F/T sensor, and a
+// Controller stepped by hand.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <array>
+#include <deque>
 #include <functional>
 #include <memory>
+#include <span>
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
@@ -15,6 +20,7 @@
 #include "foresight/common/scene.hpp"
 #include "foresight/control/controller.hpp"
 #include "foresight/sim/contact_model.hpp"
+#include "foresight/sim/plant.hpp"
 
 namespace foresight::control::test {
 
@@ -48,10 +54,23 @@ struct Bench {
   double peak_contact_n = 0.0;
   Pose last_tip = Pose::Identity();
   void (*arm)(bool) = nullptr;  ///< allocation counting around the controller's calls only
+  /// The whole simulated plant as the sensor's contact (its tool/ORU and
+  /// ORU/slot contacts; no weights, no bias: as if tared), with this tool state.
+  sim::Plant* plant = nullptr;
+  sim::LstToolState plant_tool{};
+  double peak_contact_nm = 0.0;  ///< with `plant`: largest contact torque at the sensor
+  /// Cycles from a command to the measurement that sees it: 1 = the next
+  /// cycle's; the real bus is 3 (docs/hardware.md "Frame order and loop delay").
+  int delay_cycles = 1;
+  /// The drives' position servo as a first-order lag at this bandwidth (Hz); 0: none.
+  double servo_hz = 0.0;
+  std::deque<JointArray> in_flight;  ///< commands sent, not yet latched by the drives
+  JointArray q_prev{};               ///< the joints a cycle ago (the plant's joint rates)
 
   explicit Bench(const JointArray& q0, ControllerConfig c = {}) : config(c) {
     ctl = std::make_unique<Controller>(robot(), config);
     q_arm = q0;
+    q_prev = q0;
     in.joints = static_cast<std::size_t>(robot().dof());
     tare_R = sensor_R(q0);
   }
@@ -72,6 +91,21 @@ struct Bench {
     in.stamp_ns = static_cast<std::int64_t>(cycle) * 2000000;
     in.q = q_arm;
     Wrench6 w = extra_ft;
+    if (plant != nullptr) {
+      std::array<double, kMaxJoints> qd{};
+      for (std::size_t j = 0; j < kMaxJoints; ++j) qd[j] = (q_arm[j] - q_prev[j]) / 0.002;
+      const sim::PlantStep r = plant->step(std::span<const double>(q_arm.data(), static_cast<std::size_t>(robot().dof())),
+                                           std::span<const double>(qd.data(), static_cast<std::size_t>(robot().dof())),
+                                           plant_tool);
+      const Eigen::Vector3d f = r.contact_ft.force_n + r.slot_ft.force_n;
+      const Eigen::Vector3d m = r.contact_ft.torque_nm + r.slot_ft.torque_nm;
+      for (int i = 0; i < 3; ++i) {
+        w[static_cast<std::size_t>(i)] += f(i);
+        w[static_cast<std::size_t>(i + 3)] += m(i);
+      }
+      peak_contact_n = std::max(peak_contact_n, f.norm());
+      peak_contact_nm = std::max(peak_contact_nm, m.norm());
+    }
     if (contact != nullptr) {
       const Pose t = tip(q_arm);
       sim::Twist tw;
@@ -109,7 +143,19 @@ struct Bench {
       ctl->drive_request_done(DriveRequest::Disable, true, "", q_arm);
       if (arm) arm(false);
     }
-    if (follow && (in.drives_enabled || out.drive_request != DriveRequest::None)) q_arm = out.q_cmd;
+    if (follow && (in.drives_enabled || out.drive_request != DriveRequest::None)) move_arm(out.q_cmd);
+  }
+
+  /// The drives: the command reaches the joints delay_cycles - 1 cycles
+  /// later, through the servo lag.
+  void move_arm(const JointArray& cmd) {
+    in_flight.push_back(cmd);
+    if (static_cast<int>(in_flight.size()) < delay_cycles) return;
+    const JointArray target = in_flight.front();
+    in_flight.pop_front();
+    q_prev = q_arm;
+    const double a = servo_hz > 0.0 ? 1.0 - std::exp(-2.0 * M_PI * servo_hz * 0.002) : 1.0;
+    for (std::size_t j = 0; j < kMaxJoints; ++j) q_arm[j] += a * (target[j] - q_arm[j]);
   }
 
   std::uint64_t send(MotionCommand c) {

@@ -11,46 +11,10 @@
 #include "control_fixture.hpp"
 #include "foresight/common/plan.hpp"
 #include "foresight/control/control_loop.hpp"
-#include "foresight/control/spsc_ring.hpp"
 #include "foresight/control/trajectory_executor.hpp"
 
 namespace foresight::control::test {
 namespace {
-
-// ---- SpscRing ----------------------------------------------------------------------------
-
-TEST(SpscRing, FifoAndFull) {
-  SpscRing<int, 4> r;
-  int v = 0;
-  EXPECT_FALSE(r.try_pop(v));
-  for (int i = 0; i < 4; ++i) EXPECT_TRUE(r.try_push(i));
-  EXPECT_FALSE(r.try_push(99));
-  EXPECT_EQ(r.size(), 4u);
-  for (int i = 0; i < 4; ++i) {
-    ASSERT_TRUE(r.try_pop(v));
-    EXPECT_EQ(v, i);
-  }
-  EXPECT_TRUE(r.empty());
-}
-
-TEST(SpscRing, TwoThreadsDeliverEverythingInOrder) {
-  auto ring = std::make_unique<SpscRing<std::uint64_t, 64>>();
-  constexpr std::uint64_t kN = 50000;
-  std::thread producer([&] {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    for (std::uint64_t i = 1; i <= kN && std::chrono::steady_clock::now() < deadline;)
-      if (ring->try_push(i)) ++i;
-  });
-  std::uint64_t expected = 1, v = 0;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (expected <= kN && std::chrono::steady_clock::now() < deadline)
-    if (ring->try_pop(v)) {
-      ASSERT_EQ(v, expected);
-      ++expected;
-    }
-  producer.join();
-  EXPECT_EQ(expected, kN + 1);
-}
 
 TEST(LoopStats, HistogramBinsAndPercentiles) {
   EXPECT_EQ(LoopStats::bin_of(5.0), 0u);
@@ -174,12 +138,12 @@ TEST(PreparedTrajectory, BadInputsNameTheProblem) {
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "trajectory: non-finite value at row 2");
   }
-  t.positions_rad = Eigen::MatrixXd::Zero(2, 9);
+  t.positions_rad = Eigen::MatrixXd::Zero(2, static_cast<Eigen::Index>(kMaxJoints) + 1);
   try {
     PreparedTrajectory p(t);
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_STREQ(e.what(), "trajectory: 9 joints (at most 8)");
+    EXPECT_STREQ(e.what(), "trajectory: 17 joints (at most 16)");
   }
 }
 

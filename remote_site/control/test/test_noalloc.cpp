@@ -16,7 +16,7 @@
 
 #include "control_fixture.hpp"
 #include "foresight/control/control_loop.hpp"
-#include "foresight/control/spsc_ring.hpp"
+#include "foresight/common/spsc_ring.hpp"
 #include "foresight/sim/can_simulator.hpp"
 #include "foresight/test/allocation_counter.hpp"
 
@@ -197,9 +197,9 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
   simulator->stop();
   simulator->process(5);
   Controller ctl(robot(), ControllerConfig{});
-  auto commands = std::make_unique<SpscRing<MotionCommand, 64>>();
-  auto events = std::make_unique<SpscRing<MotionEvent, 256>>();
-  auto telemetry = std::make_unique<SpscRing<TelemetrySample, 1024>>();
+  auto commands = std::make_unique<SpscRing<MotionCommand>>(64);
+  auto events = std::make_unique<SpscRing<MotionEvent>>(256);
+  auto telemetry = std::make_unique<SpscRing<TelemetrySample>>(1024);
   hw::JointFeedback fb;
   hw::FtReading ft;
   hw::JointTargets targets;

@@ -59,8 +59,8 @@ void CameraWorker::run() {
 CameraResult CameraWorker::execute(const CameraJob& job) {
   std::error_code ec;
   switch (job.action) {
-    case control::CameraAction::Select: ec = video_.select(job.camera); break;
-    case control::CameraAction::Point: {
+    case protocol::CameraAction::Select: ec = video_.select(job.camera); break;
+    case protocol::CameraAction::Point: {
       hw::CameraView v;
       v.camera = job.camera;
       v.pan_rad = job.pan_rad;
@@ -73,7 +73,7 @@ CameraResult CameraWorker::execute(const CameraJob& job) {
       ec = video_.set_view(v);
       break;
     }
-    case control::CameraAction::Grab:
+    case protocol::CameraAction::Grab:
       if (!(ec = video_.select(job.camera))) ec = video_.grab();
       break;
   }

@@ -235,12 +235,12 @@ int run_daemon(const Options& o) {
   parts.camera = camera.get();
   parts.camera_names = site.camera_names;
   for (const auto& d : site.hw_config.drives) parts.drive_nodes.push_back(d.node_id);
-  parts.outbox.ack = [&](const control::Ack& a) { if (link_ptr) link_ptr->ack(a); };
-  parts.outbox.joints = [&](const control::JointReport& r) { if (link_ptr) link_ptr->publish(r); };
-  parts.outbox.wrench = [&](const control::WrenchReport& r) { if (link_ptr) link_ptr->publish(r); };
-  parts.outbox.tool = [&](const control::ToolReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.ack = [&](const protocol::Ack& a) { if (link_ptr) link_ptr->ack(a); };
+  parts.outbox.joints = [&](const protocol::JointReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.wrench = [&](const protocol::WrenchReport& r) { if (link_ptr) link_ptr->publish(r); };
+  parts.outbox.tool = [&](const protocol::ToolReport& r) { if (link_ptr) link_ptr->publish(r); };
   std::atomic<std::uint64_t> supervisor_beats{0};  // status reports published: the watchdog's sign of life
-  parts.outbox.status = [&](const control::StatusReport& r) {
+  parts.outbox.status = [&](const protocol::StatusReport& r) {
     supervisor_beats.fetch_add(1, std::memory_order_relaxed);
     if (link_ptr) link_ptr->publish(r);
   };

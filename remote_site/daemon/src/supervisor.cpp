@@ -21,14 +21,14 @@ static_assert(static_cast<int>(foresight::hw::canopen::PowerState::OperationEnab
 
 namespace foresight::remote {
 
-using control::AckState;
-using control::CommandKind;
-using control::ControllerMode;
+using protocol::AckState;
+using protocol::CommandKind;
+using protocol::ControllerMode;
 using control::MotionCommand;
 using control::MotionCommandKind;
 using control::MotionEvent;
 using control::MotionEventKind;
-using control::Reason;
+using protocol::Reason;
 
 namespace {
 
@@ -60,41 +60,41 @@ std::string fmt(const char* f, double a, double b = 0.0) {
 }
 
 /// The payload as JSON, for the RECEIVED row.
-nlohmann::json payload_json(const control::Command& c) {
+nlohmann::json payload_json(const protocol::Command& c) {
   nlohmann::json j = nlohmann::json::object();
   std::visit(
       [&](const auto& p) {
         using P = std::decay_t<decltype(p)>;
-        if constexpr (std::is_same_v<P, control::RunTrajectory>) {
+        if constexpr (std::is_same_v<P, protocol::RunTrajectory>) {
           j["trajectory_id"] = p.trajectory_id;
           j["hash"] = to_hex(p.content_hash);
           j["compliant"] = p.compliant;
           j["start_tolerance_rad"] = p.start_tolerance_rad;
-        } else if constexpr (std::is_same_v<P, control::InvokeAlgorithm>) {
+        } else if constexpr (std::is_same_v<P, protocol::InvokeAlgorithm>) {
           j["name"] = p.name;
           nlohmann::json params = nlohmann::json::object();
           for (const auto& nv : p.params) params[nv.name] = nv.value;
           j["params"] = params;
           j["timeout_s"] = p.timeout_s;
-        } else if constexpr (std::is_same_v<P, control::Request>) {
+        } else if constexpr (std::is_same_v<P, protocol::Request>) {
           j["what"] = static_cast<int>(p.what);
-        } else if constexpr (std::is_same_v<P, control::CameraCommand>) {
+        } else if constexpr (std::is_same_v<P, protocol::CameraCommand>) {
           j["camera"] = p.camera;
           j["action"] = static_cast<int>(p.action);
           j["pan_rad"] = p.pan_rad;
           j["tilt_rad"] = p.tilt_rad;
           j["focal_px"] = p.focal_px;
-        } else if constexpr (std::is_same_v<P, control::GotoJoint>) {
+        } else if constexpr (std::is_same_v<P, protocol::GotoJoint>) {
           j["q_rad"] = p.q_rad;
           j["speed_fraction"] = p.speed_fraction;
-        } else if constexpr (std::is_same_v<P, control::GotoCart>) {
+        } else if constexpr (std::is_same_v<P, protocol::GotoCart>) {
           j["frame"] = p.frame;
           const Eigen::Vector3d t = p.base_T_frame.translation();
           j["position_m"] = {t.x(), t.y(), t.z()};
           const Eigen::Quaterniond q(p.base_T_frame.linear());
           j["orientation_xyzw"] = {q.x(), q.y(), q.z(), q.w()};
           j["speed_fraction"] = p.speed_fraction;
-        } else if constexpr (std::is_same_v<P, control::Abort>) {
+        } else if constexpr (std::is_same_v<P, protocol::Abort>) {
           j["target_command_id"] = p.target_command_id;
           j["category"] = static_cast<int>(p.category);
           j["reason"] = p.reason;
@@ -180,9 +180,9 @@ void Supervisor::journal_event(const std::string& kind, const std::string& text,
   }
 }
 
-void Supervisor::ack(const control::Command& command, AckState state, Reason code, const std::string& reason,
+void Supervisor::ack(const protocol::Command& command, AckState state, Reason code, const std::string& reason,
                      std::vector<double> final_q) {
-  control::Ack a;
+  protocol::Ack a;
   a.session_id = command.session_id;
   a.command_id = command.command_id;
   a.sequence_number = command.sequence_number;
@@ -222,14 +222,14 @@ void Supervisor::ack(const control::Command& command, AckState state, Reason cod
   last_ack_[key] = std::move(a);
 }
 
-void Supervisor::reject(const control::Command& command, Reason code, const std::string& reason) {
+void Supervisor::reject(const protocol::Command& command, Reason code, const std::string& reason) {
   spdlog::warn("command {} ({}) rejected: {}: {}", command.command_id, control::to_string(command.kind),
                control::to_string(code), reason);
   ack(command, AckState::Rejected, code, reason);
 }
 
 void Supervisor::handle(const remote_link::CommandEvent& event) {
-  const control::Command& c = event.command;
+  const protocol::Command& c = event.command;
   if (event.duplicate) {
     // A re-sent command: answer with its last state, never run it twice.
     if (auto it = last_ack_.find({c.session_id, c.command_id}); it != last_ack_.end()) {
@@ -260,7 +260,7 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   dispatch(c);
 }
 
-std::string Supervisor::check_commander(const control::Command& c, Reason* code) const {
+std::string Supervisor::check_commander(const protocol::Command& c, Reason* code) const {
   if (commander_ == c.session_id) return {};
   *code = Reason::NotInControl;
   if (commander_ == 0)
@@ -298,7 +298,7 @@ std::string Supervisor::check_can_move(Reason* code) const {
   return {};
 }
 
-void Supervisor::dispatch(const control::Command& c) {
+void Supervisor::dispatch(const protocol::Command& c) {
   Reason code = Reason::None;
   switch (c.kind) {
     case CommandKind::TakeControl: {
@@ -381,13 +381,13 @@ void Supervisor::dispatch(const control::Command& c) {
   enqueue(std::move(job));
 }
 
-std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c, Reason* code, std::string* reason) {
+std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c, Reason* code, std::string* reason) {
   auto job = std::make_unique<Job>();
   job->command = c;
   const std::size_t dof = static_cast<std::size_t>(model_.dof());
   switch (c.kind) {
     case CommandKind::Trajectory: {
-      const auto& p = std::get<control::RunTrajectory>(c.payload);
+      const auto& p = std::get<protocol::RunTrajectory>(c.payload);
       const auto it = uploads_.find(p.trajectory_id);
       if (it == uploads_.end()) {
         *code = Reason::UnknownTrajectory;
@@ -422,7 +422,7 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c,
       return job;
     }
     case CommandKind::GotoJoint: {
-      const auto& p = std::get<control::GotoJoint>(c.payload);
+      const auto& p = std::get<protocol::GotoJoint>(c.payload);
       if (p.q_rad.size() != dof) {
         *code = Reason::JointCount;
         *reason = std::to_string(p.q_rad.size()) + " joint values for a " + std::to_string(dof) + "-joint arm";
@@ -446,7 +446,7 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c,
       return job;
     }
     case CommandKind::GotoCart: {
-      const auto& p = std::get<control::GotoCart>(c.payload);
+      const auto& p = std::get<protocol::GotoCart>(c.payload);
       const std::string tip = model_.links()[static_cast<std::size_t>(model_.tip_index())].name;
       if (p.frame != tip) {
         *code = Reason::BadArgument;
@@ -467,7 +467,7 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const control::Command& c,
       return job;
     }
     case CommandKind::InvokeAlgorithm: {
-      const auto& p = std::get<control::InvokeAlgorithm>(c.payload);
+      const auto& p = std::get<protocol::InvokeAlgorithm>(c.payload);
       if (const auto step = tool_step_from_name(p.name)) {
         if (p_.tool == nullptr) {
           *code = Reason::ToolFault;
@@ -530,14 +530,14 @@ bool Supervisor::plan_goto(Job& job, Reason* code, std::string* reason) {
   for (std::size_t j = 0; j < dof; ++j) q0[static_cast<Eigen::Index>(j)] = latest_.q_cmd[j];
   Goal goal;
   PlanOptions options;
-  if (const auto* gj = std::get_if<control::GotoJoint>(&job.command.payload)) {
+  if (const auto* gj = std::get_if<protocol::GotoJoint>(&job.command.payload)) {
     goal.name = "goto_joint";
     goal.kind = SegmentKind::Joint;
     goal.is_pose = false;
     goal.q = Eigen::Map<const Eigen::VectorXd>(gj->q_rad.data(), static_cast<Eigen::Index>(dof));
     options.limit_fraction = gj->speed_fraction;
   } else {
-    const auto& gc = std::get<control::GotoCart>(job.command.payload);
+    const auto& gc = std::get<protocol::GotoCart>(job.command.payload);
     goal.name = "goto_cart";
     goal.kind = SegmentKind::Linear;
     goal.is_pose = true;
@@ -648,9 +648,9 @@ void Supervisor::cancel_queued(const std::string& why) {
   }
 }
 
-void Supervisor::do_abort(const control::Command& c) {
-  const auto& a = std::get<control::Abort>(c.payload);
-  if (a.category != control::StopCategory::Cat1 && a.category != control::StopCategory::Cat2) {
+void Supervisor::do_abort(const protocol::Command& c) {
+  const auto& a = std::get<protocol::Abort>(c.payload);
+  if (a.category != protocol::StopCategory::Cat1 && a.category != protocol::StopCategory::Cat2) {
     reject(c, Reason::BadArgument, "ABORT category must be 1 or 2");
     return;
   }
@@ -692,30 +692,30 @@ void Supervisor::do_abort(const control::Command& c) {
   ack(c, AckState::Executing);
 }
 
-void Supervisor::do_request(const control::Command& c) {
-  const auto& r = std::get<control::Request>(c.payload);
+void Supervisor::do_request(const protocol::Command& c) {
+  const auto& r = std::get<protocol::Request>(c.payload);
   switch (r.what) {
-    case control::RequestWhat::Status:
+    case protocol::RequestWhat::Status:
       if (p_.outbox.status) p_.outbox.status(status_report());
       break;
-    case control::RequestWhat::JointState:
-    case control::RequestWhat::Wrench:
+    case protocol::RequestWhat::JointState:
+    case protocol::RequestWhat::Wrench:
       next_joints_ = next_wrench_ = Clock::time_point{};  // publish both now
       publish_reports(false);
       break;
-    case control::RequestWhat::ToolState:
+    case protocol::RequestWhat::ToolState:
       next_tool_ = Clock::time_point{};
       publish_reports(false);
       break;
-    case control::RequestWhat::Trajectories:
+    case protocol::RequestWhat::Trajectories:
       if (p_.outbox.republish_uploads) p_.outbox.republish_uploads();
       break;
   }
   ack(c, AckState::Completed, Reason::None, "", current_q());
 }
 
-void Supervisor::do_camera(const control::Command& c) {
-  const auto& cam = std::get<control::CameraCommand>(c.payload);
+void Supervisor::do_camera(const protocol::Command& c) {
+  const auto& cam = std::get<protocol::CameraCommand>(c.payload);
   if (p_.camera == nullptr) {
     reject(c, Reason::BadArgument, "no video switch configured");
     return;
@@ -750,10 +750,10 @@ void Supervisor::poll_camera() {
   if (p_.camera == nullptr || !camera_command_) return;
   const auto r = p_.camera->poll_result();
   if (!r) return;
-  const control::Command c = *camera_command_;
+  const protocol::Command c = *camera_command_;
   camera_command_.reset();
   if (r->ok) {
-    ack(c, AckState::Completed, Reason::None, "camera " + std::get<control::CameraCommand>(c.payload).camera,
+    ack(c, AckState::Completed, Reason::None, "camera " + std::get<protocol::CameraCommand>(c.payload).camera,
         current_q());
   } else {
     ack(c, AckState::Failed, r->refused ? Reason::BadArgument : Reason::Internal, "video switch: " + r->error,
@@ -774,14 +774,14 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
     row.samples = static_cast<std::uint32_t>(e.trajectory->samples());
     row.joints = static_cast<std::uint32_t>(e.trajectory->joints());
   }
-  if (e.state != control::UploadState::Assembling) {
+  if (e.state != protocol::UploadState::Assembling) {
     try {
       p_.journal->record_upload(row);
     } catch (const std::exception& ex) {
       spdlog::error("journal: {}", ex.what());
     }
   }
-  if (e.state == control::UploadState::Committed && e.trajectory) {
+  if (e.state == protocol::UploadState::Committed && e.trajectory) {
     if (!uploads_.count(e.trajectory_id)) upload_order_.push_back(e.trajectory_id);
     uploads_[e.trajectory_id] = e.trajectory;
     upload_hash_[e.trajectory_id] = e.hash;
@@ -789,7 +789,7 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
       const std::uint64_t old = upload_order_.front();
       upload_order_.pop_front();
       if (running_ && running_->kind == JobKind::Trajectory &&
-          std::get<control::RunTrajectory>(running_->command.payload).trajectory_id == old) {
+          std::get<protocol::RunTrajectory>(running_->command.payload).trajectory_id == old) {
         upload_order_.push_back(old);  // still running: keep it
         break;
       }
@@ -798,9 +798,9 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
     }
     spdlog::info("upload {} committed: {} samples x {} joints, {:.2f} s, hash {}", e.trajectory_id,
                  e.trajectory->samples(), e.trajectory->joints(), e.trajectory->duration_s(), row.hash_hex);
-  } else if (e.state == control::UploadState::Rejected) {
+  } else if (e.state == protocol::UploadState::Rejected) {
     spdlog::warn("upload {} rejected: {}", e.trajectory_id, e.reason);
-  } else if (e.state == control::UploadState::Discarded) {
+  } else if (e.state == protocol::UploadState::Discarded) {
     uploads_.erase(e.trajectory_id);
     upload_hash_.erase(e.trajectory_id);
   }
@@ -857,7 +857,7 @@ void Supervisor::poll_loop() {
     journal::FaultRow row;
     row.stamp_ns = to_wall_ns(s.stamp_ns);
     row.cycle = s.cycle;
-    row.category = s.category == control::StopCategory::Cat0 ? 0 : s.category == control::StopCategory::Cat1 ? 1 : 2;
+    row.category = s.category == protocol::StopCategory::Cat0 ? 0 : s.category == protocol::StopCategory::Cat1 ? 1 : 2;
     row.cause = control::to_string(s.cause);
     row.text = s.text.data();
     nlohmann::json ev;
@@ -951,16 +951,16 @@ void Supervisor::poll_tool() {
   }
 }
 
-control::StatusReport Supervisor::status_report() const {
-  control::StatusReport s;
+protocol::StatusReport Supervisor::status_report() const {
+  protocol::StatusReport s;
   s.stamp_ns = wall_now_ns();
   s.mode = latest_.mode;
   s.active_command_id = running_ ? running_->command.command_id : 0;
   if (running_ && running_->kind == JobKind::Trajectory)
-    s.active_trajectory_id = std::get<control::RunTrajectory>(running_->command.payload).trajectory_id;
+    s.active_trajectory_id = std::get<protocol::RunTrajectory>(running_->command.payload).trajectory_id;
   s.last_sequence = last_sequence_;
   s.stop_category = latest_.stop_category;
-  if (have_stop_ && latest_.stop_category != control::StopCategory::None) s.stop_reason = last_stop_.text.data();
+  if (have_stop_ && latest_.stop_category != protocol::StopCategory::None) s.stop_reason = last_stop_.text.data();
   std::uint32_t bits = 0;
   std::string text;
   if (estop_) {
@@ -982,11 +982,11 @@ control::StatusReport Supervisor::status_report() const {
   // controller's belief: what a category 0 stop must show unpowered.
   const std::size_t joints = std::min<std::size_t>(have_telemetry_ ? latest_.joints : 0, control::kMaxJoints);
   for (std::size_t j = 0; j < joints; ++j) {
-    control::DriveReport d;
+    protocol::DriveReport d;
     d.joint = static_cast<int>(j + 1);
     d.node_id = j < p_.drive_nodes.size() ? p_.drive_nodes[j] : 0;
-    d.state = latest_.drive_state[j] < control::kDriveStateUnknown ? latest_.drive_state[j] : control::kDriveStateUnknown;
-    d.powered = d.state != control::kDriveStateUnknown &&
+    d.state = latest_.drive_state[j] < protocol::kDriveStateUnknown ? latest_.drive_state[j] : protocol::kDriveStateUnknown;
+    d.powered = d.state != protocol::kDriveStateUnknown &&
                 hw::canopen::power_enabled(static_cast<hw::canopen::PowerState>(d.state));
     s.drives.push_back(d);
   }
@@ -999,7 +999,7 @@ void Supervisor::publish_reports(bool force_status) {
   const std::size_t n = std::min<std::size_t>(latest_.joints, control::kMaxJoints);
   if (have_telemetry_ && now >= next_joints_ && p_.outbox.joints) {
     next_joints_ = now + period(p_.config.reports.joint_state_hz);
-    control::JointReport r;
+    protocol::JointReport r;
     r.stamp_ns = to_wall_ns(latest_.stamp_ns);
     r.cycle = latest_.cycle;
     r.q_rad.assign(latest_.q.begin(), latest_.q.begin() + static_cast<std::ptrdiff_t>(n));
@@ -1009,7 +1009,7 @@ void Supervisor::publish_reports(bool force_status) {
   }
   if (have_telemetry_ && now >= next_wrench_ && p_.outbox.wrench) {
     next_wrench_ = now + period(p_.config.reports.wrench_hz);
-    control::WrenchReport w;
+    protocol::WrenchReport w;
     w.stamp_ns = to_wall_ns(latest_.stamp_ns);
     for (int i = 0; i < 3; ++i) {
       w.force_tool_n[i] = latest_.wrench_tool[i];
@@ -1021,7 +1021,7 @@ void Supervisor::publish_reports(bool force_status) {
   if (p_.tool != nullptr && now >= next_tool_ && p_.outbox.tool) {
     next_tool_ = now + period(p_.config.reports.tool_hz);
     const auto t = p_.tool->latest();
-    control::ToolReport r;
+    protocol::ToolReport r;
     r.stamp_ns = t.stamp_ns;
     r.latched = t.status.latched();
     r.running = t.status.running();

@@ -8,10 +8,11 @@
 #include <cstdio>
 
 #include "foresight/protocol/codec.hpp"
+#include "foresight/remote/algorithm_params.hpp"
 
 namespace foresight::remote {
 
-using control::Reason;
+using protocol::Reason;
 using Clock = std::chrono::steady_clock;
 
 const char* to_string(ToolStepKind kind) noexcept {
@@ -40,7 +41,7 @@ std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
 
 }  // namespace
 
-std::string parse_tool_step(const control::InvokeAlgorithm& invoke, ToolStepKind kind,
+std::string parse_tool_step(const protocol::InvokeAlgorithm& invoke, ToolStepKind kind,
                             const hw::LstToolConfig& tool, ToolStep& step) {
   step.kind = kind;
   step.timeout_s = invoke.timeout_s;
@@ -64,7 +65,7 @@ std::string parse_tool_step(const control::InvokeAlgorithm& invoke, ToolStepKind
     if (p.name == "torque_limit_nm" || p.name == "torque_nm") step.torque_nm = p.value;
     if (p.name == "speed_rad_s") step.speed_rad_s = p.value;
   }
-  if (!(step.timeout_s >= 0.0) || !std::isfinite(step.timeout_s)) return name + ": timeout_s must be >= 0";
+  if (!(step.timeout_s >= 0.0 && step.timeout_s <= kMaxAlgorithmTimeoutS)) return name + fmt_timeout(step.timeout_s);
   if (kind == ToolStepKind::Loosen && !(step.turns > 0.0 && step.turns <= 50.0))
     return name + fmt(": turns %g out of range (0, 50]", step.turns);
   if ((kind == ToolStepKind::Loosen || kind == ToolStepKind::Tighten)) {

@@ -119,7 +119,7 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
   for (std::size_t i = 0; i < buses_.size(); ++i)
     if (!buses_[i]) throw HwError("DriveSystem: bus " + config_.buses[i].name + " is not open");
   if (config_.buses.size() > kMaxBuses) throw HwError("DriveSystem: more than 8 buses");
-  if (config_.drives.size() > kMaxJoints) throw HwError("DriveSystem: more than 16 drives");
+  if (config_.drives.size() > kMaxJoints) throw HwError("DriveSystem: more than " + std::to_string(kMaxJoints) + " drives");
 
   bus_state_.resize(buses_.size());
   drives_.resize(config_.drives.size());

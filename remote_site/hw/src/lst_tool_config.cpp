@@ -9,13 +9,6 @@
 
 namespace foresight::hw {
 
-std::string LstToolConfig::describe() const {
-  if (transport == Transport::Tcp)
-    return "tcp " + host + ":" + std::to_string(port) + " unit " + std::to_string(unit_id);
-  return "rtu " + device + " " + std::to_string(baud) + " " + std::to_string(data_bits) + parity +
-         std::to_string(stop_bits) + " unit " + std::to_string(unit_id);
-}
-
 namespace {
 
 using yaml::line_of;

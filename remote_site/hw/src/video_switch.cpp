@@ -1,10 +1,6 @@
 #include "foresight/hw/video_switch.hpp"
 
-#include <modbus/modbus.h>
-
-#include <cerrno>
 #include <cmath>
-#include <thread>
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/text_file.hpp"
@@ -32,35 +28,6 @@ class VideoSwitchCategory final : public std::error_category {
     return "unknown video_switch error " + std::to_string(ev);
   }
 };
-
-std::error_code map_errno(int err) {
-  switch (err) {
-    case EMBXILFUN: return VideoSwitchError::IllegalFunction;
-    case EMBXILADD: return VideoSwitchError::IllegalDataAddress;
-    case EMBXILVAL: return VideoSwitchError::IllegalDataValue;
-    case EMBXSFAIL: return VideoSwitchError::DeviceFailure;
-    case EMBXSBUSY: return VideoSwitchError::DeviceBusy;
-    case ETIMEDOUT: return VideoSwitchError::Timeout;
-    case EMBMDATA: return VideoSwitchError::InvalidArgument;
-    case EMBXACK:
-    case EMBXNACK:
-    case EMBXMEMPAR:
-    case EMBXGPATH:
-    case EMBXGTAR:
-    case EMBBADCRC:
-    case EMBBADDATA:
-    case EMBBADEXC:
-    case EMBUNKEXC:
-    case EMBBADSLAVE: return VideoSwitchError::BadResponse;
-    default: return VideoSwitchError::ConnectionFailed;
-  }
-}
-
-bool definite_answer(std::error_code ec) {
-  return ec == VideoSwitchError::IllegalFunction || ec == VideoSwitchError::IllegalDataAddress ||
-         ec == VideoSwitchError::IllegalDataValue || ec == VideoSwitchError::DeviceFailure ||
-         ec == VideoSwitchError::InvalidArgument || ec == VideoSwitchError::BadResponse;
-}
 
 /// Radians -> int16 mrad counts on the wire.
 bool angle_counts(double rad, std::uint16_t& out) {
@@ -120,8 +87,15 @@ std::optional<VideoSwitchSection> load_video_switch_section(const std::string& r
                                     remote_yaml_path);
 }
 
-std::string VideoSwitchConfig::describe() const {
-  return "tcp " + host + ":" + std::to_string(port) + " unit " + std::to_string(unit_id);
+ModbusLink VideoSwitchConfig::link() const {
+  ModbusLink l;
+  l.host = host;
+  l.port = port;
+  l.unit_id = unit_id;
+  l.response_timeout_s = response_timeout_s;
+  l.retries = retries;
+  l.reconnect_delay_s = reconnect_delay_s;
+  return l;
 }
 
 VideoSwitchStatus decode_video_status(const std::uint16_t (&in)[video::kNumInput]) noexcept {
@@ -136,110 +110,57 @@ VideoSwitchStatus decode_video_status(const std::uint16_t (&in)[video::kNumInput
   return s;
 }
 
-VideoSwitch::VideoSwitch(VideoSwitchConfig config) : config_(std::move(config)) {
+namespace {
+
+ModbusErrors video_errors() {
+  ModbusErrors e;
+  e.category = &video_switch_error_category();
+  for (int code : {1, 2, 3, 4, 6}) e.exception[code] = code;  // VideoSwitchError values = exception codes
+  e.timeout = static_cast<int>(VideoSwitchError::Timeout);
+  e.connection_failed = static_cast<int>(VideoSwitchError::ConnectionFailed);
+  e.bad_response = static_cast<int>(VideoSwitchError::BadResponse);
+  e.invalid_argument = static_cast<int>(VideoSwitchError::InvalidArgument);
+  return e;
+}
+
+const VideoSwitchConfig& checked(const VideoSwitchConfig& c) {
   const std::string src = "video switch";
-  if (config_.port < 1 || config_.port > 65535)
-    throw InputError(src, "port " + std::to_string(config_.port) + " outside 1..65535");
-  if (config_.unit_id < 0 || config_.unit_id > 255)
-    throw InputError(src, "unit_id " + std::to_string(config_.unit_id) + " outside 0..255");
-  if (!(config_.response_timeout_s > 0.0) || !std::isfinite(config_.response_timeout_s))
+  if (c.port < 1 || c.port > 65535) throw InputError(src, "port " + std::to_string(c.port) + " outside 1..65535");
+  if (c.unit_id < 0 || c.unit_id > 255)
+    throw InputError(src, "unit_id " + std::to_string(c.unit_id) + " outside 0..255");
+  if (!(c.response_timeout_s > 0.0) || !std::isfinite(c.response_timeout_s))
     throw InputError(src, "response_timeout_s must be a positive number");
-  if (config_.retries < 0 || config_.retries > 10)
-    throw InputError(src, "retries " + std::to_string(config_.retries) + " outside 0..10");
-  if (!(config_.reconnect_delay_s >= 0.0)) throw InputError(src, "reconnect_delay_s must not be negative");
-  ctx_ = modbus_new_tcp(config_.host.c_str(), config_.port);
-  if (!ctx_) throw InputError(src, "cannot create the Modbus context for " + config_.describe());
-  modbus_set_slave(ctx_, config_.unit_id);
-  const double t = config_.response_timeout_s;
-  const auto sec = static_cast<std::uint32_t>(t);
-  const auto usec = static_cast<std::uint32_t>(std::lround((t - sec) * 1e6));
-  modbus_set_response_timeout(ctx_, sec, usec);
-  modbus_set_byte_timeout(ctx_, sec, usec);
+  if (c.retries < 0 || c.retries > 10) throw InputError(src, "retries " + std::to_string(c.retries) + " outside 0..10");
+  if (!(c.reconnect_delay_s >= 0.0)) throw InputError(src, "reconnect_delay_s must not be negative");
+  return c;
 }
 
-VideoSwitch::~VideoSwitch() {
-  close_link();
-  if (ctx_) modbus_free(ctx_);
-}
+}  // namespace
 
-std::error_code VideoSwitch::open_link() {
-  if (connected_) return {};
-  if (modbus_connect(ctx_) == -1) {
-    const int err = errno;
-    modbus_close(ctx_);
-    detail_ = std::string("connect: ") + modbus_strerror(err);
-    return VideoSwitchError::ConnectionFailed;
-  }
-  connected_ = true;
-  return {};
-}
+VideoSwitch::VideoSwitch(VideoSwitchConfig config)
+    : config_(std::move(config)), modbus_(checked(config_).link(), video_errors(), "video switch", 0, "link") {}
 
-void VideoSwitch::close_link() noexcept {
-  if (ctx_ && connected_) modbus_close(ctx_);
-  connected_ = false;
-}
+VideoSwitch::~VideoSwitch() = default;
 
-std::error_code VideoSwitch::connect() {
-  return transact("connect", [](modbus_t*) { return 0; });
-}
-
-void VideoSwitch::disconnect() noexcept { close_link(); }
-
-std::error_code VideoSwitch::transact(const std::string& what, const std::function<int(modbus_t*)>& request) {
-  std::error_code ec;
-  int attempt = 0;
-  for (; attempt < 1 + config_.retries; ++attempt) {
-    if (attempt > 0 && config_.reconnect_delay_s > 0.0)
-      std::this_thread::sleep_for(std::chrono::duration<double>(config_.reconnect_delay_s));
-    if (!connected_) {
-      ec = open_link();
-      if (ec) continue;
-    }
-    errno = 0;
-    if (request(ctx_) != -1) return {};
-    const int err = errno;
-    ec = map_errno(err);
-    detail_ = modbus_strerror(err);
-    if (definite_answer(ec)) {
-      ++attempt;
-      break;
-    }
-    close_link();  // timeout or lost link: a late answer must not pair with the next request
-  }
-  last_error_ = what + " (" + config_.describe() + "): " + ec.message();
-  if (ec == VideoSwitchError::ConnectionFailed && !detail_.empty()) last_error_ += " (" + detail_ + ")";
-  if (attempt > 1) last_error_ += " after " + std::to_string(attempt) + " attempts";
-  return ec;
-}
+std::error_code VideoSwitch::connect() { return modbus_.connect(); }
+void VideoSwitch::disconnect() noexcept { modbus_.disconnect(); }
 
 std::error_code VideoSwitch::write_register(int address, std::uint16_t value) {
-  return transact("write holding register " + std::to_string(address) + " = " + std::to_string(value),
-                  [&](modbus_t* ctx) { return modbus_write_register(ctx, address, value) == 1 ? 0 : -1; });
+  return modbus_.write_register(address, value);
 }
-
 std::error_code VideoSwitch::write_registers(int address, int count, const std::uint16_t* values) {
-  return transact("write holding registers " + std::to_string(address) + ".." + std::to_string(address + count - 1),
-                  [&](modbus_t* ctx) { return modbus_write_registers(ctx, address, count, values) == count ? 0 : -1; });
+  return modbus_.write_registers(address, count, values);
 }
-
 std::error_code VideoSwitch::read_holding_registers(int address, int count, std::uint16_t* dest) {
-  return transact("read holding registers " + std::to_string(address), [&](modbus_t* ctx) {
-    return modbus_read_registers(ctx, address, count, dest) == count ? 0 : -1;
-  });
+  return modbus_.read_holding_registers(address, count, dest);
 }
-
 std::error_code VideoSwitch::read_input_registers(int address, int count, std::uint16_t* dest) {
-  return transact("read input registers " + std::to_string(address), [&](modbus_t* ctx) {
-    return modbus_read_input_registers(ctx, address, count, dest) == count ? 0 : -1;
-  });
+  return modbus_.read_input_registers(address, count, dest);
 }
 
 std::error_code VideoSwitch::select(int camera) {
-  if (camera < 0 || camera > 65535) {
-    last_error_ = "select camera " + std::to_string(camera) + ": " +
-                  make_error_code(VideoSwitchError::InvalidArgument).message();
-    return VideoSwitchError::InvalidArgument;
-  }
+  if (camera < 0 || camera > 65535)
+    return modbus_.refuse("select camera " + std::to_string(camera), static_cast<int>(VideoSwitchError::InvalidArgument));
   return write_register(video::kHoldCamera, static_cast<std::uint16_t>(camera));
 }
 
@@ -248,18 +169,16 @@ std::error_code VideoSwitch::set_view(const CameraView& v) {
   const bool ok = v.camera >= 0 && v.camera <= 65535 && angle_counts(v.pan_rad, regs[video::kHoldPan]) &&
                   angle_counts(v.tilt_rad, regs[video::kHoldTilt]) && std::isfinite(v.focal_px) &&
                   v.focal_px >= 0.0 && std::round(v.focal_px) <= 65535.0;
-  if (!ok) {
-    last_error_ = "set view of camera " + std::to_string(v.camera) + ": " +
-                  make_error_code(VideoSwitchError::InvalidArgument).message() + " (a value not representable)";
-    return VideoSwitchError::InvalidArgument;
-  }
+  if (!ok)
+    return modbus_.refuse("set view of camera " + std::to_string(v.camera) + " (a value not representable)",
+                          static_cast<int>(VideoSwitchError::InvalidArgument));
   regs[video::kHoldCamera] = static_cast<std::uint16_t>(v.camera);
   regs[video::kHoldFocal] = static_cast<std::uint16_t>(std::lround(v.focal_px));
   return write_registers(0, video::kNumHolding, regs);
 }
 
 std::error_code VideoSwitch::grab() {
-  return transact("grab", [](modbus_t* ctx) { return modbus_write_bit(ctx, video::kCoilGrab, 1) == 1 ? 0 : -1; });
+  return modbus_.write_coil(video::kCoilGrab, true);
 }
 
 std::error_code VideoSwitch::read_status(VideoSwitchStatus& out) {

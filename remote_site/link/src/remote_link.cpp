@@ -19,7 +19,7 @@
 #include "foresight/protocol/ros2.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 
 namespace foresight::remote_link {
 
@@ -41,11 +41,6 @@ constexpr int kTakeBatch = 64;
 constexpr std::size_t kRememberedCommands = 256;
 /// Rejected uploads whose verdict the assembler keeps (later chunks of the same id stay rejected).
 constexpr std::size_t kRememberedRejections = 4;
-
-protocol::Participant make_participant(const Config& config) {
-  if (config.security_dir.empty()) return protocol::Participant(config.domain);
-  return protocol::Participant(config.domain, protocol::security_qos(config.security_dir, config.security_identity));
-}
 
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
@@ -74,7 +69,7 @@ struct RemoteLink::Impl {
   Impl(Config c, Handlers h)
       : config(std::move(c)),
         handlers(std::move(h)),
-        participant(make_participant(config)),
+        participant(protocol::make_participant(config.domain, config.security_dir, config.security_identity)),
         commands(participant),
         chunks(participant),
         pings(participant),
@@ -108,7 +103,7 @@ struct RemoteLink::Impl {
     }
   }
 
-  bool publish_ros(const control::JointReport& r) noexcept {
+  bool publish_ros(const protocol::JointReport& r) noexcept {
     if (!ros_joints) return true;
     try {
       std::lock_guard lock(ros_joints->mutex);
@@ -137,7 +132,7 @@ struct RemoteLink::Impl {
     }
   }
 
-  bool publish_ros(const control::WrenchReport& r) noexcept {
+  bool publish_ros(const protocol::WrenchReport& r) noexcept {
     if (!ros_wrench) return true;
     std::lock_guard lock(ros_wrench->mutex);
     auto& s = *ros_wrench->sample;
@@ -188,7 +183,7 @@ struct RemoteLink::Impl {
 
   Config config;
   Handlers handlers;
-  PayloadLimits payload_limits;
+  protocol::PayloadLimits payload_limits;
   protocol::Participant participant;
   Reader<msg::Command> commands;
   Reader<msg::TrajectoryChunk> chunks;
@@ -334,8 +329,8 @@ void RemoteLink::Impl::serve_commands() {
     it->second.last_used = ++session_clock;
     const auto verdict = it->second.checker.check(c, received, config.clock_offset_ns);
     if (!verdict.ok()) {
-      event.command = envelope_of(c, received);
-      event.code = static_cast<control::Reason>(verdict.code);
+      event.command = protocol::envelope_of(c, received);
+      event.code = static_cast<protocol::Reason>(verdict.code);
       event.reason = verdict.reason;
       if (verdict.code == foresight_msg_REASON_BAD_SEQUENCE) {
         const auto key = std::make_tuple(c.session_id, c.command_id, c.sequence_number);
@@ -346,13 +341,13 @@ void RemoteLink::Impl::serve_commands() {
       // whatever the payload check says (the daemon repeats its last ack).
       accepted.emplace_back(c.session_id, c.command_id, c.sequence_number);
       if (accepted.size() > kRememberedCommands) accepted.pop_front();
-      const auto payload = check_payload(c, payload_limits);
+      const auto payload = protocol::check_payload(c, payload_limits);
       if (!payload.ok()) {
-        event.command = envelope_of(c, received);
+        event.command = protocol::envelope_of(c, received);
         event.code = payload.code;
         event.reason = "command " + std::to_string(c.command_id) + ": " + payload.reason;
       } else {
-        event.command = to_control(c, received);
+        event.command = protocol::from_wire(c, received);
       }
     }
     if (!event.accepted()) {
@@ -445,10 +440,10 @@ void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
     }
   }
   publish_status(id, record);
-  event.state = static_cast<control::UploadState>(record.state);
+  event.state = static_cast<protocol::UploadState>(record.state);
   event.chunks_received = record.chunks_received;
   event.chunk_count = record.chunk_count;
-  event.code = static_cast<control::Reason>(record.code);
+  event.code = static_cast<protocol::Reason>(record.code);
   event.reason = record.reason;
   event.hash = record.hash;
   event.trajectory = kept;
@@ -462,7 +457,7 @@ void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
     publish_status(*evicted, gone);
     UploadEvent e;
     e.trajectory_id = *evicted;
-    e.state = control::UploadState::Discarded;
+    e.state = protocol::UploadState::Discarded;
     e.reason = gone.reason;
     emit_upload(e);
   }
@@ -522,7 +517,7 @@ template <class T, class R>
 bool RemoteLink::Impl::publish(LockedWriter<T>& w, const R& report) noexcept {
   try {
     std::lock_guard lock(w.mutex);
-    to_wire(*w.sample, report);
+    protocol::to_wire(*w.sample, report);
     if (w.writer.try_write(*w.sample) < 0) {
       n_write_failures.fetch_add(1);
       return false;
@@ -576,22 +571,22 @@ void RemoteLink::stop() noexcept {
   if (impl_->thread.joinable()) impl_->thread.join();
 }
 
-bool RemoteLink::ack(const control::Ack& ack) noexcept {
+bool RemoteLink::ack(const protocol::Ack& ack) noexcept {
   const bool ok = impl_->publish(impl_->acks, ack);
   if (ok) impl_->n_acks.fetch_add(1);
   return ok;
 }
 
-bool RemoteLink::publish(const control::JointReport& r) noexcept {
+bool RemoteLink::publish(const protocol::JointReport& r) noexcept {
   const bool ros_ok = impl_->publish_ros(r);
   return impl_->publish(impl_->joints, r) && ros_ok;
 }
-bool RemoteLink::publish(const control::WrenchReport& r) noexcept {
+bool RemoteLink::publish(const protocol::WrenchReport& r) noexcept {
   const bool ros_ok = impl_->publish_ros(r);
   return impl_->publish(impl_->wrenches, r) && ros_ok;
 }
-bool RemoteLink::publish(const control::ToolReport& r) noexcept { return impl_->publish(impl_->tools, r); }
-bool RemoteLink::publish(const control::StatusReport& r) noexcept { return impl_->publish(impl_->status, r); }
+bool RemoteLink::publish(const protocol::ToolReport& r) noexcept { return impl_->publish(impl_->tools, r); }
+bool RemoteLink::publish(const protocol::StatusReport& r) noexcept { return impl_->publish(impl_->status, r); }
 
 void RemoteLink::republish_uploads() noexcept {
   try {

@@ -35,25 +35,25 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/loopback.hpp"
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 #include "foresight/remote_link/remote_link.hpp"
 
 namespace rl = foresight::remote_link;
-namespace control = foresight::control;
+namespace protocol = foresight::protocol;
 
 namespace {
 
 struct Stub {
   std::mutex mutex;
   std::vector<double> q = std::vector<double>(7, 0.0);
-  control::ControllerMode mode = control::ControllerMode::Disabled;  // until the first ground heartbeat
+  protocol::ControllerMode mode = protocol::ControllerMode::Disabled;  // until the first ground heartbeat
   std::string stop_reason;
-  std::map<std::uint64_t, control::Ack> last_ack;  // by command id
+  std::map<std::uint64_t, protocol::Ack> last_ack;  // by command id
   rl::RemoteLink* link = nullptr;
 
-  void ack(const control::Command& c, control::AckState state, control::Reason code = control::Reason::None,
+  void ack(const protocol::Command& c, protocol::AckState state, protocol::Reason code = protocol::Reason::None,
            const std::string& reason = {}, bool with_q = false) {
-    control::Ack a;
+    protocol::Ack a;
     a.session_id = c.session_id;
     a.command_id = c.command_id;
     a.sequence_number = c.sequence_number;
@@ -71,17 +71,17 @@ struct Stub {
     last_ack[c.command_id] = a;
   }
 
-  void complete(const control::Command& c, control::AckState final_state = control::AckState::Completed,
-                control::Reason code = control::Reason::None, const std::string& reason = {}) {
-    ack(c, control::AckState::Queued);
-    ack(c, control::AckState::Executing);
+  void complete(const protocol::Command& c, protocol::AckState final_state = protocol::AckState::Completed,
+                protocol::Reason code = protocol::Reason::None, const std::string& reason = {}) {
+    ack(c, protocol::AckState::Queued);
+    ack(c, protocol::AckState::Executing);
     ack(c, final_state, code, reason, true);
   }
 
   void on_command(const rl::CommandEvent& e) {
-    const control::Command& c = e.command;
+    const protocol::Command& c = e.command;
     if (e.duplicate) {
-      control::Ack again;
+      protocol::Ack again;
       {
         std::lock_guard lock(mutex);
         const auto it = last_ack.find(c.command_id);
@@ -91,20 +91,20 @@ struct Stub {
       link->ack(again);
       return;
     }
-    ack(c, control::AckState::Received);
+    ack(c, protocol::AckState::Received);
     if (!e.accepted()) {
-      ack(c, control::AckState::Rejected, e.code, e.reason);
+      ack(c, protocol::AckState::Rejected, e.code, e.reason);
       return;
     }
-    if (const auto* run = std::get_if<control::RunTrajectory>(&c.payload)) {
+    if (const auto* run = std::get_if<protocol::RunTrajectory>(&c.payload)) {
       const auto t = link->committed(run->trajectory_id);
       if (!t) {
-        ack(c, control::AckState::Rejected, control::Reason::UnknownTrajectory,
+        ack(c, protocol::AckState::Rejected, protocol::Reason::UnknownTrajectory,
             "trajectory " + std::to_string(run->trajectory_id) + " is not committed");
         return;
       }
       if (foresight::trajectory_hash(*t) != run->content_hash) {
-        ack(c, control::AckState::Rejected, control::Reason::HashMismatch, "the hash differs from the committed one");
+        ack(c, protocol::AckState::Rejected, protocol::Reason::HashMismatch, "the hash differs from the committed one");
         return;
       }
       {
@@ -115,7 +115,7 @@ struct Stub {
       complete(c);
       return;
     }
-    if (const auto* go = std::get_if<control::GotoJoint>(&c.payload)) {
+    if (const auto* go = std::get_if<protocol::GotoJoint>(&c.payload)) {
       {
         std::lock_guard lock(mutex);
         q = go->q_rad;
@@ -123,8 +123,8 @@ struct Stub {
       complete(c);
       return;
     }
-    if (const auto* alg = std::get_if<control::InvokeAlgorithm>(&c.payload); alg && alg->name == "fail_me") {
-      complete(c, control::AckState::Failed, control::Reason::ForceLimit, "force limit: 61 N > 60 N");
+    if (const auto* alg = std::get_if<protocol::InvokeAlgorithm>(&c.payload); alg && alg->name == "fail_me") {
+      complete(c, protocol::AckState::Failed, protocol::Reason::ForceLimit, "force limit: 61 N > 60 N");
       return;
     }
     complete(c);
@@ -133,17 +133,17 @@ struct Stub {
   void on_link(const rl::LinkEvent& e) {
     std::lock_guard lock(mutex);
     if (e.kind == rl::LinkEvent::Kind::Lost) {
-      mode = control::ControllerMode::Stopped;
+      mode = protocol::ControllerMode::Stopped;
       stop_reason = "link lost";
     } else {
-      mode = control::ControllerMode::Idle;
+      mode = protocol::ControllerMode::Idle;
       stop_reason.clear();
     }
   }
 
   void publish_all() {
-    control::JointReport j;
-    control::StatusReport s;
+    protocol::JointReport j;
+    protocol::StatusReport s;
     {
       std::lock_guard lock(mutex);
       j.q_rad = q;
@@ -155,12 +155,12 @@ struct Stub {
     j.dq_rad_s.assign(j.q_rad.size(), 0.0);
     j.torque_nm.assign(j.q_rad.size(), 1.5);
     link->publish(j);
-    control::WrenchReport w;
+    protocol::WrenchReport w;
     w.stamp_ns = now;
     w.force_tool_n = {1.0, 2.0, 3.0};
     w.torque_tool_nm = {0.1, 0.2, 0.3};
     link->publish(w);
-    control::ToolReport t;
+    protocol::ToolReport t;
     t.stamp_ns = now;
     t.turns = 2.5;
     link->publish(t);
@@ -224,7 +224,7 @@ int main(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     const long period_ns = telemetry_hz > 0.0 ? static_cast<long>(1e9 / telemetry_hz) : 0;
     const timespec tick{period_ns / 1'000'000'000, period_ns % 1'000'000'000};
-    control::JointReport flat_out;
+    protocol::JointReport flat_out;
     flat_out.q_rad.assign(7, 0.0);
     flat_out.dq_rad_s.assign(7, 0.0);
     flat_out.torque_nm.assign(7, 0.0);

@@ -17,6 +17,7 @@
 #include <cstring>
 
 #include "foresight/hw/lst_tool_registers.hpp"
+#include "modbus_serving.hpp"
 
 namespace foresight::sim {
 
@@ -32,8 +33,6 @@ struct LstServer::Impl {
 namespace {
 
 std::string errno_text(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
-
-std::uint16_t word_at(const std::uint8_t* p) { return static_cast<std::uint16_t>((p[0] << 8) | p[1]); }
 
 std::int16_t clamp16(double v) {
   return static_cast<std::int16_t>(std::clamp(std::lround(v), -32768L, 32767L));
@@ -247,38 +246,15 @@ void LstServer::serve_one(int rc) {
     ++answered_;
     return;
   }
-  // The tool refuses setpoints beyond its limits (exception 03).
-  const int h = modbus_get_header_length(ctx);
-  const int fc = q[h];
+  // The tool refuses setpoints beyond its limits (exception 03), whichever
+  // function writes them.
   auto out_of_range = [&](int address, std::uint16_t value) {
     if (address == lst::kHoldSpeedCmd) return value * lst::kSpeedRadSPerCount > options_.mechanism.max_speed_rad_s + 1e-9;
     if (address == lst::kHoldTorqueLimit) return value * lst::kTorqueNmPerCount > options_.mechanism.max_torque_nm + 1e-9;
     return false;
   };
-  bool refuse = false;
-  if (fc == MODBUS_FC_WRITE_SINGLE_REGISTER && rc >= h + 5) {
-    refuse = out_of_range(word_at(q + h + 1), word_at(q + h + 3));
-  } else if (fc == MODBUS_FC_WRITE_MULTIPLE_REGISTERS && rc >= h + 6) {
-    const int address = word_at(q + h + 1);
-    const int count = word_at(q + h + 3);
-    for (int i = 0; i < count && rc >= h + 6 + 2 * (i + 1); ++i)
-      refuse = refuse || out_of_range(address + i, word_at(q + h + 6 + 2 * i));
-  } else if (fc == MODBUS_FC_MASK_WRITE_REGISTER && rc >= h + 7) {
-    // FC 22: result = (current AND and_mask) OR (or_mask AND NOT and_mask).
-    const int address = word_at(q + h + 1);
-    const std::uint16_t and_mask = word_at(q + h + 3);
-    const std::uint16_t or_mask = word_at(q + h + 5);
-    if (address >= 0 && address < impl_->map->nb_registers) {
-      const std::uint16_t current = impl_->map->tab_registers[address];
-      refuse = out_of_range(address, static_cast<std::uint16_t>((current & and_mask) | (or_mask & ~and_mask)));
-    }
-  } else if (fc == MODBUS_FC_WRITE_AND_READ_REGISTERS && rc >= h + 10) {
-    // FC 23: read address, read count, write address, write count, byte count, values.
-    const int address = word_at(q + h + 5);
-    const int count = word_at(q + h + 7);
-    for (int i = 0; i < count && rc >= h + 10 + 2 * (i + 1); ++i)
-      refuse = refuse || out_of_range(address + i, word_at(q + h + 10 + 2 * i));
-  }
+  const bool refuse = !modbus_serving::register_writes_ok(
+      ctx, q, rc, impl_->map, [&](int address, std::uint16_t value) { return !out_of_range(address, value); });
   if (refuse) {
     modbus_reply_exception(ctx, q, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
     ++answered_;
@@ -310,33 +286,8 @@ void LstServer::loop() {
       apply_outputs(stopped);
     }
     if (options_.transport == LstServerOptions::Transport::Tcp) {
-      pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {client_fd_, POLLIN, 0}};
-      const int n = poll(fds, client_fd_ >= 0 ? 2 : 1, poll_ms);
-      if (n <= 0) continue;
-      if (fds[0].revents & POLLIN) {
-        const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-        if (fd >= 0) {
-          if (client_fd_ >= 0) close(client_fd_);  // one client at a time: the newest wins
-          client_fd_ = fd;
-          modbus_set_socket(impl_->ctx, client_fd_);
-        }
-        continue;
-      }
-      if (client_fd_ >= 0 && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) {
-        const int rc = modbus_receive(impl_->ctx, impl_->query);
-        if (rc > 0) {
-          serve_one(rc);
-        } else if (rc == -1 && errno != ETIMEDOUT) {
-          if (errno == ECONNRESET || errno == EBADF || errno == EPIPE || errno == ENOTCONN || errno == EIO ||
-              (fds[1].revents & (POLLHUP | POLLERR))) {
-            close(client_fd_);
-            client_fd_ = -1;
-            modbus_set_socket(impl_->ctx, -1);
-          } else {
-            modbus_flush(impl_->ctx);  // garbled request: drop what is buffered
-          }
-        }
-      }
+      modbus_serving::serve_tcp_once(impl_->ctx, listen_fd_, client_fd_, impl_->query, poll_ms,
+                                     [this](int rc) { serve_one(rc); });
     } else {
       const int rc = modbus_receive(impl_->ctx, impl_->query);  // bounded by the indication timeout
       if (rc > 0)

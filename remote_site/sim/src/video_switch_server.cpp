@@ -4,7 +4,6 @@
 #include <fcntl.h>
 #include <modbus/modbus.h>
 #include <netinet/in.h>
-#include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -15,6 +14,7 @@
 
 #include "foresight/common/scene.hpp"
 #include "foresight/hw/video_switch.hpp"
+#include "modbus_serving.hpp"
 
 namespace foresight::sim {
 
@@ -25,12 +25,6 @@ struct VideoSwitchServer::Impl {
   modbus_mapping_t* map = nullptr;
   std::uint8_t query[MODBUS_MAX_ADU_LENGTH] = {};
 };
-
-namespace {
-
-std::uint16_t word_at(const std::uint8_t* p) { return static_cast<std::uint16_t>((p[0] << 8) | p[1]); }
-
-}  // namespace
 
 VideoSwitchServerOptions video_switch_options_from_scene(const std::string& scene_yaml_path) {
   const Scene scene = Scene::from_file(scene_yaml_path);
@@ -135,14 +129,12 @@ void VideoSwitchServer::serve_one(int rc) {
   modbus_t* ctx = impl_->ctx;
   modbus_mapping_t* m = impl_->map;
   const std::uint8_t* q = impl_->query;
-  const int h = modbus_get_header_length(ctx);
-  const int fc = q[h];
   std::lock_guard lock(mutex_);
-  // Which holding registers this request writes, and whether every value is
-  // in range (out of range: exception 03, nothing changes).
-  int first = -1, count = 0;
+  // Which holding registers this request writes (FC 6, 16, 22, 23), and
+  // whether every value is in range (out of range: exception 03, nothing
+  // changes).
+  int lo = 1 << 20, hi = -1;
   std::uint16_t values[video::kNumHolding] = {};
-  bool refuse = false;
   auto check = [&](int address, std::uint16_t v) {
     const auto s = static_cast<std::int16_t>(v);
     switch (address) {
@@ -153,20 +145,15 @@ void VideoSwitchServer::serve_one(int rc) {
       default: return true;  // outside the map: libmodbus answers exception 02
     }
   };
-  if (fc == MODBUS_FC_WRITE_SINGLE_REGISTER && rc >= h + 5) {
-    first = word_at(q + h + 1);
-    count = 1;
-    refuse = !check(first, word_at(q + h + 3));
-    if (first < video::kNumHolding) values[first] = word_at(q + h + 3);
-  } else if (fc == MODBUS_FC_WRITE_MULTIPLE_REGISTERS && rc >= h + 6) {
-    first = word_at(q + h + 1);
-    count = word_at(q + h + 3);
-    for (int i = 0; i < count && rc >= h + 6 + 2 * (i + 1); ++i) {
-      const std::uint16_t v = word_at(q + h + 6 + 2 * i);
-      refuse = refuse || !check(first + i, v);
-      if (first + i < video::kNumHolding) values[first + i] = v;
-    }
-  }
+  const bool refuse = !modbus_serving::register_writes_ok(ctx, q, rc, m, [&](int address, std::uint16_t v) {
+    if (!check(address, v)) return false;
+    if (address >= 0 && address < video::kNumHolding) values[address] = v;
+    lo = std::min(lo, address);  // a write running past the map is exception 02: nothing changes
+    hi = std::max(hi, address);
+    return true;
+  });
+  const int first = hi >= lo ? lo : -1;
+  const int count = hi >= lo ? hi - lo + 1 : 0;
   if (refuse) {
     modbus_reply_exception(ctx, q, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
     ++answered_;
@@ -199,35 +186,9 @@ void VideoSwitchServer::serve_one(int rc) {
 
 void VideoSwitchServer::loop() {
   const int poll_ms = std::max(1, static_cast<int>(std::lround(options_.poll_s * 1e3)));
-  while (!stop_) {
-    pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {client_fd_, POLLIN, 0}};
-    const int n = poll(fds, client_fd_ >= 0 ? 2 : 1, poll_ms);
-    if (n <= 0) continue;
-    if (fds[0].revents & POLLIN) {
-      const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC);
-      if (fd >= 0) {
-        if (client_fd_ >= 0) close(client_fd_);  // one client at a time: the newest wins
-        client_fd_ = fd;
-        modbus_set_socket(impl_->ctx, client_fd_);
-      }
-      continue;
-    }
-    if (client_fd_ >= 0 && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) {
-      const int rc = modbus_receive(impl_->ctx, impl_->query);
-      if (rc > 0) {
-        serve_one(rc);
-      } else if (rc == -1 && errno != ETIMEDOUT) {
-        if (errno == ECONNRESET || errno == EBADF || errno == EPIPE || errno == ENOTCONN || errno == EIO ||
-            (fds[1].revents & (POLLHUP | POLLERR))) {
-          close(client_fd_);
-          client_fd_ = -1;
-          modbus_set_socket(impl_->ctx, -1);
-        } else {
-          modbus_flush(impl_->ctx);
-        }
-      }
-    }
-  }
+  while (!stop_)
+    modbus_serving::serve_tcp_once(impl_->ctx, listen_fd_, client_fd_, impl_->query, poll_ms,
+                                   [this](int rc) { serve_one(rc); });
 }
 
 }  // namespace foresight::sim

@@ -2,7 +2,9 @@
 // Modbus TCP on 127.0.0.1 (ephemeral ports): select, set point, grab, status;
 // bad writes refused with exception 03 and nothing changed.
 #include <gtest/gtest.h>
+#include <modbus/modbus.h>
 
+#include <cerrno>
 #include <cmath>
 #include <limits>
 
@@ -134,6 +136,38 @@ TEST(VideoSwitch, OutOfRangeWritesAreRefusedWithException03AndChangeNothing) {
   EXPECT_DOUBLE_EQ(s.focal_px, 420.0);
 }
 
+// FC 22 (mask write) and FC 23 (write and read) write holding registers too:
+// the switch range-checks them as it does FC 6 and 16 (the shared
+// modbus_serving::register_writes_ok; before it only 6 and 16 were checked,
+// and a mask write could select camera 9 of 4). In range they act.
+TEST(VideoSwitch, MaskWriteAndWriteReadAreRangeCheckedToo) {
+  sim::VideoSwitchServer server(scene_options());
+  modbus_t* ctx = modbus_new_tcp("127.0.0.1", server.port());
+  ASSERT_NE(ctx, nullptr);
+  modbus_set_response_timeout(ctx, 1, 0);
+  ASSERT_EQ(modbus_connect(ctx), 0);
+  std::uint16_t regs[4] = {};
+  errno = 0;
+  EXPECT_EQ(modbus_mask_write_register(ctx, hw::video::kHoldCamera, 0x0000, 9), -1);  // FC 22: camera 9 of 4
+  EXPECT_EQ(errno, EMBXILVAL);
+  const std::uint16_t far_pan = 5000;  // 5 rad: beyond the pan limit
+  errno = 0;
+  EXPECT_EQ(modbus_write_and_read_registers(ctx, hw::video::kHoldPan, 1, &far_pan, 0, 4, regs), -1);  // FC 23
+  EXPECT_EQ(errno, EMBXILVAL);
+  EXPECT_EQ(server.state().active, 0);
+  EXPECT_EQ(server.state().views[0].pan_mrad, 0);
+  // In range: camera 2 through FC 22, then its pan through FC 23.
+  ASSERT_EQ(modbus_mask_write_register(ctx, hw::video::kHoldCamera, 0x0000, 2), 1);
+  EXPECT_EQ(server.state().active, 2);
+  const std::uint16_t pan = 300;
+  ASSERT_EQ(modbus_write_and_read_registers(ctx, hw::video::kHoldPan, 1, &pan, 0, 4, regs), 4);
+  EXPECT_EQ(regs[hw::video::kHoldCamera], 2);
+  EXPECT_EQ(regs[hw::video::kHoldPan], 300);
+  EXPECT_EQ(server.state().views[2].pan_mrad, 300);
+  modbus_close(ctx);
+  modbus_free(ctx);
+}
+
 TEST(VideoSwitch, ValuesNotRepresentableAreRefusedBeforeSending) {
   sim::VideoSwitchServer server(scene_options());
   VideoSwitch sw(client_config(server.port()));
@@ -143,7 +177,8 @@ TEST(VideoSwitch, ValuesNotRepresentableAreRefusedBeforeSending) {
   EXPECT_EQ(sw.set_view({0, 40.0, 0.0, 700.0}), VideoSwitchError::InvalidArgument);  // beyond int16 mrad
   EXPECT_EQ(sw.set_view({-1, 0.0, 0.0, 700.0}), VideoSwitchError::InvalidArgument);
   EXPECT_EQ(sw.select(70000), VideoSwitchError::InvalidArgument);
-  EXPECT_EQ(sw.last_error_message(), "select camera 70000: invalid argument");
+  EXPECT_EQ(sw.last_error_message(),
+            "select camera 70000 (tcp 127.0.0.1:" + std::to_string(server.port()) + " unit 1): invalid argument");
   EXPECT_EQ(server.requests_answered(), answered);
 }
 

@@ -19,13 +19,21 @@
 // mismatch (a programming error, as Pinocchio's argument checks).
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 
+#include "foresight/common/joints.hpp"
 #include "foresight/common/pose.hpp"
 #include "foresight/common/robot_model.hpp"
 
 namespace foresight {
+
+using Vector6 = Eigen::Matrix<double, 6, 1>;
+/// Joint-space vectors and 6 x n Jacobians with inline storage (no heap) for
+/// up to kMaxJoints: what the real-time code may hold on its stack.
+using JointVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, static_cast<int>(kMaxJoints), 1>;
+using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, static_cast<int>(kMaxJoints)>;
 
 class KinematicsWorkspace {
  public:
@@ -96,5 +104,12 @@ struct IkResult {
 IkResult inverse_kinematics(const RobotModel& model, KinematicsWorkspace& ws, const Pose& base_T_target,
                             const Eigen::Ref<const Eigen::VectorXd>& seed, const IkOptions& options = {},
                             int link = -1);
+
+/// Damped least squares: dq = J^T (J J^T + lambda^2 I)^-1 e, lambda^2 =
+/// lambda_max^2 (1 - (w / w0)^2) when the manipulability w = sqrt(det J J^T)
+/// is below w0, else 0 (plus a floor of 1e-6). The remote's compliance and
+/// the ground's teleoperation take their joint steps from here. RT-safe.
+void dls_step(const Jacobian& J, const Vector6& e, JointVector& dq, double lambda_max = 0.05,
+              double w0 = 0.01) noexcept;
 
 }  // namespace foresight

@@ -1,6 +1,6 @@
 #pragma once
 // A joint-space trajectory and the rules a trajectory must pass before the
-// remote runs it (DESIGN.md, "The remote-site rules"). Both sides use the same
+// remote runs it (docs/architecture.md, "Rules"). Both sides use the same
 // code: the ground checks before sending, the remote checks again on arrival
 // (the remote never trusts the ground). Nothing here is for the control loop:
 // validation and I/O allocate.

@@ -204,16 +204,10 @@ const char* joint_state_error(const msg::JointState& sample, std::size_t expecte
                               char* buf, std::size_t size) noexcept;
 const char* to_string(JointStateDefect defect) noexcept;  ///< "joint_count", "length", "not_finite", "none"
 
-/// Names of enum values, for logs and error messages ("ACK_COMPLETED", ...).
-/// Only for checked values (enum_error() returned nullptr).
-const char* to_string(msg::CommandKind kind) noexcept;
-const char* to_string(msg::AckState state) noexcept;
-const char* to_string(msg::ReasonCode code) noexcept;
-const char* to_string(msg::UploadState state) noexcept;
-const char* to_string(msg::ControllerMode mode) noexcept;
+// Names of the command enums: the plain types' to_string (command.hpp), one
+// table for both sides; the wire value converts with a static_cast.
 /// The CiA 402 state name in snake case ("operation_enabled", "unknown"), as
 /// `foresight status --json` prints it.
 const char* drive_state_name(msg::DriveState state) noexcept;
-const char* to_string(msg::StopCategory category) noexcept;
 
 }  // namespace foresight::protocol

@@ -1,6 +1,6 @@
 #pragma once
 // DDS on the loopback interface, for tests and benchmarks on one machine
-// (../shared/STACK.md, "DDS on loopback"). Call before the first Participant
+// (Cyclone's default interface may not be loopback). Call before the first Participant
 // of the process: Cyclone reads CYCLONEDDS_URI once, when the domain is
 // created; child processes inherit the variable.
 

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 
+#include "foresight/common/joints.hpp"
 #include "foresight/protocol/qos.hpp"
 #include "foresight/protocol/topics.hpp"
 #include "foresight_msgs.h"
@@ -53,6 +54,7 @@ inline constexpr unsigned kMaxJoints = foresight_msg_MAX_JOINTS;
 inline constexpr unsigned kMaxChunkValues = foresight_msg_MAX_CHUNK_VALUES;
 inline constexpr unsigned kMaxChunks = foresight_msg_MAX_CHUNKS;
 inline constexpr unsigned kMaxParams = foresight_msg_MAX_PARAMS;
+static_assert(kMaxJoints == foresight::kMaxJoints, "the IDL's MAX_JOINTS is the system's bound (common/joints.hpp)");
 }  // namespace msg
 
 /// Per topic type: descriptor(), the default topic name and QoS profile.

@@ -13,6 +13,7 @@
 
 #include <string>
 
+#include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/qos.hpp"
 
 namespace foresight::protocol {
@@ -26,5 +27,9 @@ std::string security_plugin_dir();
 /// dir/identities/<identity>/{cert,key}.pem). Throws ProtocolError naming
 /// the first file that is missing.
 Qos security_qos(const std::string& dir, const std::string& identity);
+
+/// The one way both links make their participant: on `domain`, secured as
+/// `identity` with the material in `security_dir`, or plain when that is "".
+Participant make_participant(dds_domainid_t domain, const std::string& security_dir, const std::string& identity);
 
 }  // namespace foresight::protocol

@@ -1,6 +1,6 @@
 #pragma once
 // Clicked correspondences: a 3-D point and the pixel the operator clicked for
-// it in one camera's view. Read from the points CSV of DESIGN.md:
+// it in one camera's view. Read from the points CSV (docs/estimation.md):
 //
 //   n,cam,x,y,z,u,v                       x, y, z in metres in the frame being
 //                                         solved against (robot base for

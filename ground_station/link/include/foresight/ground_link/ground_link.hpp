@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "foresight/common/trajectory.hpp"
-#include "foresight/control/command.hpp"
+#include "foresight/protocol/command.hpp"
 #include "foresight/ground_link/delay_monitor.hpp"
 
 namespace foresight::ground_link {
@@ -69,29 +69,29 @@ struct DroppedSamples {
 /// Every ack seen for one command, in arrival order.
 struct CommandResult {
   std::uint64_t command_id = 0;
-  std::vector<control::Ack> acks;
+  std::vector<protocol::Ack> acks;
   bool finished = false;  ///< a terminal ack arrived (else the wait timed out)
   /// The terminal ack's (or the last ack's) state, code and reason.
-  control::AckState state = control::AckState::Received;
-  control::Reason code = control::Reason::None;
+  protocol::AckState state = protocol::AckState::Received;
+  protocol::Reason code = protocol::Reason::None;
   std::string reason;
   std::vector<double> final_q_rad;
   double elapsed_s = 0.0;  ///< from send (or the wait's start) to the terminal ack
   /// True only for COMPLETED.
-  bool succeeded() const noexcept { return finished && state == control::AckState::Completed; }
+  bool succeeded() const noexcept { return finished && state == protocol::AckState::Completed; }
 };
 
 struct UploadResult {
   std::uint64_t trajectory_id = 0;
-  control::UploadState state = control::UploadState::Assembling;  ///< Assembling = timed out
-  control::Reason code = control::Reason::None;
+  protocol::UploadState state = protocol::UploadState::Assembling;  ///< Assembling = timed out
+  protocol::Reason code = protocol::Reason::None;
   std::string reason;
   TrajectoryHash local_hash{};
   TrajectoryHash remote_hash{};  ///< from the COMMITTED (or REJECTED) status
   std::uint32_t chunk_count = 0;
   double elapsed_s = 0.0;        ///< first chunk written -> final status
   bool committed() const noexcept {
-    return state == control::UploadState::Committed && local_hash == remote_hash;
+    return state == protocol::UploadState::Committed && local_hash == remote_hash;
   }
 };
 
@@ -120,12 +120,12 @@ class GroundLink {
   /// Sends one command; returns its id. `lifetime_s` < 0 uses
   /// Config::command_lifetime_s. Throws std::invalid_argument (payload not of
   /// `kind`), std::length_error (a bound), protocol::ProtocolError (write).
-  std::uint64_t send(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+  std::uint64_t send(protocol::CommandKind kind, const protocol::Payload& payload = protocol::NoPayload{},
                      double lifetime_s = -1.0);
   /// Every ack of `command_id` until a terminal one or `timeout`.
   CommandResult wait_final(std::uint64_t command_id, std::chrono::nanoseconds timeout);
   /// send() then wait_final() with timeout_for(expected_duration_s).
-  CommandResult execute(control::CommandKind kind, const control::Payload& payload = control::NoPayload{},
+  CommandResult execute(protocol::CommandKind kind, const protocol::Payload& payload = protocol::NoPayload{},
                         double expected_duration_s = 0.0);
   /// 1.5 x expected_duration_s + 3 x the window's p99 round trip
   /// (default_rtt_s before any) + timeout_margin_s.
@@ -140,12 +140,12 @@ class GroundLink {
   /// The latest valid JointState: q_rad, dq_rad_s (the drives' velocity
   /// actual 0x606C where mapped, else differentiated; docs/protocol.md) and
   /// torque_nm, all of one length.
-  std::optional<Timed<control::JointReport>> joint_state() const;
+  std::optional<Timed<protocol::JointReport>> joint_state() const;
   /// Samples dropped so far, by reason.
   DroppedSamples dropped() const;
-  std::optional<Timed<control::WrenchReport>> wrench() const;
-  std::optional<Timed<control::ToolReport>> tool() const;
-  std::optional<Timed<control::StatusReport>> status() const;
+  std::optional<Timed<protocol::WrenchReport>> wrench() const;
+  std::optional<Timed<protocol::ToolReport>> tool() const;
+  std::optional<Timed<protocol::StatusReport>> status() const;
 
   /// A remote heartbeat within Config::remote_loss_s.
   bool remote_alive() const;

@@ -3,8 +3,8 @@
 // simulated arm): a 6-axis hand controller's deflections, each in [-1, 1], are
 // a tool-tip twist in the world (robot base), tool, or camera-view frame,
 // scaled by a position and an orientation gain; the twist goes through the
-// remote's own damped-least-squares inverse Jacobian (control::dls_step) to
-// joint steps, kept within the joint position and velocity limits. The motion
+// same damped-least-squares inverse Jacobian as the remote's compliance
+// (dls_step, common kinematics) to joint steps, kept within the joint position and velocity limits. The motion
 // can be recorded as a trajectory (common/trajectory) for preview and sending.
 //
 // Input for tests and replays: a recorded CSV `t,x,y,z,rx,ry,rz` (s, then the

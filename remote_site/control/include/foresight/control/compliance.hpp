@@ -34,10 +34,10 @@
 
 namespace foresight::control {
 
-using Vector6 = Eigen::Matrix<double, 6, 1>;
-/// Joint-space vectors with inline storage (no heap) for up to kMaxJoints.
-using JointVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, static_cast<int>(kMaxJoints), 1>;
-using Jacobian = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, static_cast<int>(kMaxJoints)>;
+using foresight::dls_step;  // common/kinematics.hpp, as Vector6, JointVector, Jacobian
+using foresight::Jacobian;
+using foresight::JointVector;
+using foresight::Vector6;
 
 /// The tool on the sensor (config/robot.urdf: the LST, 2.6 kg).
 struct ToolParams {
@@ -139,11 +139,5 @@ class Admittance {
 /// 6-vector pose error (linear m, rotation vector rad; base frame) taking
 /// `from` to `to`. RT-safe.
 Vector6 pose_error(const Pose& from, const Pose& to) noexcept;
-
-/// Damped least squares: dq = J^T (J J^T + lambda^2 I)^-1 e, lambda^2 =
-/// lambda_max^2 (1 - (w / w0)^2) when the manipulability w = sqrt(det J J^T)
-/// is below w0, else 0 (plus a floor of 1e-6). RT-safe.
-void dls_step(const Jacobian& J, const Vector6& e, JointVector& dq, double lambda_max = 0.05,
-              double w0 = 0.01) noexcept;
 
 }  // namespace foresight::control

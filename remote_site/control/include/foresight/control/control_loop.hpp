@@ -38,7 +38,7 @@
 
 #include "foresight/control/controller.hpp"
 #include "foresight/control/rt_types.hpp"
-#include "foresight/control/spsc_ring.hpp"
+#include "foresight/common/spsc_ring.hpp"
 #include "foresight/hw/drive_system.hpp"
 
 namespace foresight::control {
@@ -133,10 +133,10 @@ class ControlLoop {
   std::unique_ptr<Controller> controller_;
   std::size_t dof_ = 0;
 
-  SpscRing<MotionCommand, kCommandCapacity> commands_;
-  SpscRing<MotionEvent, kEventCapacity> events_;
-  SpscRing<StopEvent, kStopCapacity> stops_;
-  SpscRing<TelemetrySample, kTelemetryCapacity> telemetry_;
+  SpscRing<MotionCommand> commands_{kCommandCapacity};
+  SpscRing<MotionEvent> events_{kEventCapacity};
+  SpscRing<StopEvent> stops_{kStopCapacity};
+  SpscRing<TelemetrySample> telemetry_{kTelemetryCapacity};
 
   std::atomic<bool> estop_{false};
   std::atomic<bool> link_lost_{false};

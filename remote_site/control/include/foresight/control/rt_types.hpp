@@ -14,6 +14,7 @@
 #include <cstring>
 #include <type_traits>
 
+#include "foresight/common/joints.hpp"
 #include "foresight/common/pose.hpp"
 #include "foresight/control/command.hpp"
 
@@ -21,8 +22,8 @@ namespace foresight::control {
 
 class PreparedTrajectory;  // trajectory_executor.hpp
 
-/// Joints the real-time types carry (the arm has 7; set-up refuses more).
-inline constexpr std::size_t kMaxJoints = 8;
+/// Joints the real-time types carry (common/joints.hpp; set-up refuses more).
+using foresight::kMaxJoints;
 using JointArray = std::array<double, kMaxJoints>;
 /// Fx Fy Fz [N], Tx Ty Tz [N m].
 using Wrench6 = std::array<double, 6>;
@@ -77,6 +78,13 @@ struct InsertParams {
   double search_stiffness_n_m = 5000.0;   ///< across the axis before entering (the spiral must not lag by friction)
   double rotational_stiffness_nm_rad = 20.0;  ///< admittance about x, y of the tool (tilt)
   double axial_stiffness_n_m = 2000.0;    ///< admittance along the axis
+  /// Admittance damping across the axis (x, y) and about it (tilt); 0: the
+  /// controller's (AdmittanceParams: 6000 N s/m, 20 N m s/rad). The loop stays
+  /// stable against a contact up to about damping / delay times a constant
+  /// (docs/hardware.md "Frame order and loop delay"): a long guide in a tight
+  /// bore (the ORU in its slot) wants more than the tool's insertion.
+  double lateral_damping_n_s_m = 0.0;
+  double rotational_damping_nm_s_rad = 0.0;
   double stall_time_s = 0.3;           ///< pushing with < stall_progress_m progress this long: spiral search
   double stall_progress_m = 0.0003;
   double entered_progress_m = 0.002;   ///< past the contact depth by this: the tip has entered, spiral ends

@@ -13,10 +13,16 @@
 
 namespace foresight::remote {
 
-/// "" when `invoke` names an RT algorithm with valid parameters (checked as
-/// the controller will check them), else the reason: "unknown algorithm 'x'",
-/// "insert: unknown parameter 'q' (expected one of: ...)", "insert: parameter
-/// 'depth_m' is not finite", or the controller's range message.
-std::string parse_algorithm(const control::InvokeAlgorithm& invoke, control::AlgorithmParams& out);
+/// "" when `invoke` names an RT algorithm with valid parameters (each in its
+/// range, then checked as the controller will check them), else the reason:
+/// "unknown algorithm 'x'", "insert: unknown parameter 'q' (expected one of:
+/// ...)", "insert: parameter 'depth_m' is not finite", "insert: depth_m 1 out
+/// of range [0.001, 0.2] m", or the controller's own message.
+std::string parse_algorithm(const protocol::InvokeAlgorithm& invoke, control::AlgorithmParams& out);
+
+/// An algorithm's or a tool step's timeout_s: 0 (its default) up to this.
+inline constexpr double kMaxAlgorithmTimeoutS = 600.0;
+/// ": timeout_s <v> out of range [0, 600] s (0: the default)", for a refusal.
+std::string fmt_timeout(double timeout_s);
 
 }  // namespace foresight::remote

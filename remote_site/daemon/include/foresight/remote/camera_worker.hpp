@@ -22,7 +22,7 @@ namespace foresight::remote {
 
 struct CameraJob {
   std::uint64_t command_id = 0;
-  control::CameraAction action = control::CameraAction::Select;
+  protocol::CameraAction action = protocol::CameraAction::Select;
   int camera = 0;            ///< the switch's index
   double pan_rad = 0.0;
   double tilt_rad = 0.0;

@@ -58,11 +58,11 @@ namespace foresight::remote {
 
 /// Where acks and reports go (the DDS link in the daemon; a recorder in tests).
 struct Outbox {
-  std::function<void(const control::Ack&)> ack;
-  std::function<void(const control::JointReport&)> joints;
-  std::function<void(const control::WrenchReport&)> wrench;
-  std::function<void(const control::ToolReport&)> tool;
-  std::function<void(const control::StatusReport&)> status;
+  std::function<void(const protocol::Ack&)> ack;
+  std::function<void(const protocol::JointReport&)> joints;
+  std::function<void(const protocol::WrenchReport&)> wrench;
+  std::function<void(const protocol::ToolReport&)> tool;
+  std::function<void(const protocol::StatusReport&)> status;
   std::function<void()> republish_uploads;
 };
 
@@ -106,13 +106,13 @@ class Supervisor {
 
   /// Latest telemetry from the loop (stamp is CLOCK_MONOTONIC).
   const control::TelemetrySample& latest() const noexcept { return latest_; }
-  control::ControllerMode mode() const noexcept { return latest_.mode; }
+  protocol::ControllerMode mode() const noexcept { return latest_.mode; }
   std::uint64_t commander() const noexcept { return commander_; }
 
  private:
   enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover, Tare };
   struct Job {
-    control::Command command;
+    protocol::Command command;
     JobKind kind = JobKind::Trajectory;
     std::shared_ptr<const Trajectory> trajectory;           ///< Trajectory, or the planned Goto
     std::unique_ptr<control::PreparedTrajectory> prepared;  ///< alive until the final event
@@ -133,28 +133,28 @@ class Supervisor {
   void handle(const remote_link::CommandEvent& event);
   void handle(const remote_link::UploadEvent& event);
   void handle(const remote_link::LinkEvent& event);
-  void dispatch(const control::Command& command);
+  void dispatch(const protocol::Command& command);
 
   /// Journal durably, then acknowledge; remembers the last ack of the command.
-  void ack(const control::Command& command, control::AckState state, control::Reason code = control::Reason::None,
+  void ack(const protocol::Command& command, protocol::AckState state, protocol::Reason code = protocol::Reason::None,
            const std::string& reason = {}, std::vector<double> final_q = {});
-  void reject(const control::Command& command, control::Reason code, const std::string& reason);
+  void reject(const protocol::Command& command, protocol::Reason code, const std::string& reason);
 
   // Checks; "" when fine, else the reason (code in *code).
-  std::string check_commander(const control::Command& command, control::Reason* code) const;
-  std::string check_can_move(control::Reason* code) const;
+  std::string check_commander(const protocol::Command& command, protocol::Reason* code) const;
+  std::string check_can_move(protocol::Reason* code) const;
 
-  std::unique_ptr<Job> make_job(const control::Command& command, control::Reason* code, std::string* reason);
-  bool plan_goto(Job& job, control::Reason* code, std::string* reason);
+  std::unique_ptr<Job> make_job(const protocol::Command& command, protocol::Reason* code, std::string* reason);
+  bool plan_goto(Job& job, protocol::Reason* code, std::string* reason);
   void enqueue(std::unique_ptr<Job> job);
   void start_next();
-  void finish_running(control::AckState state, control::Reason code, const std::string& reason,
+  void finish_running(protocol::AckState state, protocol::Reason code, const std::string& reason,
                       std::vector<double> final_q);
   void cancel_queued(const std::string& why);
 
-  void do_abort(const control::Command& command);
-  void do_request(const control::Command& command);
-  void do_camera(const control::Command& command);
+  void do_abort(const protocol::Command& command);
+  void do_request(const protocol::Command& command);
+  void do_camera(const protocol::Command& command);
 
   void poll_loop();
   void poll_tool();
@@ -164,7 +164,7 @@ class Supervisor {
   std::uint64_t internal_id() noexcept { return (1ull << 63) | ++internal_counter_; }
   std::vector<double> current_q() const;
   std::int64_t to_wall_ns(std::int64_t mono_ns) const noexcept;
-  control::StatusReport status_report() const;
+  protocol::StatusReport status_report() const;
   void journal_event(const std::string& kind, const std::string& text, const std::string& detail = {});
 
   SupervisorParts p_;
@@ -178,10 +178,10 @@ class Supervisor {
   std::map<std::uint64_t, TrajectoryHash> upload_hash_;
   std::deque<std::uint64_t> upload_order_;
   using CommandKey = std::pair<std::uint64_t, std::uint64_t>;  ///< (session, command id): ids restart per session
-  std::map<CommandKey, control::Ack> last_ack_;  ///< the last ack of each command (bounded)
+  std::map<CommandKey, protocol::Ack> last_ack_;  ///< the last ack of each command (bounded)
   std::deque<CommandKey> last_ack_order_;
-  std::map<std::uint64_t, control::Command> aborts_;  ///< ABORT commands by the loop id of the Stop sent for them
-  std::optional<control::Command> camera_command_;   ///< the CAMERA command the camera thread runs
+  std::map<std::uint64_t, protocol::Command> aborts_;  ///< ABORT commands by the loop id of the Stop sent for them
+  std::optional<protocol::Command> camera_command_;   ///< the CAMERA command the camera thread runs
 
   std::deque<std::unique_ptr<Job>> queue_;
   std::unique_ptr<Job> running_;
@@ -194,7 +194,7 @@ class Supervisor {
   bool have_telemetry_ = false;
   control::StopEvent last_stop_{};
   bool have_stop_ = false;
-  control::ControllerMode reported_mode_ = control::ControllerMode::Disabled;
+  protocol::ControllerMode reported_mode_ = protocol::ControllerMode::Disabled;
   bool estop_ = false;
   bool link_lost_ = false;
   bool shutting_down_ = false;

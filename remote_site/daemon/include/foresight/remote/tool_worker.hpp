@@ -55,13 +55,13 @@ struct ToolStep {
 /// Parses the InvokeAlgorithm parameters of a tool step into `step`. Returns
 /// "" when they are valid, else the reason (unknown parameter, not finite,
 /// out of range against the tool config).
-std::string parse_tool_step(const control::InvokeAlgorithm& invoke, ToolStepKind kind,
+std::string parse_tool_step(const protocol::InvokeAlgorithm& invoke, ToolStepKind kind,
                             const hw::LstToolConfig& tool, ToolStep& step);
 
 struct ToolStepResult {
   std::uint64_t command_id = 0;
   bool ok = false;
-  control::Reason code = control::Reason::None;
+  protocol::Reason code = protocol::Reason::None;
   std::string text;         ///< what happened, with numbers ("loosened 8.5 turns, peak 15.2 N m")
   double turns = 0.0;
   double peak_torque_nm = 0.0;

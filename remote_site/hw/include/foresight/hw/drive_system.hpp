@@ -6,7 +6,7 @@
 // (node_config.hpp) live in their own files; this class keeps the boot
 // sequence, the power state machine and the cycle.
 //
-// Two phases (../../../../../shared/STYLE.md):
+// Two phases:
 //  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
 //      constructor (validates the config and bus load; sends nothing),
 //      configure() (NMT reset, boot-up, SDO: device type, PDO mapping, mode,
@@ -52,6 +52,7 @@
 #include <vector>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/joints.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/hw/can_bus.hpp"
 #include "foresight/hw/canopen.hpp"
@@ -62,7 +63,7 @@
 
 namespace foresight::hw {
 
-inline constexpr std::size_t kMaxJoints = 16;
+using foresight::kMaxJoints;  // common/joints.hpp
 inline constexpr std::size_t kMaxBuses = 8;
 
 /// Joint position targets, radians, in config drive order (= joint index).

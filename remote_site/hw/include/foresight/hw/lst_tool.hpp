@@ -14,12 +14,11 @@
 // ConnectionFailed. last_error_message() says which request failed and where.
 // Only the constructor throws (InputError on a bad configuration).
 //
-// Retries and reconnect: a request that times out, or whose connection is
-// lost or refused, or whose response is garbled, is retried up to `retries`
-// more times; before each retry after a timeout or a lost connection the
-// client closes the link and reconnects (TCP: a new connection; RTU: reopens
-// the port), pausing reconnect_delay_s first. Modbus exceptions are the
-// tool's definite answer and are not retried, except DeviceBusy.
+// The link (retries, reconnects, the Modbus functions) is the shared
+// ModbusClient (modbus_client.hpp): a request that times out, or whose
+// connection is lost or refused, or whose response is garbled, is retried up
+// to `retries` more times on a fresh link; Modbus exceptions are the tool's
+// definite answer and are not retried, except DeviceBusy.
 
 #include <chrono>
 #include <cstdint>
@@ -28,8 +27,7 @@
 #include <system_error>
 
 #include "foresight/hw/lst_tool_registers.hpp"
-
-typedef struct _modbus modbus_t;  // libmodbus context (opaque)
+#include "foresight/hw/modbus_client.hpp"
 
 namespace foresight::hw {
 
@@ -99,8 +97,10 @@ struct LstToolConfig {
   std::string source = "LstToolConfig";  ///< file it came from, for messages
   int line = 0;                          ///< line of the `tool:` key
 
+  /// The Modbus link of these settings.
+  ModbusLink link() const;
   /// "tcp 127.0.0.1:502 unit 1" / "rtu /dev/ttyUSB0 115200 8N1 unit 1"
-  std::string describe() const;
+  std::string describe() const { return link().describe(); }
 };
 
 /// Read and validate the `tool:` section of a remote.yaml. Throws InputError
@@ -155,7 +155,7 @@ class LstTool {
   /// Connect now (with retries). Requests connect by themselves when needed.
   std::error_code connect();
   void disconnect() noexcept;
-  bool connected() const noexcept { return connected_; }
+  bool connected() const noexcept { return modbus_.connected(); }
 
   // ---- tool operations ----------------------------------------------------------
   std::error_code read_status(LstStatus& out);
@@ -204,31 +204,16 @@ class LstTool {
   std::error_code read_discrete_inputs(int address, int count, std::uint8_t* dest);
 
   /// "<request> (<link>): <error>[ after N attempts]" for the last failure.
-  const std::string& last_error_message() const { return last_error_; }
+  const std::string& last_error_message() const { return modbus_.last_error_message(); }
 
-  struct Stats {
-    std::uint64_t requests = 0;    ///< operations that reached the wire
-    std::uint64_t attempts = 0;    ///< wire attempts including retries
-    std::uint64_t retries = 0;
-    std::uint64_t reconnects = 0;  ///< successful (re)connections after the first
-    std::uint64_t timeouts = 0;    ///< attempts that timed out
-    std::uint64_t exceptions = 0;  ///< Modbus exception responses
-  };
-  const Stats& stats() const { return stats_; }
+  using Stats = ModbusClient::Stats;
+  const Stats& stats() const { return modbus_.stats(); }
 
  private:
-  std::error_code transact(const std::string& what, const std::function<int(modbus_t*)>& request);
-  std::error_code open_link();
-  void close_link() noexcept;
-  std::error_code fail(const std::string& what, std::error_code ec, int attempts);
+  std::error_code fail(const std::string& what, LstError e) { return modbus_.refuse(what, static_cast<int>(e)); }
 
   LstToolConfig config_;
-  modbus_t* ctx_ = nullptr;
-  bool connected_ = false;
-  bool ever_connected_ = false;
-  std::string last_error_;
-  std::string detail_;  ///< libmodbus/errno text of the last failed attempt
-  Stats stats_;
+  ModbusClient modbus_;
 };
 
 }  // namespace foresight::hw

@@ -10,9 +10,10 @@
 // non-real-time thread, never from the control cycle. Not thread-safe: one
 // owner thread. Errors are values (std::error_code in
 // video_switch_error_category); only the constructor throws (InputError on a
-// bad configuration). A request that times out or loses its connection is
-// retried `retries` more times, reconnecting first; Modbus exceptions are the
-// switch's definite answer and are not retried.
+// bad configuration). The link is the shared ModbusClient (modbus_client.hpp):
+// a request that times out, loses its connection or is garbled is retried
+// `retries` more times, reconnecting first; Modbus exceptions are the
+// switch's definite answer and are not retried, except DeviceBusy.
 //
 // Register map (0-based protocol addresses):
 //
@@ -51,7 +52,8 @@
 #include <vector>
 #include <system_error>
 
-typedef struct _modbus modbus_t;  // libmodbus context (opaque)
+
+#include "foresight/hw/modbus_client.hpp"
 
 namespace foresight::hw {
 
@@ -109,8 +111,10 @@ struct VideoSwitchConfig {
   double response_timeout_s = 0.1;  ///< per attempt; also the connect timeout
   int retries = 2;                  ///< extra attempts after the first (0..10)
   double reconnect_delay_s = 0.05;
+  /// The Modbus link of these settings (TCP).
+  ModbusLink link() const;
   /// "tcp 127.0.0.1:1503 unit 1"
-  std::string describe() const;
+  std::string describe() const { return link().describe(); }
 };
 
 /// The optional `video_switch:` section of remote.yaml (a real cabinet's
@@ -168,7 +172,7 @@ class VideoSwitch {
 
   std::error_code connect();
   void disconnect() noexcept;
-  bool connected() const noexcept { return connected_; }
+  bool connected() const noexcept { return modbus_.connected(); }
 
   /// Select a camera (its stored set point stays).
   std::error_code select(int camera);
@@ -189,18 +193,11 @@ class VideoSwitch {
   std::error_code read_input_registers(int address, int count, std::uint16_t* dest);
 
   /// "<request> (<link>): <error>[ after N attempts]" for the last failure.
-  const std::string& last_error_message() const { return last_error_; }
+  const std::string& last_error_message() const { return modbus_.last_error_message(); }
 
  private:
-  std::error_code transact(const std::string& what, const std::function<int(modbus_t*)>& request);
-  std::error_code open_link();
-  void close_link() noexcept;
-
   VideoSwitchConfig config_;
-  modbus_t* ctx_ = nullptr;
-  bool connected_ = false;
-  std::string last_error_;
-  std::string detail_;
+  ModbusClient modbus_;
 };
 
 }  // namespace foresight::hw

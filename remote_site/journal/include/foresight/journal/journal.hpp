@@ -40,7 +40,7 @@
 
 #include "foresight/common/error.hpp"
 #include "foresight/journal/rows.hpp"
-#include "foresight/journal/spsc_ring.hpp"
+#include "foresight/common/spsc_ring.hpp"
 
 namespace foresight::journal {
 

@@ -17,6 +17,8 @@
 #include <cstdint>
 #include <string>
 
+#include "foresight/common/joints.hpp"
+
 namespace foresight::journal {
 
 /// One state change of one command: RECEIVED (with the payload summary in
@@ -71,7 +73,7 @@ struct EventRow {
 /// One telemetry sample. Fixed size and trivially copyable: it travels through
 /// the lock-free queue without allocation.
 struct TelemetryRow {
-  static constexpr std::size_t kMaxJoints = 16;
+  static constexpr std::size_t kMaxJoints = foresight::kMaxJoints;  // common/joints.hpp
   std::int64_t stamp_ns = 0;
   std::uint64_t cycle = 0;
   std::uint8_t mode = 0;         ///< the controller's mode (its enum value)

@@ -34,7 +34,7 @@
 #include <vector>
 
 #include "foresight/common/trajectory.hpp"
-#include "foresight/control/command.hpp"
+#include "foresight/protocol/command.hpp"
 
 namespace foresight::remote_link {
 
@@ -72,25 +72,25 @@ struct Config {
 /// payload NoPayload, kind as received even when unknown). Either way the
 /// daemon journals it and acks RECEIVED then, for a rejection, REJECTED.
 struct CommandEvent {
-  control::Command command;
-  control::Reason code = control::Reason::None;
+  protocol::Command command;
+  protocol::Reason code = protocol::Reason::None;
   std::string reason;
   /// The same (session, command id, sequence) as a command that already
   /// passed the envelope checks (accepted, or rejected for its payload):
   /// code BadSequence; the daemon re-sends that command's last ack instead
   /// of a rejection (a re-sent command is idempotent).
   bool duplicate = false;
-  bool accepted() const noexcept { return code == control::Reason::None; }
+  bool accepted() const noexcept { return code == protocol::Reason::None; }
 };
 
 /// One upload's state change.
 struct UploadEvent {
   std::uint64_t trajectory_id = 0;
   std::uint64_t session_id = 0;
-  control::UploadState state = control::UploadState::Assembling;
+  protocol::UploadState state = protocol::UploadState::Assembling;
   std::uint32_t chunks_received = 0;
   std::uint32_t chunk_count = 0;
-  control::Reason code = control::Reason::None;
+  protocol::Reason code = protocol::Reason::None;
   std::string reason;
   TrajectoryHash hash{};  ///< Committed: the remote's own over what arrived; Rejected by verify: the same
   std::shared_ptr<const Trajectory> trajectory;  ///< Committed only
@@ -139,12 +139,12 @@ class RemoteLink {
 
   /// Publishes one ack. False when it could not be written (bad size, DDS
   /// error); counted in stats().write_failures.
-  bool ack(const control::Ack& ack) noexcept;
+  bool ack(const protocol::Ack& ack) noexcept;
 
-  bool publish(const control::JointReport& report) noexcept;
-  bool publish(const control::WrenchReport& report) noexcept;
-  bool publish(const control::ToolReport& report) noexcept;
-  bool publish(const control::StatusReport& report) noexcept;
+  bool publish(const protocol::JointReport& report) noexcept;
+  bool publish(const protocol::WrenchReport& report) noexcept;
+  bool publish(const protocol::ToolReport& report) noexcept;
+  bool publish(const protocol::StatusReport& report) noexcept;
   /// Re-publishes the TrajectoryStatus of every kept upload (REQUEST_TRAJECTORIES).
   void republish_uploads() noexcept;
 

@@ -1,29 +1,28 @@
 // The lock-free SPSC ring: exact capacity, FIFO order across wrap-around, one
 // producer and one consumer thread moving 200,000 values in order, and no
-// heap allocation in try_push / try_pop. This file holds the test binary's
-// allocation counter (foresight/test/allocation_counter.hpp: one file only).
+// heap allocation in try_push / try_pop (its own binary: it counts
+// allocations, foresight/test/allocation_counter.hpp).
 
-#include "foresight/journal/spsc_ring.hpp"
+#include "foresight/common/spsc_ring.hpp"
 
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <thread>
 
 #include "foresight/test/allocation_counter.hpp"
-#include "journal_test_util.hpp"
 
-namespace foresight::journal {
-namespace test {
+namespace foresight {
+namespace {
+
 long allocations_in(const std::function<void()>& work) {
-  foresight::test::AllocationCounter counter;
+  test::AllocationCounter counter;
   work();
   return counter.count();
 }
-}  // namespace test
 
-namespace {
 
 struct Item {
   std::uint64_t seq;
@@ -47,6 +46,7 @@ TEST(SpscRing, HoldsExactlyCapacityInFifoOrderAcrossWrapAround) {
   while (ring.try_pop(out)) EXPECT_EQ(out.seq, next_out++);
   EXPECT_EQ(next_out, next_in);
   EXPECT_EQ(ring.size(), 0u);
+  EXPECT_TRUE(ring.empty());
 }
 
 TEST(SpscRing, ZeroCapacityRefused) { EXPECT_THROW(SpscRing<Item>(0), std::invalid_argument); }
@@ -54,7 +54,7 @@ TEST(SpscRing, ZeroCapacityRefused) { EXPECT_THROW(SpscRing<Item>(0), std::inval
 TEST(SpscRing, PushAndPopDoNotAllocate) {
   SpscRing<Item> ring(16);
   Item out{};
-  EXPECT_EQ(test::allocations_in([&] {
+  EXPECT_EQ(allocations_in([&] {
               for (std::uint64_t i = 0; i < 10'000; ++i) {
                 (void)ring.try_push(Item{i, {}});
                 if (i % 3 == 0) (void)ring.try_pop(out);
@@ -97,4 +97,4 @@ TEST(SpscRing, TwoThreadsTransferEverythingInOrder) {
 }
 
 }  // namespace
-}  // namespace foresight::journal
+}  // namespace foresight

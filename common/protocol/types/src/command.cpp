@@ -1,7 +1,7 @@
-// to_string for the daemon's plain command types (command.hpp).
-#include "foresight/control/command.hpp"
+// The one name table of the plain command types (command.hpp).
+#include "foresight/protocol/command.hpp"
 
-namespace foresight::control {
+namespace foresight::protocol {
 
 const char* to_string(CommandKind kind) noexcept {
   switch (kind) {
@@ -88,4 +88,14 @@ const char* to_string(ControllerMode mode) noexcept {
   return "unknown";
 }
 
-}  // namespace foresight::control
+const char* to_string(UploadState state) noexcept {
+  switch (state) {
+    case UploadState::Assembling: return "assembling";
+    case UploadState::Committed: return "committed";
+    case UploadState::Rejected: return "rejected";
+    case UploadState::Discarded: return "discarded";
+  }
+  return "unknown";
+}
+
+}  // namespace foresight::protocol

@@ -1,5 +1,6 @@
-#include "foresight/remote_link/convert.hpp"
+#include "foresight/protocol/convert.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <optional>
 #include <span>
@@ -14,32 +15,28 @@
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 
-namespace foresight::remote_link {
+namespace foresight::protocol {
 
-namespace msg = protocol::msg;
-using protocol::text;
-using protocol::view;
-
-// The control enums mirror the IDL's order and values (control/command.hpp).
-static_assert(static_cast<int>(control::CommandKind::Abort) == foresight_msg_CMD_ABORT);
-// Drive states travel as their CiA 402 value (hw::canopen::PowerState, checked in supervisor.cpp).
-static_assert(control::kDriveStateUnknown == foresight_msg_DRIVE_UNKNOWN && foresight_msg_DRIVE_FAULT == 7 &&
+// The plain enums mirror the IDL's order and values (command.hpp).
+static_assert(static_cast<int>(CommandKind::Abort) == foresight_msg_CMD_ABORT);
+// Drive states travel as their CiA 402 value (the remote's supervisor checks its own enum against these).
+static_assert(kDriveStateUnknown == foresight_msg_DRIVE_UNKNOWN && foresight_msg_DRIVE_FAULT == 7 &&
               foresight_msg_DRIVE_OPERATION_ENABLED == 4 && foresight_msg_DRIVE_QUICK_STOP_ACTIVE == 5);
-static_assert(static_cast<int>(control::CommandKind::TakeControl) == foresight_msg_CMD_TAKE_CONTROL);
-static_assert(static_cast<int>(control::CommandKind::ReleaseControl) == foresight_msg_CMD_RELEASE_CONTROL);
-static_assert(static_cast<int>(control::CommandKind::Recover) == foresight_msg_CMD_RECOVER);
-static_assert(static_cast<int>(control::AckState::Canceled) == foresight_msg_ACK_CANCELED);
-static_assert(static_cast<int>(control::Reason::Internal) == foresight_msg_REASON_INTERNAL);
-static_assert(static_cast<int>(control::Reason::NotInControl) == foresight_msg_REASON_NOT_IN_CONTROL);
-static_assert(static_cast<int>(control::StopCategory::Cat2) == foresight_msg_STOP_CAT2);
-static_assert(static_cast<int>(control::ControllerMode::Fault) == foresight_msg_MODE_FAULT);
-static_assert(static_cast<int>(control::RequestWhat::Trajectories) == foresight_msg_REQUEST_TRAJECTORIES);
-static_assert(static_cast<int>(control::CameraAction::Grab) == foresight_msg_CAMERA_GRAB);
-static_assert(static_cast<int>(control::UploadState::Discarded) == foresight_msg_UPLOAD_DISCARDED);
+static_assert(static_cast<int>(CommandKind::TakeControl) == foresight_msg_CMD_TAKE_CONTROL);
+static_assert(static_cast<int>(CommandKind::ReleaseControl) == foresight_msg_CMD_RELEASE_CONTROL);
+static_assert(static_cast<int>(CommandKind::Recover) == foresight_msg_CMD_RECOVER);
+static_assert(static_cast<int>(AckState::Canceled) == foresight_msg_ACK_CANCELED);
+static_assert(static_cast<int>(Reason::Internal) == foresight_msg_REASON_INTERNAL);
+static_assert(static_cast<int>(Reason::NotInControl) == foresight_msg_REASON_NOT_IN_CONTROL);
+static_assert(static_cast<int>(StopCategory::Cat2) == foresight_msg_STOP_CAT2);
+static_assert(static_cast<int>(ControllerMode::Fault) == foresight_msg_MODE_FAULT);
+static_assert(static_cast<int>(RequestWhat::Trajectories) == foresight_msg_REQUEST_TRAJECTORIES);
+static_assert(static_cast<int>(CameraAction::Grab) == foresight_msg_CAMERA_GRAB);
+static_assert(static_cast<int>(UploadState::Discarded) == foresight_msg_UPLOAD_DISCARDED);
 
 namespace {
 
-PayloadVerdict bad(std::string reason, control::Reason code = control::Reason::BadArgument) {
+PayloadVerdict bad(std::string reason, Reason code = Reason::BadArgument) {
   return PayloadVerdict{code, std::move(reason)};
 }
 
@@ -96,7 +93,7 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
   switch (protocol::raw(c.payload._d)) {
     case foresight_msg_CMD_TRAJECTORY: {
       const auto& p = u.trajectory;
-      if (p.trajectory_id == 0) return bad("trajectory.trajectory_id is 0", control::Reason::UnknownTrajectory);
+      if (p.trajectory_id == 0) return bad("trajectory.trajectory_id is 0", Reason::UnknownTrajectory);
       if (auto v = check_non_negative(p.start_tolerance_rad, "trajectory.start_tolerance_rad")) return *v;
       return {};
     }
@@ -128,7 +125,7 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
       if (static_cast<int>(q.size()) != limits.joints) {
         return bad("goto_joint.q_rad has " + std::to_string(q.size()) + " angles; the arm has " +
                        std::to_string(limits.joints) + " joints",
-                   control::Reason::JointCount);
+                   Reason::JointCount);
       }
       if (!finite_all(q, at)) return bad("goto_joint.q_rad[" + std::to_string(at) + "] is not finite");
       if (auto v = check_speed(p.speed_fraction, "goto_joint.speed_fraction")) return *v;
@@ -162,24 +159,24 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
   return bad("unknown kind " + std::to_string(protocol::raw(c.payload._d)));
 }
 
-control::Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
-  control::Command out;
+Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
+  Command out;
   out.session_id = c.session_id;
   out.command_id = c.command_id;
   out.sequence_number = c.sequence_number;
   out.issued_ns = c.issued_ns;
   out.received_ns = received_ns;
-  out.kind = static_cast<control::CommandKind>(protocol::raw(c.payload._d));  // fixed underlying type: any value
-  out.payload = control::NoPayload{};
+  out.kind = static_cast<CommandKind>(protocol::raw(c.payload._d));  // fixed underlying type: any value
+  out.payload = NoPayload{};
   return out;
 }
 
-control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
-  control::Command out = envelope_of(c, received_ns);
+Command from_wire(const msg::Command& c, std::int64_t received_ns) {
+  Command out = envelope_of(c, received_ns);
   const auto& u = c.payload._u;
   switch (protocol::raw(c.payload._d)) {  // check_payload() has checked every enum field
     case foresight_msg_CMD_TRAJECTORY: {
-      control::RunTrajectory p;
+      RunTrajectory p;
       p.trajectory_id = u.trajectory.trajectory_id;
       p.content_hash = protocol::get_hash(u.trajectory.content_hash);
       p.compliant = u.trajectory.compliant;
@@ -188,7 +185,7 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_INVOKE_ALGORITHM: {
-      control::InvokeAlgorithm p;
+      InvokeAlgorithm p;
       p.name = std::string(text(u.algorithm.name));
       for (const auto& nv : view(u.algorithm.params)) p.params.push_back({std::string(text(nv.name)), nv.value});
       p.timeout_s = u.algorithm.timeout_s;
@@ -196,12 +193,12 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_REQUEST:
-      out.payload = control::Request{static_cast<control::RequestWhat>(protocol::raw(u.request.what))};
+      out.payload = Request{static_cast<RequestWhat>(protocol::raw(u.request.what))};
       break;
     case foresight_msg_CMD_CAMERA: {
-      control::CameraCommand p;
+      CameraCommand p;
       p.camera = std::string(text(u.camera.camera));
-      p.action = static_cast<control::CameraAction>(protocol::raw(u.camera.action));
+      p.action = static_cast<CameraAction>(protocol::raw(u.camera.action));
       p.pan_rad = u.camera.pan_rad;
       p.tilt_rad = u.camera.tilt_rad;
       p.focal_px = u.camera.focal_px;
@@ -209,7 +206,7 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_GOTO_JOINT: {
-      control::GotoJoint p;
+      GotoJoint p;
       const auto q = view(u.goto_joint.q_rad);
       p.q_rad.assign(q.begin(), q.end());
       p.speed_fraction = u.goto_joint.speed_fraction;
@@ -217,7 +214,7 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_GOTO_CART: {
-      control::GotoCart p;
+      GotoCart p;
       p.frame = std::string(text(u.goto_cart.frame));
       const double* o = u.goto_cart.orientation_xyzw;
       const double* x = u.goto_cart.position_m;
@@ -229,9 +226,9 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
       break;
     }
     case foresight_msg_CMD_ABORT: {
-      control::Abort p;
+      Abort p;
       p.target_command_id = u.abort.target_command_id;
-      p.category = static_cast<control::StopCategory>(protocol::raw(u.abort.category));
+      p.category = static_cast<StopCategory>(protocol::raw(u.abort.category));
       p.reason = std::string(text(u.abort.reason));
       out.payload = std::move(p);
       break;
@@ -244,29 +241,31 @@ control::Command to_control(const msg::Command& c, std::int64_t received_ns) {
 
 namespace {
 template <class T>
-const T& payload_as(const control::Payload& payload, control::CommandKind kind) {
+const T& payload_as(const Payload& payload, CommandKind kind) {
   const T* p = std::get_if<T>(&payload);
   if (p == nullptr) {
-    throw std::invalid_argument(std::string("command ") + name_of(kind) + ": the payload is of another kind");
+    std::string name = std::string("CMD_") + to_string(kind);  // the IDL's name, as the wire knows it
+    for (char& ch : name) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    throw std::invalid_argument("command " + name + ": the payload is of another kind");
   }
   return *p;
 }
 }  // namespace
 
-void fill_payload(msg::Command& out, control::CommandKind kind, const control::Payload& payload) {
+void fill_payload(msg::Command& out, CommandKind kind, const Payload& payload) {
   auto& u = out.payload._u;
   out.payload._d = static_cast<msg::CommandKind>(kind);
   switch (kind) {
-    case control::CommandKind::Trajectory: {
-      const auto& p = payload_as<control::RunTrajectory>(payload, kind);
+    case CommandKind::Trajectory: {
+      const auto& p = payload_as<RunTrajectory>(payload, kind);
       u.trajectory.trajectory_id = p.trajectory_id;
       protocol::set_hash(u.trajectory.content_hash, p.content_hash);
       u.trajectory.compliant = p.compliant;
       u.trajectory.start_tolerance_rad = p.start_tolerance_rad;
       return;
     }
-    case control::CommandKind::InvokeAlgorithm: {
-      const auto& p = payload_as<control::InvokeAlgorithm>(payload, kind);
+    case CommandKind::InvokeAlgorithm: {
+      const auto& p = payload_as<InvokeAlgorithm>(payload, kind);
       protocol::set_text(u.algorithm.name, p.name, "algorithm name");
       std::vector<msg::NamedValue> params(p.params.size());
       for (std::size_t i = 0; i < p.params.size(); ++i) {
@@ -278,11 +277,11 @@ void fill_payload(msg::Command& out, control::CommandKind kind, const control::P
       u.algorithm.timeout_s = p.timeout_s;
       return;
     }
-    case control::CommandKind::Request:
-      u.request.what = static_cast<foresight_msg_RequestWhat>(payload_as<control::Request>(payload, kind).what);
+    case CommandKind::Request:
+      u.request.what = static_cast<foresight_msg_RequestWhat>(payload_as<Request>(payload, kind).what);
       return;
-    case control::CommandKind::Camera: {
-      const auto& p = payload_as<control::CameraCommand>(payload, kind);
+    case CommandKind::Camera: {
+      const auto& p = payload_as<CameraCommand>(payload, kind);
       protocol::set_text(u.camera.camera, p.camera, "camera name");
       u.camera.action = static_cast<foresight_msg_CameraAction>(p.action);
       u.camera.pan_rad = p.pan_rad;
@@ -290,14 +289,14 @@ void fill_payload(msg::Command& out, control::CommandKind kind, const control::P
       u.camera.focal_px = p.focal_px;
       return;
     }
-    case control::CommandKind::GotoJoint: {
-      const auto& p = payload_as<control::GotoJoint>(payload, kind);
+    case CommandKind::GotoJoint: {
+      const auto& p = payload_as<GotoJoint>(payload, kind);
       protocol::assign(u.goto_joint.q_rad, std::span<const double>(p.q_rad), msg::kMaxJoints, "goto joint angles");
       u.goto_joint.speed_fraction = p.speed_fraction;
       return;
     }
-    case control::CommandKind::GotoCart: {
-      const auto& p = payload_as<control::GotoCart>(payload, kind);
+    case CommandKind::GotoCart: {
+      const auto& p = payload_as<GotoCart>(payload, kind);
       protocol::set_text(u.goto_cart.frame, p.frame, "goto frame");
       const Eigen::Quaterniond q(p.base_T_frame.rotation());
       const Eigen::Vector3d x = p.base_T_frame.translation();
@@ -309,23 +308,23 @@ void fill_payload(msg::Command& out, control::CommandKind kind, const control::P
       u.goto_cart.speed_fraction = p.speed_fraction;
       return;
     }
-    case control::CommandKind::Abort: {
-      const auto& p = payload_as<control::Abort>(payload, kind);
+    case CommandKind::Abort: {
+      const auto& p = payload_as<Abort>(payload, kind);
       u.abort.target_command_id = p.target_command_id;
       u.abort.category = static_cast<msg::StopCategory>(p.category);
       protocol::set_text_truncated(u.abort.reason, p.reason);
       return;
     }
-    case control::CommandKind::TakeControl:
-    case control::CommandKind::ReleaseControl:
-    case control::CommandKind::Recover:
-      (void)payload_as<control::NoPayload>(payload, kind);
+    case CommandKind::TakeControl:
+    case CommandKind::ReleaseControl:
+    case CommandKind::Recover:
+      (void)payload_as<NoPayload>(payload, kind);
       return;
   }
   throw std::invalid_argument("command kind " + std::to_string(static_cast<unsigned>(kind)) + " is unknown");
 }
 
-void to_wire(msg::CommandAck& out, const control::Ack& a) {
+void to_wire(msg::CommandAck& out, const Ack& a) {
   out.session_id = a.session_id;
   out.command_id = a.command_id;
   out.sequence_number = a.sequence_number;
@@ -337,16 +336,16 @@ void to_wire(msg::CommandAck& out, const control::Ack& a) {
   protocol::assign(out.final_q_rad, std::span<const double>(a.final_q_rad), msg::kMaxJoints, "ack final_q_rad");
 }
 
-control::Ack from_wire(const msg::CommandAck& a) {
-  control::Ack out;
+Ack from_wire(const msg::CommandAck& a) {
+  Ack out;
   out.session_id = a.session_id;
   out.command_id = a.command_id;
   out.sequence_number = a.sequence_number;
   // Raw integers into the fixed-width control enums (no UB for any value;
   // the ground checks enum_error() before trusting them).
-  out.kind = static_cast<control::CommandKind>(protocol::raw(a.kind));
-  out.state = static_cast<control::AckState>(protocol::raw(a.state));
-  out.code = static_cast<control::Reason>(protocol::raw(a.code));
+  out.kind = static_cast<CommandKind>(protocol::raw(a.kind));
+  out.state = static_cast<AckState>(protocol::raw(a.state));
+  out.code = static_cast<Reason>(protocol::raw(a.code));
   out.reason = std::string(text(a.reason));
   out.stamp_ns = a.stamp_ns;
   const auto q = view(a.final_q_rad);
@@ -354,7 +353,7 @@ control::Ack from_wire(const msg::CommandAck& a) {
   return out;
 }
 
-void to_wire(msg::JointState& out, const control::JointReport& r) {
+void to_wire(msg::JointState& out, const JointReport& r) {
   out.stamp_ns = r.stamp_ns;
   out.cycle = r.cycle;
   protocol::assign(out.q_rad, std::span<const double>(r.q_rad), msg::kMaxJoints, "joint state q_rad");
@@ -362,7 +361,7 @@ void to_wire(msg::JointState& out, const control::JointReport& r) {
   protocol::assign(out.torque_nm, std::span<const double>(r.torque_nm), msg::kMaxJoints, "joint state torque_nm");
 }
 
-void to_wire(msg::Wrench& out, const control::WrenchReport& r) noexcept {
+void to_wire(msg::Wrench& out, const WrenchReport& r) noexcept {
   out.stamp_ns = r.stamp_ns;
   for (int i = 0; i < 3; ++i) {
     out.force_tool_n[i] = r.force_tool_n[static_cast<std::size_t>(i)];
@@ -371,7 +370,7 @@ void to_wire(msg::Wrench& out, const control::WrenchReport& r) noexcept {
   out.saturated = r.saturated;
 }
 
-void to_wire(msg::ToolState& out, const control::ToolReport& r) noexcept {
+void to_wire(msg::ToolState& out, const ToolReport& r) noexcept {
   out.stamp_ns = r.stamp_ns;
   out.latched = r.latched;
   out.running = r.running;
@@ -381,7 +380,7 @@ void to_wire(msg::ToolState& out, const control::ToolReport& r) noexcept {
   out.fault_bits = r.fault_bits;
 }
 
-void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) {
+void to_wire(msg::ControllerStatus& out, const StatusReport& r) {
   out.stamp_ns = r.stamp_ns;
   out.mode = static_cast<msg::ControllerMode>(r.mode);
   out.active_command_id = r.active_command_id;
@@ -394,17 +393,17 @@ void to_wire(msg::ControllerStatus& out, const control::StatusReport& r) {
   std::array<msg::DriveStatus, msg::kMaxJoints> drives{};
   const std::size_t n = std::min<std::size_t>(r.drives.size(), drives.size());
   for (std::size_t j = 0; j < n; ++j) {
-    const control::DriveReport& d = r.drives[j];
+    const DriveReport& d = r.drives[j];
     drives[j].joint = static_cast<std::uint16_t>(d.joint);
     drives[j].node_id = static_cast<std::uint8_t>(d.node_id);
-    drives[j].state = static_cast<msg::DriveState>(std::min<std::uint8_t>(d.state, control::kDriveStateUnknown));
+    drives[j].state = static_cast<msg::DriveState>(std::min<std::uint8_t>(d.state, kDriveStateUnknown));
     drives[j].powered = d.powered;
   }
   protocol::assign(out.drives, std::span<const msg::DriveStatus>(drives.data(), n), msg::kMaxJoints, "status drives");
 }
 
-control::JointReport from_wire(const msg::JointState& s) {
-  control::JointReport out;
+JointReport from_wire(const msg::JointState& s) {
+  JointReport out;
   out.stamp_ns = s.stamp_ns;
   out.cycle = s.cycle;
   const auto q = view(s.q_rad), dq = view(s.dq_rad_s), t = view(s.torque_nm);
@@ -414,8 +413,8 @@ control::JointReport from_wire(const msg::JointState& s) {
   return out;
 }
 
-control::WrenchReport from_wire(const msg::Wrench& w) noexcept {
-  control::WrenchReport out;
+WrenchReport from_wire(const msg::Wrench& w) noexcept {
+  WrenchReport out;
   out.stamp_ns = w.stamp_ns;
   for (std::size_t i = 0; i < 3; ++i) {
     out.force_tool_n[i] = w.force_tool_n[i];
@@ -425,8 +424,8 @@ control::WrenchReport from_wire(const msg::Wrench& w) noexcept {
   return out;
 }
 
-control::ToolReport from_wire(const msg::ToolState& t) noexcept {
-  control::ToolReport out;
+ToolReport from_wire(const msg::ToolState& t) noexcept {
+  ToolReport out;
   out.stamp_ns = t.stamp_ns;
   out.latched = t.latched;
   out.running = t.running;
@@ -437,14 +436,14 @@ control::ToolReport from_wire(const msg::ToolState& t) noexcept {
   return out;
 }
 
-control::StatusReport from_wire(const msg::ControllerStatus& s) {
-  control::StatusReport out;
+StatusReport from_wire(const msg::ControllerStatus& s) {
+  StatusReport out;
   out.stamp_ns = s.stamp_ns;
-  out.mode = static_cast<control::ControllerMode>(protocol::raw(s.mode));
+  out.mode = static_cast<ControllerMode>(protocol::raw(s.mode));
   out.active_command_id = s.active_command_id;
   out.active_trajectory_id = s.active_trajectory_id;
   out.last_sequence = s.last_sequence;
-  out.stop_category = static_cast<control::StopCategory>(protocol::raw(s.stop_category));
+  out.stop_category = static_cast<StopCategory>(protocol::raw(s.stop_category));
   out.stop_reason = std::string(text(s.stop_reason));
   out.fault_bits = s.fault_bits;
   out.fault_text = std::string(text(s.fault_text));
@@ -453,18 +452,4 @@ control::StatusReport from_wire(const msg::ControllerStatus& s) {
   return out;
 }
 
-bool is_final(control::AckState s) noexcept {
-  return protocol::is_terminal(static_cast<msg::AckState>(s));
-}
-
-const char* name_of(control::CommandKind kind) noexcept {
-  return protocol::to_string(static_cast<msg::CommandKind>(kind));
-}
-const char* name_of(control::AckState state) noexcept {
-  return protocol::to_string(static_cast<msg::AckState>(state));
-}
-const char* name_of(control::Reason code) noexcept {
-  return protocol::to_string(static_cast<msg::ReasonCode>(code));
-}
-
-}  // namespace foresight::remote_link
+}  // namespace foresight::protocol

@@ -1,5 +1,7 @@
 #pragma once
-// A bounded lock-free single-producer / single-consumer ring.
+// A bounded lock-free single-producer / single-consumer ring: the one the
+// remote's real-time loop talks to its daemon through (commands in; events,
+// stops, telemetry out) and the journal's telemetry queue.
 //
 // Construction allocates (set-up). try_push() and try_pop() are noexcept,
 // allocation-free, wait-free and never block: one producer thread may call
@@ -9,6 +11,10 @@
 // The ring holds exactly `capacity` elements. Head and tail are monotonic
 // 64-bit counters (they never wrap in practice), each on its own cache line;
 // each side caches the other's counter to avoid touching its line on every call.
+//
+//   SpscRing<MotionCommand> commands(64);
+//   producer: if (!commands.try_push(cmd)) { /* full: report Busy */ }
+//   consumer: MotionCommand c; while (commands.try_pop(c)) handle(c);
 
 #include <atomic>
 #include <cstddef>
@@ -18,7 +24,7 @@
 #include <stdexcept>
 #include <type_traits>
 
-namespace foresight::journal {
+namespace foresight {
 
 template <typename T>
 class SpscRing {
@@ -60,8 +66,10 @@ class SpscRing {
   std::size_t capacity() const noexcept { return capacity_; }
   /// Approximate when called while the other side runs.
   std::size_t size() const noexcept {
-    return static_cast<std::size_t>(head_.load(std::memory_order_acquire) - tail_.load(std::memory_order_acquire));
+    const std::uint64_t tail = tail_.load(std::memory_order_acquire);
+    return static_cast<std::size_t>(head_.load(std::memory_order_acquire) - tail);
   }
+  bool empty() const noexcept { return size() == 0; }
 
  private:
   static constexpr std::size_t kLine = 64;
@@ -73,4 +81,4 @@ class SpscRing {
   std::uint64_t head_cache_ = 0;                       ///< consumer's copy of head_
 };
 
-}  // namespace foresight::journal
+}  // namespace foresight
