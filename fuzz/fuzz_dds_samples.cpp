@@ -3,7 +3,7 @@
 // dds_stream_read builds the C struct, as serdata_default does for a sample
 // from the wire), then what our code does with it:
 //   remote: Command -> CommandChecker (envelope, per session) -> check_payload
-//           -> to_control; TrajectoryChunk -> TrajectoryAssembler -> verify
+//           -> from_wire; TrajectoryChunk -> TrajectoryAssembler -> verify
 //           against the arm's limits (config/robot.urdf);
 //   ground: CommandAck, TrajectoryStatus, JointState, Wrench, ToolState,
 //           ControllerStatus -> from_wire / the names of their enums; Pong ->
@@ -115,7 +115,7 @@ struct Remote {
     foresight::protocol::PayloadLimits pl;
     pl.joints = limits().joints;
     const auto payload = foresight::protocol::check_payload(c, pl);
-    if (payload.ok()) (void)foresight::protocol::to_control(c, now);
+    if (payload.ok()) (void)foresight::protocol::from_wire(c, now);
   }
   void on(const msg::TrajectoryChunk& chunk) {
     const auto progress = assembler.add(chunk);
