@@ -362,49 +362,49 @@ TEST(DisplayCli, UnopenableVideoSourceIsSaidAndRetriedBoundedByFrames) {
 
 namespace {
 
-/// An Xvfb of our own on a display number the server picks itself
-/// (-displayfd: two tests started at once never share one); stops it on
-/// destruction.
+/// An Xvfb of our own on a display number of this process's own (from its
+/// pid); stops it on destruction.
 class Xvfb {
  public:
-  /// At most two servers are tried: one that announced its display but let no
-  /// client in (seen once in CI: "could not connect to display :0") is
-  /// replaced.
+  /// Up to five display numbers are tried (one held by another server, or
+  /// one whose server lets no client in, is replaced).
   Xvfb() {
-    for (int attempt = 0; attempt < 2 && display_.empty(); ++attempt) start();
+    for (int attempt = 0; attempt < 5 && display_.empty(); ++attempt) start(attempt);
   }
   ~Xvfb() { stop(); }
   const std::string& display() const { return display_; }
 
  private:
-  void start() {
+  void start(int attempt) {
     if (!exists("/usr/bin/Xvfb")) return;
-    int fds[2];
-    if (pipe(fds) != 0) return;
+    // A display number of this process's own, never :0 or one another test
+    // just released (a server that exits removes its socket: if a new server
+    // had taken that number meanwhile, its clients cannot connect; CI saw
+    // "could not connect to display :0" twice). A number whose lock another
+    // server holds makes Xvfb exit at once: the next is tried.
+    const int number = 100 + static_cast<int>((static_cast<unsigned>(getpid()) * 7u + static_cast<unsigned>(attempt) * 131u) % 3000u);
+    const std::string display = ":" + std::to_string(number);
     pid_ = fork();
     if (pid_ == 0) {
-      close(fds[0]);
       if (freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
-      const std::string fd = std::to_string(fds[1]);
-      execl("/usr/bin/Xvfb", "Xvfb", "-displayfd", fd.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp",
-            nullptr);
+      execl("/usr/bin/Xvfb", "Xvfb", display.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp", nullptr);
       _exit(127);
     }
-    close(fds[1]);
-    // Xvfb writes its display number and a newline once it accepts clients.
-    std::string number;
-    char c = 0;
-    pollfd p{fds[0], POLLIN, 0};
-    while (number.size() < 8 && poll(&p, 1, 30000) == 1 && read(fds[0], &c, 1) == 1 && c != '\n') number += c;
-    close(fds[0]);
-    if (c != '\n' || number.empty()) {
-      stop();
-      return;
-    }
-    // Ready means a client gets in: probe with one (bounded), else stop it.
-    const std::string probe = "DISPLAY=:" + number + " xdotool getdisplaygeometry >/dev/null 2>&1";
-    if (wait_until([&] { return std::system(probe.c_str()) == 0; }, 30.0))
-      display_ = ":" + number;
+    // Ready means a client gets in: probe with one (bounded); a server that
+    // exited (its number taken) or never lets a client in is given up.
+    const std::string probe = "DISPLAY=" + display + " xdotool getdisplaygeometry >/dev/null 2>&1";
+    int st = 0;
+    const bool ready = wait_until(
+        [&] {
+          if (pid_ > 0 && waitpid(pid_, &st, WNOHANG) == pid_) {
+            pid_ = -1;
+            return true;  // exited: stop waiting
+          }
+          return std::system(probe.c_str()) == 0;
+        },
+        30.0);
+    if (ready && pid_ > 0)
+      display_ = display;
     else
       stop();
   }
