@@ -195,6 +195,16 @@ TEST_F(JointVelocity, TheOperatorsJsonCarriesTheVelocities) {
   for (const auto& v : sj["joint_velocities_rad_s"]) EXPECT_LT(std::abs(v.get<double>()), 2e-3) << status.out;
   ASSERT_EQ(sj["joints_rad"].size(), 7u);
   EXPECT_EQ(sj["joint_states_dropped"], nlohmann::json({{"joint_count", 0}, {"length", 0}, {"not_finite", 0}}));
+  // The control loop's grant and timing (--sim: real time not required, no overrun stop).
+  ASSERT_TRUE(sj.contains("loop")) << status.out;
+  EXPECT_FALSE(sj["loop"]["realtime_required"].get<bool>());
+  EXPECT_EQ(sj["loop"]["max_missed_cycles"], 0);
+  EXPECT_GT(sj["loop"]["cycles"].get<std::uint64_t>(), 0u);
+  EXPECT_GT(sj["loop"]["wakeup_latency_us"]["max"].get<double>(), 0.0);
+  const auto text = test::run_foresight("status --samples 2 --domain " + std::to_string(domain_));
+  ASSERT_EQ(text.status, 0) << text.err;
+  EXPECT_NE(text.out.find("control loop: "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("no overrun stop"), std::string::npos) << text.out;
   const auto req = test::run_foresight("request joints --json --domain " + std::to_string(domain_));
   ASSERT_EQ(req.status, 0) << req.err;
   const auto rj = nlohmann::json::parse(req.out);

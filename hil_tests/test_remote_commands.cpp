@@ -394,6 +394,77 @@ TEST_F(RemoteCommands, ADriveEmergencyMidMotionIsACategoryZeroStopWithItsEvidenc
   EXPECT_TRUE(found) << json["faults"].dump();
 }
 
+namespace {
+/// The daemon with the overrun stop on (--sim leaves it off by default), at
+/// 25 periods (50 ms): a loaded test machine misses 4 in a row now and then.
+class RemoteOverrun : public RemoteCommands {
+ protected:
+  void SetUp() override {
+    remote_options_.extra_args.push_back("--max-missed-cycles");
+    remote_options_.extra_args.push_back("25");
+    RemoteCommands::SetUp();
+  }
+};
+
+/// The process's state letter from /proc/PID/stat ('T' when stopped).
+char proc_state(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  std::getline(f, line);
+  const auto close = line.rfind(')');
+  return close == std::string::npos || close + 2 >= line.size() ? '?' : line[close + 2];
+}
+}  // namespace
+
+// The whole daemon frozen for 300 ms mid-motion (SIGSTOP: the loop misses
+// ~150 periods): on waking it stops the arm, category 1, the drives end
+// unpowered in their own record, and the status says why and counts it.
+TEST_F(RemoteOverrun, AStalledLoopStopsTheArmCategoryOne) {
+  take_and_recover();
+  ASSERT_TRUE(test::eventually([&] {
+    const auto s = ground_->status();
+    return s && s->value.loop.cycles > 0;
+  }, 10s));
+  const protocol::LoopTiming before = ground_->status()->value.loop;
+  EXPECT_EQ(before.max_missed_cycles, 25u);
+  EXPECT_FALSE(before.realtime_required);  // --sim
+  EXPECT_LT(before.missed_streak_max, 25u) << "the loop had already missed 25 periods in a row";
+  const std::uint64_t id = start_slow_motion(0.5);
+  ASSERT_NE(id, 0u);
+  const pid_t pid = remote_->pid();
+  ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+  EXPECT_TRUE(test::eventually([&] { return proc_state(pid) == 'T'; }, 10s));
+  std::this_thread::sleep_for(300ms);  // the stall itself (the stimulus, not a wait)
+  ASSERT_EQ(::kill(pid, SIGCONT), 0);
+  const auto moved = ground_->wait_final(id, 10s);
+  EXPECT_EQ(moved.state, AckState::Canceled);
+  EXPECT_NE(moved.reason.find("control loop overrun"), std::string::npos) << moved.reason;
+  DriveRecord d;
+  ASSERT_TRUE(test::eventually([&] {
+    d = record();
+    if (d.powered.size() != 7) return false;
+    for (bool p : d.powered)
+      if (p) return false;
+    return true;
+  }, 10s)) << "drives still powered after the overrun stop\n" << remote_->log();
+  protocol::StatusReport st;
+  ASSERT_TRUE(test::eventually([&] {
+    const auto s = ground_->status();
+    if (!s || s->value.stop_category != protocol::StopCategory::Cat1) return false;
+    st = s->value;
+    return true;
+  }, 10s));
+  EXPECT_NE(st.stop_reason.find("periods missed in a row (limit 25)"), std::string::npos) << st.stop_reason;
+  EXPECT_GE(st.loop.missed_streak_max, 25u);
+  EXPECT_GE(st.loop.overruns, before.overruns + 1);
+  EXPECT_GE(st.loop.wakeup_latency_max_us, 250000.0);  // the 300 ms it slept through
+  EXPECT_EQ(remote_->stop(SIGTERM), 0);
+  const auto json = journal_json();
+  bool found = false;
+  for (const auto& f : json["faults"]) found = found || (f["category"] == 1 && f["cause"] == "overrun");
+  EXPECT_TRUE(found) << json["faults"].dump().substr(0, 2000);
+}
+
 TEST_F(RemoteCommands, KilledMidMotionTheJournalIsCompleteAndARestartComesUpHolding) {
   take_and_recover();
   const std::uint64_t id = start_slow_motion(0.5);

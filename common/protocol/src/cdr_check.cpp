@@ -389,6 +389,12 @@ bool cdr_fits(std::type_identity<msg::ControllerStatus>, const CdrPayload& p) no
         w.prim(kEnum8);  // state
         w.prim(kBool);   // powered
       });
+      w.final_struct([&] {  // loop (LoopTiming)
+        w.prim(kBool, 3);   // realtime, memory_locked, realtime_required
+        w.prim(kI8, 2);     // cycles, overruns
+        w.prim(kI4, 2);     // missed_streak_max, max_missed_cycles
+        w.prim(kI8, 4);     // latency p99, max; compute p99, max
+      });
     });
   });
 }

@@ -400,6 +400,10 @@ void to_wire(msg::ControllerStatus& out, const StatusReport& r) {
     drives[j].powered = d.powered;
   }
   protocol::assign(out.drives, std::span<const msg::DriveStatus>(drives.data(), n), msg::kMaxJoints, "status drives");
+  const LoopTiming& l = r.loop;
+  out.loop = {l.realtime,          l.memory_locked,         l.realtime_required,     l.cycles,
+              l.overruns,          l.missed_streak_max,     l.max_missed_cycles,     l.wakeup_latency_p99_us,
+              l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
 }
 
 JointReport from_wire(const msg::JointState& s) {
@@ -449,6 +453,10 @@ StatusReport from_wire(const msg::ControllerStatus& s) {
   out.fault_text = std::string(text(s.fault_text));
   for (const auto& d : view(s.drives))
     out.drives.push_back({d.joint, d.node_id, static_cast<std::uint8_t>(protocol::raw(d.state)), d.powered});
+  const msg::LoopTiming& l = s.loop;
+  out.loop = {l.realtime,          l.memory_locked,         l.realtime_required,     l.cycles,
+              l.overruns,          l.missed_streak_max,     l.max_missed_cycles,     l.wakeup_latency_p99_us,
+              l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
   return out;
 }
 

@@ -220,6 +220,16 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
                         {"state", protocol::drive_state_name(static_cast<protocol::msg::DriveState>(d.state))},
                         {"powered", d.powered}});
     j["drives"] = drives;
+    const protocol::LoopTiming& l = s.loop;
+    j["loop"] = {{"realtime", l.realtime},
+                 {"memory_locked", l.memory_locked},
+                 {"realtime_required", l.realtime_required},
+                 {"cycles", l.cycles},
+                 {"overruns", l.overruns},
+                 {"missed_streak_max", l.missed_streak_max},
+                 {"max_missed_cycles", l.max_missed_cycles},
+                 {"wakeup_latency_us", {{"p99", l.wakeup_latency_p99_us}, {"max", l.wakeup_latency_max_us}}},
+                 {"compute_us", {{"p99", l.compute_p99_us}, {"max", l.compute_max_us}}}};
     if (s.fault_bits != 0 || !s.fault_text.empty())
       faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
     if (s.stop_category != protocol::StopCategory::None)

@@ -48,6 +48,20 @@ int run(const Options& o) {
                   d["powered"].get<bool>() ? "(powered)" : "");
     std::printf("\n");
   }
+  if (j.contains("loop")) {
+    const auto& l = j["loop"];
+    const std::uint32_t limit = l["max_missed_cycles"].get<std::uint32_t>();
+    std::printf("control loop: %s, memory %s%s; %llu cycles, %llu overruns, at most %u missed in a row (%s); wake-up "
+                "latency p99 %.0f us, max %.0f us\n",
+                l["realtime"].get<bool>() ? "SCHED_FIFO" : "NOT real time (no SCHED_FIFO)",
+                l["memory_locked"].get<bool>() ? "locked" : "NOT locked",
+                l["realtime_required"].get<bool>() ? ", required to enable the drives" : "",
+                static_cast<unsigned long long>(l["cycles"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(l["overruns"].get<std::uint64_t>()),
+                l["missed_streak_max"].get<std::uint32_t>(),
+                limit > 0 ? ("stop at " + std::to_string(limit)).c_str() : "no overrun stop",
+                l["wakeup_latency_us"]["p99"].get<double>(), l["wakeup_latency_us"]["max"].get<double>());
+  }
   if (!j["joints_rad"].empty()) {
     std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
     for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);

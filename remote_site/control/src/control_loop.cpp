@@ -112,6 +112,7 @@ ControlLoop::ControlLoop(hw::DriveSystem& drives, const RobotModel& model, const
                                 " joints, the robot model " + std::to_string(model.dof()));
   if (options_.telemetry_decimation < 1) throw std::invalid_argument("telemetry_decimation must be >= 1");
   if (options_.rt_priority < 1 || options_.rt_priority > 99) throw std::invalid_argument("rt_priority must be 1..99");
+  if (options_.max_missed_cycles < 0) throw std::invalid_argument("max_missed_cycles must be >= 0");
   if (!(config.cycle_rate_hz > 0.0)) throw std::invalid_argument("cycle_rate_hz must be > 0");
   controller_ = std::make_unique<Controller>(model, config);
   dof_ = static_cast<std::size_t>(model.dof());
@@ -161,6 +162,9 @@ LoopStats ControlLoop::stats() const noexcept {
     s.latency_hist[i] = latency_hist_[i].load(std::memory_order_relaxed);
   }
   s.realtime = realtime_.load(std::memory_order_relaxed);
+  s.memory_locked = memory_locked_.load(std::memory_order_relaxed);
+  s.missed_streak_max = missed_streak_max_.load(std::memory_order_relaxed);
+  s.overrun_stops = overrun_stops_.load(std::memory_order_relaxed);
   return s;
 }
 
@@ -178,8 +182,12 @@ void ControlLoop::setup_thread() noexcept {
     // ASan/TSan map terabytes of shadow memory: mlockall would try to fault it all in.
     if (options_.lock_memory) warnings_.push_back("mlockall skipped in a sanitizer build (cmake/Sanitizers.cmake)");
 #else
-    if (options_.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0)
-      warnings_.push_back(std::string("mlockall not permitted (") + std::strerror(errno) + ")");
+    if (options_.lock_memory) {
+      if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0)
+        memory_locked_.store(true);
+      else
+        warnings_.push_back(std::string("mlockall not permitted (") + std::strerror(errno) + ")");
+    }
 #endif
     if (options_.cpu >= 0) {
       cpu_set_t set;
@@ -201,7 +209,14 @@ void ControlLoop::perform(DriveRequest request) noexcept {
   bool ok = true;
   char text[96] = "";
   try {
-    if (request == DriveRequest::Enable)
+    if (request == DriveRequest::Enable && options_.require_realtime &&
+        !(realtime_.load(std::memory_order_relaxed) && memory_locked_.load(std::memory_order_relaxed))) {
+      ok = false;  // the drives are not touched
+      std::snprintf(text, sizeof text, "not real time (%s%s%s): drives stay off; see --allow-non-rt",
+                    realtime_.load(std::memory_order_relaxed) ? "" : "no SCHED_FIFO",
+                    realtime_.load(std::memory_order_relaxed) || memory_locked_.load(std::memory_order_relaxed) ? "" : ", ",
+                    memory_locked_.load(std::memory_order_relaxed) ? "" : "no mlockall");
+    } else if (request == DriveRequest::Enable)
       drives_.enable();
     else if (request == DriveRequest::Disable)
       drives_.disable();
@@ -224,6 +239,8 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
   in_.stamp_ns = stamp_ns;
   in_.estop = estop_.load(std::memory_order_acquire);
   in_.link_lost = link_lost_.load(std::memory_order_acquire);
+  in_.missed_cycles = missed_streak_;
+  in_.missed_cycles_limit = static_cast<std::uint32_t>(options_.max_missed_cycles);
 
   MotionCommand cmd;
   for (std::size_t i = 0; i < kCommandCapacity && commands_.try_pop(cmd); ++i) controller_->command(cmd);
@@ -282,11 +299,21 @@ void ControlLoop::run() noexcept {
       overruns_.fetch_add(1, std::memory_order_relaxed);
       const std::int64_t behind = (end - next) / period_ns;
       next += behind * period_ns;
+      const std::uint32_t before = missed_streak_;
+      missed_streak_ += static_cast<std::uint32_t>(std::min<std::int64_t>(behind, 1 << 20));
+      if (missed_streak_ > missed_streak_max_.load(std::memory_order_relaxed))
+        missed_streak_max_.store(missed_streak_, std::memory_order_relaxed);
+      const auto limit = static_cast<std::uint32_t>(options_.max_missed_cycles);
+      if (limit > 0 && before < limit && missed_streak_ >= limit)
+        overrun_stops_.fetch_add(1, std::memory_order_relaxed);
+    } else {
+      missed_streak_ = 0;
     }
 
     if (out_.drive_request != DriveRequest::None) {
       perform(out_.drive_request);
       next = now_ns();  // restart the grid after the non-real-time phase
+      missed_streak_ = 0;
     }
     if (shutdown_issued_) {
       const ControllerMode m = controller_->mode();

@@ -529,6 +529,13 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
     begin_stop(StopCause::EStop, config_.estop_category, -1, 1.0, 0.0, "E-stop pressed");
     return false;
   }
+  if (in.missed_cycles_limit > 0 && in.missed_cycles >= in.missed_cycles_limit) {
+    std::snprintf(buf, sizeof buf, "control loop overrun: %u periods missed in a row (limit %u)",
+                  static_cast<unsigned>(in.missed_cycles), static_cast<unsigned>(in.missed_cycles_limit));
+    begin_stop(StopCause::Overrun, StopCategory::Cat1, -1, static_cast<double>(in.missed_cycles),
+               static_cast<double>(in.missed_cycles_limit), buf);
+    return false;
+  }
   if (in.ft_fault || in.ft_saturated_mask != 0) {
     if (++sensor_bad_cycles_ >= config_.sensor_fault_cycles) {
       std::snprintf(buf, sizeof buf, "F/T sensor %s (mask 0x%02x) for %d cycles", in.ft_fault ? "fault" : "saturated",

@@ -79,6 +79,7 @@ const char* to_string(StopCause cause) noexcept {
     case StopCause::TorqueLimit: return "torque_limit";
     case StopCause::DriveFault: return "drive_fault";
     case StopCause::SensorFault: return "sensor_fault";
+    case StopCause::Overrun: return "overrun";
   }
   return "unknown";
 }

@@ -512,6 +512,39 @@ TEST_F(ControllerFaults, EStopIsCat0AndRecoverNeedsItReleased) {
   EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
 }
 
+// The loop's missed periods: below the limit nothing happens; at the limit a
+// category 1 stop on the trajectory's path, then power off at rest.
+TEST_F(ControllerFaults, MissedPeriodsInARowAreACat1StopAtTheLimit) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.missed_cycles_limit = 3;
+  b.in.missed_cycles = 2;
+  for (int k = 0; k < 10; ++k) b.step();
+  EXPECT_TRUE(b.stops.empty());
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
+  b.in.missed_cycles = 3;
+  b.step();
+  EXPECT_FALSE(b.out.power_off);  // category 1: on the path first
+  expect_stop(b, StopCause::Overrun, StopCategory::Cat1);
+  EXPECT_STREQ(b.stops[0].text.data(), "control loop overrun: 3 periods missed in a row (limit 3)");
+  EXPECT_EQ(b.stops[0].value, 3.0);
+  EXPECT_EQ(b.stops[0].limit, 3.0);
+  EXPECT_EQ(b.stops[0].command_id, id_);
+  b.in.missed_cycles = 0;
+  expect_after(b, StopCategory::Cat1);
+}
+
+// A limit of 0 is "never", however many periods were missed.
+TEST_F(ControllerFaults, MissedPeriodsDoNotStopWithoutALimit) {
+  Bench b(home_q());
+  start_motion(b);
+  b.in.missed_cycles_limit = 0;
+  b.in.missed_cycles = 1000;
+  for (int k = 0; k < 10; ++k) b.step();
+  EXPECT_TRUE(b.stops.empty());
+  EXPECT_EQ(b.ctl->mode(), ControllerMode::Trajectory);
+}
+
 TEST_F(ControllerFaults, DriveFaultIsCat0WithTheHardwareEvent) {
   Bench b(home_q());
   start_motion(b);

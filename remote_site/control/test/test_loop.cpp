@@ -184,6 +184,49 @@ TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
   EXPECT_EQ(loop->controller().mode(), ControllerMode::Fault);
 }
 
+// Off the simulator the daemon requires real time: a loop without its memory
+// locked (here: not asked to lock it) refuses to enable, names why, and the
+// drives never power up (their own record). Recover is refused the same way.
+TEST(ControlLoop, RequiringRealTimeAnEnableWithoutItFailsAndNoDrivePowersUp) {
+  hw::RemoteConfig config = loop_test_config();
+  foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()));
+  rig.drives->configure();
+  for (std::size_t j = 0; j < rig.sim->drive_count(); ++j) rig.sim->drive(j).clear_power_record();
+
+  ControllerConfig cc;
+  cc.cycle_rate_hz = config.cycle_rate_hz;
+  cc.tool.mass_kg = 0.0;
+  LoopOptions lo;
+  lo.require_realtime = true;
+  lo.lock_memory = false;
+  auto loop = std::make_unique<ControlLoop>(*rig.drives, robot(), cc, lo);
+  loop->start();
+  Collector col(*loop);
+  EXPECT_FALSE(loop->stats().memory_locked);
+  const bool fifo = loop->stats().realtime;
+  const std::string why = std::string("not real time (") + (fifo ? "" : "no SCHED_FIFO, ") +
+                          "no mlockall): drives stay off; see --allow-non-rt";
+  for (const auto kind : {MotionCommandKind::Enable, MotionCommandKind::Recover}) {
+    MotionCommand en;
+    en.command_id = kind == MotionCommandKind::Enable ? 1 : 2;
+    en.kind = kind;
+    ASSERT_TRUE(loop->send(en));
+    ASSERT_TRUE(eventually([&] { return col.final_of(en.command_id) != nullptr; }, 15.0));
+    const MotionEvent e = *col.final_of(en.command_id);
+    EXPECT_EQ(e.kind, MotionEventKind::Failed);
+    EXPECT_NE(std::string(e.text.data()).find(why), std::string::npos) << e.text.data();
+  }
+  col.drain();
+  EXPECT_FALSE(col.last.drives_enabled);
+  loop->stop();
+  for (std::size_t j = 0; j < rig.sim->drive_count(); ++j) {
+    const sim::DrivePowerRecord r = rig.sim->drive(j).power_record();
+    EXPECT_FALSE(r.powered) << "drive " << j + 1;
+    EXPECT_EQ(r.states_seen & (1u << static_cast<unsigned>(hw::canopen::PowerState::OperationEnabled)), 0u)
+        << "drive " << j + 1;
+  }
+}
+
 // The whole chain: the insert algorithm in the loop thread, the simulated
 // drives (second-order position loops) on the mock CAN buses, the contact
 // model feeding the simulated F/T node, read back through the CAN decoder.

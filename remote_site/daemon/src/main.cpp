@@ -155,6 +155,8 @@ struct Options {
   bool ros2 = false;
   int loop_cpu = -1;      ///< pin the control loop thread (an isolated CPU); -1: not pinned
   int rt_priority = 80;   ///< the control loop's SCHED_FIFO priority
+  bool allow_non_rt = false;       ///< off the simulator: enable the drives without SCHED_FIFO/mlockall
+  int max_missed_cycles = -1;      ///< periods missed in a row that stop the arm; -1: 3, off on --sim
 };
 
 int run_daemon(const Options& o) {
@@ -217,9 +219,33 @@ int run_daemon(const Options& o) {
   control::LoopOptions loop_options;
   loop_options.cpu = o.loop_cpu;
   loop_options.rt_priority = o.rt_priority;
+  // Real time is enforced off the simulator: the drives are not enabled
+  // without SCHED_FIFO and mlockall (unless --allow-non-rt), and 3 periods
+  // missed in a row stop the arm (category 1). The simulator on a shared
+  // test machine keeps neither unless asked (--max-missed-cycles).
+  loop_options.require_realtime = !o.sim && !o.allow_non_rt;
+  loop_options.max_missed_cycles = o.max_missed_cycles >= 0 ? o.max_missed_cycles : o.sim ? 0 : 3;
   control::ControlLoop loop(*site.drives, model, cc, loop_options);
   loop.start();
   for (const auto& w : loop.warnings()) spdlog::warn("control loop: {}", w);
+  {
+    const control::LoopStats st = loop.stats();
+    journal::EventRow row;
+    row.kind = "loop_start";
+    row.text = std::string("control loop: SCHED_FIFO ") + (st.realtime ? "granted" : "refused") + ", mlockall " +
+               (st.memory_locked ? "granted" : "refused") + "; " +
+               (loop_options.require_realtime ? "real time required to enable the drives"
+                : o.sim                       ? "simulated drives: real time not required"
+                                              : "--allow-non-rt: the drives may be enabled without real time") +
+               "; " +
+               (loop_options.max_missed_cycles > 0
+                    ? std::to_string(loop_options.max_missed_cycles) + " missed periods in a row stop the arm"
+                    : std::string("missed periods do not stop the arm"));
+    if (o.allow_non_rt && !o.sim && !(st.realtime && st.memory_locked))
+      spdlog::warn("--allow-non-rt: the drives may be enabled although the control loop is not real time");
+    spdlog::info("{}", row.text);
+    journal.record_event(row);
+  }
 
   remote::ToolWorker tool(site.tool_config, config.tool_poll_hz);
   std::unique_ptr<remote::CameraWorker> camera;
@@ -382,6 +408,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(-1, 1023));
   app.add_option("--rt-priority", o.rt_priority, "the control loop's SCHED_FIFO priority (1-99, default 80)")
       ->check(CLI::Range(1, 99));
+  app.add_flag("--allow-non-rt", o.allow_non_rt,
+               "enable the drives even when SCHED_FIFO or mlockall is refused (journaled; never on a cabinet in use)");
+  app.add_option("--max-missed-cycles", o.max_missed_cycles,
+                 "control periods missed in a row that stop the arm, category 1 (0: never; default 3, 0 with --sim)")
+      ->check(CLI::Range(0, 1000));
 
   try {
     app.parse(argc, argv);

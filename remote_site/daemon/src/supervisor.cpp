@@ -990,6 +990,21 @@ protocol::StatusReport Supervisor::status_report() const {
                 hw::canopen::power_enabled(static_cast<hw::canopen::PowerState>(d.state));
     s.drives.push_back(d);
   }
+  if (p_.loop != nullptr) {
+    const control::LoopStats st = p_.loop->stats();
+    using LS = control::LoopStats;
+    s.loop.realtime = st.realtime;
+    s.loop.memory_locked = st.memory_locked;
+    s.loop.realtime_required = p_.loop->options().require_realtime;
+    s.loop.cycles = st.cycles;
+    s.loop.overruns = st.overruns;
+    s.loop.missed_streak_max = static_cast<std::uint32_t>(std::min<std::uint64_t>(st.missed_streak_max, UINT32_MAX));
+    s.loop.max_missed_cycles = static_cast<std::uint32_t>(p_.loop->options().max_missed_cycles);
+    s.loop.wakeup_latency_p99_us = LS::percentile_us(st.latency_hist, 0.99);
+    s.loop.wakeup_latency_max_us = st.wakeup_latency_us_max;
+    s.loop.compute_p99_us = LS::percentile_us(st.compute_hist, 0.99);
+    s.loop.compute_max_us = st.compute_us_max;
+  }
   return s;
 }
 

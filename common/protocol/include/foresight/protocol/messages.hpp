@@ -45,6 +45,7 @@ using StopCategory = foresight_msg_StopCategory;
 using ControllerMode = foresight_msg_ControllerMode;
 using DriveState = foresight_msg_DriveState;
 using DriveStatus = foresight_msg_DriveStatus;
+using LoopTiming = foresight_msg_LoopTiming;
 using ToolDirection = foresight_msg_ToolDirection;
 using Side = foresight_msg_HeartbeatSide;
 using Sha256 = foresight_msg_Sha256;

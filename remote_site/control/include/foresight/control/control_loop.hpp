@@ -18,8 +18,13 @@
 // drive_request), the loop thread runs them itself in a non-real-time phase
 // between two cycles. They keep cycling the bus (heartbeat and SYNC continue),
 // take up to enable_timeout_ms; a failure (HwError) becomes the command's
-// Failed event with the error text. Overruns are not counted for that phase,
+// Failed event with the error text. With require_realtime, Enable fails
+// without touching the drives unless SCHED_FIFO and mlockall were granted. Overruns are not counted for that phase,
 // and the period grid restarts after it. Commands queue meanwhile.
+//
+// Overruns: a cycle that ends after the next deadline skips to the grid; the
+// periods it skipped count as missed. max_missed_cycles missed in a row (a
+// 6 ms stall at 500 Hz) are a category 1 stop (CycleInputs::missed_cycles).
 //
 // Threads: one supervisor thread produces commands (send) and consumes events,
 // stop events and telemetry (poll_*); set_estop/set_link_lost/stats may be
@@ -54,6 +59,16 @@ struct LoopOptions {
   int cpu = -1;                    ///< pin the loop to this CPU; -1: do not pin
   bool lock_memory = true;         ///< mlockall(MCL_CURRENT | MCL_FUTURE)
   int telemetry_decimation = 5;    ///< one TelemetrySample every N cycles (500 Hz / 5 = 100 Hz)
+  /// Periods missed in a row (a late cycle that skipped k periods counts k)
+  /// that make a category 1 stop, StopCause::Overrun; 0: never. The drives
+  /// got no new target and no SYNC for that long. The daemon sets 3 off the
+  /// simulator; 0 here because a shared test machine misses 4 in a row now
+  /// and then (seen with ctest -j2).
+  int max_missed_cycles = 0;
+  /// Enable (and Recover) only when SCHED_FIFO and mlockall were granted:
+  /// else the power-on fails with the reason and the drives stay off (the
+  /// daemon sets it off the simulator unless --allow-non-rt).
+  bool require_realtime = false;
 };
 
 /// Cycle statistics, updated by the loop with relaxed atomics; read from any
@@ -75,6 +90,9 @@ struct LoopStats {
   std::array<std::uint64_t, kBins> compute_hist{};
   std::array<std::uint64_t, kBins> latency_hist{};
   bool realtime = false;               ///< SCHED_FIFO was granted
+  bool memory_locked = false;          ///< mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
+  std::uint64_t missed_streak_max = 0; ///< the most periods missed in a row
+  std::uint64_t overrun_stops = 0;     ///< streaks that reached max_missed_cycles (a category 1 stop if the arm was on)
   /// Percentile (0..1) of a histogram in us (the upper edge of its bin: a
   /// bound, resolution 10 us below 320 us, 19% above).
   static double percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept;
@@ -116,6 +134,7 @@ class ControlLoop {
   void set_link_lost(bool lost) noexcept { link_lost_.store(lost, std::memory_order_release); }
 
   LoopStats stats() const noexcept;
+  const LoopOptions& options() const noexcept { return options_; }
   /// Start-up warnings (no SCHED_FIFO, no mlockall, no affinity). Call after
   /// start() returned (it waits until the thread has tried).
   std::vector<std::string> warnings() const;
@@ -153,6 +172,9 @@ class ControlLoop {
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> compute_hist_{};
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> latency_hist_{};
   std::atomic<bool> realtime_{false};
+  std::atomic<bool> memory_locked_{false};
+  std::atomic<std::uint64_t> missed_streak_max_{0}, overrun_stops_{0};
+  std::uint32_t missed_streak_ = 0;  ///< loop thread: periods missed in a row so far
 
   // cycle scratch (loop thread only)
   hw::JointFeedback fb_{};

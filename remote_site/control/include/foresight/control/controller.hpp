@@ -114,6 +114,10 @@ struct CycleInputs {
   std::uint32_t hw_code = 0;
   bool estop = false;                  ///< E-stop input (true = pressed)
   bool link_lost = false;              ///< link-loss input
+  /// Control periods missed in a row before this cycle (ControlLoop) and the
+  /// count that is a category 1 stop (0: never).
+  std::uint32_t missed_cycles = 0;
+  std::uint32_t missed_cycles_limit = 0;
 };
 
 enum class DriveRequest : std::uint8_t { None = 0, Enable, Disable };

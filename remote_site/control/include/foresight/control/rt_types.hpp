@@ -180,6 +180,7 @@ enum class StopCause : std::uint8_t {
   TorqueLimit,        ///< compensated contact torque above the safety limit
   DriveFault,         ///< the drive system required a stop (CycleStatus.stop_required: EMCY, heartbeat, bus...)
   SensorFault,        ///< F/T sensor fault, saturation or missing samples
+  Overrun,            ///< the control loop missed LoopOptions::max_missed_cycles periods in a row
 };
 const char* to_string(StopCause cause) noexcept;
 

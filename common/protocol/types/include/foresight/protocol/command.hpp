@@ -194,6 +194,21 @@ struct DriveReport {
   bool powered = false;                     ///< power stage energised
 };
 
+/// The remote's control loop: its real-time grant and its timing since start.
+struct LoopTiming {
+  bool realtime = false;           ///< SCHED_FIFO granted
+  bool memory_locked = false;      ///< mlockall granted
+  bool realtime_required = false;  ///< the drives are enabled only with both (off the simulator, no --allow-non-rt)
+  std::uint64_t cycles = 0;
+  std::uint64_t overruns = 0;      ///< cycles that ended after the next deadline
+  std::uint32_t missed_streak_max = 0;  ///< most periods missed in a row
+  std::uint32_t max_missed_cycles = 0;  ///< missed in a row that stop the arm (category 1); 0: never
+  double wakeup_latency_p99_us = 0.0;
+  double wakeup_latency_max_us = 0.0;
+  double compute_p99_us = 0.0;
+  double compute_max_us = 0.0;
+};
+
 struct StatusReport {
   std::int64_t stamp_ns = 0;
   ControllerMode mode = ControllerMode::Disabled;
@@ -205,6 +220,7 @@ struct StatusReport {
   std::uint32_t fault_bits = 0;
   std::string fault_text;
   std::vector<DriveReport> drives;  ///< one per joint, joint order
+  LoopTiming loop;
 };
 
 /// An upload's state as the link reports it on the trajectory status topic.
