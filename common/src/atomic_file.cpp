@@ -30,8 +30,37 @@ void check_output_path(const std::string& path) {
   if (!std::filesystem::is_directory(dir, ec)) throw InputError(path, "folder '" + dir + "' does not exist");
 }
 
+namespace {
+
+/// Writes `content` to the device or FIFO `path` in place (/dev/stdout,
+/// /dev/full): never replaced by a regular file, and a failed write is an
+/// error (ComputationError "<path>: cannot write (<reason>)").
+void write_in_place(const std::string& path, std::string_view content) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);  // a FIFO without a reader: ENXIO
+  if (fd < 0) throw ComputationError(path + ": cannot write (" + std::strerror(errno) + ")");
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  std::size_t done = 0;
+  for (int attempts = 0; done < content.size(); ++attempts) {
+    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
+    if (n < 0 && errno == EINTR && attempts < 1000) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : ENOSPC;
+      ::close(fd);
+      throw ComputationError(path + ": cannot write (" + std::strerror(err) + ")");
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::close(fd) != 0) throw ComputationError(path + ": cannot write (" + std::strerror(errno) + ")");
+}
+
+}  // namespace
+
 void write_file_atomic(const std::string& path, std::string_view content) {
   check_output_path(path);
+  if (struct stat existing {}; ::stat(path.c_str(), &existing) == 0 && !S_ISREG(existing.st_mode)) {
+    write_in_place(path, content);  // a device or FIFO: renaming a file over it would replace the device
+    return;
+  }
   std::string tmp_name = path + ".tmpXXXXXX";
   std::vector<char> tmp(tmp_name.begin(), tmp_name.end());
   tmp.push_back('\0');

@@ -1,5 +1,9 @@
 #include "foresight/common/text_file.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <fstream>
 
 #include "foresight/common/error.hpp"
@@ -7,10 +11,23 @@
 
 namespace foresight {
 
+void require_input_file(const std::string& path, const std::string& cannot_open) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw InputError(path, cannot_open);
+  struct stat st {};
+  const int rc = ::fstat(fd, &st);
+  ::close(fd);
+  if (rc != 0) throw InputError(path, cannot_open);
+  if (S_ISFIFO(st.st_mode)) throw InputError(path, "is a FIFO, not a file (its reader would wait for a writer for ever)");
+  if (S_ISSOCK(st.st_mode)) throw InputError(path, "is a socket, not a file");
+  if (S_ISDIR(st.st_mode)) throw InputError(path, "is a directory");
+}
+
 std::string read_text_file(const std::string& path, const std::string& cannot_open, std::size_t max_bytes) {
+  require_input_file(path, cannot_open);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, cannot_open);
-  // Read in blocks up to the bound: an endless file (/dev/zero, a FIFO) is refused, not swallowed.
+  // Read in blocks up to the bound: an endless file (/dev/zero) is refused, not swallowed.
   std::string text;
   char block[1 << 16];
   for (;;) {

@@ -113,6 +113,7 @@ Trajectory parse_trajectory_csv(const std::string& text, const std::string& sour
 }
 
 Trajectory read_trajectory_csv(const std::string& path) {
+  require_input_file(path, "cannot open trajectory file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open trajectory file");
   return parse_trajectory_stream(in, path);

@@ -1,6 +1,9 @@
 #include "foresight/common/yaml_util.hpp"
 
+#include <cstdio>
 #include <numbers>
+#include <utility>
+#include <vector>
 
 #include "foresight/common/text_file.hpp"
 
@@ -8,21 +11,49 @@ namespace foresight::yaml {
 
 int line_of(const YAML::Node& n) { return n && n.Mark().line >= 0 ? n.Mark().line + 1 : 0; }
 
-YAML::Node load_file(const std::string& path, const std::string& cannot_open) {
-  const std::string text = read_text_file(path, cannot_open);  // bounded size (input_limits.hpp)
-  try {
-    return YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
+namespace {
+
+/// InputError "<source>:<line>: duplicate key 'K' (first on line N)" for the
+/// first key given twice in one map, anywhere in `n` (yaml-cpp keeps both and
+/// a lookup finds the first: the second would be ignored silently).
+void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, int depth = 0) {
+  if (depth > 64) throw InputError(source, line_of(n), "nested deeper than 64 levels");
+  if (n.IsMap()) {
+    std::vector<std::pair<std::string, int>> seen;
+    for (const auto& kv : n) {
+      if (kv.first.IsScalar()) {
+        const std::string& key = kv.first.Scalar();
+        for (const auto& [k, line] : seen)
+          if (k == key)
+            throw InputError(source, line_of(kv.first),
+                             "duplicate key '" + key + "' (first on line " + std::to_string(line) + ")");
+        seen.emplace_back(key, line_of(kv.first));
+      }
+      refuse_duplicate_keys(kv.second, source, depth + 1);
+    }
+  } else if (n.IsSequence()) {
+    for (const auto& e : n) refuse_duplicate_keys(e, source, depth + 1);
   }
 }
 
+}  // namespace
+
 YAML::Node parse(const std::string& text, const std::string& source) {
+  std::vector<YAML::Node> docs;
   try {
-    return YAML::Load(text);
+    docs = YAML::LoadAll(text);
   } catch (const YAML::Exception& e) {
     throw InputError(source, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
   }
+  if (docs.size() > 1)
+    throw InputError(source, line_of(docs[1]), "a second YAML document (one document per file)");
+  const YAML::Node root = docs.empty() ? YAML::Node() : docs[0];
+  refuse_duplicate_keys(root, source);
+  return root;
+}
+
+YAML::Node load_file(const std::string& path, const std::string& cannot_open) {
+  return parse(read_text_file(path, cannot_open), path);  // bounded size (input_limits.hpp)
 }
 
 YAML::Node section(const YAML::Node& root, const std::string& name, const std::string& file, const std::string& what) {
@@ -127,6 +158,15 @@ YAML::Node MapReader::at(const YAML::Node& value, const char* key) const {
 
 void MapReader::fail_key(const char* key, const std::string& problem) const {
   fail(at(map_[key], key), name(key) + ": " + problem);
+}
+
+double MapReader::in_range(const char* key, double v, double lo, double hi, const char* unit) const {
+  if (!(v >= lo && v <= hi)) {  // NaN fails both
+    char b[160];
+    std::snprintf(b, sizeof b, "%g is outside [%g, %g]%s%s", v, lo, hi, unit[0] != '\0' ? " " : "", unit);
+    fail_key(key, b);
+  }
+  return v;
 }
 
 void MapReader::check_keys(std::span<const char* const> allowed) const {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -148,6 +149,21 @@ TEST(TextFileHardening, AnEndlessFileIsRefusedAtTheBound) {
   // The trajectory reader streams: /dev/zero has no newline, the line bound stops it.
   EXPECT_EQ(input_error([] { read_trajectory_csv("/dev/zero"); }), "/dev/zero:1: line longer than 65536 bytes");
   EXPECT_LT(seconds_since(t0), 10.0);
+}
+
+// A FIFO nobody writes: refused at once (opening it to read would wait for a
+// writer for ever); so are a socket's path and a directory.
+TEST(TextFileHardening, AFifoIsRefusedWithoutWaitingForAWriter) {
+  const std::string fifo = (std::filesystem::temp_directory_path() / ("fs_fifo_" + std::to_string(getpid()))).string();
+  std::remove(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string why = fifo + ": is a FIFO, not a file (its reader would wait for a writer for ever)";
+  EXPECT_EQ(input_error([&] { read_text_file(fifo, "cannot open"); }), why);
+  EXPECT_EQ(input_error([&] { read_trajectory_csv(fifo); }), why);
+  EXPECT_EQ(input_error([&] { RobotModel::from_file(fifo); }).rfind(fifo + ": is a FIFO", 0), 0u);
+  std::remove(fifo.c_str());
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  EXPECT_EQ(input_error([&] { read_text_file(dir, "cannot open"); }), dir + ": is a directory");
 }
 
 // ---- trajectories: bounded rows, bounded and linear validation ----

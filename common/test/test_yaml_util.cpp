@@ -117,4 +117,30 @@ TEST(YamlUtil, MapReaderMessages) {
   EXPECT_EQ(error_of([&] { yaml::integer_or(s.node(), "w", 0, "F", "s."); }), "F:7: s.w: not an integer (a map)");
 }
 
+// A key given twice is an error anywhere in the file (yaml-cpp keeps both and
+// finds the first: the second, often the intended one, was ignored), and so
+// is a second document.
+TEST(YamlUtil, DuplicateKeysAndASecondDocumentAreRefused) {
+  EXPECT_EQ(error_of([] { yaml::parse("cycle_rate_hz: 500\ncycle_rate_hz: 1000000000\n", "F"); }),
+            "F:2: duplicate key 'cycle_rate_hz' (first on line 1)");
+  EXPECT_EQ(error_of([] { yaml::parse("drives:\n  - node_id: 1\n    joint: a\n    node_id: 2\n", "F"); }),
+            "F:4: duplicate key 'node_id' (first on line 2)");
+  EXPECT_EQ(error_of([] { yaml::parse("a: 1\n---\nb: 2\n", "F"); }),
+            "F:3: a second YAML document (one document per file)");
+  EXPECT_EQ(error_of([] { yaml::parse("a: 1\nb: {c: 1, d: 2}\n", "F"); }), "");
+  EXPECT_EQ(error_of([] { yaml::parse("", "F"); }), "");
+}
+
+// Every configured number's range in one wording; NaN and infinities fail it.
+TEST(YamlUtil, RangesRefuseNaNAndNameKeyRangeAndUnit) {
+  const YAML::Node root = yaml::parse("hb:\n  consumer_ms: 65536\n  producer_ms: .nan\n  ok: 100\n  inf: .inf\n", "F");
+  const yaml::MapReader hb(root["hb"], "F", "hb");
+  EXPECT_EQ(error_of([&] { hb.get_in("consumer_ms", 1, 65535, "ms"); }), "F:2: hb.consumer_ms: 65536 is outside [1, 65535] ms");
+  EXPECT_EQ(error_of([&] { hb.get_in("producer_ms", 1, 65000, "ms"); }), "F:3: hb.producer_ms: nan is outside [1, 65000] ms");
+  EXPECT_EQ(error_of([&] { hb.get_or_in("inf", 1.0, 0, 10, "s"); }), "F:5: hb.inf: inf is outside [0, 10] s");
+  EXPECT_EQ(hb.get_in("ok", 1, 65535, "ms"), 100.0);
+  EXPECT_EQ(hb.get_or_in("absent", 7.0, 1, 10, "s"), 7.0);
+  EXPECT_EQ(error_of([&] { hb.get_in("absent", 1, 10, "s"); }), "F:2: hb: missing 'absent'");
+}
+
 }  // namespace

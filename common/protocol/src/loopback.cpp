@@ -4,9 +4,12 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <charconv>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 
+#include "foresight/common/error.hpp"
 #include "foresight/protocol/error.hpp"
 
 namespace foresight::protocol {
@@ -33,15 +36,19 @@ bool use_loopback_if_unconfigured() {
   return true;
 }
 
+std::optional<int> domain_from_environment() {
+  const char* env = std::getenv("FORESIGHT_DDS_DOMAIN");
+  if (env == nullptr || *env == '\0') return std::nullopt;
+  int id = -1;
+  const char* end = env + std::strlen(env);
+  const auto [at, ec] = std::from_chars(env, end, id);  // no sign, no space, whole string
+  if (ec != std::errc() || at != end || id < 0 || id > 232)
+    throw InputError("FORESIGHT_DDS_DOMAIN", std::string("'") + env + "' is not a DDS domain id (0-232)");
+  return id;
+}
+
 dds_domainid_t unique_test_domain() {
-  if (const char* forced = std::getenv("FORESIGHT_DDS_DOMAIN"); forced != nullptr && *forced != '\0') {
-    char* end = nullptr;
-    const long id = std::strtol(forced, &end, 10);
-    if (*end != '\0' || id < 0 || id > 232) {
-      throw ProtocolError(std::string("FORESIGHT_DDS_DOMAIN: '") + forced + "' is not a domain id in 0..232");
-    }
-    return static_cast<dds_domainid_t>(id);
-  }
+  if (const auto forced = domain_from_environment()) return static_cast<dds_domainid_t>(*forced);
   static const dds_domainid_t claimed = claim_free_domain(1, 230);
   return claimed;
 }

@@ -7,6 +7,7 @@
 
 #include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
+#include "foresight/common/yaml_util.hpp"
 
 namespace foresight::align {
 
@@ -38,14 +39,7 @@ std::vector<double> read_list(const YAML::Node& root, const char* key, const std
 }  // namespace
 
 ArmLinkCorrections load_arm_links(const std::string& path, const RobotModel& arm) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw InputError(path, "cannot read the arm's link corrections");
-  } catch (const YAML::Exception& e) {
-    throw InputError(path, e.mark.line + 1, std::string("not YAML: ") + e.msg);
-  }
+  const YAML::Node root = yaml::load_file(path, "cannot read the arm's link corrections");
   if (!root.IsMap()) throw InputError(path, "expected arm_link_delta_m: [...] (m, one per chain segment)");
   const std::size_t n = arm.segment_count();
   ArmLinkCorrections out;

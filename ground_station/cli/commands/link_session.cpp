@@ -4,6 +4,7 @@
 #include "format.hpp"
 #include "foresight/common/plan.hpp"
 #include "foresight/protocol/codec.hpp"
+#include "foresight/protocol/loopback.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -24,13 +25,7 @@ std::chrono::nanoseconds seconds(double s) {
 
 int resolve_domain(int option) {
   if (option >= 0) return option;
-  const char* env = std::getenv("FORESIGHT_DDS_DOMAIN");
-  if (env == nullptr || *env == '\0') return 0;
-  char* end = nullptr;
-  const long d = std::strtol(env, &end, 10);
-  if (end == env || *end != '\0' || d < 0 || d > 232)
-    throw std::invalid_argument(std::string("FORESIGHT_DDS_DOMAIN: '") + env + "' is not a DDS domain id (0-232)");
-  return static_cast<int>(d);
+  return protocol::domain_from_environment().value_or(0);
 }
 
 std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s) {

@@ -4,6 +4,7 @@
 // keyboard when stdin is a terminal, or from flags (--auto, --keys). A stop
 // names the command and why; rerun with --from-line to go on after a fix.
 #include <poll.h>
+#include "foresight/common/json_text.hpp"
 #include <termios.h>
 #include <unistd.h>
 
@@ -212,7 +213,7 @@ int run(Options& o) {
     j["resume_line"] = at != nullptr && end != script::DriveEnd::Finished ? nlohmann::json(at->line) : nlohmann::json(nullptr);
     const Eigen::VectorXd& q = runner.q_current();
     j["final_q_rad"] = std::vector<double>(q.data(), q.data() + q.size());
-    std::cout << j.dump(2) << "\n";
+    std::cout << json_text(j, 2) << "\n";
   }
   return end == script::DriveEnd::Finished ? kExitOk : kExitFailure;
 }

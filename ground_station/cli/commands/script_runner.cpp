@@ -1,5 +1,6 @@
 // `foresight run`'s command runner (script_runner.hpp). Registers no command.
 #include "script_runner.hpp"
+#include "foresight/common/json_text.hpp"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -125,7 +126,7 @@ void ScriptRunner::journal(const script::Command& c, const Outcome& o, nlohmann:
   extra["message"] = o.message;
   extra["seconds"] = o.seconds;
   extra["dry_run"] = s_.dry_run;
-  journal_ << extra.dump() << "\n" << std::flush;
+  journal_ << json_text(extra) << "\n" << std::flush;
 }
 
 int ScriptRunner::child(const std::vector<std::string>& args, const std::string& stdout_path,

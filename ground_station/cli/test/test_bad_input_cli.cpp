@@ -331,6 +331,17 @@ TEST_F(BadInput, OutADirectoryExitsTwoBeforeAnyWork) {
   std::filesystem::remove_all(dir);
 }
 
+// A device is written in place and its failure is the command's: /dev/full
+// exits 1 naming it (it used to exit 0 having lost the write; as root the
+// rename would have replaced the device with a file).
+TEST_F(BadInput, OutAFullDeviceFailsAndTheDeviceStays) {
+  if (!std::filesystem::is_character_file("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const auto r = run_foresight("plan --object-pose " + loc_ + " --from " + q_text_ + " --to approach_20cm --out /dev/full");
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_TRUE(has(r.err, "foresight plan: error: /dev/full: cannot write (No space left on device)")) << r.err;
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/full"));
+}
+
 // ---- atomic writes ----
 
 TEST_F(BadInput, AFullDiskDuringCalibrateOrPlanLeavesTheOldFileWhole) {

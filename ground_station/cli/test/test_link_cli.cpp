@@ -58,14 +58,24 @@ TEST(LinkCli, OptionChecksExit2) {
   expect_bad_input("send " + traj + " --compliant", "foresight send: error: --compliant needs --run\n");
 }
 
+// One parser of FORESIGHT_DDS_DOMAIN on both sides: the ground and the
+// daemon refuse the same values with the same words, exit 2 (the daemon used
+// to take 'abc' as 0, '201x' as 201 and '-3' as 4294967293).
 TEST(LinkCli, DomainFromTheEnvironmentIsChecked) {
-  // Set the variable for the child only.
   const std::string bin = std::string(FORESIGHT_BIN_DIR) + "/foresight";
+  const std::string remote = std::string(FORESIGHT_BIN_DIR) + "/foresight-remote";
   const std::string err = temp_path(".err");
-  const int st = std::system(("FORESIGHT_DDS_DOMAIN=abc " + bin + " status 2>" + err + " >/dev/null").c_str());
-  EXPECT_EQ(WEXITSTATUS(st), 2);
-  EXPECT_EQ(foresight::test::read_file(err),
-            "foresight status: error: FORESIGHT_DDS_DOMAIN: 'abc' is not a DDS domain id (0-232)\n");
+  for (const std::string bad : {"abc", "201x", "-3", "233", " 5", "+5"}) {
+    // Set the variable for the child only.
+    int st = std::system(("FORESIGHT_DDS_DOMAIN='" + bad + "' " + bin + " status 2>" + err + " >/dev/null").c_str());
+    EXPECT_EQ(WEXITSTATUS(st), 2) << bad;
+    EXPECT_EQ(foresight::test::read_file(err),
+              "foresight status: error: FORESIGHT_DDS_DOMAIN: '" + bad + "' is not a DDS domain id (0-232)\n");
+    st = std::system(("FORESIGHT_DDS_DOMAIN='" + bad + "' " + remote + " --sim 2>" + err + " >/dev/null").c_str());
+    EXPECT_EQ(WEXITSTATUS(st), 2) << bad;
+    EXPECT_EQ(foresight::test::read_file(err),
+              "foresight-remote: error: FORESIGHT_DDS_DOMAIN: '" + bad + "' is not a DDS domain id (0-232)\n");
+  }
 }
 
 TEST(LinkCli, NoRemoteExits1NamingTheDomain) {

@@ -3,6 +3,8 @@
 // tokenizer keeps the column of every token so each message can point at it.
 #include "foresight/script/script.hpp"
 
+#include "foresight/common/text_file.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -400,11 +402,8 @@ Script parse_script(const std::string& text, const std::string& file) {
 }
 
 Script load_script(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "cannot open script");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_script(ss.str(), path);
+  // Bounded (a script is a page of text, /dev/zero is refused), never a FIFO or a directory.
+  return parse_script(read_text_file(path, "cannot open script", limits::kMaxScriptBytes), path);
 }
 
 std::vector<GoalSpec> goals_of(const Command& command) {

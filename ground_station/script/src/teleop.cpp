@@ -9,6 +9,7 @@
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/kinematics.hpp"
+#include "foresight/common/text_file.hpp"
 
 namespace foresight::teleop {
 
@@ -29,6 +30,7 @@ ReferenceFrame parse_reference_frame(const std::string& name) {
 }
 
 std::vector<HandSample> read_hand_input_csv(const std::string& path) {
+  require_input_file(path, "cannot open hand input");
   std::ifstream in(path);
   if (!in) throw InputError(path, "cannot open hand input");
   std::string line;

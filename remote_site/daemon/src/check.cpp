@@ -1,4 +1,5 @@
 #include "foresight/remote/check.hpp"
+#include "foresight/common/json_text.hpp"
 
 #include <nlohmann/json.hpp>
 #include <openssl/err.h>
@@ -87,7 +88,7 @@ std::string CheckReport::json() const {
                  {"skip", count(CheckResult::Skip)}};
   j["items"] = nlohmann::json::array();
   for (const auto& i : items) j["items"].push_back({{"name", i.name}, {"result", to_string(i.result)}, {"why", i.why}});
-  return j.dump();
+  return json_text(j);
 }
 
 namespace {

@@ -5,6 +5,7 @@
 #include "foresight/common/text_file.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/common/yaml_util.hpp"
+#include "foresight/remote/algorithm_params.hpp"
 
 namespace foresight::remote {
 
@@ -16,17 +17,6 @@ const char* to_string(LinkLossPolicy policy) noexcept {
   return "?";
 }
 
-namespace {
-
-/// A positive, finite number at map[key], `fallback` when absent.
-double positive(const yaml::MapReader& m, const char* key, double fallback) {
-  const double v = m.get_or<double>(key, fallback);
-  if (!(v > 0.0) || !std::isfinite(v)) m.fail_key(key, "must be a positive number");
-  return v;
-}
-
-}  // namespace
-
 DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string& source_name) {
   const YAML::Node root = yaml::parse(yaml_text, source_name);
   DaemonConfig c;
@@ -36,19 +26,22 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   c.line = s.line();
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
                 "default_algorithm_timeout_s", "control_lease_s"});
-  c.start_tolerance_rad = positive(s, "start_tolerance_rad", c.start_tolerance_rad);
+  c.start_tolerance_rad = s.get_or_in("start_tolerance_rad", c.start_tolerance_rad, 1e-6, 1e6, "rad");
   if (c.start_tolerance_rad > kMaxStartToleranceRad)
     s.fail_key("start_tolerance_rad", "must be at most 0.02 rad (a larger start offset would jump the arm: plan an approach "
                                           "segment)");
   c.estop_file = s.get_or<std::string>("estop_file", c.estop_file);
-  c.tool_poll_hz = positive(s, "tool_poll_hz", c.tool_poll_hz);
-  c.default_algorithm_timeout_s = positive(s, "default_algorithm_timeout_s", c.default_algorithm_timeout_s);
-  c.control_lease_s = positive(s, "control_lease_s", c.control_lease_s);
+  // Every rate and time with a range (issue 26: 1e300 s once overflowed the
+  // time arithmetic; a rate of 1e9 Hz would spin a thread).
+  c.tool_poll_hz = s.get_or_in("tool_poll_hz", c.tool_poll_hz, 0.1, 1000, "Hz");
+  c.default_algorithm_timeout_s =
+      s.get_or_in("default_algorithm_timeout_s", c.default_algorithm_timeout_s, 0.1, kMaxAlgorithmTimeoutS, "s");
+  c.control_lease_s = s.get_or_in("control_lease_s", c.control_lease_s, 0.1, 86400, "s");
 
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");
     link.check_keys({"loss_timeout_s", "loss_policy"});
-    c.link_loss_timeout_s = positive(link, "loss_timeout_s", c.link_loss_timeout_s);
+    c.link_loss_timeout_s = link.get_or_in("loss_timeout_s", c.link_loss_timeout_s, 0.05, 3600, "s");
     const std::string policy = link.get_or<std::string>("loss_policy", "finish_and_hold");
     if (policy == "finish_and_hold") {
       c.link_loss_policy = LinkLossPolicy::FinishAndHold;
@@ -61,20 +54,20 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   if (s["reports"]) {
     const yaml::MapReader rep = s.map("reports");
     rep.check_keys({"joint_state_hz", "wrench_hz", "tool_hz", "status_hz"});
-    c.reports.joint_state_hz = positive(rep, "joint_state_hz", c.reports.joint_state_hz);
-    c.reports.wrench_hz = positive(rep, "wrench_hz", c.reports.wrench_hz);
-    c.reports.tool_hz = positive(rep, "tool_hz", c.reports.tool_hz);
-    c.reports.status_hz = positive(rep, "status_hz", c.reports.status_hz);
+    c.reports.joint_state_hz = rep.get_or_in("joint_state_hz", c.reports.joint_state_hz, 0.1, 1000, "Hz");
+    c.reports.wrench_hz = rep.get_or_in("wrench_hz", c.reports.wrench_hz, 0.1, 1000, "Hz");
+    c.reports.tool_hz = rep.get_or_in("tool_hz", c.reports.tool_hz, 0.1, 1000, "Hz");
+    c.reports.status_hz = rep.get_or_in("status_hz", c.reports.status_hz, 0.1, 1000, "Hz");
   }
   if (s["journal"]) {
     const yaml::MapReader j = s.map("journal");
     j.check_keys({"path", "max_mb", "keep_files", "telemetry_hz"});
     c.journal.path = j.get_or<std::string>("path", c.journal.path);
     if (c.journal.path.empty()) j.fail_key("path", "must not be empty");
-    c.journal.max_mb = positive(j, "max_mb", c.journal.max_mb);
+    c.journal.max_mb = j.get_or_in("max_mb", c.journal.max_mb, 1, 1e6, "MB");
     c.journal.keep_files = j.get_or<int>("keep_files", c.journal.keep_files);
     if (c.journal.keep_files < 1 || c.journal.keep_files > 100) j.fail_key("keep_files", "must be in 1..100");
-    c.journal.telemetry_hz = positive(j, "telemetry_hz", c.journal.telemetry_hz);
+    c.journal.telemetry_hz = j.get_or_in("telemetry_hz", c.journal.telemetry_hz, 0.1, 1000, "Hz");
   }
   return c;
 }

@@ -16,6 +16,7 @@
 // (the message names the file, line and key); 1 when the hardware cannot be
 // brought up or the daemon fails.
 #include <CLI/CLI.hpp>
+#include "foresight/common/json_text.hpp"
 #include <nlohmann/json.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -138,16 +139,11 @@ class SystemdWatchdog {
   std::thread thread_;
 };
 
-int default_domain() {
-  if (const char* d = std::getenv("FORESIGHT_DDS_DOMAIN")) return std::atoi(d);
-  return 0;
-}
-
 struct Options {
   std::string config = default_config();
   bool sim = false;
   std::string journal;
-  int domain = default_domain();
+  int domain = -1;  ///< -1: $FORESIGHT_DDS_DOMAIN, else 0
   std::string estop_file;
   std::string sim_faults;
   std::string security_dir;
@@ -159,8 +155,9 @@ struct Options {
   int max_missed_cycles = -1;      ///< periods missed in a row that stop the arm; -1: 3, off on --sim
 };
 
-int run_daemon(const Options& o) {
+int run_daemon(Options o) {
   using namespace foresight;
+  if (o.domain < 0) o.domain = protocol::domain_from_environment().value_or(0);  // InputError: exit 2
   // ---- configuration (exit 2 on any error) -----------------------------------------
   remote::DaemonConfig config = remote::load_daemon_config(o.config);
   if (!o.journal.empty()) config.journal.path = o.journal;
@@ -286,7 +283,7 @@ int run_daemon(const Options& o) {
       j["oru_slot_depth_m"] = t.oru_slot_depth_m;
       j["alignment_error_m"] = t.alignment_error_m;
       j["alignment_error_deg"] = t.alignment_error_rad * 180.0 / M_PI;
-      return j.dump();
+      return json_text(j);
     };
   }
   remote::Supervisor supervisor(std::move(parts));
@@ -345,11 +342,11 @@ int run_daemon(const Options& o) {
                               {"p99", LS::percentile_us(st.latency_hist, 0.99)},
                               {"p999", LS::percentile_us(st.latency_hist, 0.999)},
                               {"max", st.wakeup_latency_us_max}};
-    spdlog::info("control loop: {}", j.dump());
+    spdlog::info("control loop: {}", json_text(j));
     journal::EventRow row;
     row.kind = "loop_stats";
     row.text = std::to_string(st.cycles) + " cycles, " + std::to_string(st.overruns) + " overruns";
-    row.detail = j.dump();
+    row.detail = json_text(j);
     try {
       journal.record_event(row);
     } catch (const std::exception& e) {

@@ -1,4 +1,5 @@
 #include "foresight/remote/supervisor.hpp"
+#include "foresight/common/json_text.hpp"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -204,7 +205,7 @@ void Supervisor::ack(const protocol::Command& command, AckState state, Reason co
   row.reason = reason;
   nlohmann::json detail = state == AckState::Received ? payload_json(command) : nlohmann::json::object();
   if (!a.final_q_rad.empty()) detail["final_q_rad"] = a.final_q_rad;
-  row.detail = detail.dump();
+  row.detail = json_text(detail);
   try {
     p_.journal->record_command(row);  // durable before the ack leaves
   } catch (const std::exception& e) {
@@ -879,7 +880,7 @@ void Supervisor::poll_loop() {
       samples.push_back({{"cycle", e.cycle}, {"q", q}, {"q_cmd", qc}, {"wrench_tool", e.wrench_tool}});
     }
     ev["samples"] = samples;
-    row.evidence = ev.dump();
+    row.evidence = json_text(ev);
     try {
       p_.journal->record_fault(row);
     } catch (const std::exception& ex) {

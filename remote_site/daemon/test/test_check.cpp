@@ -302,6 +302,16 @@ TEST(CheckCli, SimPassesAndRealConfigFailsWithReasons) {
   EXPECT_NE(bad.out.find("NOT fit to run"), std::string::npos) << bad.out;
 }
 
+// A name that is not UTF-8 (a byte 0xff in the configuration's path) is
+// printed as U+FFFD in the JSON, not an abort in the JSON writer (exit 134).
+TEST(CheckCli, BytesThatAreNotUtf8StillGiveJson) {
+  ShellRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --sim --json --config \"$(printf '/nonexistent/r\\377x.yaml')\" 2>/dev/null");
+  EXPECT_EQ(r.status, 1) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j.at("fit").get<bool>());
+  EXPECT_NE(r.out.find("/nonexistent/r\xef\xbf\xbdx.yaml"), std::string::npos) << r.out;
+}
+
 // ---- DDS security ---------------------------------------------------------------------------------
 
 TEST(CheckSecurity, SkippedMissingValidForeign) {

@@ -80,7 +80,17 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  link:\n    loss_policy: panic\n"),
             "r.yaml:3: controller.link.loss_policy: 'panic' is not a policy (expected finish_and_hold or stop)");
   EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: -5\n"),
-            "r.yaml:3: controller.reports.wrench_hz: must be a positive number");
+            "r.yaml:3: controller.reports.wrench_hz: -5 is outside [0.1, 1000] Hz");
+  // Issue 26: every time and rate has a range (1e300 s overflowed the time
+  // arithmetic; NaN passed the old "positive" check's first half).
+  EXPECT_EQ(error_of("controller:\n  default_algorithm_timeout_s: 1e300\n"),
+            "r.yaml:2: controller.default_algorithm_timeout_s: 1e+300 is outside [0.1, 600] s");
+  EXPECT_EQ(error_of("controller:\n  link: {loss_timeout_s: .nan}\n"),
+            "r.yaml:2: controller.link.loss_timeout_s: nan is outside [0.05, 3600] s");
+  EXPECT_EQ(error_of("controller:\n  journal: {max_mb: 1e300}\n"),
+            "r.yaml:2: controller.journal.max_mb: 1e+300 is outside [1, 1e+06] MB");
+  EXPECT_EQ(error_of("controller:\n  tool_poll_hz: 1e9\n"),
+            "r.yaml:2: controller.tool_poll_hz: 1e+09 is outside [0.1, 1000] Hz");
   EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: fast\n"),
             "r.yaml:3: controller.reports.wrench_hz: not a number: 'fast'");
   EXPECT_EQ(error_of("controller:\n  journal: {keep_files: 0}\n"),

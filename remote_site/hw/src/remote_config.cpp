@@ -60,17 +60,18 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   {
     const yaml::MapReader hb = top.map("heartbeat", "producer_ms, consumer_ms");
     hb.check_keys({"producer_ms", "consumer_ms", "master_node_id"});
-    c.heartbeat_producer_s = hb.get<double>("producer_ms") * 1e-3;
-    c.heartbeat_consumer_s = hb.get<double>("consumer_ms") * 1e-3;
+    // CiA 301: producer 0x1017 and consumer 0x1016 times are 16-bit milliseconds.
+    c.heartbeat_producer_s = hb.get_in("producer_ms", 1, 65000, "ms") * 1e-3;
+    c.heartbeat_consumer_s = hb.get_in("consumer_ms", 1, 65535, "ms (0x1016 holds 16 bits)") * 1e-3;
     const int master = hb.get_or<int>("master_node_id", 127);
     if (master < 1 || master > canopen::kMaxNodeId)
       hb.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
     c.master_node_id = static_cast<std::uint8_t>(master);
   }
-  c.sdo_timeout_s = top.get_or<double>("sdo_timeout_ms", 500.0) * 1e-3;
-  c.enable_timeout_s = top.get_or<double>("enable_timeout_ms", 2000.0) * 1e-3;
+  c.sdo_timeout_s = top.get_or_in("sdo_timeout_ms", 500.0, 1, 10000, "ms") * 1e-3;
+  c.enable_timeout_s = top.get_or_in("enable_timeout_ms", 2000.0, 1, 60000, "ms") * 1e-3;
   c.tpdo_miss_limit = top.get_or<int>("tpdo_miss_limit", 5);
-  c.max_bus_load = top.get_or<double>("max_bus_load", 0.70);
+  c.max_bus_load = top.get_or_in("max_bus_load", 0.70, 0.01, 1.0, "(fraction of the bit rate)");
   c.interpolation_exponent = top.get_or<int>("interpolation_exponent", -4);
   if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
     top.fail(top["interpolation_exponent"], "top level: interpolation_exponent " +
@@ -124,9 +125,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     dc.direction = d.get_or<int>("direction", 1);
     dc.offset_rad = d.get_or<double>("offset_rad", 0.0);
     dc.following_error_limit_rad = d.get<double>("following_error_limit_rad");
-    dc.following_error_timeout_s = d.get_or<double>("following_error_timeout_ms", 0.0) * 1e-3;
-    if (dc.following_error_timeout_s < 0.0 || dc.following_error_timeout_s > 65.535)
-      d.fail(d["following_error_timeout_ms"], d.label() + ": following_error_timeout_ms must be in 0..65535");
+    dc.following_error_timeout_s = d.get_or_in("following_error_timeout_ms", 0.0, 0, 65535, "ms (0x6066, 16 bits)") * 1e-3;
     if (d["sdo_file"]) {
       const std::string f = d.get<std::string>("sdo_file");
       dc.sdo_file = (!f.empty() && f[0] == '/') ? f : base_dir + f;
@@ -147,8 +146,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
         *out = h.get<double>(key);
         if (!(*out > 0.0) || !std::isfinite(*out)) h.fail_key(key, "must be a positive finite number");
       }
-      hc.timeout_s = h.get_or<double>("timeout_ms", 30000.0) * 1e-3;
-      if (!(hc.timeout_s > 0.0) || !std::isfinite(hc.timeout_s)) h.fail_key("timeout_ms", "must be positive");
+      hc.timeout_s = h.get_or_in("timeout_ms", 30000.0, 1, 600000, "ms") * 1e-3;
     }
     dc.line = d.line();
     c.drives.push_back(dc);
@@ -191,6 +189,8 @@ void validate(RemoteConfig& c) {
   }
   if (!(c.heartbeat_producer_s >= 0.001 && c.heartbeat_producer_s <= 65.0))
     fail(0, "heartbeat.producer_ms must be 1..65000");
+  if (!(c.heartbeat_consumer_s <= 65.535))  // 0x1016's 16 bits: 65536 ms would become 0 (not watched)
+    fail(0, "heartbeat.consumer_ms must be at most 65535 (0x1016 holds 16 bits)");
   if (!(c.heartbeat_consumer_s > c.heartbeat_producer_s))
     fail(0, "heartbeat.consumer_ms must be larger than heartbeat.producer_ms (a margin for jitter)");
   // Below 3 x, two heartbeats lost in a row (or one lost and the next late by

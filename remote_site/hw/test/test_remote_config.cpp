@@ -120,6 +120,36 @@ TEST(RemoteConfig, MissingScalingIsNamed) {
   EXPECT_NE(ft.find("ft_sensor: missing 'torque_counts_per_nm' (scaling: int16 counts per N*m)"), std::string::npos) << ft;
 }
 
+// Issue 26's classes in remote.yaml: a value 0x1016 cannot hold (16-bit
+// milliseconds: 65536 would become 0, the drives stop watching the master), a
+// NaN that once passed its range, a duplicated key, a second document.
+TEST(RemoteConfig, ValuesTheHardwareCannotHoldNaNAndDuplicatesAreRefused) {
+  const std::string drives = drive("joint1", "a", 1);
+  auto with_hb = [&](const std::string& hb) {
+    std::string y = base_yaml(drives);
+    y.replace(y.find("heartbeat: {producer_ms: 50, consumer_ms: 150}"), 46, hb);
+    return y;
+  };
+  EXPECT_EQ(error_of(with_hb("heartbeat: {producer_ms: 50, consumer_ms: 65536}")),
+            "remote.yaml:2: heartbeat.consumer_ms: 65536 is outside [1, 65535] ms (0x1016 holds 16 bits)");
+  EXPECT_EQ(error_of(with_hb("heartbeat: {producer_ms: .nan, consumer_ms: 150}")),
+            "remote.yaml:2: heartbeat.producer_ms: nan is outside [1, 65000] ms");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, "
+                                                     "following_error_limit_rad: 0.02, following_error_timeout_ms: .nan"))),
+            "remote.yaml:7: drives[0] (joint1).following_error_timeout_ms: nan is outside [0, 65535] ms (0x6066, 16 bits)");
+  EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n",
+                               "cycle_rate_hz: 500\nmax_bus_load: .inf\n")),
+            "remote.yaml:2: max_bus_load: inf is outside [0.01, 1] (fraction of the bit rate)");
+  EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n",
+                               "cycle_rate_hz: 500\ncycle_rate_hz: 1000000000\n")),
+            "remote.yaml:2: duplicate key 'cycle_rate_hz' (first on line 1)");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", node_id: 2, counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02"))),
+            "remote.yaml:7: duplicate key 'node_id' (first on line 7)");
+  EXPECT_EQ(error_of(base_yaml(drives) + "---\ncycle_rate_hz: 1000\n"),
+            "remote.yaml:10: a second YAML document (one document per file)");
+  EXPECT_EQ(error_of(base_yaml(drives)), "no error");
+}
+
 TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_NE(error_of(base_yaml(drive("joint1", "c", 1))).find("drives[0] (joint1): bus 'c' is not defined in buses"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 128))).find("node_id 128 is outside 1..127"), std::string::npos);

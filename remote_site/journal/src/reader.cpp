@@ -1,4 +1,5 @@
 #include "foresight/journal/reader.hpp"
+#include "foresight/common/json_text.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -326,7 +327,7 @@ int run_journal_command(const JournalQuery& q, std::ostream& out, std::ostream& 
     return 2;
   }
   if (q.json) {
-    out << to_json(c, q.db, since).dump() << "\n";
+    out << json_text(to_json(c, q.db, since)) << "\n";
   } else {
     print_table(out, c, q.db, since);
   }

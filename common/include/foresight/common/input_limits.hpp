@@ -25,6 +25,7 @@ namespace foresight::limits {
 // ---- sizes ----
 inline constexpr std::size_t kMaxTextFileBytes = 64u << 20;  ///< any text input (CSV, YAML, URDF): 64 MiB
 inline constexpr std::size_t kMaxLineBytes = 64u << 10;      ///< one CSV line: 64 KiB
+inline constexpr std::size_t kMaxScriptBytes = 1u << 20;     ///< a task script: 1 MiB (the changeout's is 3 KiB)
 inline constexpr int kMaxTrajectorySamples = 200000;         ///< rows of a trajectory CSV (as TrajectoryLimits)
 inline constexpr int kMaxPointRows = 100000;                 ///< data rows of a points CSV
 inline constexpr int kMaxCameras = 64;                       ///< cameras in a cameras.yaml

@@ -10,7 +10,15 @@
 
 namespace foresight {
 
-/// The contents of the file `path`. InputError "<path>: <cannot_open>" when
+/// Refuses what is not a file to read to its end: InputError "<path>: is a
+/// FIFO, not a file (its reader would wait for a writer for ever)", "... is a
+/// socket, not a file", "<path>: is a directory"; "<path>: <cannot_open>"
+/// when it cannot be opened. Checked without blocking (O_NONBLOCK), before
+/// any reader opens it. Character devices (/dev/zero) pass: the size and line
+/// bounds stop those.
+void require_input_file(const std::string& path, const std::string& cannot_open);
+
+/// The contents of the file `path` (require_input_file first). InputError "<path>: <cannot_open>" when
 /// it cannot be opened, "<path>: file is larger than N bytes" beyond
 /// `max_bytes` (read stops there).
 std::string read_text_file(const std::string& path, const std::string& cannot_open,

@@ -156,11 +156,23 @@ class MapReader {
     return n ? as<T>(n, key) : fallback;
   }
 
+  /// The number map[key] (required) within [lo, hi] `unit`. InputError as
+  /// get(), and "<path>.<key>: <value> is outside [lo, hi] <unit>" (NaN and
+  /// infinities too): the one wording of a configured number's range.
+  double get_in(const char* key, double lo, double hi, const char* unit, const std::string& what = "") const {
+    return in_range(key, get<double>(key, what), lo, hi, unit);
+  }
+  /// As get_in, `fallback` when absent.
+  double get_or_in(const char* key, double fallback, double lo, double hi, const char* unit) const {
+    return map_[key] ? in_range(key, as<double>(map_[key], key), lo, hi, unit) : fallback;
+  }
+
   /// The map at map[key]: InputError "<path>: missing '<key>' (<what>)",
   /// "<path>.<key>: expected a map".
   MapReader map(const char* key, const std::string& what = "") const;
 
  private:
+  double in_range(const char* key, double v, double lo, double hi, const char* unit) const;
   template <typename T>
   T as(const YAML::Node& n, const char* key) const {
     if constexpr (std::is_same_v<T, std::string>) {

@@ -6,6 +6,7 @@
 
 #include <dds/dds.h>
 
+#include <optional>
 #include <string>
 
 namespace foresight::protocol {
@@ -26,6 +27,12 @@ bool use_loopback_if_unconfigured();
 /// claimers rarely contend. ProtocolError when every id in the range is held
 /// ("no free DDS domain in 1..230: every one is held by another process").
 dds_domainid_t claim_free_domain(dds_domainid_t first, dds_domainid_t last);
+
+/// $FORESIGHT_DDS_DOMAIN as a domain id, nullopt when unset or empty: the one
+/// parser of it (the daemon, the ground, the tests). InputError
+/// "FORESIGHT_DDS_DOMAIN: 'abc' is not a DDS domain id (0-232)" for anything
+/// but a whole decimal number in 0..232 ("201x", "-3", " 5" included).
+std::optional<int> domain_from_environment();
 
 /// The domain id of this process's tests: claimed once with
 /// claim_free_domain(1, 230) and the same on every later call, so tests that
