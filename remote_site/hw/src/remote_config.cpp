@@ -219,6 +219,12 @@ void validate(RemoteConfig& c) {
     if (b.name.empty()) fail(b.line, "buses[" + std::to_string(i) + "]: empty name");
     if (!bus_names.insert(b.name).second) fail(b.line, where + ": duplicate bus name '" + b.name + "'");
     if (b.interface.empty()) fail(b.line, where + ": empty interface (use can0... or mock)");
+    // Two buses on one interface would share its frames: two masters' worth of
+    // SYNCs and two drives answering each node id (each mock bus is its own).
+    if (b.interface != "mock")
+      for (std::size_t k = 0; k < i; ++k)
+        if (c.buses[k].interface == b.interface)
+          fail(b.line, where + ": interface '" + b.interface + "' is already bus '" + c.buses[k].name + "'");
     if (!kBitrates.count(b.bitrate_bps))
       fail(b.line, where + ": bitrate " + std::to_string(b.bitrate_bps) +
                        " is not a CiA 301 bit rate (10k, 20k, 50k, 125k, 250k, 500k, 800k, 1M)");

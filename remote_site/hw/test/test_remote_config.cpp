@@ -148,6 +148,8 @@ TEST(RemoteConfig, ValuesTheHardwareCannotHoldNaNAndDuplicatesAreRefused) {
   EXPECT_EQ(error_of(base_yaml(drives) + "---\ncycle_rate_hz: 1000\n"),
             "remote.yaml:10: a second YAML document (one document per file)");
   EXPECT_EQ(error_of(base_yaml(drives)), "no error");
+  EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: can0, bitrate: 1000000}\n  - {name: b, interface: can0, bitrate: 1000000}\n")),
+            "remote.yaml:5: buses[1] (b): interface 'can0' is already bus 'a'");
 }
 
 TEST(RemoteConfig, OtherBadInputsAreNamed) {

@@ -101,7 +101,8 @@ void read_file_into(const std::string& path, const ReadOptions& o, JournalConten
       t.stamp_ns = s.int64(0);
       t.cycle = s.u64(1);
       t.mode = static_cast<std::uint8_t>(s.int64(2));
-      t.joint_count = static_cast<std::uint8_t>(std::min<std::int64_t>(s.int64(3), TelemetryRow::kMaxJoints));
+      // A damaged or hostile row may hold any count (-1 became 255 and wrote past q_rad).
+      t.joint_count = static_cast<std::uint8_t>(std::clamp<std::int64_t>(s.int64(3), 0, TelemetryRow::kMaxJoints));
       const auto q = parse_array(s.text(4)), qc = parse_array(s.text(5)), w = parse_array(s.text(6));
       std::copy_n(q.begin(), std::min<std::size_t>(q.size(), t.joint_count), t.q_rad.begin());
       std::copy_n(qc.begin(), std::min<std::size_t>(qc.size(), t.joint_count), t.q_cmd_rad.begin());

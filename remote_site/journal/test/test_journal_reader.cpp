@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+#include <sqlite3.h>
 
 #include "journal_test_util.hpp"
 
@@ -107,6 +108,29 @@ TEST(JournalCommand, JsonHasTheDocumentedKeys) {
   EXPECT_EQ(j["telemetry_last"]["cycle"], 4);
   EXPECT_EQ(j["telemetry_last"]["q_rad"].size(), 7u);
   EXPECT_TRUE(j["since_ns"].is_null());
+}
+
+// A damaged journal (issue 26): a telemetry row with joint_count -1 and 40
+// angles (the reader wrote past its 16-joint array), a reason whose bytes are
+// not UTF-8 (the JSON writer aborted). Read: at most 16 joints, U+FFFD.
+TEST(JournalCommand, ADamagedRowIsReadWithinBoundsAndItsBytesAsText) {
+  ScratchDir dir;
+  const std::string db = make_journal(dir);
+  sqlite3* h = nullptr;
+  ASSERT_EQ(sqlite3_open(db.c_str(), &h), SQLITE_OK);
+  std::string forty = "[";
+  for (int i = 0; i < 40; ++i) forty += (i ? "," : "") + std::to_string(i);
+  forty += "]";
+  const std::string sql = "UPDATE telemetry SET joint_count = -1, q = '" + forty + "'; UPDATE commands SET reason = "
+                          "CAST(X'41ff42' AS TEXT) WHERE command_id = 2;";
+  ASSERT_EQ(sqlite3_exec(h, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(h);
+  sqlite3_close(h);
+  std::ostringstream out, err;
+  ASSERT_EQ(run_journal_command({db, "", true}, out, err), 0) << err.str();
+  const json j = json::parse(out.str());
+  EXPECT_EQ(j["telemetry_last"]["joint_count"], 0);
+  EXPECT_EQ(j["telemetry_last"]["q_rad"].size(), 0u);
+  EXPECT_EQ(j["commands"][2]["reason"], "A\xef\xbf\xbd" "B");
 }
 
 TEST(JournalCommand, SinceFiltersEveryTable) {
