@@ -168,9 +168,17 @@ std::map<std::string, CameraRecord> load_cameras(const std::string& path) {
       if (const YAML::Node c = n["calibration"]) {
         CameraCalibrationInfo info;
         if (c["covariance"]) info.covariance = read_matrix<7, 7>(c["covariance"], path, where + ": covariance");
-        info.rms_px = c["rms_px"].as<double>(0.0);
-        info.max_px = c["max_px"].as<double>(0.0);
-        info.n_points = c["n_points"].as<int>(0);
+        // Absent: 0; present: a number (a text used to read as 0 silently), not negative.
+        const std::string cal = where + ": calibration.";
+        info.rms_px = yaml::number_or(c, "rms_px", 0.0, path, cal);
+        info.max_px = yaml::number_or(c, "max_px", 0.0, path, cal);
+        info.n_points = yaml::integer_or(c, "n_points", 0, path, cal);
+        if (!(info.rms_px >= 0.0 && info.max_px >= 0.0 && std::isfinite(info.rms_px) && std::isfinite(info.max_px)))
+          throw InputError(path, yaml::line_of(c), cal + "rms_px and max_px must be finite and not negative");
+        if (info.n_points < 0 || info.n_points > limits::kMaxPointRows)
+          throw InputError(path, yaml::line_of(c["n_points"]),
+                           cal + "n_points " + std::to_string(info.n_points) + " is outside 0.." +
+                               std::to_string(limits::kMaxPointRows));
         if (c["outliers"] && !c["outliers"].IsNull()) info.outliers = c["outliers"].as<std::vector<int>>();
         info.date = c["date"].as<std::string>("");
         if (c["arm_link_sensitivity"] || c["arm_link_sigma_m"]) {

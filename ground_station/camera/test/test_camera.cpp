@@ -103,6 +103,13 @@ TEST(Camera, LoadRejectsABadArmLinkSensitivity) {
   EXPECT_EQ(message("    arm_link_sigma_m: -1\n" + good),
             path + ":6: camera 'side': arm_link_sigma_m must be a positive number beside arm_link_sensitivity");
   EXPECT_EQ(message("    arm_link_sigma_m: 0.002\n" + good), "(no error)");
+  // Issue 26: a text where a number belongs was read as 0.
+  EXPECT_EQ(message("    n_points: many\n"), path + ":6: camera 'side': calibration.n_points: not an integer: 'many'");
+  EXPECT_EQ(message("    rms_px: small\n"), path + ":6: camera 'side': calibration.rms_px: not a number: 'small'");
+  EXPECT_EQ(message("    n_points: -4\n"), path + ":6: camera 'side': calibration.n_points -4 is outside 0..100000");
+  EXPECT_EQ(message("    rms_px: .nan\n"),
+            path + ":6: camera 'side': calibration.rms_px and max_px must be finite and not negative");
+  EXPECT_EQ(message("    rms_px: 0.4\n    n_points: 24\n"), "(no error)");
   std::remove(path.c_str());
 }
 
