@@ -1,7 +1,11 @@
 #include "foresight/common/yaml_util.hpp"
 
+#include <yaml-cpp/eventhandler.h>
+
 #include <cstdio>
 #include <numbers>
+#include <sstream>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -13,42 +17,68 @@ int line_of(const YAML::Node& n) { return n && n.Mark().line >= 0 ? n.Mark().lin
 
 namespace {
 
+/// Nodes the duplicate-key walk visits at most. yaml-cpp expands aliases as
+/// it iterates: ten nested levels of ten aliases would be 1e10 visits (the
+/// fuzzer found that); no configuration of ours comes near this.
+constexpr std::size_t kMaxYamlNodes = 200000;
+
 /// InputError "<source>:<line>: duplicate key 'K' (first on line N)" for the
 /// first key given twice in one map, anywhere in `n` (yaml-cpp keeps both and
 /// a lookup finds the first: the second would be ignored silently).
-void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, int depth = 0) {
+void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, std::size_t& visited, int depth = 0) {
+  if (++visited > kMaxYamlNodes)
+    throw InputError(source, line_of(n), "more than " + std::to_string(kMaxYamlNodes) + " YAML nodes (aliases counted as expanded)");
   if (depth > 64) throw InputError(source, line_of(n), "nested deeper than 64 levels");
   if (n.IsMap()) {
-    std::vector<std::pair<std::string, int>> seen;
+    std::unordered_map<std::string, int> seen;
     for (const auto& kv : n) {
       if (kv.first.IsScalar()) {
-        const std::string& key = kv.first.Scalar();
-        for (const auto& [k, line] : seen)
-          if (k == key)
-            throw InputError(source, line_of(kv.first),
-                             "duplicate key '" + key + "' (first on line " + std::to_string(line) + ")");
-        seen.emplace_back(key, line_of(kv.first));
+        const auto [at, fresh] = seen.emplace(kv.first.Scalar(), line_of(kv.first));
+        if (!fresh)
+          throw InputError(source, line_of(kv.first),
+                           "duplicate key '" + kv.first.Scalar() + "' (first on line " + std::to_string(at->second) + ")");
       }
-      refuse_duplicate_keys(kv.second, source, depth + 1);
+      refuse_duplicate_keys(kv.second, source, visited, depth + 1);
     }
   } else if (n.IsSequence()) {
-    for (const auto& e : n) refuse_duplicate_keys(e, source, depth + 1);
+    for (const auto& e : n) refuse_duplicate_keys(e, source, visited, depth + 1);
   }
 }
 
 }  // namespace
 
+/// Notes where the document it is handed starts; ignores the rest.
+class DocumentStart final : public YAML::EventHandler {
+ public:
+  int line = 0;
+  void OnDocumentStart(const YAML::Mark& mark) override { line = mark.line + 1; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
 YAML::Node parse(const std::string& text, const std::string& source) {
-  std::vector<YAML::Node> docs;
+  YAML::Node root;
   try {
-    docs = YAML::LoadAll(text);
+    root = YAML::Load(text);  // the first document
+    // Is there a second one? Asked of the parser twice at most: YAML::LoadAll
+    // loops for ever on some inputs (the fuzzer found a stream of NUL bytes
+    // after a document that yields empty documents without end).
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentStart first, second;
+    if (parser.HandleNextDocument(first) && parser.HandleNextDocument(second))
+      throw InputError(source, second.line, "a second YAML document (one document per file)");
   } catch (const YAML::Exception& e) {
     throw InputError(source, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
   }
-  if (docs.size() > 1)
-    throw InputError(source, line_of(docs[1]), "a second YAML document (one document per file)");
-  const YAML::Node root = docs.empty() ? YAML::Node() : docs[0];
-  refuse_duplicate_keys(root, source);
+  std::size_t visited = 0;
+  refuse_duplicate_keys(root, source, visited);
   return root;
 }
 

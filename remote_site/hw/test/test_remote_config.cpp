@@ -146,7 +146,7 @@ TEST(RemoteConfig, ValuesTheHardwareCannotHoldNaNAndDuplicatesAreRefused) {
   EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", node_id: 2, counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02"))),
             "remote.yaml:7: duplicate key 'node_id' (first on line 7)");
   EXPECT_EQ(error_of(base_yaml(drives) + "---\ncycle_rate_hz: 1000\n"),
-            "remote.yaml:10: a second YAML document (one document per file)");
+            "remote.yaml:9: a second YAML document (one document per file)");
   EXPECT_EQ(error_of(base_yaml(drives)), "no error");
   EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: can0, bitrate: 1000000}\n  - {name: b, interface: can0, bitrate: 1000000}\n")),
             "remote.yaml:5: buses[1] (b): interface 'can0' is already bus 'a'");
