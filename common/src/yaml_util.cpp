@@ -17,17 +17,17 @@ int line_of(const YAML::Node& n) { return n && n.Mark().line >= 0 ? n.Mark().lin
 
 namespace {
 
-/// Nodes the duplicate-key walk visits at most. yaml-cpp expands aliases as
-/// it iterates: ten nested levels of ten aliases would be 1e10 visits (the
-/// fuzzer found that); no configuration of ours comes near this.
-constexpr std::size_t kMaxYamlNodes = 200000;
+/// Nodes the duplicate-key walk may visit: linear in the text (a node takes
+/// at least a byte or two of it), so only aliases can reach the bound, and
+/// yaml-cpp expands them as it iterates: ten nested levels of ten aliases
+/// would be 1e10 visits. No configuration of ours uses aliases.
+std::size_t node_budget(const std::string& text) { return 2 * text.size() + 1000; }
 
 /// InputError "<source>:<line>: duplicate key 'K' (first on line N)" for the
 /// first key given twice in one map, anywhere in `n` (yaml-cpp keeps both and
 /// a lookup finds the first: the second would be ignored silently).
-void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, std::size_t& visited, int depth = 0) {
-  if (++visited > kMaxYamlNodes)
-    throw InputError(source, line_of(n), "more than " + std::to_string(kMaxYamlNodes) + " YAML nodes (aliases counted as expanded)");
+void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, std::size_t& budget, int depth = 0) {
+  if (budget-- == 0) throw InputError(source, line_of(n), "too many YAML nodes for its size (aliases expanding)");
   if (depth > 64) throw InputError(source, line_of(n), "nested deeper than 64 levels");
   if (n.IsMap()) {
     std::unordered_map<std::string, int> seen;
@@ -38,10 +38,10 @@ void refuse_duplicate_keys(const YAML::Node& n, const std::string& source, std::
           throw InputError(source, line_of(kv.first),
                            "duplicate key '" + kv.first.Scalar() + "' (first on line " + std::to_string(at->second) + ")");
       }
-      refuse_duplicate_keys(kv.second, source, visited, depth + 1);
+      refuse_duplicate_keys(kv.second, source, budget, depth + 1);
     }
   } else if (n.IsSequence()) {
-    for (const auto& e : n) refuse_duplicate_keys(e, source, visited, depth + 1);
+    for (const auto& e : n) refuse_duplicate_keys(e, source, budget, depth + 1);
   }
 }
 
@@ -77,8 +77,8 @@ YAML::Node parse(const std::string& text, const std::string& source) {
   } catch (const YAML::Exception& e) {
     throw InputError(source, e.mark.line + 1, std::string("malformed YAML: ") + e.msg);
   }
-  std::size_t visited = 0;
-  refuse_duplicate_keys(root, source, visited);
+  std::size_t budget = node_budget(text);
+  refuse_duplicate_keys(root, source, budget);
   return root;
 }
 

@@ -131,6 +131,16 @@ TEST(YamlUtil, DuplicateKeysAndASecondDocumentAreRefused) {
   // fuzzer's timeout); the reader asks for two documents at most.
   const std::string nuls = "a: 1\nb: [1, 2\n" + std::string("]\n") + std::string(64, '\0');
   EXPECT_NE(error_of([&] { yaml::parse(nuls, "F"); }), "");
+  // Aliases nested ten deep, ten each: 1e10 nodes when expanded; refused at
+  // a budget linear in the text, quickly.
+  std::string bomb = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
+  for (int i = 1; i <= 10; ++i) {
+    const std::string p = "*a" + std::to_string(i - 1);
+    bomb += "a" + std::to_string(i) + ": &a" + std::to_string(i) + " [" + p + ", " + p + ", " + p + ", " + p + ", " + p +
+            ", " + p + ", " + p + ", " + p + ", " + p + ", " + p + "]\n";
+  }
+  EXPECT_NE(error_of([&] { yaml::parse(bomb, "F"); }).find("too many YAML nodes for its size (aliases expanding)"),
+            std::string::npos);
   EXPECT_EQ(error_of([] { yaml::parse("a: 1\nb: {c: 1, d: 2}\n", "F"); }), "");
   EXPECT_EQ(error_of([] { yaml::parse("", "F"); }), "");
 }
