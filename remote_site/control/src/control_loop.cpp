@@ -164,7 +164,6 @@ LoopStats ControlLoop::stats() const noexcept {
   s.realtime = realtime_.load(std::memory_order_relaxed);
   s.memory_locked = memory_locked_.load(std::memory_order_relaxed);
   s.missed_streak_max = missed_streak_max_.load(std::memory_order_relaxed);
-  s.overrun_stops = overrun_stops_.load(std::memory_order_relaxed);
   return s;
 }
 
@@ -209,13 +208,11 @@ void ControlLoop::perform(DriveRequest request) noexcept {
   bool ok = true;
   char text[96] = "";
   try {
-    if (request == DriveRequest::Enable && options_.require_realtime &&
-        !(realtime_.load(std::memory_order_relaxed) && memory_locked_.load(std::memory_order_relaxed))) {
+    const bool fifo = realtime_.load(std::memory_order_relaxed), locked = memory_locked_.load(std::memory_order_relaxed);
+    if (request == DriveRequest::Enable && options_.require_realtime && !(fifo && locked)) {
       ok = false;  // the drives are not touched
       std::snprintf(text, sizeof text, "not real time (%s%s%s): drives stay off; see --allow-non-rt",
-                    realtime_.load(std::memory_order_relaxed) ? "" : "no SCHED_FIFO",
-                    realtime_.load(std::memory_order_relaxed) || memory_locked_.load(std::memory_order_relaxed) ? "" : ", ",
-                    memory_locked_.load(std::memory_order_relaxed) ? "" : "no mlockall");
+                    fifo ? "" : "no SCHED_FIFO", fifo || locked ? "" : ", ", locked ? "" : "no mlockall");
     } else if (request == DriveRequest::Enable)
       drives_.enable();
     else if (request == DriveRequest::Disable)
@@ -299,13 +296,9 @@ void ControlLoop::run() noexcept {
       overruns_.fetch_add(1, std::memory_order_relaxed);
       const std::int64_t behind = (end - next) / period_ns;
       next += behind * period_ns;
-      const std::uint32_t before = missed_streak_;
       missed_streak_ += static_cast<std::uint32_t>(std::min<std::int64_t>(behind, 1 << 20));
       if (missed_streak_ > missed_streak_max_.load(std::memory_order_relaxed))
         missed_streak_max_.store(missed_streak_, std::memory_order_relaxed);
-      const auto limit = static_cast<std::uint32_t>(options_.max_missed_cycles);
-      if (limit > 0 && before < limit && missed_streak_ >= limit)
-        overrun_stops_.fetch_add(1, std::memory_order_relaxed);
     } else {
       missed_streak_ = 0;
     }

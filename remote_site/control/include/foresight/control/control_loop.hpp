@@ -92,7 +92,6 @@ struct LoopStats {
   bool realtime = false;               ///< SCHED_FIFO was granted
   bool memory_locked = false;          ///< mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
   std::uint64_t missed_streak_max = 0; ///< the most periods missed in a row
-  std::uint64_t overrun_stops = 0;     ///< streaks that reached max_missed_cycles (a category 1 stop if the arm was on)
   /// Percentile (0..1) of a histogram in us (the upper edge of its bin: a
   /// bound, resolution 10 us below 320 us, 19% above).
   static double percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept;
@@ -173,7 +172,7 @@ class ControlLoop {
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> latency_hist_{};
   std::atomic<bool> realtime_{false};
   std::atomic<bool> memory_locked_{false};
-  std::atomic<std::uint64_t> missed_streak_max_{0}, overrun_stops_{0};
+  std::atomic<std::uint64_t> missed_streak_max_{0};
   std::uint32_t missed_streak_ = 0;  ///< loop thread: periods missed in a row so far
 
   // cycle scratch (loop thread only)
