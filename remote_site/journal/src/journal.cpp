@@ -1,10 +1,18 @@
 #include "foresight/journal/journal.hpp"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <array>
+#include <cerrno>
 #include <charconv>
+#include <climits>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 
 #include <spdlog/spdlog.h>
@@ -58,7 +66,202 @@ void remove_db_files(const std::string& path) {
   fs::remove(path + "-shm", ec);
 }
 
+int millis(std::chrono::milliseconds t) {
+  return static_cast<int>(std::clamp<std::int64_t>(t.count(), 0, INT_MAX));
+}
+
+/// "a directory", "a FIFO" ...: what a file that is not a regular file is.
+std::string file_kind(mode_t m) {
+  if (S_ISDIR(m)) return "a directory";
+  if (S_ISFIFO(m)) return "a FIFO";
+  if (S_ISSOCK(m)) return "a socket";
+  if (S_ISCHR(m)) return "a character device";
+  if (S_ISBLK(m)) return "a block device";
+  if (S_ISLNK(m)) return "a symbolic link";
+  return "not a regular file";
+}
+
+bool busy(int code) { return (code & 0xff) == SQLITE_BUSY || (code & 0xff) == SQLITE_LOCKED; }
+
+std::string locked_message(const std::string& path, int waited_ms, const std::string& sqlite_msg) {
+  return path + ": locked by another process: no write lock within " + std::to_string(waited_ms) + " ms (" +
+         sqlite_msg + "); is another foresight-remote or an sqlite3 shell writing to it?";
+}
+
+std::string newer_schema_message(const std::string& path, std::int64_t version) {
+  return path + ": journal schema version " + std::to_string(version) + " is newer than this controller's " +
+         std::to_string(detail::kSchemaVersion) +
+         " (written by a newer foresight-remote): refusing to write to it; move it aside or upgrade";
+}
+
+/// What an existing file holds, read without writing anything.
+struct Inspection {
+  bool exists = false;
+  std::int64_t app_id = 0;
+  std::int64_t schema = 0;  ///< PRAGMA user_version
+  std::int64_t tables = 0;
+  bool wal_mode = false;  ///< the header's read version is 2 (journal_mode=WAL)
+  bool blank() const { return app_id == 0 && tables == 0; }  ///< an empty database: the writer initialises it
+};
+
+/// Everything the writer refuses, checked before it opens the file for
+/// writing (so a refused file is left exactly as it was). Throws
+/// JournalError naming `path`. Never opens a FIFO or a device (stat first);
+/// reads an existing file through detail::open_readonly. Does not look for
+/// locks: the writer learns those from its first write transaction, the
+/// probe separately.
+Inspection inspect(const std::string& path, int busy_ms) {
+  Inspection in;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int e = errno;
+    if (e != ENOENT) throw JournalError(path + ": cannot open journal: " + detail::errno_text(e));
+    const std::string dir = detail::folder_of(path);
+    struct stat ds {};
+    if (::stat(dir.c_str(), &ds) != 0)
+      throw JournalError(path + ": cannot create the journal: its folder " + dir + " does not exist");
+    if (!S_ISDIR(ds.st_mode))
+      throw JournalError(path + ": cannot create the journal: " + dir + " is not a folder");
+    if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+      const int e = errno;
+      throw JournalError(path + ": read-only: cannot create the journal: its folder " + dir + " is not writable (" +
+                         detail::errno_text(e) + ")");
+    }
+    return in;
+  }
+  in.exists = true;
+  if (!S_ISREG(st.st_mode)) throw JournalError(path + ": not a regular file (" + file_kind(st.st_mode) + ")");
+  if (::access(path.c_str(), R_OK) != 0) {
+    const int e = errno;
+    throw JournalError(path + ": cannot read the journal: " + detail::errno_text(e));
+  }
+  {
+    const detail::Connection c = detail::open_readonly(path, busy_ms);
+    try {
+      in.app_id = detail::query_int(c, "PRAGMA application_id");  // garbage fails here: "(not a journal database)"
+      in.schema = detail::query_int(c, "PRAGMA user_version");
+      in.tables = detail::query_int(c, "SELECT count(*) FROM sqlite_master");
+    } catch (const JournalError&) {
+      // A rollback-mode writer's exclusive lock keeps even readers out.
+      if (busy(c.errcode())) throw JournalError(locked_message(path, busy_ms, sqlite3_errmsg(c.get())));
+      throw;
+    }
+  }
+  {
+    std::ifstream f(path, std::ios::binary);
+    char header[20] = {};
+    f.read(header, sizeof header);
+    in.wal_mode = f.gcount() == sizeof header && header[18] == 2;
+  }
+  if (in.app_id != detail::kApplicationId && !in.blank())
+    throw JournalError(path + ": not a Foresight journal (application_id " + std::to_string(in.app_id) + ")");
+  if (in.schema > detail::kSchemaVersion) throw JournalError(newer_schema_message(path, in.schema));
+  if (const std::string why = detail::unwritable_reason(path); !why.empty())
+    throw JournalError(path + ": read-only: " + why);
+  for (const char* suffix : {"-wal", "-shm"}) {
+    const std::string f = path + suffix;
+    if (::access(f.c_str(), F_OK) == 0 && ::access(f.c_str(), W_OK) != 0) {
+      const int e = errno;
+      throw JournalError(path + ": read-only: " + f + " is not writable (" + detail::errno_text(e) + ")");
+    }
+  }
+  return in;
+}
+
+/// Empty when `path` is absent or a Foresight journal: a regular file with
+/// SQLite's header and our application_id (read from the header, bytes 68..71,
+/// big-endian; a rotated file is checkpointed, so its header is complete).
+/// Else what it is, for the message. `companion`: a NAME-wal or NAME-shm,
+/// SQLite's own when empty or starting with its magic.
+std::string not_ours(const std::string& path, char companion = 0) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) {
+    const int e = errno;
+    return e == ENOENT ? std::string() : detail::errno_text(e);
+  }
+  if (!S_ISREG(st.st_mode)) return file_kind(st.st_mode);
+  std::array<unsigned char, 100> h{};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return "unreadable";
+  in.read(reinterpret_cast<char*>(h.data()), static_cast<std::streamsize>(h.size()));
+  const auto n = static_cast<std::size_t>(in.gcount());
+  const auto be32 = [&](std::size_t at) {
+    return (std::uint32_t{h[at]} << 24) | (std::uint32_t{h[at + 1]} << 16) | (std::uint32_t{h[at + 2]} << 8) | h[at + 3];
+  };
+  if (companion == 'w') {  // WAL header magic 0x377f0682 / 0x377f0683
+    if (n == 0 || (n >= 4 && (be32(0) & 0xFFFFFFFEu) == 0x377F0682u)) return {};
+    return "not an SQLite WAL file";
+  }
+  if (companion == 's') {  // the wal-index: iVersion 3007000, native order; SQLite truncates it to 3 bytes at times
+    std::uint32_t version = 0;
+    if (n >= 4) std::memcpy(&version, h.data(), 4);
+    if (n < 4 || version == 3007000u) return {};
+    return "not an SQLite shared-memory file";
+  }
+  if (n < h.size() || std::memcmp(h.data(), "SQLite format 3", 16) != 0) return "not an SQLite database";
+  const std::uint32_t app_id = be32(68);
+  if (app_id != static_cast<std::uint32_t>(detail::kApplicationId))
+    return "an SQLite database with application_id " + std::to_string(static_cast<std::int32_t>(app_id));
+  return {};
+}
+
 }  // namespace
+
+JournalProbe probe_journal(const std::string& path, std::chrono::milliseconds lock_wait) {
+  if (path.empty()) throw JournalError("journal: path is empty");
+  const int wait_ms = millis(lock_wait);
+  const Inspection in = inspect(path, wait_ms);
+  JournalProbe p;
+  p.exists = in.exists;
+  if (!in.exists) {
+    p.describe = path + ": does not exist yet: will be created";
+    return p;
+  }
+  if (in.blank()) {
+    p.describe = path + ": an empty SQLite database: will be initialised as a journal (schema " +
+                 std::to_string(detail::kSchemaVersion) + ")";
+    return p;
+  }
+  p.schema_version = static_cast<int>(in.schema);
+  // Locked: only a connection that has the journal open in WAL mode can hold
+  // its write lock, and such a connection has NAME-wal and NAME-shm. Then take
+  // SQLite's write lock and give it back at once (BEGIN IMMEDIATE; ROLLBACK:
+  // nothing written), on a connection that neither creates files nor
+  // checkpoints on close. (fcntl(F_GETLK) on our own descriptor would be
+  // lighter, but closing it drops every POSIX lock this process holds on the
+  // file: SQLite's own, if this process has the journal open.)
+  // A database in rollback mode (journal_mode=DELETE: not ours, but someone
+  // may have switched it) is locked on the main file: check it the same way
+  // unless a NAME-journal exists (a read-write connection would roll it back).
+  std::error_code ec;
+  const bool wal_open = fs::exists(path + "-wal", ec) && fs::exists(path + "-shm", ec);
+  const bool rollback_mode = !in.wal_mode && !fs::exists(path + "-journal", ec);
+  if (wal_open || rollback_mode) {
+    const Connection c(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
+    sqlite3_db_config(c.get(), SQLITE_DBCONFIG_NO_CKPT_ON_CLOSE, 1, static_cast<int*>(nullptr));
+    sqlite3_busy_timeout(c.get(), wait_ms);
+    const int rc = sqlite3_exec(c.get(), "BEGIN IMMEDIATE", nullptr, nullptr, nullptr);
+    if (rc != SQLITE_OK) {
+      const int code = c.errcode();
+      const std::string msg = sqlite3_errmsg(c.get());
+      if (busy(code)) throw JournalError(locked_message(path, wait_ms, msg));
+      throw JournalError(path + ": cannot lock the journal: " + detail::with_cause(path, msg, code));
+    }
+    sqlite3_exec(c.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+  const Connection c = detail::open_readonly(path, wait_ms);
+  const std::int64_t commands = detail::query_int(c, "SELECT count(*) FROM commands");
+  const std::int64_t faults = detail::query_int(c, "SELECT count(*) FROM faults");
+  std::string clean = "no shutdown recorded";
+  {
+    Statement q(c, "SELECT value FROM meta WHERE key='clean_shutdown'");
+    if (q.step()) clean = q.text(0) == "1" ? "clean shutdown" : "not shut down cleanly (still running, or it crashed)";
+  }
+  p.describe = path + ": journal schema " + std::to_string(in.schema) + ", " + std::to_string(commands) +
+               (commands == 1 ? " command row, " : " command rows, ") + std::to_string(faults) +
+               (faults == 1 ? " fault, " : " faults, ") + clean;
+  return p;
+}
 
 std::int64_t Journal::now_ns() noexcept {
   timespec ts{};
@@ -76,6 +279,7 @@ Journal::Journal(JournalOptions options) : options_(std::move(options)), ring_(o
   if (options_.flush_interval.count() <= 0) throw std::invalid_argument("journal: flush_interval must be positive");
   if (!(options_.telemetry_rate_hz >= 0.0) || !std::isfinite(options_.telemetry_rate_hz))
     throw std::invalid_argument("journal: telemetry_rate_hz must be finite and >= 0");
+  if (options_.busy_timeout.count() <= 0) throw std::invalid_argument("journal: busy_timeout must be positive");
   period_ns_ = options_.telemetry_rate_hz > 0.0 ? static_cast<std::int64_t>(1e9 / options_.telemetry_rate_hz) : 0;
   batch_.resize(options_.telemetry_batch);
 
@@ -96,33 +300,44 @@ Journal::~Journal() {
 }
 
 void Journal::open_db() {
+  const std::string& path = options_.path;
+  const int busy_ms = millis(options_.busy_timeout);
+  // Everything we refuse, before the file is opened for writing.
+  const bool existed = inspect(path, busy_ms).exists;
   auto db = std::make_unique<Db>();
-  const bool existed = fs::exists(options_.path);
-  db->conn = Connection(options_.path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX);
+  db->conn = Connection(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX);
   Connection& c = db->conn;
-  sqlite3_busy_timeout(c.get(), 5000);  // an engineer's sqlite3 shell may hold a lock briefly
+  sqlite3_busy_timeout(c.get(), busy_ms);  // an engineer's sqlite3 shell may hold a lock briefly
+  if (sqlite3_db_readonly(c.get(), "main") == 1) {
+    const std::string why = detail::unwritable_reason(path);
+    throw JournalError(path + ": read-only: " + (why.empty() ? std::string("SQLite opened it read-only") : why));
+  }
 
-  // The first real read: fails here with "file is not a database" on garbage.
-  const std::int64_t app_id = [&] {
-    try {
-      return detail::query_int(c, "PRAGMA application_id");
-    } catch (const JournalError& e) {
-      throw JournalError(std::string(e.what()) + " (not a journal database)");
-    }
-  }();
-  const std::int64_t tables = detail::query_int(c, "SELECT count(*) FROM sqlite_master");
-  if (app_id != detail::kApplicationId && (app_id != 0 || tables != 0))
-    throw JournalError(options_.path + ": not a Foresight journal (application_id " + std::to_string(app_id) + ")");
-
-  {
-    Statement wal(c, "PRAGMA journal_mode=WAL");
+  try {
+    Statement wal(c, "PRAGMA journal_mode=WAL");  // switching from rollback mode needs the file's lock
     if (!wal.step() || wal.text(0) != "wal") throw JournalError(options_.path + ": cannot switch to WAL mode");
+  } catch (const JournalError&) {
+    if (busy(c.errcode())) throw JournalError(locked_message(path, busy_ms, sqlite3_errmsg(c.get())));
+    throw;
   }
   c.exec("PRAGMA synchronous=FULL");
   // Keep the -wal file from staying large after checkpoints (the size bound).
   c.exec("PRAGMA journal_size_limit=1048576");
-  c.exec("BEGIN IMMEDIATE");
+  if (sqlite3_exec(c.get(), "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) != SQLITE_OK) {
+    const int code = c.errcode();
+    const std::string msg = sqlite3_errmsg(c.get());
+    if (busy(code)) throw JournalError(locked_message(path, busy_ms, msg));
+    throw JournalError(path + ": cannot start a transaction: " + detail::with_cause(path, msg, code));
+  }
   try {
+    // Again under the write lock: another writer may have changed the file
+    // since inspect(). Nothing is written yet; a refusal rolls back.
+    const std::int64_t app_id = detail::query_int(c, "PRAGMA application_id");
+    const std::int64_t tables = detail::query_int(c, "SELECT count(*) FROM sqlite_master");
+    const std::int64_t schema = detail::query_int(c, "PRAGMA user_version");
+    if (app_id != detail::kApplicationId && (app_id != 0 || tables != 0))
+      throw JournalError(path + ": not a Foresight journal (application_id " + std::to_string(app_id) + ")");
+    if (schema > detail::kSchemaVersion) throw JournalError(newer_schema_message(path, schema));
     c.exec(detail::kSchema);
     c.exec(("PRAGMA application_id=" + std::to_string(detail::kApplicationId)).c_str());
     c.exec(("PRAGMA user_version=" + std::to_string(detail::kSchemaVersion)).c_str());
@@ -183,7 +398,32 @@ void Journal::maybe_rotate() {
   if (static_cast<std::uint64_t>(pages * db_->page_size) > options_.max_bytes) rotate();
 }
 
+std::string Journal::rotation_obstacle() const {
+  for (int i = 1; i <= options_.keep_files; ++i) {
+    const std::string f = rotated_name(options_.path, i);
+    if (std::string why = not_ours(f); !why.empty()) return f + " is not a Foresight journal (" + why + ")";
+    for (const char* suffix : {"-wal", "-shm"})
+      if (std::string why = not_ours(f + suffix, suffix[1]); !why.empty())
+        return f + suffix + " is not SQLite's (" + why + ")";
+  }
+  return {};
+}
+
 void Journal::rotate() {
+  // Rotation removes NAME.keep_files and renames the others: never a file that
+  // is not a journal (someone's notes named journal.db.1, a folder). Then keep
+  // journaling into NAME past max_bytes, say why (warn once), retry next time.
+  if (const std::string obstacle = rotation_obstacle(); !obstacle.empty()) {
+    stats_.last_error = options_.path + ": not rotating: " + obstacle +
+                        "; left untouched, journaling goes on in " + options_.path +
+                        " past max_bytes until it is moved aside";
+    if (obstacle != rotation_blocked_) {
+      spdlog::warn("journal: {}", stats_.last_error);
+      rotation_blocked_ = obstacle;
+    }
+    return;
+  }
+  rotation_blocked_.clear();
   // Everything into the main file first: a rotated file must stand alone
   // without its -wal. A reader holding an old snapshot can keep the
   // checkpoint from completing; then try again after the next transaction.
@@ -199,9 +439,13 @@ void Journal::rotate() {
     remove_db_files(p);
   } else {
     remove_db_files(rotated_name(p, options_.keep_files));
-    for (int i = options_.keep_files - 1; i >= 1; --i) {
-      if (fs::exists(rotated_name(p, i))) fs::rename(rotated_name(p, i), rotated_name(p, i + 1), ec);
-    }
+    // A -wal or -shm left beside a rotated file (a read-only reader's) moves
+    // with it: never attached to another file's data.
+    for (int i = options_.keep_files - 1; i >= 1; --i)
+      for (const char* suffix : {"", "-wal", "-shm"})
+        if (fs::exists(rotated_name(p, i) + suffix, ec))
+          fs::rename(rotated_name(p, i) + suffix, rotated_name(p, i + 1) + suffix, ec);
+    ec.clear();
     fs::rename(p, rotated_name(p, 1), ec);
     if (ec) {
       // Keep journaling into the same (oversized) file; the next transaction

@@ -25,26 +25,45 @@ namespace {
 
 constexpr int kMaxRotatedScan = 10000;  // bound on NAME.1, NAME.2 ... probing
 
-Connection open_for_reading(const std::string& path) {
+constexpr int kBusyMs = 5000;
+
+/// The schema version of a file open_for_reading() accepted.
+struct Opened {
+  Connection conn;
+  std::int64_t schema = 0;
+};
+
+/// A journal of this schema: opened without create, read-write when it can
+/// (so SQLite recovers a crashed writer's WAL, as the sqlite3 shell does),
+/// else read-only. A newer schema (a newer foresight-remote wrote it): opened
+/// read-only, never written (detail::open_readonly), read as far as its
+/// tables still have the columns this reader knows, with a warning.
+Opened open_for_reading(const std::string& path, std::vector<std::string>& warnings) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw JournalError(path + ": no such journal file");
   if (!fs::is_regular_file(path, ec)) throw JournalError(path + ": not a regular file");
-  Connection c;
+  Opened o;
+  {
+    Connection ro = detail::open_readonly(path, kBusyMs);
+    const std::int64_t app_id = detail::query_int(ro, "PRAGMA application_id");  // garbage: "(not a journal database)"
+    if (app_id != detail::kApplicationId)
+      throw JournalError(path + ": not a Foresight journal (application_id " + std::to_string(app_id) + ")");
+    o.schema = detail::query_int(ro, "PRAGMA user_version");
+    if (o.schema > detail::kSchemaVersion) {
+      warnings.push_back(path + ": journal schema version " + std::to_string(o.schema) + " is newer than this reader's " +
+                         std::to_string(detail::kSchemaVersion) +
+                         " (written by a newer foresight-remote): read read-only, only the columns this version knows");
+      o.conn = std::move(ro);
+      return o;
+    }
+  }
   try {
-    c = Connection(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
+    o.conn = Connection(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   } catch (const JournalError&) {
-    c = Connection(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX);
+    o.conn = Connection(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX);
   }
-  sqlite3_busy_timeout(c.get(), 5000);
-  std::int64_t app_id = 0;
-  try {
-    app_id = detail::query_int(c, "PRAGMA application_id");
-  } catch (const JournalError& e) {
-    throw JournalError(std::string(e.what()) + " (not a journal database)");
-  }
-  if (app_id != detail::kApplicationId)
-    throw JournalError(path + ": not a Foresight journal (application_id " + std::to_string(app_id) + ")");
-  return c;
+  sqlite3_busy_timeout(o.conn.get(), kBusyMs);
+  return o;
 }
 
 std::vector<double> parse_array(const std::string& text) {
@@ -55,8 +74,22 @@ std::vector<double> parse_array(const std::string& text) {
   return v;
 }
 
+void read_rows(const Connection& c, const ReadOptions& o, JournalContents& out);
+
 void read_file_into(const std::string& path, const ReadOptions& o, JournalContents& out) {
-  const Connection c = open_for_reading(path);
+  const Opened opened = open_for_reading(path, out.warnings);
+  try {
+    read_rows(opened.conn, o, out);
+  } catch (const JournalError& e) {
+    if (opened.schema <= detail::kSchemaVersion) throw;
+    throw JournalError(path + ": journal schema version " + std::to_string(opened.schema) +
+                       " is newer than this reader's " + std::to_string(detail::kSchemaVersion) +
+                       " and not readable by it (" + e.what() + "); use a newer foresight-remote");
+  }
+  out.files.push_back(path);
+}
+
+void read_rows(const Connection& c, const ReadOptions& o, JournalContents& out) {
   {
     Statement s(c,
                 "SELECT stamp_ns, session_id, command_id, sequence_number, kind, state, code, reason, detail"
@@ -110,7 +143,6 @@ void read_file_into(const std::string& path, const ReadOptions& o, JournalConten
       out.telemetry_last = t;
     }
   }
-  out.files.push_back(path);
 }
 
 /// Digits only, e.g. "2026" -> 2026; false when empty, not digits, or too large.
@@ -181,6 +213,7 @@ json to_json(const JournalContents& c, const std::string& db, std::optional<std:
         {{"stamp_ns", r.stamp_ns}, {"kind", r.kind}, {"text", r.text}, {"detail", json_or_string(r.detail)}});
   j["telemetry_count"] = c.telemetry_count;
   j["telemetry_last"] = c.telemetry_last ? to_json(*c.telemetry_last) : json(nullptr);
+  j["warnings"] = c.warnings;
   return j;
 }
 
@@ -238,7 +271,16 @@ JournalContents read_journal(const std::string& path, const ReadOptions& options
     int n = 0;
     std::error_code ec;
     while (n < kMaxRotatedScan && fs::exists(path + "." + std::to_string(n + 1), ec)) ++n;
-    for (int i = n; i >= 1; --i) read_file_into(path + "." + std::to_string(i), options, c);
+    // A rotated file that is not a journal (rotation leaves such files alone:
+    // someone's notes at NAME.1) or is damaged is skipped with a warning: the
+    // others are still read. NAME itself must be readable.
+    for (int i = n; i >= 1; --i) {
+      try {
+        read_file_into(path + "." + std::to_string(i), options, c);
+      } catch (const JournalError& e) {
+        c.warnings.push_back(std::string(e.what()) + ": skipped");
+      }
+    }
   }
   read_file_into(path, options, c);
   return c;
@@ -327,6 +369,7 @@ int run_journal_command(const JournalQuery& q, std::ostream& out, std::ostream& 
     err << kCmd << e.what() << "\n";
     return 2;
   }
+  for (const std::string& w : c.warnings) err << kCmd << "warning: " << w << "\n";
   if (q.json) {
     out << json_text(to_json(c, q.db, since)) << "\n";
   } else {

@@ -4,10 +4,13 @@
 // with the file name and SQLite's message.
 
 #include <sqlite3.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <utility>
 
 #include "foresight/journal/journal.hpp"
@@ -47,17 +50,81 @@ CREATE TABLE IF NOT EXISTS telemetry(
 CREATE INDEX IF NOT EXISTS telemetry_stamp ON telemetry(stamp_ns);
 )sql";
 
+/// errno in words ("Permission denied").
+inline std::string errno_text(int e) { return std::error_code(e, std::generic_category()).message(); }
+
+/// The folder `path` is in: "." for a bare file name.
+inline std::string folder_of(const std::string& path) {
+  const auto slash = path.find_last_of('/');
+  if (slash == std::string::npos) return ".";
+  if (slash == 0) return "/";
+  return path.substr(0, slash);
+}
+
+/// Why a writer cannot write `path`, by access(2) (so also right for root,
+/// whom chmod does not stop, and for a read-only file system): "the file is
+/// not writable (Permission denied)" or "its folder D is not writable (...)";
+/// empty when both are writable. The folder must be writable because SQLite
+/// creates NAME-wal and NAME-shm beside NAME and rotation renames in it.
+inline std::string unwritable_reason(const std::string& path) {
+  if (::access(path.c_str(), F_OK) == 0 && ::access(path.c_str(), W_OK) != 0) {
+    const int e = errno;
+    return "the file is not writable (" + errno_text(e) + ")";
+  }
+  const std::string dir = folder_of(path);
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    const int e = errno;
+    return "its folder " + dir + " is not writable (" + errno_text(e) + ")";
+  }
+  return {};
+}
+
+/// What an SQLite failure on `path` means for the operator, or empty:
+/// SQLITE_NOTADB "not a journal database", SQLITE_BUSY / SQLITE_LOCKED
+/// "locked by another process", SQLITE_READONLY "read-only: <why>",
+/// SQLITE_CANTOPEN the folder or the permission that stopped it.
+inline std::string cause_of(const std::string& path, int rc) {
+  switch (rc & 0xff) {
+    case SQLITE_NOTADB:
+      return "not a journal database";
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+      return "locked by another process";
+    case SQLITE_READONLY: {
+      const std::string why = unwritable_reason(path);
+      return "read-only: " + (why.empty() ? std::string("SQLite could not write to the file or its folder") : why);
+    }
+    case SQLITE_CANTOPEN: {
+      const std::string dir = folder_of(path);
+      if (::access(dir.c_str(), F_OK) != 0) return "its folder " + dir + " does not exist";
+      const std::string why = unwritable_reason(path);
+      return why.empty() ? std::string() : "read-only: " + why;
+    }
+    default:
+      return {};
+  }
+}
+
+/// SQLite's message with cause_of() appended in parentheses when there is one.
+inline std::string with_cause(const std::string& path, std::string msg, int rc) {
+  const std::string cause = cause_of(path, rc);
+  return cause.empty() ? msg : msg + " (" + cause + ")";
+}
+
 class Connection {
  public:
   Connection() = default;
-  /// flags: SQLITE_OPEN_* (no SQLITE_OPEN_CREATE for readers).
-  Connection(const std::string& path, int flags) : path_(path) {
-    const int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr);
+  /// flags: SQLITE_OPEN_* (no SQLITE_OPEN_CREATE for readers). `uri`, when
+  /// given, is what SQLite opens (a file: URI, with SQLITE_OPEN_URI); `path`
+  /// names the file in messages.
+  Connection(const std::string& path, int flags, const std::string& uri = {}) : path_(path) {
+    const int rc = sqlite3_open_v2(uri.empty() ? path.c_str() : uri.c_str(), &db_, flags, nullptr);
     if (rc != SQLITE_OK) {
       const std::string msg = db_ != nullptr ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+      const int code = db_ != nullptr ? sqlite3_extended_errcode(db_) : rc;
       sqlite3_close(db_);
       db_ = nullptr;
-      throw JournalError(path + ": cannot open journal: " + msg);
+      throw JournalError(path + ": cannot open journal: " + with_cause(path, msg, code));
     }
     sqlite3_extended_result_codes(db_, 1);
   }
@@ -75,15 +142,19 @@ class Connection {
   sqlite3* get() const noexcept { return db_; }
   const std::string& path() const noexcept { return path_; }
 
+  /// The last failure's extended result code (SQLITE_BUSY, SQLITE_NOTADB ...).
+  int errcode() const noexcept { return sqlite3_extended_errcode(db_); }
+
   [[noreturn]] void fail(std::string_view what) const {
-    throw JournalError(path_ + ": " + std::string(what) + ": " + sqlite3_errmsg(db_));
+    throw JournalError(path_ + ": " + std::string(what) + ": " + with_cause(path_, sqlite3_errmsg(db_), errcode()));
   }
   void exec(const char* sql) const {
     char* err = nullptr;
-    if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+    const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err);
+    if (rc != SQLITE_OK) {
       const std::string msg = err != nullptr ? err : sqlite3_errmsg(db_);
       sqlite3_free(err);
-      throw JournalError(path_ + ": " + msg);
+      throw JournalError(path_ + ": " + with_cause(path_, msg, sqlite3_extended_errcode(db_)));
     }
   }
 
@@ -167,6 +238,39 @@ class Statement {
 inline std::int64_t query_int(const Connection& c, const char* sql) {
   Statement s(c, sql);
   return s.step() ? s.int64(0) : 0;
+}
+
+/// "file:" URI of `path` (percent-encoding all but [A-Za-z0-9/._~-]).
+inline std::string file_uri(const std::string& path) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string uri = "file:";
+  for (const char ch : path) {
+    const auto u = static_cast<unsigned char>(ch);
+    if ((u >= 'A' && u <= 'Z') || (u >= 'a' && u <= 'z') || (u >= '0' && u <= '9') || u == '/' || u == '.' ||
+        u == '_' || u == '~' || u == '-') {
+      uri += ch;
+    } else {
+      uri += '%';
+      uri += kHex[u >> 4];
+      uri += kHex[u & 15];
+    }
+  }
+  return uri;
+}
+
+/// Opens an existing `path` for reading without writing or creating anything
+/// beside it. Without a NAME-wal (or a rollback NAME-journal) no writer has it
+/// open and nothing committed is outside the main file: opened immutable (no
+/// -wal, no -shm, no locks). With one, read-only (SQLITE_OPEN_READONLY) so
+/// the WAL's rows are seen and locks respected; SQLite may then create a
+/// missing NAME-shm, its scratch index.
+inline Connection open_readonly(const std::string& path, int busy_ms) {
+  const bool wal = ::access((path + "-wal").c_str(), F_OK) == 0 || ::access((path + "-journal").c_str(), F_OK) == 0;
+  Connection c = wal ? Connection(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX)
+                     : Connection(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX | SQLITE_OPEN_URI,
+                                  file_uri(path) + "?immutable=1");
+  sqlite3_busy_timeout(c.get(), busy_ms);
+  return c;
 }
 
 }  // namespace foresight::journal::detail

@@ -323,7 +323,8 @@ TEST(Journal, MissingDirectoryNamed) {
     Journal j(o);
     FAIL() << "no throw";
   } catch (const JournalError& e) {
-    EXPECT_EQ(std::string(e.what()), o.path + ": cannot open journal: unable to open database file");
+    EXPECT_EQ(std::string(e.what()),
+              o.path + ": cannot create the journal: its folder " + dir.file("no/such/dir") + " does not exist");
   }
 }
 
@@ -519,8 +520,9 @@ TEST(Journal, OpensAnOversizedJournalIntoANewFile) {
   EXPECT_EQ(sqlite_int(o.path + ".1", "select count(*) from commands"), 50);
 }
 
-// A rotation that cannot rename (NAME.1 is a non-empty directory here) keeps
-// the journal writing into NAME, says why in stats().last_error, and retries.
+// A rotation that must not rename (NAME.1 is a non-empty directory here, not
+// a journal) keeps the journal writing into NAME, says why in
+// stats().last_error, and retries.
 TEST(Journal, FailedRotationKeepsJournaling) {
   ScratchDir dir;
   JournalOptions o = test_options(dir);
@@ -534,8 +536,10 @@ TEST(Journal, FailedRotationKeepsJournaling) {
     j.record_command(c);
   }
   EXPECT_EQ(j.stats().rotations, 0u);
-  EXPECT_NE(j.stats().last_error.find(o.path + ": cannot rotate to " + o.path + ".1: "), std::string::npos)
-      << j.stats().last_error;
+  EXPECT_EQ(j.stats().last_error, o.path + ": not rotating: " + o.path +
+                                      ".1 is not a Foresight journal (a directory); left untouched, journaling goes "
+                                      "on in " + o.path + " past max_bytes until it is moved aside");
+  EXPECT_TRUE(fs::exists(o.path + ".1/occupied"));
   EXPECT_EQ(sqlite_int(o.path, "select count(*) from commands"), 60);
   fs::remove_all(o.path + ".1");  // the obstacle gone: the next transaction rotates
   j.record_command(command(60));

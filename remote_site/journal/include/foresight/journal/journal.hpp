@@ -26,6 +26,15 @@
 // Reopening an existing journal (also after kill -9) runs SQLite's WAL
 // recovery and appends; previous_shutdown_clean() says whether the last
 // writer closed it (false after a crash).
+//
+// Refusals (docs/journal.md "What the journal refuses"): the writer checks an
+// existing file before it writes a byte and throws JournalError naming it when
+// it is not a regular file, not an SQLite database, not a Foresight journal,
+// of a newer schema (user_version), read-only (the file or its folder), or
+// locked by another process; the file is left exactly as it was. Rotation
+// never removes or renames a NAME.k that is not a journal: it skips, keeps
+// writing into NAME and says why in stats().last_error. probe_journal() runs
+// the same checks for `foresight-remote check` and writes nothing.
 
 #include <atomic>
 #include <chrono>
@@ -61,7 +70,31 @@ struct JournalOptions {
   /// Telemetry rows accepted per second of *stamp* time (decimation in
   /// push_telemetry); 0 keeps every pushed row.
   double telemetry_rate_hz = 50.0;
+  /// How long opening and each transaction wait for another connection's
+  /// lock (an engineer's sqlite3 shell) before failing with "locked by
+  /// another process" (SQLite's busy timeout; > 0).
+  std::chrono::milliseconds busy_timeout{5000};
 };
+
+/// What probe_journal found: a journal the writer can use.
+struct JournalProbe {
+  bool exists = false;     ///< false: the file does not exist yet (the writer will create it)
+  int schema_version = 0;  ///< PRAGMA user_version; 0 when absent or an empty database
+  std::string describe;    ///< one line, e.g. "F: journal schema 1, 12 command rows, 3 faults, clean shutdown"
+};
+
+/// The pre-flight check of `foresight-remote check`: would Journal accept
+/// `path`? Writes nothing and creates nothing: opens the file read-only
+/// (immutable when no writer has it open) and never opens a FIFO or device.
+/// Throws JournalError naming the file for everything the writer refuses:
+/// a folder that does not exist or is not writable (when the file is absent),
+/// not a regular file, not an SQLite database, not a Foresight journal
+/// (application_id), a newer schema, read-only (the file, its folder, its
+/// -wal or -shm; access(2)), or locked by another process for `lock_wait`
+/// (checked, when the journal is open elsewhere, by taking and at once
+/// releasing SQLite's write lock: no row, no page is written).
+JournalProbe probe_journal(const std::string& path,
+                           std::chrono::milliseconds lock_wait = std::chrono::milliseconds(1000));
 
 enum class PushResult : std::uint8_t {
   Accepted,   ///< queued for the writer thread
@@ -78,7 +111,9 @@ struct JournalStats {
   std::uint64_t telemetry_batches = 0;    ///< transactions committed
   std::uint64_t write_errors = 0;         ///< telemetry batches that failed (rows lost)
   std::uint64_t rotations = 0;
-  std::string last_error;                 ///< the writer thread's last failure, if any
+  /// The last failure, if any: a telemetry batch of the writer thread, or a
+  /// rotation skipped or failed (a file that is not a journal in the way).
+  std::string last_error;
 };
 
 class Journal {
@@ -137,9 +172,13 @@ class Journal {
   void write_batch(std::size_t n);
   void note_write_error(std::string what);  ///< writer thread, under db_mu_
   void require_open() const;
+  /// Empty when NAME.1 .. NAME.keep_files (and their -wal, -shm) are
+  /// journals or absent; else why rotation must not touch them.
+  std::string rotation_obstacle() const;
 
   JournalOptions options_;
   bool previous_clean_ = true;
+  std::string rotation_blocked_;  ///< the last obstacle warned about (warn once per obstacle)
 
   mutable std::mutex db_mu_;  ///< guards db_ and the counters below
   std::unique_ptr<Db> db_;

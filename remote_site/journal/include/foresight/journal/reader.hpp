@@ -31,12 +31,20 @@ struct JournalContents {
   std::vector<EventRow> events;
   std::uint64_t telemetry_count = 0;
   std::optional<TelemetryRow> telemetry_last;  ///< the newest telemetry row, if any
+  /// Read, but with a caveat: a file of a newer schema (read read-only, only
+  /// the columns this version knows), a rotated NAME.k skipped because it is
+  /// not a readable journal. Printed on err by the command.
+  std::vector<std::string> warnings;
 };
 
 /// Reads `path` (and its rotated predecessors). Throws JournalError naming the
-/// file when it does not exist, is not an SQLite database or not a journal.
+/// file when it does not exist, is not an SQLite database or not a journal
+/// (a rotated predecessor that is not is skipped, with a warning).
 /// Opens read-write without create, so SQLite can recover a crashed writer's
-/// WAL, as the sqlite3 shell does; falls back to read-only.
+/// WAL, as the sqlite3 shell does; falls back to read-only. A file of a newer
+/// schema is opened read-only (never written) and read with a warning, or,
+/// when its tables lack the columns this version reads, refused naming both
+/// versions.
 JournalContents read_journal(const std::string& path, const ReadOptions& options = {});
 
 /// `--since`: nanoseconds since the epoch ("1764600000000000000") or an
