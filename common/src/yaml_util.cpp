@@ -193,7 +193,16 @@ void MapReader::fail_key(const char* key, const std::string& problem) const {
 double MapReader::in_range(const char* key, double v, double lo, double hi, const char* unit) const {
   if (!(v >= lo && v <= hi)) {  // NaN fails both
     char b[160];
-    std::snprintf(b, sizeof b, "%g is outside [%g, %g]%s%s", v, lo, hi, unit[0] != '\0' ? " " : "", unit);
+    std::snprintf(b, sizeof b, "%.10g is outside [%.10g, %.10g]%s%s", v, lo, hi, unit[0] != '\0' ? " " : "", unit);
+    fail_key(key, b);
+  }
+  return v;
+}
+
+long long MapReader::int_in_range(const char* key, long long v, long long lo, long long hi, const char* unit) const {
+  if (v < lo || v > hi) {
+    char b[160];
+    std::snprintf(b, sizeof b, "%lld is outside [%lld, %lld]%s%s", v, lo, hi, unit[0] != '\0' ? " " : "", unit);
     fail_key(key, b);
   }
   return v;

@@ -157,4 +157,18 @@ TEST(YamlUtil, RangesRefuseNaNAndNameKeyRangeAndUnit) {
   EXPECT_EQ(error_of([&] { hb.get_in("absent", 1, 10, "s"); }), "F:2: hb: missing 'absent'");
 }
 
+// Counts, ids and codes: integers only, in one wording with their range.
+TEST(YamlUtil, IntegerRangesRefuseFractionsAndNameKeyAndRange) {
+  const YAML::Node root =
+      yaml::parse("d:\n  node_id: 128\n  half: 5.5\n  ok: 42\n  huge: 99999999999999999999\n  word: many\n", "F");
+  const yaml::MapReader d(root["d"], "F", "d");
+  EXPECT_EQ(error_of([&] { d.get_int_in("node_id", 1, 127, ""); }), "F:2: d.node_id: 128 is outside [1, 127]");
+  EXPECT_EQ(error_of([&] { d.get_int_in("half", 1, 10, "cycles"); }), "F:3: d.half: not an integer: '5.5'");
+  EXPECT_EQ(error_of([&] { d.get_or_int_in("huge", 1, 0, 10, ""); }), "F:5: d.huge: not an integer: '99999999999999999999'");
+  EXPECT_EQ(error_of([&] { d.get_or_int_in("word", 1, 0, 10, ""); }), "F:6: d.word: not an integer: 'many'");
+  EXPECT_EQ(d.get_int_in("ok", 1, 127, ""), 42);
+  EXPECT_EQ(d.get_or_int_in("absent", 7, 1, 10, "s"), 7);
+  EXPECT_EQ(error_of([&] { d.get_or_int_in("ok", 7, -6, 0, "(10^x s)"); }), "F:4: d.ok: 42 is outside [-6, 0] (10^x s)");
+}
+
 }  // namespace

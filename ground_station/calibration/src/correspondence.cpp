@@ -101,6 +101,13 @@ std::vector<Correspondence> parse_correspondences_csv(const std::string& text, c
         throw InputError(source, line_no,
                          "point on link '" + c.link + "' but no robot model here: arm-link rows are for calibrate; " +
                              "give x,y,z in the object frame");
+      // A base-form header names x,y,z columns: a link row under it is read
+      // against names it does not have (the link-form header may also carry
+      // x,y,z rows: points known in the base frame).
+      if (header_q < 0)
+        throw InputError(source, line_no,
+                         "a point on link '" + c.link + "' (link form) under the header 'n,cam,x,y,z,u,v': give the "
+                         "link-form header 'n,cam,link,lx,ly,lz,q1,...,qN,u,v'");
       if (!robot->has_link(c.link))
         throw InputError(source, line_no, "unknown link '" + c.link + "' (the robot's links: " + robot->link_list() + ")");
       const int dof = robot->dof();

@@ -78,6 +78,10 @@ TEST(PointsCsv, BadInputsNameFileAndLine) {
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1.5,side,1,2,3,4,5\n"),
             "pts.csv:2: field 'n' must be an integer point number that fits an int, got '1.5'");
   EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,,1,2,3,4,5\n"), "pts.csv:2: field 'cam' is empty");
+  // A link row under the base-form header (the header names x,y,z columns).
+  EXPECT_EQ(error_of("n,cam,x,y,z,u,v\n1,side,0.1,0.2,0.3,30,40\n2,side,l1,0,0,0,0,0,1,2\n", &arm),
+            "pts.csv:3: a point on link 'l1' (link form) under the header 'n,cam,x,y,z,u,v': give the link-form "
+            "header 'n,cam,link,lx,ly,lz,q1,...,qN,u,v'");
   EXPECT_EQ(error_of("n,cam,link,lx,ly,lz,q1,q2,u,v\n1,side,l9,0,0,0,0,0,1,2\n", &arm),
             "pts.csv:2: unknown link 'l9' (the robot's links: base, l1, l2)");
   EXPECT_EQ(error_of("n,cam,link,lx,ly,lz,q1,q2,u,v\n1,side,l1,0,0,0,0,1,2\n", &arm),

@@ -2,10 +2,6 @@
 #include "foresight/common/json_text.hpp"
 
 #include <nlohmann/json.hpp>
-#include <openssl/err.h>
-#include <openssl/pem.h>
-#include <openssl/x509.h>
-#include <openssl/x509_vfy.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -34,6 +30,8 @@
 
 #include "foresight/common/robot_model.hpp"
 #include "foresight/hw/remote_config.hpp"
+#include "foresight/hw/video_switch.hpp"
+#include "foresight/journal/journal.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/remote/daemon_config.hpp"
 #include "foresight/remote/site.hpp"
@@ -312,97 +310,35 @@ CheckItem check_clock() {
 
 CheckItem check_journal_dir(const std::string& journal_path) {
   const std::string name = "journal";
-  fs::path p(journal_path);
-  fs::path dir = p.parent_path();
-  if (dir.empty()) dir = fs::current_path();
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    return item(name, CheckResult::Fail, "the journal's folder " + dir.string() + " does not exist (" + journal_path + ")");
-  if (::access(dir.c_str(), W_OK) != 0)
-    return item(name, CheckResult::Fail, "the journal's folder " + dir.string() + " is not writable: " + errno_text(errno));
-  return item(name, CheckResult::Pass, fs::absolute(p, ec).string() + " (folder writable)");
+  // The writer's own checks, writing nothing: the folder, the file's type, an
+  // SQLite database, a Foresight journal, its schema, read-only, locked.
+  try {
+    return item(name, CheckResult::Pass, journal::probe_journal(journal_path).describe);
+  } catch (const std::exception& e) {
+    return item(name, CheckResult::Fail, e.what());
+  }
 }
 
 // ---- DDS security -------------------------------------------------------------------------
-
-namespace {
-
-struct X509Free {
-  void operator()(X509* x) const noexcept { X509_free(x); }
-};
-struct KeyFree {
-  void operator()(EVP_PKEY* k) const noexcept { EVP_PKEY_free(k); }
-};
-struct StoreFree {
-  void operator()(X509_STORE* s) const noexcept { X509_STORE_free(s); }
-};
-struct CtxFree {
-  void operator()(X509_STORE_CTX* c) const noexcept { X509_STORE_CTX_free(c); }
-};
-
-std::unique_ptr<X509, X509Free> read_cert(const fs::path& p) {
-  FILE* f = std::fopen(p.c_str(), "r");
-  if (f == nullptr) return nullptr;
-  X509* x = PEM_read_X509(f, nullptr, nullptr, nullptr);
-  std::fclose(f);
-  return std::unique_ptr<X509, X509Free>(x);
-}
-
-std::unique_ptr<EVP_PKEY, KeyFree> read_key(const fs::path& p) {
-  FILE* f = std::fopen(p.c_str(), "r");
-  if (f == nullptr) return nullptr;
-  EVP_PKEY* k = PEM_read_PrivateKey(f, nullptr, nullptr, nullptr);
-  std::fclose(f);
-  return std::unique_ptr<EVP_PKEY, KeyFree>(k);
-}
-
-}  // namespace
 
 CheckItem check_security(const std::string& dir, const std::string& identity) {
   const std::string name = "DDS security";
   if (dir.empty())
     return item(name, CheckResult::Skip, "not configured (no --security folder): the link runs unauthenticated");
+  protocol::SecurityFacts facts;
   try {
-    (void)protocol::security_qos(dir, identity);  // every file present, or the first missing one named
+    facts = protocol::verify_security_files(dir, identity);  // what the daemon's participant reads, read the same way
   } catch (const std::exception& e) {
     return item(name, CheckResult::Fail, e.what());
   }
-  const fs::path base(dir);
-  const fs::path cert_path = base / "identities" / identity / "cert.pem";
-  const auto ca = read_cert(base / "ca.pem");
-  if (!ca) return item(name, CheckResult::Fail, (base / "ca.pem").string() + " is not a PEM certificate");
-  const auto cert = read_cert(cert_path);
-  if (!cert) return item(name, CheckResult::Fail, cert_path.string() + " is not a PEM certificate");
-  const auto key = read_key(base / "identities" / identity / "key.pem");
-  if (!key)
-    return item(name, CheckResult::Fail, (base / "identities" / identity / "key.pem").string() + " is not a PEM private key");
-  if (X509_check_private_key(cert.get(), key.get()) != 1) {
-    ERR_clear_error();
-    return item(name, CheckResult::Fail, cert_path.string() + " does not match its key.pem");
-  }
-  std::unique_ptr<X509_STORE, StoreFree> store(X509_STORE_new());
-  std::unique_ptr<X509_STORE_CTX, CtxFree> ctx(X509_STORE_CTX_new());
-  if (!store || !ctx || X509_STORE_add_cert(store.get(), ca.get()) != 1 ||
-      X509_STORE_CTX_init(ctx.get(), store.get(), cert.get(), nullptr) != 1)
-    return item(name, CheckResult::Fail, "OpenSSL could not set up the verification");
-  if (X509_verify_cert(ctx.get()) != 1) {
-    const int err = X509_STORE_CTX_get_error(ctx.get());
-    ERR_clear_error();
-    return item(name, CheckResult::Fail,
-                cert_path.string() + " does not verify against " + (base / "ca.pem").string() + ": " +
-                    X509_verify_cert_error_string(err));
-  }
-  int days = 0, secs = 0;
-  ASN1_TIME_diff(&days, &secs, nullptr, X509_get0_notAfter(cert.get()));
   const std::string plugins = protocol::security_plugin_dir();
   if (!plugins.empty())
     for (const char* lib : {"libdds_security_auth.so", "libdds_security_ac.so", "libdds_security_crypto.so"})
       if (!fs::exists(fs::path(plugins) / lib))
         return item(name, CheckResult::Fail, "Cyclone's security plugin " + (fs::path(plugins) / lib).string() + " is missing");
-  const std::string facts = "identity '" + identity + "' in " + dir + ": certificate signed by the CA, matches its key, " +
-                            std::to_string(days) + " days left";
-  if (days < 30) return item(name, CheckResult::Warn, facts + " (renew it soon: scripts/make_dds_security.sh)");
-  return item(name, CheckResult::Pass, facts);
+  if (facts.days_left < 30)
+    return item(name, CheckResult::Warn, facts.describe() + " (renew it soon: scripts/make_dds_security.sh)");
+  return item(name, CheckResult::Pass, facts.describe());
 }
 
 // ---- the whole check ----------------------------------------------------------------------
@@ -416,15 +352,22 @@ CheckReport run_check(const CheckOptions& o) {
   std::optional<hw::LstToolConfig> tool_config;
   std::optional<DaemonConfig> daemon_config;
   try {
+    // Every loader the daemon runs on remote.yaml (build_site and run_daemon):
+    // what the daemon would refuse, check fails.
     hw_config = hw::load_remote_config(o.remote_yaml);
     tool_config = hw::load_lst_tool_config(o.remote_yaml);
+    const auto video = hw::load_video_switch_section(o.remote_yaml);
     daemon_config = load_daemon_config(o.remote_yaml);
     add(item("config", CheckResult::Pass,
              o.remote_yaml + ": " + std::to_string(hw_config->buses.size()) + " bus(es), " +
                  std::to_string(hw_config->drives.size()) + " drives at " +
                  std::to_string(static_cast<int>(hw_config->cycle_rate_hz)) + " Hz" +
                  (hw_config->ft.present ? ", F/T sensor on " + hw_config->ft.bus : std::string(", no F/T sensor")) +
-                 "; tool " + tool_config->describe()));
+                 "; tool " + tool_config->describe() + "; " +
+                 (video ? "video switch " + video->link.host + ":" + std::to_string(video->link.port) + " (" +
+                              std::to_string(video->camera_names.size()) + " cameras)"
+                        : std::string("no video switch")) +
+                 "; start-up " + hw::estimate_startup(*hw_config).describe()));
   } catch (const std::exception& e) {
     add(item("config", CheckResult::Fail, e.what()));
   }

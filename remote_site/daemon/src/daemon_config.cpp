@@ -65,8 +65,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
     c.journal.path = j.get_or<std::string>("path", c.journal.path);
     if (c.journal.path.empty()) j.fail_key("path", "must not be empty");
     c.journal.max_mb = j.get_or_in("max_mb", c.journal.max_mb, 1, 1e6, "MB");
-    c.journal.keep_files = j.get_or<int>("keep_files", c.journal.keep_files);
-    if (c.journal.keep_files < 1 || c.journal.keep_files > 100) j.fail_key("keep_files", "must be in 1..100");
+    c.journal.keep_files = static_cast<int>(j.get_or_int_in("keep_files", c.journal.keep_files, 1, 100, "files"));
     c.journal.telemetry_hz = j.get_or_in("telemetry_hz", c.journal.telemetry_hz, 0.1, 1000, "Hz");
   }
   return c;

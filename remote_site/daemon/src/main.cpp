@@ -41,7 +41,9 @@
 #include "foresight/journal/journal.hpp"
 #include "foresight/journal/reader.hpp"
 #include "foresight/remote/check.hpp"
+#include "foresight/protocol/error.hpp"
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/security.hpp"
 #include "foresight/remote/daemon_config.hpp"
 #include "foresight/remote/site.hpp"
 #include "foresight/remote/sim_faults.hpp"
@@ -160,6 +162,17 @@ int run_daemon(Options o) {
   if (o.domain < 0) o.domain = protocol::domain_from_environment().value_or(0);  // InputError: exit 2
   // ---- configuration (exit 2 on any error) -----------------------------------------
   remote::DaemonConfig config = remote::load_daemon_config(o.config);
+  // The DDS Security files read and checked before any hardware is touched: a
+  // damaged certificate, key or signed document is named here (Cyclone would
+  // say only "create participant: Error", after the drives were configured).
+  if (!o.security_dir.empty()) {
+    try {
+      const protocol::SecurityFacts facts = protocol::verify_security_files(o.security_dir, o.security_identity);
+      spdlog::info("DDS Security: {}", facts.describe());
+    } catch (const protocol::ProtocolError& e) {
+      throw InputError("--security", e.what());
+    }
+  }
   if (!o.journal.empty()) config.journal.path = o.journal;
   if (!o.estop_file.empty()) config.estop_file = o.estop_file;
   remote::SiteOptions site_options;

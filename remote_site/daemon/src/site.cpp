@@ -50,6 +50,10 @@ Site build_site(SiteOptions options) {
   site.options = options;
   site.hw_config = hw::load_remote_config(options.remote_yaml);
   site.tool_config = hw::load_lst_tool_config(options.remote_yaml);
+  // Read and checked in both modes (check runs the same loaders): --sim
+  // replaces its address with the simulated switch's, and its cameras with
+  // the scene's.
+  const std::optional<hw::VideoSwitchSection> video_section = hw::load_video_switch_section(options.remote_yaml);
   site.model = std::make_unique<RobotModel>(RobotModel::from_file(options.urdf));
   if (site.hw_config.drives.size() != static_cast<std::size_t>(site.model->dof()))
     throw InputError(options.remote_yaml, std::to_string(site.hw_config.drives.size()) + " drives configured, the robot " +
@@ -112,9 +116,9 @@ Site build_site(SiteOptions options) {
     }
     // The cabinet's video switch, when remote.yaml has one (CAMERA is
     // refused "no video switch configured" otherwise).
-    if (auto video = hw::load_video_switch_section(options.remote_yaml)) {
-      site.video_config = video->link;
-      site.camera_names = video->camera_names;
+    if (video_section) {
+      site.video_config = video_section->link;
+      site.camera_names = video_section->camera_names;
     }
   }
   site.drives = std::make_unique<hw::DriveSystem>(site.hw_config, std::move(master),

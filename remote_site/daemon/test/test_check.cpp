@@ -216,6 +216,33 @@ TEST(CheckConfig, BadKeyNamesFileAndLine) {
       << i.why;
 }
 
+// check runs every loader the daemon runs: the video switch section (not
+// parsed by check before) and the start-up estimate; the daemon refuses the
+// same file with the same words, also under --sim.
+TEST(CheckConfig, TheVideoSwitchSectionIsCheckedAsTheDaemonChecksIt) {
+  ConfigDir cfg;
+  cfg.replace("  port: 1503\n", "  port: 70000\n");
+  CheckOptions o;
+  o.remote_yaml = cfg.yaml();
+  o.sim = true;
+  const CheckReport r = foresight::remote::run_check(o);
+  EXPECT_FALSE(r.fit());
+  const CheckItem& i = must_find(r, "config");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find(cfg.yaml() + ":"), std::string::npos) << i.why;
+  EXPECT_NE(i.why.find("video_switch.port"), std::string::npos) << i.why;
+  const ShellRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + (cfg.dir / "j.db").string() +
+                                    " --config " + cfg.yaml() + " 2>&1");
+  EXPECT_EQ(daemon.status, 2) << daemon.out;
+  EXPECT_NE(daemon.out.find(i.why), std::string::npos) << daemon.out << "\n" << i.why;
+
+  ConfigDir good;
+  o.remote_yaml = good.yaml();
+  const CheckItem& ok = must_find(foresight::remote::run_check(o), "config");
+  EXPECT_EQ(ok.result, CheckResult::Pass) << ok.why;
+  EXPECT_NE(ok.why.find("video switch 127.0.0.1:1503 (4 cameras); start-up up to "), std::string::npos) << ok.why;
+}
+
 TEST(CheckConfig, DriveJointMismatch) {
   ConfigDir cfg;
   cfg.replace("joint: joint2, bus: arm_a", "joint: joint9, bus: arm_a");
@@ -228,11 +255,33 @@ TEST(CheckConfig, DriveJointMismatch) {
   EXPECT_NE(i.why.find("drive 2 is for joint 'joint9', the robot's joint 2 is 'joint2'"), std::string::npos) << i.why;
 }
 
+// The journal item runs the writer's own checks (journal::probe_journal),
+// writing nothing: a folder that is not there, a file that is not a journal, a
+// newer schema fail as the daemon would fail on them.
 TEST(CheckConfig, JournalFolderMustExist) {
-  const CheckItem i = foresight::remote::check_journal_dir("/nonexistent_foresight_dir/j.db");
+  using foresight::remote::check_journal_dir;
+  CheckItem i = check_journal_dir("/nonexistent_foresight_dir/j.db");
   EXPECT_EQ(i.result, CheckResult::Fail);
-  EXPECT_EQ(i.why, "the journal's folder /nonexistent_foresight_dir does not exist (/nonexistent_foresight_dir/j.db)");
-  EXPECT_EQ(foresight::remote::check_journal_dir("/tmp/j.db").result, CheckResult::Pass);
+  EXPECT_EQ(i.why, "/nonexistent_foresight_dir/j.db: cannot create the journal: its folder /nonexistent_foresight_dir "
+                   "does not exist");
+  const std::string dir = foresight::test::temp_path("_jcheck");
+  fs::create_directories(dir);
+  i = check_journal_dir(dir + "/j.db");
+  EXPECT_EQ(i.result, CheckResult::Pass) << i.why;
+  EXPECT_EQ(i.why, dir + "/j.db: does not exist yet: will be created");
+  EXPECT_FALSE(fs::exists(dir + "/j.db"));
+
+  { std::ofstream(dir + "/notes.db") << "not a database, but somebody's notes\n"; }
+  i = check_journal_dir(dir + "/notes.db");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("not a journal database"), std::string::npos) << i.why;
+  EXPECT_EQ(slurp(dir + "/notes.db"), "not a database, but somebody's notes\n");
+
+  i = check_journal_dir(dir);
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("not a regular file (a directory)"), std::string::npos) << i.why;
+  std::error_code ec;
+  fs::remove_all(dir, ec);
 }
 
 // ---- tool -----------------------------------------------------------------------------------
@@ -345,6 +394,61 @@ TEST(CheckSecurity, SkippedMissingValidForeign) {
   i = check_security(dir, "remote");
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_NE(i.why.find("does not match its key.pem"), std::string::npos) << i.why;
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+// The signed documents are checked as Cyclone's access control will check
+// them (issue 26: check passed a damaged governance), and the daemon names the
+// damaged file before it touches the drives instead of "create participant: Error".
+TEST(CheckSecurity, SignedDocumentsAndDamagedFilesAreNamedByCheckAndTheDaemon) {
+  using foresight::remote::check_security;
+  if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
+  const std::string dir = foresight::test::temp_path("_secdocs");
+  const ShellRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
+  ASSERT_EQ(made.status, 0) << made.out;
+  ASSERT_EQ(check_security(dir, "remote").result, CheckResult::Pass);
+  EXPECT_NE(check_security(dir, "remote").why.find("governance and permissions signed by the CA"), std::string::npos);
+  const std::string governance = slurp(dir + "/governance.p7s");
+
+  // Another CA's governance: well-formed, signed, but not by ours.
+  fs::copy_file(dir + "/foreign/governance.p7s", dir + "/governance.p7s", fs::copy_options::overwrite_existing);
+  CheckItem i = check_security(dir, "remote");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("DDS Security: " + dir + "/governance.p7s: the governance document's signature does not verify "
+                       "against the CA"), std::string::npos) << i.why;
+
+  // A signed document whose content was edited after signing.
+  std::string edited = governance;
+  const auto at = edited.find("<allow_unauthenticated_participants>false");
+  ASSERT_NE(at, std::string::npos);
+  edited.replace(at, 41, "<allow_unauthenticated_participants>true ");
+  { std::ofstream(dir + "/governance.p7s", std::ios::trunc) << edited; }
+  i = check_security(dir, "remote");
+  EXPECT_EQ(i.result, CheckResult::Fail);
+  EXPECT_NE(i.why.find("governance.p7s: the governance document's signature does not verify"), std::string::npos) << i.why;
+
+  // Not S/MIME at all; a truncated certificate.
+  { std::ofstream(dir + "/governance.p7s", std::ios::trunc) << governance; }
+  { std::ofstream(dir + "/permissions.p7s", std::ios::trunc) << "<dds>unsigned</dds>\n"; }
+  i = check_security(dir, "remote");
+  EXPECT_NE(i.why.find("DDS Security: " + dir + "/permissions.p7s: is not an S/MIME signed permissions document"),
+            std::string::npos) << i.why;
+  fs::copy_file(dir + "/foreign/permissions.p7s", dir + "/permissions.p7s", fs::copy_options::overwrite_existing);
+  const std::string cert = slurp(dir + "/identities/remote/cert.pem");
+  { std::ofstream(dir + "/identities/remote/cert.pem", std::ios::trunc) << cert.substr(0, cert.size() / 2); }
+  i = check_security(dir, "remote");
+  EXPECT_NE(i.why.find("DDS Security: " + dir + "/identities/remote/cert.pem: is not a PEM certificate"),
+            std::string::npos) << i.why;
+
+  // The daemon: exit 2 at start-up naming the file; nothing was configured.
+  const ShellRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + dir +
+                                    "/j.db --security " + dir + " 2>&1");
+  EXPECT_EQ(daemon.status, 2) << daemon.out;
+  EXPECT_NE(daemon.out.find("foresight-remote: error: --security: DDS Security: " + dir +
+                            "/identities/remote/cert.pem: is not a PEM certificate"), std::string::npos) << daemon.out;
+  EXPECT_EQ(daemon.out.find("configuring"), std::string::npos) << daemon.out;
+  EXPECT_FALSE(fs::exists(dir + "/j.db"));
   std::error_code ec;
   fs::remove_all(dir, ec);
 }

@@ -88,13 +88,13 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  link: {loss_timeout_s: .nan}\n"),
             "r.yaml:2: controller.link.loss_timeout_s: nan is outside [0.05, 3600] s");
   EXPECT_EQ(error_of("controller:\n  journal: {max_mb: 1e300}\n"),
-            "r.yaml:2: controller.journal.max_mb: 1e+300 is outside [1, 1e+06] MB");
+            "r.yaml:2: controller.journal.max_mb: 1e+300 is outside [1, 1000000] MB");
   EXPECT_EQ(error_of("controller:\n  tool_poll_hz: 1e9\n"),
-            "r.yaml:2: controller.tool_poll_hz: 1e+09 is outside [0.1, 1000] Hz");
+            "r.yaml:2: controller.tool_poll_hz: 1000000000 is outside [0.1, 1000] Hz");
   EXPECT_EQ(error_of("controller:\n  reports:\n    wrench_hz: fast\n"),
             "r.yaml:3: controller.reports.wrench_hz: not a number: 'fast'");
   EXPECT_EQ(error_of("controller:\n  journal: {keep_files: 0}\n"),
-            "r.yaml:2: controller.journal.keep_files: must be in 1..100");
+            "r.yaml:2: controller.journal.keep_files: 0 is outside [1, 100] files");
   EXPECT_EQ(error_of("controller: 5\n"), "r.yaml:1: controller: expected a map");
   EXPECT_EQ(error_of("controller:\n  journal: {keep_files: many}\n"),
             "r.yaml:2: controller.journal.keep_files: not an integer: 'many'");

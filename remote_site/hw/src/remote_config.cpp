@@ -56,38 +56,31 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
 
   RemoteConfig c;
   c.source = source_name;
-  c.cycle_rate_hz = top.get<double>("cycle_rate_hz");
+  // Every number with a physical meaning in its range, with its unit, in the
+  // one wording of the YAML reader (get_in / get_int_in): the file, line and key.
+  c.cycle_rate_hz = top.get_in("cycle_rate_hz", 40, 4000, "Hz");
   {
     const yaml::MapReader hb = top.map("heartbeat", "producer_ms, consumer_ms");
     hb.check_keys({"producer_ms", "consumer_ms", "master_node_id"});
     // CiA 301: producer 0x1017 and consumer 0x1016 times are 16-bit milliseconds.
     c.heartbeat_producer_s = hb.get_in("producer_ms", 1, 65000, "ms") * 1e-3;
     c.heartbeat_consumer_s = hb.get_in("consumer_ms", 1, 65535, "ms (0x1016 holds 16 bits)") * 1e-3;
-    const int master = hb.get_or<int>("master_node_id", 127);
-    if (master < 1 || master > canopen::kMaxNodeId)
-      hb.fail(hb["master_node_id"], "heartbeat: master_node_id " + std::to_string(master) + " is outside 1..127");
-    c.master_node_id = static_cast<std::uint8_t>(master);
+    c.master_node_id =
+        static_cast<std::uint8_t>(hb.get_or_int_in("master_node_id", 127, 1, canopen::kMaxNodeId, "(CANopen node id)"));
   }
   c.sdo_timeout_s = top.get_or_in("sdo_timeout_ms", 500.0, 1, 10000, "ms") * 1e-3;
   c.enable_timeout_s = top.get_or_in("enable_timeout_ms", 2000.0, 1, 60000, "ms") * 1e-3;
-  c.tpdo_miss_limit = top.get_or<int>("tpdo_miss_limit", 5);
+  c.tpdo_miss_limit = static_cast<int>(top.get_or_int_in("tpdo_miss_limit", 5, 1, 1000, "cycles"));
   c.max_bus_load = top.get_or_in("max_bus_load", 0.70, 0.01, 1.0, "(fraction of the bit rate)");
-  c.interpolation_exponent = top.get_or<int>("interpolation_exponent", -4);
-  if (c.interpolation_exponent < -6 || c.interpolation_exponent > 0)
-    top.fail(top["interpolation_exponent"], "top level: interpolation_exponent " +
-                                                std::to_string(c.interpolation_exponent) + " is outside -6..0");
-  c.sync_counter_overflow = top.get_or<int>("sync_counter_overflow", 0);
-  if (c.sync_counter_overflow != 0 && (c.sync_counter_overflow < 2 || c.sync_counter_overflow > 240))
-    top.fail(top["sync_counter_overflow"], "top level: sync_counter_overflow " + std::to_string(c.sync_counter_overflow) +
-                                               " is outside 2..240 (CiA 301 0x1019), or 0 for no counter");
-  c.bus_off_restart_limit = top.get_or<int>("bus_off_restart_limit", 3);
-  if (c.bus_off_restart_limit < 0 || c.bus_off_restart_limit > 100)
-    top.fail(top["bus_off_restart_limit"], "top level: bus_off_restart_limit " + std::to_string(c.bus_off_restart_limit) +
-                                               " is outside 0..100");
-  c.velocity_tpdo_every = top.get_or<int>("velocity_tpdo_every", 5);
-  if (c.velocity_tpdo_every < 0 || c.velocity_tpdo_every > 240)
-    top.fail(top["velocity_tpdo_every"], "top level: velocity_tpdo_every " + std::to_string(c.velocity_tpdo_every) +
-                                             " is outside 1..240 (SYNCs per TPDO2, CiA 301 0x1801:02), or 0 for no velocity");
+  c.interpolation_exponent =
+      static_cast<int>(top.get_or_int_in("interpolation_exponent", -4, -6, 0, "(0x60C2:02, 10^x s)"));
+  c.sync_counter_overflow = static_cast<int>(
+      top.get_or_int_in("sync_counter_overflow", 0, 0, 240, "(CiA 301 0x1019: 2..240, or 0 for no counter)"));
+  if (c.sync_counter_overflow == 1)
+    top.fail_key("sync_counter_overflow", "1 is not a counter overflow (CiA 301 0x1019: 2..240, or 0 for no counter)");
+  c.bus_off_restart_limit = static_cast<int>(top.get_or_int_in("bus_off_restart_limit", 3, 0, 100, "restarts"));
+  c.velocity_tpdo_every = static_cast<int>(top.get_or_int_in(
+      "velocity_tpdo_every", 5, 0, 240, "SYNCs per TPDO2 (CiA 301 0x1801:02), or 0 for no velocity"));
   std::string base_dir;
   if (const auto slash = source_name.rfind('/'); slash != std::string::npos) base_dir = source_name.substr(0, slash + 1);
 
@@ -100,7 +93,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     BusConfig bc;
     bc.name = b.get<std::string>("name");
     bc.interface = b.get<std::string>("interface", "SocketCAN name like can0, or mock");
-    bc.bitrate_bps = b.get<std::uint32_t>("bitrate", "bit/s");
+    bc.bitrate_bps = static_cast<std::uint32_t>(b.get_int_in("bitrate", 10000, 1000000, "bit/s"));  // CiA 301's set: validate
     bc.line = b.line();
     c.buses.push_back(bc);
   }
@@ -116,15 +109,15 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
                   "following_error_limit_rad", "following_error_timeout_ms", "sdo_file", "homing"});
     if (dc.joint.empty()) d.fail(d.node(), d.label() + ": missing 'joint' (URDF joint name)");
     dc.bus = d.get<std::string>("bus");
-    const int node = d.get<int>("node_id");
-    if (node < 1 || node > canopen::kMaxNodeId)
-      d.fail(d["node_id"], d.label() + ": node_id " + std::to_string(node) + " is outside 1..127");
-    dc.node_id = static_cast<std::uint8_t>(node);
-    dc.counts_per_rev = d.get<double>("counts_per_rev", "scaling: encoder counts per motor revolution");
-    dc.gear_ratio = d.get<double>("gear_ratio", "scaling: motor revolutions per joint revolution");
-    dc.direction = d.get_or<int>("direction", 1);
-    dc.offset_rad = d.get_or<double>("offset_rad", 0.0);
-    dc.following_error_limit_rad = d.get<double>("following_error_limit_rad");
+    dc.node_id = static_cast<std::uint8_t>(d.get_int_in("node_id", 1, canopen::kMaxNodeId, "(CANopen node id)"));
+    dc.counts_per_rev = d.get_in("counts_per_rev", 1, 2147483648.0, "counts per motor revolution",
+                                 "scaling: encoder counts per motor revolution");
+    dc.gear_ratio = d.get_in("gear_ratio", 0.001, 100000, "motor revolutions per joint revolution",
+                             "scaling: motor revolutions per joint revolution");
+    dc.direction = static_cast<int>(d.get_or_int_in("direction", 1, -1, 1, "(1 or -1)"));
+    dc.offset_rad = d.get_or_in("offset_rad", 0.0, -2.0 * std::numbers::pi, 2.0 * std::numbers::pi, "rad");
+    // 0x6065, in counts: a window as wide as half a radian is no window.
+    dc.following_error_limit_rad = d.get_in("following_error_limit_rad", 1e-5, 0.5, "rad (0x6065)");
     dc.following_error_timeout_s = d.get_or_in("following_error_timeout_ms", 0.0, 0, 65535, "ms (0x6066, 16 bits)") * 1e-3;
     if (d["sdo_file"]) {
       const std::string f = d.get<std::string>("sdo_file");
@@ -157,12 +150,11 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
     f.check_keys({"bus", "node_id", "force_counts_per_n", "torque_counts_per_nm"});
     c.ft.present = true;
     c.ft.bus = f.get<std::string>("bus");
-    const int node = f.get<int>("node_id");
-    if (node < 1 || node > canopen::kMaxNodeId)
-      f.fail(f["node_id"], "ft_sensor: node_id " + std::to_string(node) + " is outside 1..127");
-    c.ft.node_id = static_cast<std::uint8_t>(node);
-    c.ft.force_counts_per_n = f.get<double>("force_counts_per_n", "scaling: int16 counts per N");
-    c.ft.torque_counts_per_nm = f.get<double>("torque_counts_per_nm", "scaling: int16 counts per N*m");
+    c.ft.node_id = static_cast<std::uint8_t>(f.get_int_in("node_id", 1, canopen::kMaxNodeId, "(CANopen node id)"));
+    // int16 counts: below 1 count per 100 N the sensor reads nothing, above 10^5 it saturates at 0.3 N.
+    c.ft.force_counts_per_n = f.get_in("force_counts_per_n", 0.01, 100000, "int16 counts per N", "scaling: int16 counts per N");
+    c.ft.torque_counts_per_nm =
+        f.get_in("torque_counts_per_nm", 0.01, 100000, "int16 counts per N*m", "scaling: int16 counts per N*m");
     c.ft.line = f.line();
   }
 
@@ -281,6 +273,15 @@ void validate(RemoteConfig& c) {
                          "' is already used by " + drive_name(j, c.drives[j].joint));
   }
 
+  // A start-up systemd would kill half-way (TimeoutStartSec) is refused here,
+  // with what it is made of.
+  if (const StartupEstimate st = estimate_startup(c); !(st.total_s() <= kStartupBudget_s)) {
+    std::snprintf(buf, sizeof buf, "%.0f", kStartupBudget_s);
+    fail(0, "start-up: the drives' bring-up could take " + st.describe() + ", over the " + buf +
+                " s the daemon has to start within the systemd unit's TimeoutStartSec (60 s): shorten "
+                "heartbeat.consumer_ms, enable_timeout_ms or the SDO files");
+  }
+
   for (const BusLoad& l : compute_bus_loads(c)) {
     if (l.load > c.max_bus_load) {
       std::snprintf(buf, sizeof buf, " exceeds the %.0f%% limit: lower cycle_rate_hz or split the drives over more buses",
@@ -288,6 +289,25 @@ void validate(RemoteConfig& c) {
       fail(c.buses[static_cast<std::size_t>(c.bus_index(l.bus))].line, l.describe() + buf);
     }
   }
+}
+
+StartupEstimate estimate_startup(const RemoteConfig& c) {
+  StartupEstimate e;
+  e.boot_s = c.enable_timeout_s;
+  for (const DriveConfig& d : c.drives)
+    e.sdo_transfers += kMasterSdoTransfersPerDrive + 2 * static_cast<int>(d.sdo_entries.size());
+  if (c.ft.present) e.sdo_transfers += 4;
+  e.sdo_s = e.sdo_transfers * kSdoTransferDesign_s;
+  e.heartbeat_s = c.heartbeat_consumer_s;
+  return e;
+}
+
+std::string StartupEstimate::describe() const {
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "up to %.1f s (boot-up wait %.3g s, %d SDO transfers %.3g s, the first operational heartbeat %.3g s)",
+                total_s(), boot_s, sdo_transfers, sdo_s, heartbeat_s);
+  return buf;
 }
 
 int worst_case_frame_bits(int n) noexcept {

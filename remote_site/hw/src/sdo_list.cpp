@@ -133,6 +133,10 @@ std::vector<SdoEntry> parse_sdo_list(const std::string& text, const std::string&
       throw InputError(source, n, "object " + object + " (" + owned +
                                       ") is written by the master itself at every boot; remove it from the file");
     check_stop_object(e, v, source, n);
+    if (out.size() >= kMaxSdoEntries)
+      throw InputError(source, n, "more than " + std::to_string(kMaxSdoEntries) +
+                                      " entries (a drive's configurable objects are dozens; each costs two SDO "
+                                      "transfers at every start-up)");
     out.push_back(e);
   }
   return out;

@@ -58,16 +58,11 @@ std::optional<VideoSwitchSection> parse_video_switch_section(const std::string& 
   s.line = n.line();
   s.link.host = n.get<std::string>("host", "the switch's address");
   if (s.link.host.empty()) n.fail_key("host", "empty (the switch's address)");
-  s.link.port = n.get_or<int>("port", s.link.port);
-  if (s.link.port < 1 || s.link.port > 65535) n.fail_key("port", std::to_string(s.link.port) + " is outside 1..65535");
-  s.link.unit_id = n.get_or<int>("unit_id", s.link.unit_id);
-  if (s.link.unit_id < 0 || s.link.unit_id > 255)
-    n.fail_key("unit_id", std::to_string(s.link.unit_id) + " is outside 0..255");
-  const double timeout_ms = n.get_or<double>("response_timeout_ms", s.link.response_timeout_s * 1e3);
-  if (!(timeout_ms > 0.0 && timeout_ms <= 10000.0)) n.fail_key("response_timeout_ms", "must be in (0, 10000]");
-  s.link.response_timeout_s = timeout_ms * 1e-3;
-  s.link.retries = n.get_or<int>("retries", s.link.retries);
-  if (s.link.retries < 0 || s.link.retries > 10) n.fail_key("retries", std::to_string(s.link.retries) + " is outside 0..10");
+  s.link.port = static_cast<int>(n.get_or_int_in("port", s.link.port, 1, 65535, "(TCP port)"));
+  s.link.unit_id = static_cast<int>(n.get_or_int_in("unit_id", s.link.unit_id, 0, 255, "(Modbus unit id)"));
+  s.link.response_timeout_s =
+      n.get_or_in("response_timeout_ms", s.link.response_timeout_s * 1e3, 1, 10000, "ms") * 1e-3;
+  s.link.retries = static_cast<int>(n.get_or_int_in("retries", s.link.retries, 0, 10, "retries"));
   const YAML::Node cams = n["cameras"];
   if (!cams || !cams.IsSequence() || cams.size() == 0)
     n.fail_key("cameras", "must be a non-empty list of camera names (index = switch input)");

@@ -114,7 +114,7 @@ TEST(RemoteConfig, MissingScalingIsNamed) {
   EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", gear_ratio: 100, following_error_limit_rad: 0.02"))),
             "remote.yaml:7: drives[0] (joint1): missing 'counts_per_rev' (scaling: encoder counts per motor revolution)");
   EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 0, gear_ratio: 100, following_error_limit_rad: 0.02"))),
-            "remote.yaml:7: drives[0] (joint1): counts_per_rev must be > 0 (missing or bad scaling)");
+            "remote.yaml:7: drives[0] (joint1).counts_per_rev: 0 is outside [1, 2147483648] counts per motor revolution");
   const std::string ft = error_of(base_yaml(drive("joint1", "a", 1), "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n",
                                             "cycle_rate_hz: 500\n", "ft_sensor: {bus: b, node_id: 32, force_counts_per_n: 100}\n"));
   EXPECT_NE(ft.find("ft_sensor: missing 'torque_counts_per_nm' (scaling: int16 counts per N*m)"), std::string::npos) << ft;
@@ -148,17 +148,56 @@ TEST(RemoteConfig, ValuesTheHardwareCannotHoldNaNAndDuplicatesAreRefused) {
   EXPECT_EQ(error_of(base_yaml(drives) + "---\ncycle_rate_hz: 1000\n"),
             "remote.yaml:9: a second YAML document (one document per file)");
   EXPECT_EQ(error_of(base_yaml(drives)), "no error");
+  // The rest of the keys on the same range reader: counts, codes and ids are
+  // integers in their range; every scaling has one.
+  const std::string two_buses = "  - {name: a, interface: mock, bitrate: 1000000}\n  - {name: b, interface: mock, bitrate: 1000000}\n";
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: .nan\n")),
+            "remote.yaml:1: cycle_rate_hz: nan is outside [40, 4000] Hz");
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\ntpdo_miss_limit: 0\n")),
+            "remote.yaml:2: tpdo_miss_limit: 0 is outside [1, 1000] cycles");
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\ninterpolation_exponent: -4.5\n")),
+            "remote.yaml:2: interpolation_exponent: not an integer: '-4.5'");
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nsync_counter_overflow: 1\n")),
+            "remote.yaml:2: sync_counter_overflow: 1 is not a counter overflow (CiA 301 0x1019: 2..240, or 0 for no counter)");
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nbus_off_restart_limit: 1e9\n")),
+            "remote.yaml:2: bus_off_restart_limit: not an integer: '1e9'");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 2"))),
+            "remote.yaml:7: drives[0] (joint1).following_error_limit_rad: 2 is outside [1e-05, 0.5] rad (0x6065)");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 1e300, following_error_limit_rad: 0.02"))),
+            "remote.yaml:7: drives[0] (joint1).gear_ratio: 1e+300 is outside [0.001, 100000] motor revolutions per joint revolution");
+  EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, offset_rad: .inf, following_error_limit_rad: 0.02"))),
+            "remote.yaml:7: drives[0] (joint1).offset_rad: inf is outside [-6.283185307, 6.283185307] rad");
+  EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: mock, bitrate: 1e12}\n  - {name: b, interface: mock, bitrate: 1000000}\n")),
+            "remote.yaml:4: buses[0].bitrate: not an integer: '1e12'");
   EXPECT_EQ(error_of(base_yaml(drives, "  - {name: a, interface: can0, bitrate: 1000000}\n  - {name: b, interface: can0, bitrate: 1000000}\n")),
             "remote.yaml:5: buses[1] (b): interface 'can0' is already bus 'a'");
 }
 
+// Heartbeat and boot-up times that make the bring-up outlast the systemd
+// unit's start timeout: refused with what the start-up is made of.
+TEST(RemoteConfig, AStartUpLongerThanTheUnitAllowsIsRefused) {
+  const std::string drives = drive("joint1", "a", 1) + drive("joint2", "a", 2);
+  std::string y = base_yaml(drives);
+  y.replace(y.find("heartbeat: {producer_ms: 50, consumer_ms: 150}"), 46,
+            "heartbeat: {producer_ms: 15000, consumer_ms: 60000}");
+  EXPECT_EQ(error_of(y), "remote.yaml: start-up: the drives' bring-up could take up to 62.7 s (boot-up wait 2 s, 132 "
+                         "SDO transfers 0.66 s, the first operational heartbeat 60 s), over the 45 s the daemon has "
+                         "to start within the systemd unit's TimeoutStartSec (60 s): shorten heartbeat.consumer_ms, "
+                         "enable_timeout_ms or the SDO files");
+  // The shipped configuration starts well within it.
+  const RemoteConfig shipped = load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  EXPECT_LT(estimate_startup(shipped).total_s(), 10.0) << estimate_startup(shipped).describe();
+}
+
 TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_NE(error_of(base_yaml(drive("joint1", "c", 1))).find("drives[0] (joint1): bus 'c' is not defined in buses"), std::string::npos);
-  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 128))).find("node_id 128 is outside 1..127"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 128))).find("remote.yaml:7: drives[0] (joint1).node_id: 128 is outside [1, 127] (CANopen node id)"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 127))).find("drives[0] (joint1): node_id 127 is the master's heartbeat id"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1) + drive("joint1", "a", 2))).find("joint 'joint1' has two drives"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, direction: 2, following_error_limit_rad: 0.02")))
-                .find("direction must be 1 or -1, not 2"), std::string::npos);
+                .find("drives[0] (joint1).direction: 2 is outside [-1, 1] (1 or -1)"), std::string::npos);
+  EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, direction: 0, following_error_limit_rad: 0.02")))
+                .find("drives[0] (joint1): direction must be 1 or -1, not 0"), std::string::npos);
   EXPECT_NE(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 0.02, gain: 3")))
                 .find("remote.yaml:7: drives[0] (joint1).gain: unknown key (expected one of: joint, bus, node_id, "
                       "counts_per_rev, gear_ratio, direction, offset_rad, following_error_limit_rad, "
@@ -249,7 +288,7 @@ TEST(VideoSwitchSection, AbsentIsNoneAndBadValuesAreNamed) {
   EXPECT_FALSE(foresight::hw::parse_video_switch_section("cycle_rate_hz: 500\n", "remote.yaml").has_value());
   const std::string head = "cycle_rate_hz: 500\nvideo_switch:\n";
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  port: 70000\n  cameras: [a]\n"),
-            "remote.yaml:4: video_switch.port: 70000 is outside 1..65535");
+            "remote.yaml:4: video_switch.port: 70000 is outside [1, 65535] (TCP port)");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: []\n"),
             "remote.yaml:4: video_switch.cameras: must be a non-empty list of camera names (index = switch input)");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: [a, b, a]\n"),
@@ -263,8 +302,8 @@ TEST(VideoSwitchSection, AbsentIsNoneAndBadValuesAreNamed) {
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  cameras: [a, [b]]\n"),
             "remote.yaml:4: video_switch.cameras: a name must be a non-empty string");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  retries: 11\n  cameras: [a]\n"),
-            "remote.yaml:4: video_switch.retries: 11 is outside 0..10");
+            "remote.yaml:4: video_switch.retries: 11 is outside [0, 10] retries");
   EXPECT_EQ(video_error(head + "  host: 10.0.0.2\n  response_timeout_ms: 0\n  cameras: [a]\n"),
-            "remote.yaml:4: video_switch.response_timeout_ms: must be in (0, 10000]");
+            "remote.yaml:4: video_switch.response_timeout_ms: 0 is outside [1, 10000] ms");
   EXPECT_EQ(video_error("video_switch: 5\n"), "remote.yaml:1: video_switch: expected a map");
 }

@@ -167,12 +167,26 @@ class MapReader {
     return map_[key] ? in_range(key, as<double>(map_[key], key), lo, hi, unit) : fallback;
   }
 
+  /// The integer map[key] (required) within [lo, hi] `unit`: InputError as
+  /// get<long long>() ("<path>.<key>: not an integer: '5.5'"), and "<path>.<key>:
+  /// <value> is outside [lo, hi] <unit>": the one wording of a configured
+  /// count, id or code.
+  long long get_int_in(const char* key, long long lo, long long hi, const char* unit,
+                       const std::string& what = "") const {
+    return int_in_range(key, get<long long>(key, what), lo, hi, unit);
+  }
+  /// As get_int_in, `fallback` when absent.
+  long long get_or_int_in(const char* key, long long fallback, long long lo, long long hi, const char* unit) const {
+    return map_[key] ? int_in_range(key, as<long long>(map_[key], key), lo, hi, unit) : fallback;
+  }
+
   /// The map at map[key]: InputError "<path>: missing '<key>' (<what>)",
   /// "<path>.<key>: expected a map".
   MapReader map(const char* key, const std::string& what = "") const;
 
  private:
   double in_range(const char* key, double v, double lo, double hi, const char* unit) const;
+  long long int_in_range(const char* key, long long v, long long lo, long long hi, const char* unit) const;
   template <typename T>
   T as(const YAML::Node& n, const char* key) const {
     if constexpr (std::is_same_v<T, std::string>) {

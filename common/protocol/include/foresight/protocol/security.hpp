@@ -22,6 +22,25 @@ namespace foresight::protocol {
 /// dynamic loader search for libdds_security_*.so).
 std::string security_plugin_dir();
 
+/// What verify_security_files found: the identity's certificate and how long it has left.
+struct SecurityFacts {
+  std::string identity;
+  std::string dir;
+  int days_left = 0;    ///< until the identity certificate's notAfter (negative: expired)
+  std::string subject;  ///< the certificate's subject, one line
+  /// "identity 'remote' in DIR: certificate signed by the CA, matches its key, 3649 days left; governance and
+  /// permissions signed by the CA"
+  std::string describe() const;
+};
+
+/// Reads and checks every file Cyclone's security plugins will read, as they
+/// will (so that a participant is never refused with only "Error"): ca.pem a
+/// certificate; cert.pem a certificate signed by it, in its validity period,
+/// whose key is key.pem; governance.p7s and permissions.p7s S/MIME documents
+/// signed by the CA whose content is a DDS Security XML document. Throws
+/// ProtocolError "DDS Security: <file>: <what is wrong>" for the first problem.
+SecurityFacts verify_security_files(const std::string& dir, const std::string& identity);
+
 /// A participant QoS carrying the dds.sec.* properties for `identity` in
 /// `dir` (dir/ca.pem, dir/governance.p7s, dir/permissions.p7s,
 /// dir/identities/<identity>/{cert,key}.pem). Throws ProtocolError naming
@@ -29,7 +48,8 @@ std::string security_plugin_dir();
 Qos security_qos(const std::string& dir, const std::string& identity);
 
 /// The one way both links make their participant: on `domain`, secured as
-/// `identity` with the material in `security_dir`, or plain when that is "".
+/// `identity` with the material in `security_dir` (verify_security_files
+/// first: a damaged file is named), or plain when that is "".
 Participant make_participant(dds_domainid_t domain, const std::string& security_dir, const std::string& identity);
 
 }  // namespace foresight::protocol

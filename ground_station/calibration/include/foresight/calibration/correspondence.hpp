@@ -10,8 +10,9 @@
 //                                         joint angles q (radians): the robot
 //                                         arm as the calibration fixture
 //
-// One header line (either form); each data row may use either form (a row is
-// of the link form when its third field is not a number). Blank lines and
+// One header line (either form); under the link-form header a row may use
+// either form, under the base-form header only the base form (a row is of the
+// link form when its third field is not a number). Blank lines and
 // lines starting with '#' are skipped. u, v are screen pixels (origin at the
 // top-left corner, v down; pixel centres at i + 0.5).
 //

@@ -107,6 +107,35 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
 /// InputError naming the element.
 void validate(RemoteConfig& config);
 
+// ---- start-up time ------------------------------------------------------------
+
+/// What the daemon's start-up may take before it reports ready to systemd: the
+/// unit's TimeoutStartSec (60 s) less what the rest of the start-up needs
+/// (DDS discovery, the journal, the loop's start: seconds).
+inline constexpr double kStartupBudget_s = 45.0;
+/// An SDO transfer at set-up, as designed for: a request and a response frame
+/// and the drive's processing (CiA 301 devices answer in 1-5 ms).
+inline constexpr double kSdoTransferDesign_s = 0.005;
+/// Transfers the master makes per drive besides its SDO file (identity,
+/// heartbeats, PDO mapping, mode, timing, limits: node_config.cpp, read-backs included).
+inline constexpr int kMasterSdoTransfersPerDrive = 64;
+
+/// The longest a successful bring-up (DriveSystem::configure) of a
+/// configuration may take: every node's boot-up just inside its wait
+/// (enable_timeout_ms), every SDO transfer at its design time (each file entry
+/// written and read back), the operational heartbeats just inside the
+/// consumer time.
+struct StartupEstimate {
+  double boot_s = 0.0;
+  double sdo_s = 0.0;
+  int sdo_transfers = 0;
+  double heartbeat_s = 0.0;
+  double total_s() const { return boot_s + sdo_s + heartbeat_s; }
+  /// "up to 67.6 s (boot-up wait 2 s, 504 SDO transfers 2.5 s, the first operational heartbeat 65 s)"
+  std::string describe() const;
+};
+StartupEstimate estimate_startup(const RemoteConfig& config);
+
 // ---- bus load -----------------------------------------------------------------
 
 /// Worst-case length in bits of a standard (11-bit id) data frame with

@@ -10,6 +10,7 @@
 // negative for signed types). Plain lines are written at boot, in file order,
 // and read back; `expect` lines are only read and compared. Set-up code only.
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -26,8 +27,13 @@ struct SdoEntry {
   std::string origin;         ///< "config/drives/simdrive.sdo:12", for messages
 };
 
+/// Entries one file may hold: a drive's configurable objects are dozens, and
+/// every entry costs two SDO transfers at each start-up (estimate_startup).
+inline constexpr std::size_t kMaxSdoEntries = 1024;
+
 /// Parse the list; `source` names the file in messages. Throws InputError
-/// "<source>:<line>: ..." for a malformed line.
+/// "<source>:<line>: ..." for a malformed line, and at the entry past
+/// kMaxSdoEntries.
 std::vector<SdoEntry> parse_sdo_list(const std::string& text, const std::string& source);
 /// Read and parse a file. Throws InputError (cannot open, malformed line).
 std::vector<SdoEntry> load_sdo_list(const std::string& path);
