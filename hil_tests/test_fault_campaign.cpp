@@ -412,19 +412,21 @@ TEST_F(FaultCampaign, AHostileSecondParticipantIsRefusedAndNothingMoves) {
   const auto again = acks_of(newer->session_id, newer->command_id);
   ASSERT_EQ(again.size(), 1u);
   EXPECT_EQ(again[0].state, AckState::Completed);
-  // A forged session: the commander's session id, its first sequence number
-  // and command id, now a motion: the daemon takes it for a re-send of the
-  // commander's command 1 (TAKE_CONTROL) and repeats that command's last ack;
+  // A forged session: the commander's session id (read off its acks) with a
+  // sequence number and command id ahead of the commander's, now a motion,
+  // from this other participant. The session is bound to the participant that
+  // took control (issue 28): refused NOT_IN_CONTROL naming both participants;
   // the motion does not run (the drives' record below).
   fp::CommandSequencer forged(ground_->session_id());
+  for (int i = 0; i < 500; ++i) (void)forged.next(foresight_msg_CMD_REQUEST);
   auto f1 = forged.next(foresight_msg_CMD_GOTO_JOINT);
   protocol::fill_payload(*f1, CommandKind::GotoJoint, protocol::GotoJoint{far, 0.5});
-  writer.write(f1);
-  const auto f1_acks = acks_of(f1->session_id, f1->command_id);
-  ASSERT_EQ(f1_acks.size(), 1u);
-  EXPECT_EQ(f1_acks[0].kind, CommandKind::TakeControl);
-  EXPECT_EQ(f1_acks[0].state, AckState::Completed);
-  EXPECT_EQ(f1_acks[0].reason, "control taken");
+  refused(f1, Reason::NotInControl,
+          "session " + [&] {
+            char b[20];
+            std::snprintf(b, sizeof b, "%016llx", static_cast<unsigned long long>(ground_->session_id()));
+            return std::string(b);
+          }() + " is in control from participant ");
 
   // Nothing moved: the drives' own record over all of it.
   const DriveRecord d = fresh_record();

@@ -4,14 +4,19 @@
 // this one, DDS between them on loopback.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sqlite3.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "foresight/common/plan.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/convert.hpp"
+#include "foresight/protocol/dds.hpp"
 #include "foresight/test/cli.hpp"
 #include "hil_support.hpp"
 
@@ -203,6 +208,123 @@ TEST_F(RemoteCommands, AnAbortCarryingTheRunningCommandsIdFromAnotherSessionDoes
   EXPECT_EQ(moved.state, AckState::Canceled) << moved.reason;
   EXPECT_EQ(moved.code, Reason::Aborted);
   EXPECT_NE(moved.reason.find("stop commanded"), std::string::npos) << moved.reason;
+}
+
+// Issue 28: the commander's session id read off its published acks, sent
+// from another participant with a sequence number and command id ahead of the
+// commander's (it used to run: joint 2 moved 0.3 rad). It is refused
+// NOT_IN_CONTROL naming both participants, journaled with its writer, nothing
+// moves on the drives' own record, and the commander's own sequence is
+// untouched: its next command runs.
+TEST_F(RemoteCommands, ACommandInTheCommandersSessionFromAnotherParticipantIsRefusedAndMovesNothing) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  mark();
+
+  protocol::Participant forger(static_cast<dds_domainid_t>(domain_));
+  protocol::Writer<protocol::msg::Command> commands(forger);
+  protocol::Reader<protocol::msg::CommandAck> acks(forger);
+  ASSERT_TRUE(commands.wait_for_readers(1, 30s));
+  protocol::CommandSequencer sequencer(ground_->session_id());
+  protocol::Sample<protocol::msg::Command> c;
+  for (int i = 0; i < 1000; ++i) c = sequencer.next(foresight_msg_CMD_REQUEST);  // ahead of the commander
+  c = sequencer.next(foresight_msg_CMD_GOTO_JOINT);
+  protocol::GotoJoint g;
+  g.q_rad.assign(q0.data(), q0.data() + 7);
+  g.q_rad[1] += 0.3;
+  g.speed_fraction = 0.5;
+  protocol::fill_payload(*c, CommandKind::GotoJoint, g);
+  const std::uint64_t forged_id = c->command_id;
+  commands.write(c);
+
+  protocol::Sample<protocol::msg::CommandAck> ack;
+  std::optional<protocol::Ack> final;
+  ASSERT_TRUE(test::eventually(
+      [&] {
+        while (acks.take(ack)) {
+          const protocol::Ack a = protocol::from_wire(*ack);
+          if (a.session_id == ground_->session_id() && a.command_id == forged_id && a.state != AckState::Received)
+            final = a;
+        }
+        return final.has_value();
+      },
+      30s));
+  EXPECT_EQ(final->state, AckState::Rejected);
+  EXPECT_EQ(final->code, Reason::NotInControl);
+  EXPECT_NE(final->reason.find("is in control from participant "), std::string::npos) << final->reason;
+  EXPECT_NE(final->reason.find("; this command came from participant "), std::string::npos) << final->reason;
+
+  // Nothing moved on the drives' own record; the commander still commands.
+  const DriveRecord r = fresh_record();
+  ASSERT_EQ(r.hi.size(), 7u);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(r.hi[j] - r.lo[j], 1e-3) << "joint " << j + 1 << " moved";
+  protocol::GotoJoint mine;
+  mine.q_rad.assign(q0.data(), q0.data() + 7);
+  mine.q_rad[0] += 0.05;
+  const auto ok = run(CommandKind::GotoJoint, mine, 5.0);
+  EXPECT_TRUE(ok.succeeded()) << ok.reason;
+
+  // The journal names each command's writer: the forged one is not the commander's.
+  std::string commander_writer, forged_writer;
+  const nlohmann::json journal = journal_json();
+  for (const auto& row : journal["commands"]) {
+    if (row["state"] != "RECEIVED" || !row["detail"].contains("writer")) continue;
+    if (row["kind"] == "TAKE_CONTROL") commander_writer = row["detail"]["writer"];
+    if (row["command_id"] == forged_id) forged_writer = row["detail"]["writer"];
+  }
+  EXPECT_EQ(commander_writer.size(), 35u) << journal.dump();  // 32 hex digits in 4 groups
+  EXPECT_EQ(forged_writer.size(), 35u) << journal.dump();
+  EXPECT_NE(commander_writer, forged_writer);
+}
+
+// Issue 28 / 25: an ABORT reaches the control loop before its RECEIVED row is
+// synced to the disk. The journal's write lock held by another connection (a
+// disk that stalls, an engineer's sqlite3 shell) keeps the supervisor waiting
+// on that row; the arm stops anyway, on the drives' own record, while the
+// lock is still held.
+TEST_F(RemoteCommands, AnAbortStopsTheArmWhileTheJournalCannotBeWritten) {
+  take_and_recover();
+  start_slow_motion(1.0);  // several seconds at a tenth of joint 1's speed
+  // Joint 1 moved over about 200 ms of the drives' record (10 records).
+  auto moving = [&] {
+    const double q = record().q.at(0);
+    DriveRecord later;
+    for (int i = 0; i < 5; ++i) later = fresh_record();
+    return std::abs(later.q.at(0) - q) > 1e-4;
+  };
+  ASSERT_TRUE(test::eventually(moving, 5s)) << "the motion did not run";
+  // The journal's write lock, released however the test ends (the daemon
+  // must be able to write again to stop cleanly).
+  struct Lock {
+    sqlite3* db = nullptr;
+    ~Lock() {
+      if (db == nullptr) return;
+      sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+      sqlite3_close(db);
+    }
+  } lock;
+  ASSERT_EQ(sqlite3_open(remote_->journal().c_str(), &lock.db), SQLITE_OK);
+  sqlite3_busy_timeout(lock.db, 5000);
+  ASSERT_EQ(sqlite3_exec(lock.db, "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(lock.db);
+  protocol::Abort a;
+  a.category = protocol::StopCategory::Cat2;
+  a.reason = "journal stalled";
+  const std::uint64_t abort_id = ground_->send(CommandKind::Abort, a);
+  const auto sent = std::chrono::steady_clock::now();
+  const bool stopped = test::eventually([&] { return !moving(); }, 3s);
+  const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+  EXPECT_TRUE(stopped) << "the arm still moved with the journal locked";
+  EXPECT_LT(stop_s, 3.0);
+  sqlite3_exec(lock.db, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_close(lock.db);
+  lock.db = nullptr;
+  const auto final = ground_->wait_final(abort_id, 20s);
+  EXPECT_EQ(final.state, AckState::Completed) << final.reason;
+  const nlohmann::json journal = journal_json();
+  bool received = false;
+  for (const auto& row : journal["commands"])
+    received = received || (row["command_id"] == abort_id && row["state"] == "RECEIVED" && row["kind"] == "ABORT");
+  EXPECT_TRUE(received) << "the ABORT's RECEIVED row is missing";
 }
 
 TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
@@ -527,6 +649,40 @@ TEST_F(RemoteCommands, LinkLossMidMotionFinishesTheMotionAndTheGroundSeesTheLoss
   EXPECT_TRUE(back_up);
   const auto r = run(CommandKind::GotoJoint, back, 8.0);
   EXPECT_TRUE(r.succeeded()) << r.reason;
+}
+
+// Issue 28: another participant's heartbeats (an observer, an impostor) do
+// not keep the commander's link up, and its command does not declare the link
+// regained (it used to: the loss was then never declared again).
+TEST_F(RemoteCommands, OnlyTheCommandersHeartbeatsKeepTheLink) {
+  take_and_recover();
+  ground_link::Config c = ground_config_;
+  c.domain = domain_;
+  ground_link::GroundLink other(c);  // heartbeats from now on, never paused
+  ASSERT_TRUE(other.wait_for_remote(30s));
+  auto link_lost = [&] {
+    const auto s = ground_->status();
+    return s && (s->value.fault_bits & 2u) != 0 && s->age_s < 1.0;
+  };
+  auto regained = [&] {
+    int n = 0;
+    const nlohmann::json journal = journal_json();
+    for (const auto& e : journal["events"]) n += e["kind"] == "link_regained" ? 1 : 0;
+    return n;
+  };
+  ground_->pause_heartbeat();
+  EXPECT_TRUE(test::eventually(link_lost, 20s)) << "the other participant's heartbeats kept the link\n" << remote_->log();
+  const int regained_before = regained();
+  protocol::Request status;
+  status.what = protocol::RequestWhat::Status;
+  const auto r = other.execute(CommandKind::Request, status, 2.0);
+  EXPECT_TRUE(r.succeeded()) << r.reason;  // anyone may ask
+  const auto s = ground_->status();
+  ASSERT_TRUE(s.has_value());
+  EXPECT_NE(s->value.fault_bits & 2u, 0u) << "another participant's command declared the link regained";
+  EXPECT_EQ(regained(), regained_before) << "another participant's command declared the link regained";
+  ground_->resume_heartbeat();
+  EXPECT_TRUE(test::eventually([&] { const auto t = ground_->status(); return t && !(t->value.fault_bits & 2u) && t->age_s < 1.0; }, 20s));
 }
 
 namespace {

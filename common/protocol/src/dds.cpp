@@ -1,6 +1,7 @@
 #include "foresight/protocol/dds.hpp"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace foresight::protocol {
 
@@ -73,4 +74,15 @@ bool wait_matched(dds_entity_t entity, bool writer, std::uint32_t count, std::ch
 }
 
 }  // namespace detail
+ParticipantGuid writer_participant(dds_entity_t reader, dds_instance_handle_t publication_handle) {
+  ParticipantGuid g;
+  if (publication_handle == 0) return g;
+  dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(reader, publication_handle);
+  if (ep == nullptr) return g;
+  static_assert(sizeof(ep->participant_key.v) == 16);
+  std::copy(std::begin(ep->participant_key.v), std::end(ep->participant_key.v), g.bytes.begin());
+  dds_builtintopic_free_endpoint(ep);
+  return g;
+}
+
 }  // namespace foresight::protocol

@@ -198,6 +198,9 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
   j["joint_states_dropped"] = {{"joint_count", dropped.joint_state_joint_count},
                                {"length", dropped.joint_state_length},
                                {"not_finite", dropped.joint_state_not_finite}};
+  // Samples of the remote's topics from another participant than the remote's (ground_link.hpp).
+  j["ignored_samples"] = dropped.foreign;
+  j["remote_participant"] = link.remote_participant().hex();
   if (const auto st = link.status()) {
     const auto& s = st->value;
     j["state"] = protocol::to_string(s.mode);

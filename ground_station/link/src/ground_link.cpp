@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <set>
 #include <stdexcept>
 #include <thread>
 
@@ -120,6 +121,15 @@ struct GroundLink::Impl {
   std::optional<Timed<protocol::StatusReport>> status;
   std::optional<Clock::time_point> remote_heard;
   std::uint64_t remote_boot = 0;
+  protocol::ParticipantGuid remote_participant;  // written by the link thread under `mutex`
+  // Link thread only.
+  Clock::time_point remote_participant_heard{};
+  std::map<dds_instance_handle_t, protocol::ParticipantGuid> writers;  // publication handle -> participant
+  std::set<protocol::ParticipantGuid> warned;
+  /// Whether a sample `reader` took (`info`) comes from the remote (learning
+  /// it from the first one, or after remote_loss_s of its silence); a foreign
+  /// one is counted and warned about once per participant.
+  bool from_remote(dds_entity_t reader, const dds_sample_info_t& info);
   // Link thread only: reused take buffers.
   Sample<msg::CommandAck> ack;
   Sample<msg::TrajectoryStatus> up;
@@ -158,10 +168,44 @@ void GroundLink::Impl::run() noexcept {
   }
 }
 
+bool GroundLink::Impl::from_remote(dds_entity_t reader, const dds_sample_info_t& info) {
+  auto it = writers.find(info.publication_handle);
+  if (it == writers.end()) {
+    if (writers.size() > 256) writers.clear();  // bounded: writers come and go
+    it = writers.emplace(info.publication_handle, protocol::writer_participant(reader, info.publication_handle)).first;
+  }
+  const protocol::ParticipantGuid& writer = it->second;
+  const auto now = Clock::now();
+  const bool silent = now - remote_participant_heard > seconds(config.remote_loss_s);
+  if (writer.known() && writer != remote_participant && (!remote_participant.known() || silent)) {
+    if (remote_participant.known())
+      spdlog::warn("ground link: the remote is now participant {} (the last one, {}, was silent for {:.1f} s)",
+                   writer.hex(), remote_participant.hex(),
+                   std::chrono::duration<double>(now - remote_participant_heard).count());
+    std::lock_guard lock(mutex);
+    remote_participant = writer;
+  }
+  if (writer == remote_participant || (!writer.known() && !remote_participant.known())) {
+    remote_participant_heard = now;
+    return true;
+  }
+  {
+    std::lock_guard lock(mutex);
+    ++drops.foreign;
+  }
+  if (warned.size() < 64 && warned.insert(writer).second)
+    spdlog::warn("ground link: samples of participant {} on the remote's topics ignored: the remote is {} "
+                 "(another process publishing as the remote)",
+                 writer.hex(), remote_participant.hex());
+  return false;
+}
+
 void GroundLink::Impl::take_all() {
   bool any = false;
-  for (int i = 0; i < kTakeBatch && acks.take(ack); ++i) {
+  dds_sample_info_t info{};
+  for (int i = 0; i < kTakeBatch && acks.take(ack, &info); ++i) {
     if (ack->session_id != sequencer.session_id()) continue;  // another ground station's command
+    if (!from_remote(acks.get(), info)) continue;
     char why[96];
     if (const char* bad = protocol::enum_error(*ack, why, sizeof why)) {  // raw integers checked before any enum load
       spdlog::warn("ground link: ack of command {} ignored: {}", ack->command_id, bad);
@@ -181,7 +225,8 @@ void GroundLink::Impl::take_all() {
     it->second.push_back(std::move(a));
     any = true;
   }
-  for (int i = 0; i < kTakeBatch && uploads.take(up); ++i) {
+  for (int i = 0; i < kTakeBatch && uploads.take(up, &info); ++i) {
+    if (!from_remote(uploads.get(), info)) continue;
     char why[96];
     if (const char* bad = protocol::enum_error(*up, why, sizeof why)) {
       spdlog::warn("ground link: upload status of trajectory {} ignored: {}", up->trajectory_id, bad);
@@ -208,7 +253,8 @@ void GroundLink::Impl::take_all() {
     any = true;
   }
   const std::int64_t now = protocol::now_ns();
-  for (int i = 0; i < kTakeBatch && joints.take(js); ++i) {
+  for (int i = 0; i < kTakeBatch && joints.take(js, &info); ++i) {
+    if (!from_remote(joints.get(), info)) continue;
     char why[96];
     protocol::JointStateDefect defect{};
     if (const char* bad = protocol::joint_state_error(*js, config.joints, defect, why, sizeof why)) {
@@ -230,12 +276,14 @@ void GroundLink::Impl::take_all() {
     joint_state = Timed<protocol::JointReport>{std::move(v), now, 0.0};
     any = true;
   }
-  for (int i = 0; i < kTakeBatch && wrenches.take(wr); ++i) {
+  for (int i = 0; i < kTakeBatch && wrenches.take(wr, &info); ++i) {
+    if (!from_remote(wrenches.get(), info)) continue;
     std::lock_guard lock(mutex);
     wrench = Timed<protocol::WrenchReport>{protocol::from_wire(*wr), now, 0.0};
     any = true;
   }
-  for (int i = 0; i < kTakeBatch && tools.take(ts); ++i) {
+  for (int i = 0; i < kTakeBatch && tools.take(ts, &info); ++i) {
+    if (!from_remote(tools.get(), info)) continue;
     char why[96];
     if (const char* bad = protocol::enum_error(*ts, why, sizeof why)) {
       spdlog::warn("ground link: tool state ignored: {}", bad);
@@ -245,7 +293,8 @@ void GroundLink::Impl::take_all() {
     tool = Timed<protocol::ToolReport>{protocol::from_wire(*ts), now, 0.0};
     any = true;
   }
-  for (int i = 0; i < kTakeBatch && statuses.take(cs); ++i) {
+  for (int i = 0; i < kTakeBatch && statuses.take(cs, &info); ++i) {
+    if (!from_remote(statuses.get(), info)) continue;
     char why[96];
     if (const char* bad = protocol::enum_error(*cs, why, sizeof why)) {
       spdlog::warn("ground link: controller status ignored: {}", bad);
@@ -256,8 +305,9 @@ void GroundLink::Impl::take_all() {
     status = Timed<protocol::StatusReport>{std::move(v), now, 0.0};
     any = true;
   }
-  for (int i = 0; i < kTakeBatch && heartbeats.take(hb); ++i) {
+  for (int i = 0; i < kTakeBatch && heartbeats.take(hb, &info); ++i) {
     if (protocol::raw(hb->side) != foresight_msg_SIDE_REMOTE) continue;  // our own (or an invalid side)
+    if (!from_remote(heartbeats.get(), info)) continue;
     std::lock_guard lock(mutex);
     remote_heard = Clock::now();
     remote_boot = hb->boot_id;
@@ -394,6 +444,11 @@ std::optional<Timed<protocol::JointReport>> GroundLink::joint_state() const {
   if (v) v->age_s = impl_->age_s(v->value.stamp_ns);
   return v;
 }
+protocol::ParticipantGuid GroundLink::remote_participant() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->remote_participant;
+}
+
 DroppedSamples GroundLink::dropped() const {
   std::lock_guard lock(impl_->mutex);
   return impl_->drops;

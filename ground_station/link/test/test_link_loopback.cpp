@@ -444,6 +444,47 @@ TEST_F(LinkLoopback, DelayStatisticsAndTelemetryAgesAreSane) {
   EXPECT_NE(ground_->remote_boot_id(), 0u);
 }
 
+// Issue 28: a second participant publishing as the remote (telemetry, a
+// faulted status, a remote heartbeat) is ignored and counted; the ground goes
+// on showing the remote it listens to.
+TEST_F(LinkLoopback, AParticipantPublishingAsTheRemoteIsIgnoredAndCounted) {
+  ASSERT_TRUE(eventually([&] { return ground_->joint_state() && ground_->status(); }, 10s));
+  const fp::ParticipantGuid remote = ground_->remote_participant();
+  ASSERT_TRUE(remote.known());
+  fp::Participant impostor(domain_);
+  fp::Writer<msg::JointState> joints(impostor);
+  fp::Writer<msg::ControllerStatus> statuses(impostor);
+  fp::Writer<msg::Heartbeat> beats(impostor);
+  ASSERT_TRUE(joints.wait_for_readers(1, kConnectTimeout));
+  ASSERT_TRUE(statuses.wait_for_readers(1, kConnectTimeout));
+  fp::Sample<msg::JointState> js;
+  const std::vector<double> q(7, 2.5);
+  fp::assign(js->q_rad, std::span<const double>(q), msg::kMaxJoints, "q");
+  fp::assign(js->dq_rad_s, std::span<const double>(q), msg::kMaxJoints, "dq");
+  fp::assign(js->torque_nm, std::span<const double>(q), msg::kMaxJoints, "torque");
+  fp::Sample<msg::ControllerStatus> st;
+  st->mode = foresight_msg_MODE_FAULT;
+  fp::Sample<msg::Heartbeat> hb;
+  hb->side = foresight_msg_SIDE_REMOTE;
+  hb->boot_id = 42;
+  ASSERT_TRUE(eventually([&] {
+    js->stamp_ns = st->stamp_ns = hb->stamp_ns = fp::now_ns();
+    joints.write(js);
+    statuses.write(st);
+    beats.write(hb);
+    return ground_->dropped().foreign >= 3;
+  }, 10s));
+  for (int i = 0; i < 20; ++i) {  // the remote's own samples keep coming in between
+    joints.write(js);
+    statuses.write(st);
+  }
+  ASSERT_TRUE(eventually([&] { return ground_->dropped().foreign >= 23; }, 10s));
+  EXPECT_EQ(ground_->remote_participant(), remote);
+  EXPECT_NE(ground_->joint_state()->value.q_rad, q);
+  EXPECT_NE(ground_->status()->value.mode, protocol::ControllerMode::Fault);
+  EXPECT_NE(ground_->remote_boot_id(), 42u);
+}
+
 TEST_F(LinkLoopback, ADelayMonitorAloneMeasuresOnlyItsOwnPings) {
   // A second monitor in its own participant, pongs taken on its thread: it
   // and the link's monitor both ping; each counts only its own pongs.

@@ -281,6 +281,7 @@ int run_daemon(Options o) {
     if (link_ptr) link_ptr->publish(r);
   };
   parts.outbox.republish_uploads = [&] { if (link_ptr) link_ptr->republish_uploads(); };
+  parts.outbox.commander = [&](const protocol::ParticipantGuid& g) { if (link_ptr) link_ptr->set_commander(g); };
   if (site.simulated && site.simulated->plant) {
     const sim::Plant* plant = site.simulated->plant.get();
     parts.sim_truth = [plant] {

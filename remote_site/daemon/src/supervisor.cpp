@@ -204,6 +204,7 @@ void Supervisor::ack(const protocol::Command& command, AckState state, Reason co
   row.code = upper(control::to_string(code));
   row.reason = reason;
   nlohmann::json detail = state == AckState::Received ? payload_json(command) : nlohmann::json::object();
+  if (state == AckState::Received) detail["writer"] = current_writer_.hex();  // the participant that sent it
   if (!a.final_q_rad.empty()) detail["final_q_rad"] = a.final_q_rad;
   row.detail = json_text(detail);
   try {
@@ -231,12 +232,24 @@ void Supervisor::reject(const protocol::Command& command, Reason code, const std
 
 void Supervisor::handle(const remote_link::CommandEvent& event) {
   const protocol::Command& c = event.command;
+  current_writer_ = event.writer;
+  early_stop_id_.reset();
   if (event.duplicate) {
     // A re-sent command: answer with its last state, never run it twice.
     if (auto it = last_ack_.find({c.session_id, c.command_id}); it != last_ack_.end()) {
       if (p_.outbox.ack) p_.outbox.ack(it->second);
       return;
     }
+  }
+  // An ABORT that stops the arm reaches the loop first: its RECEIVED row is
+  // synced to the disk before the ack leaves (milliseconds; seconds on a disk
+  // that stalls), and the stop must not wait for that.
+  if (event.accepted() && !event.duplicate && !shutting_down_ && c.kind == CommandKind::Abort && abort_stops_arm(c)) {
+    MotionCommand stop;
+    stop.command_id = internal_id();
+    stop.kind = MotionCommandKind::Stop;
+    stop.category = std::get<protocol::Abort>(c.payload).category;
+    if (p_.loop->send(stop)) early_stop_id_ = stop.command_id;
   }
   ack(c, AckState::Received);
   if (!event.accepted()) {
@@ -247,23 +260,40 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
     reject(c, Reason::Busy, "the controller is shutting down");
     return;
   }
-  if (link_lost_) {
-    // A command that arrived proves the link works again, even before the
-    // ground's first heartbeat (best effort, it may be lost or still in
-    // flight when a new ground process sends its first command).
+  if (link_lost_ && (commander_ == 0 || from_commander(c))) {
+    // A command of the commander's that arrived proves the link works again,
+    // even before the ground's first heartbeat (best effort, it may be lost
+    // or still in flight when a new ground process sends its first command).
+    // Another participant's proves nothing about the commander's link.
     link_lost_ = false;
     p_.loop->set_link_lost(false);
-    journal_event("link_regained", "a command arrived from session " + std::to_string(c.session_id));
+    journal_event("link_regained", "a command arrived from session " + std::to_string(c.session_id) +
+                                       " (participant " + current_writer_.hex() + ")");
     publish_reports(true);
   }
-  if (c.session_id == commander_) commander_active_ = Clock::now();
+  if (from_commander(c)) commander_active_ = Clock::now();
   last_sequence_ = std::max(last_sequence_, c.sequence_number);
   dispatch(c);
 }
 
+void Supervisor::set_commander(std::uint64_t session, const protocol::ParticipantGuid& writer) {
+  commander_ = session;
+  commander_writer_ = session != 0 ? writer : protocol::ParticipantGuid{};
+  if (p_.outbox.commander) p_.outbox.commander(commander_writer_);
+}
+
 std::string Supervisor::check_commander(const protocol::Command& c, Reason* code) const {
-  if (commander_ == c.session_id) return {};
+  if (from_commander(c)) return {};
   *code = Reason::NotInControl;
+  if (commander_ != 0 && c.session_id == commander_) {
+    // The commander's session id from another participant: read off a
+    // published ack, it must not move the arm (journaled with its writer).
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "session %016llx is in control from participant %s; this command came from participant %s",
+                  static_cast<unsigned long long>(commander_), commander_writer_.hex().c_str(),
+                  current_writer_.hex().c_str());
+    return buf;
+  }
   if (commander_ == 0)
     return std::string("no ground station holds control: send TAKE_CONTROL first");
   char buf[120];
@@ -306,27 +336,27 @@ void Supervisor::dispatch(const protocol::Command& c) {
       const bool lease_over = commander_ != 0 && !running_ && queue_.empty() &&
                               Clock::now() - commander_active_ >
                                   std::chrono::duration<double>(p_.config.control_lease_s);
-      if (commander_ != 0 && commander_ != c.session_id && !lease_over) {
+      if (commander_ != 0 && !from_commander(c) && !lease_over) {
         std::string why = check_commander(c, &code);
         reject(c, Reason::NotInControl, why + " (it may RELEASE_CONTROL, or its lease ends after " +
                                             fmt("%.0f s", p_.config.control_lease_s) + " of silence)");
         return;
       }
-      if (lease_over && commander_ != c.session_id)
+      if (lease_over && !from_commander(c))
         journal_event("control", "control lease of a silent session ended; taken over");
-      commander_ = c.session_id;
+      set_commander(c.session_id, current_writer_);
       commander_active_ = Clock::now();
       ack(c, AckState::Completed, Reason::None, "control taken", current_q());
       publish_reports(true);
       return;
     }
     case CommandKind::ReleaseControl: {
-      if (commander_ != c.session_id) {
+      if (!from_commander(c)) {
         const std::string why = check_commander(c, &code);
         reject(c, code, why);
         return;
       }
-      commander_ = 0;
+      set_commander(0, {});
       ack(c, AckState::Completed, Reason::None, "control released", current_q());
       return;
     }
@@ -680,17 +710,32 @@ void Supervisor::do_abort(const protocol::Command& c) {
       return;
     }
   }
-  // Stop the arm with the requested category; the loop cancels what runs.
+  // Stop the arm with the requested category (already sent by handle() when
+  // it could be); the loop cancels what runs.
   MotionCommand stop;
-  stop.command_id = internal_id();
   stop.kind = MotionCommandKind::Stop;
   stop.category = a.category;
-  if (!p_.loop->send(stop)) {
-    ack(c, AckState::Failed, Reason::Internal, "the control loop's command ring is full", current_q());
-    return;
+  if (early_stop_id_) {
+    stop.command_id = *early_stop_id_;
+    early_stop_id_.reset();
+  } else {
+    stop.command_id = internal_id();
+    if (!p_.loop->send(stop)) {
+      ack(c, AckState::Failed, Reason::Internal, "the control loop's command ring is full", current_q());
+      return;
+    }
   }
   aborts_[stop.command_id] = c;
   ack(c, AckState::Executing);
+}
+
+bool Supervisor::abort_stops_arm(const protocol::Command& c) const {
+  const auto& a = std::get<protocol::Abort>(c.payload);
+  if (a.category != protocol::StopCategory::Cat1 && a.category != protocol::StopCategory::Cat2) return false;
+  if (a.target_command_id == 0) return true;
+  for (const auto& job : queue_)
+    if (job->command.command_id == a.target_command_id) return false;  // canceled in the queue: nothing stops
+  return running_ && running_->command.command_id == a.target_command_id && running_->kind != JobKind::ToolStep;
 }
 
 void Supervisor::do_request(const protocol::Command& c) {

@@ -207,7 +207,11 @@ struct RemoteLink::Impl {
     protocol::CommandChecker checker;
     std::uint64_t last_used = 0;
   };
-  std::map<std::uint64_t, Session> sessions;
+  // Keyed by the session and the participant that wrote it: a participant
+  // speaking in another's session (a forged session id) has a sequence of its
+  // own, so it can neither advance nor break the real session's (the
+  // supervisor then refuses it: not the participant in control).
+  std::map<std::pair<std::uint64_t, protocol::ParticipantGuid>, Session> sessions;
   std::uint64_t session_clock = 0;
   std::deque<std::tuple<std::uint64_t, std::uint64_t, std::uint64_t>> accepted;  // session, id, sequence
   protocol::TrajectoryAssembler assembler;
@@ -235,7 +239,15 @@ struct RemoteLink::Impl {
   std::atomic<bool> stopping{false};
   std::atomic<bool> link_up{false};
   std::atomic<std::uint64_t> n_commands{0}, n_rejected{0}, n_acks{0}, n_write_failures{0}, n_pings{0},
-      n_chunks{0}, n_committed{0}, n_upload_rejected{0}, n_handler_exceptions{0};
+      n_chunks{0}, n_committed{0}, n_upload_rejected{0}, n_handler_exceptions{0}, n_foreign_heartbeats{0},
+      n_foreign_chunks{0};
+  mutable std::mutex commander_mutex;
+  protocol::ParticipantGuid commander;  // set_commander; unknown: anyone's heartbeats count
+  /// True when `writer` may speak for the link: the commander, or anyone while nobody is in control.
+  bool from_commander(const protocol::ParticipantGuid& writer) const {
+    std::lock_guard lock(commander_mutex);
+    return !commander.known() || writer == commander;
+  }
   const std::uint64_t boot_id;
   std::thread thread;
 };
@@ -285,8 +297,13 @@ void RemoteLink::Impl::beat_and_watch() {
 }
 
 void RemoteLink::Impl::serve_heartbeats() {
-  for (int i = 0; i < kTakeBatch && heartbeats.take(heartbeat_in); ++i) {
+  dds_sample_info_t info{};
+  for (int i = 0; i < kTakeBatch && heartbeats.take(heartbeat_in, &info); ++i) {
     if (protocol::raw(heartbeat_in->side) != foresight_msg_SIDE_GROUND) continue;  // our own, looped back (or invalid)
+    if (!from_commander(protocol::writer_participant(heartbeats.get(), info.publication_handle))) {
+      n_foreign_heartbeats.fetch_add(1);  // an observer's or an impostor's: keeps no link
+      continue;
+    }
     const auto now = Clock::now();
     last_ground_beat = now;
     ground_boot_id = heartbeat_in->boot_id;
@@ -309,14 +326,17 @@ void RemoteLink::Impl::serve_pings() {
 }
 
 void RemoteLink::Impl::serve_commands() {
-  for (int i = 0; i < kTakeBatch && commands.take(command_in); ++i) {
+  dds_sample_info_t info{};
+  for (int i = 0; i < kTakeBatch && commands.take(command_in, &info); ++i) {
     n_commands.fetch_add(1);
     const msg::Command& c = *command_in;
     const std::int64_t received = protocol::now_ns();
     CommandEvent event;
+    event.writer = protocol::writer_participant(commands.get(), info.publication_handle);
     // Per-session sequence: a second ground station has its own; the least
     // recently used session is forgotten beyond max_sessions.
-    auto it = sessions.find(c.session_id);
+    const auto session_key = std::make_pair(c.session_id, event.writer);
+    auto it = sessions.find(session_key);
     if (it == sessions.end()) {
       if (sessions.size() >= std::max<std::size_t>(1, config.max_sessions)) {
         auto oldest = std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
@@ -324,7 +344,7 @@ void RemoteLink::Impl::serve_commands() {
         });
         sessions.erase(oldest);
       }
-      it = sessions.emplace(c.session_id, Session{}).first;
+      it = sessions.emplace(session_key, Session{}).first;
     }
     it->second.last_used = ++session_clock;
     const auto verdict = it->second.checker.check(c, received, config.clock_offset_ns);
@@ -359,8 +379,13 @@ void RemoteLink::Impl::serve_commands() {
 }
 
 void RemoteLink::Impl::serve_chunks() {
-  for (int i = 0; i < kTakeBatch && chunks.take(chunk_in); ++i) {
+  dds_sample_info_t info{};
+  for (int i = 0; i < kTakeBatch && chunks.take(chunk_in, &info); ++i) {
     n_chunks.fetch_add(1);
+    if (!from_commander(protocol::writer_participant(chunks.get(), info.publication_handle))) {
+      n_foreign_chunks.fetch_add(1);  // never stored: another participant holds no upload slot
+      continue;
+    }
     on_chunk(*chunk_in);
   }
 }
@@ -607,6 +632,11 @@ std::shared_ptr<const Trajectory> RemoteLink::committed(std::uint64_t id) const 
   return it == impl_->committed.end() ? nullptr : it->second;
 }
 
+void RemoteLink::set_commander(const protocol::ParticipantGuid& participant) noexcept {
+  std::lock_guard lock(impl_->commander_mutex);
+  impl_->commander = participant;
+}
+
 LinkStats RemoteLink::stats() const noexcept {
   LinkStats s;
   s.commands = impl_->n_commands.load();
@@ -618,6 +648,8 @@ LinkStats RemoteLink::stats() const noexcept {
   s.uploads_committed = impl_->n_committed.load();
   s.uploads_rejected = impl_->n_upload_rejected.load();
   s.handler_exceptions = impl_->n_handler_exceptions.load();
+  s.foreign_heartbeats = impl_->n_foreign_heartbeats.load();
+  s.foreign_chunks = impl_->n_foreign_chunks.load();
   s.link_up = impl_->link_up.load();
   return s;
 }

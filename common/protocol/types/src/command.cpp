@@ -1,6 +1,9 @@
 // The one name table of the plain command types (command.hpp).
 #include "foresight/protocol/command.hpp"
 
+#include <algorithm>
+#include <cstdio>
+
 namespace foresight::protocol {
 
 const char* to_string(CommandKind kind) noexcept {
@@ -96,6 +99,22 @@ const char* to_string(UploadState state) noexcept {
     case UploadState::Discarded: return "discarded";
   }
   return "unknown";
+}
+
+bool ParticipantGuid::known() const noexcept {
+  return std::any_of(bytes.begin(), bytes.end(), [](std::uint8_t b) { return b != 0; });
+}
+
+std::string ParticipantGuid::hex() const {
+  if (!known()) return "unknown";
+  std::string out;
+  char b[4];
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    if (i > 0 && i % 4 == 0) out += '.';
+    std::snprintf(b, sizeof b, "%02x", bytes[i]);
+    out += b;
+  }
+  return out;
 }
 
 }  // namespace foresight::protocol

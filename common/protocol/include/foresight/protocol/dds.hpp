@@ -33,6 +33,7 @@
 #include <utility>
 
 #include "foresight/protocol/cdr_check.hpp"
+#include "foresight/protocol/command.hpp"
 #include "foresight/protocol/error.hpp"
 #include "foresight/protocol/messages.hpp"
 #include "foresight/protocol/qos.hpp"
@@ -145,6 +146,12 @@ bool wait_matched(dds_entity_t entity, bool writer, std::uint32_t count, std::ch
 std::uint32_t matched_count(dds_entity_t entity, bool writer);
 dds_duration_t to_dds(std::chrono::nanoseconds d) noexcept;
 }  // namespace detail
+
+/// The participant whose writer wrote a sample `reader` took (the sample
+/// info's publication_handle, through the reader's matched publication);
+/// unknown when that writer is no longer matched. Allocates (not for the
+/// control cycle).
+ParticipantGuid writer_participant(dds_entity_t reader, dds_instance_handle_t publication_handle);
 
 template <Message T>
 class Writer {

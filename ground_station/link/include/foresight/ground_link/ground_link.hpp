@@ -54,6 +54,14 @@ struct Config {
   /// (0 = any length, as long as its sequences agree).
   std::size_t joints = 0;
 };
+// The remote this station listens to is the participant of the first
+// remote sample heard (its heartbeat, status, telemetry or an ack); samples of
+// the remote's topics from any other participant are ignored and counted
+// (DroppedSamples::foreign; the operator is warned once per participant). A
+// remote silent for remote_loss_s (restarted: a new participant) is learned
+// anew from the next remote sample, with a warning. Without DDS Security the
+// first sample may itself be an impostor's; with it, only the `remote`
+// identity may write those topics.
 
 /// Received samples dropped instead of used, by reason (the remote is not
 /// trusted: protocol::joint_state_error).
@@ -64,6 +72,9 @@ struct DroppedSamples {
   std::uint64_t joint_state() const noexcept {
     return joint_state_joint_count + joint_state_length + joint_state_not_finite;
   }
+  /// Samples (acks, upload status, telemetry, status, heartbeats) written by
+  /// another participant than the remote this station listens to: ignored.
+  std::uint64_t foreign = 0;
 };
 
 /// Every ack seen for one command, in arrival order.
@@ -143,6 +154,8 @@ class GroundLink {
   std::optional<Timed<protocol::JointReport>> joint_state() const;
   /// Samples dropped so far, by reason.
   DroppedSamples dropped() const;
+  /// The participant this station takes for the remote (unknown before its first sample).
+  protocol::ParticipantGuid remote_participant() const;
   std::optional<Timed<protocol::WrenchReport>> wrench() const;
   std::optional<Timed<protocol::ToolReport>> tool() const;
   std::optional<Timed<protocol::StatusReport>> status() const;

@@ -64,6 +64,9 @@ struct Outbox {
   std::function<void(const protocol::ToolReport&)> tool;
   std::function<void(const protocol::StatusReport&)> status;
   std::function<void()> republish_uploads;
+  /// The participant in control changed (unknown: nobody): the link keeps
+  /// only its heartbeats and chunks (RemoteLink::set_commander).
+  std::function<void(const protocol::ParticipantGuid&)> commander;
 };
 
 struct SupervisorParts {
@@ -153,6 +156,12 @@ class Supervisor {
   void cancel_queued(const std::string& why);
 
   void do_abort(const protocol::Command& command);
+  /// Whether do_abort would stop the arm: a valid category, and no target, or
+  /// the running motion as target.
+  bool abort_stops_arm(const protocol::Command& command) const;
+  /// The loop id of a Stop sent for an ABORT before its RECEIVED row went to
+  /// the disk (handle): do_abort takes it over instead of sending another.
+  std::optional<std::uint64_t> early_stop_id_;
   void do_request(const protocol::Command& command);
   void do_camera(const protocol::Command& command);
 
@@ -187,6 +196,16 @@ class Supervisor {
   std::unique_ptr<Job> running_;
 
   std::uint64_t commander_ = 0;
+  /// The participant whose TAKE_CONTROL made commander_ (unknown when
+  /// discovery had lost its writer): the commanding session speaks only from it.
+  protocol::ParticipantGuid commander_writer_;
+  /// The writer of the command handle() is working on.
+  protocol::ParticipantGuid current_writer_;
+  /// The command at hand is the commander's: its session, from its participant.
+  bool from_commander(const protocol::Command& c) const noexcept {
+    return commander_ != 0 && c.session_id == commander_ && current_writer_ == commander_writer_;
+  }
+  void set_commander(std::uint64_t session, const protocol::ParticipantGuid& writer);
   Clock::time_point commander_active_{};
   std::uint64_t last_sequence_ = 0;
 

@@ -80,6 +80,9 @@ struct CommandEvent {
   /// code BadSequence; the daemon re-sends that command's last ack instead
   /// of a rejection (a re-sent command is idempotent).
   bool duplicate = false;
+  /// The participant whose writer sent it (unknown when discovery no longer
+  /// has the writer): the daemon binds the commanding session to it.
+  protocol::ParticipantGuid writer;
   bool accepted() const noexcept { return code == protocol::Reason::None; }
 };
 
@@ -119,7 +122,11 @@ struct LinkStats {
   std::uint64_t uploads_committed = 0;
   std::uint64_t uploads_rejected = 0;
   std::uint64_t handler_exceptions = 0;
-  bool link_up = false;                ///< a ground heartbeat within link_loss_s
+  /// Heartbeats and chunks dropped because another participant than the
+  /// commander's wrote them (set_commander): they keep no link, hold no slot.
+  std::uint64_t foreign_heartbeats = 0;
+  std::uint64_t foreign_chunks = 0;
+  bool link_up = false;                ///< a commander's (or, with none, a ground) heartbeat within link_loss_s
 };
 
 class RemoteLink {
@@ -147,6 +154,12 @@ class RemoteLink {
   bool publish(const protocol::StatusReport& report) noexcept;
   /// Re-publishes the TrajectoryStatus of every kept upload (REQUEST_TRAJECTORIES).
   void republish_uploads() noexcept;
+
+  /// The participant in control (the daemon's TAKE_CONTROL; unknown: nobody).
+  /// While one is set, only its heartbeats keep the link up or restore it and
+  /// only its chunks are assembled: another participant's are dropped and
+  /// counted (stats().foreign_heartbeats, foreign_chunks).
+  void set_commander(const protocol::ParticipantGuid& participant) noexcept;
 
   /// A committed upload by id (nullptr when unknown or discarded).
   std::shared_ptr<const Trajectory> committed(std::uint64_t trajectory_id) const noexcept;

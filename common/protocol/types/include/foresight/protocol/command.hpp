@@ -23,6 +23,20 @@
 
 namespace foresight::protocol {
 
+/// A DDS participant's GUID (16 bytes: its prefix and entity id): who wrote a
+/// sample, as the remote binds the commanding session to the participant that
+/// took control, and the journal records each command's writer
+/// (protocol::writer_participant in dds.hpp reads it off a taken sample).
+struct ParticipantGuid {
+  std::array<std::uint8_t, 16> bytes{};
+  /// False when all zero (the writer was not found).
+  bool known() const noexcept;
+  /// 32 hex digits in groups of 8 ("0110a4c1.5e3f0001.00000000.000001c1"), "unknown" when not known.
+  std::string hex() const;
+  friend bool operator==(const ParticipantGuid&, const ParticipantGuid&) = default;
+  friend auto operator<=>(const ParticipantGuid&, const ParticipantGuid&) = default;
+};
+
 enum class CommandKind : std::uint8_t {
   Trajectory = 0,
   InvokeAlgorithm,
