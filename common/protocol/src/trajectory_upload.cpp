@@ -1,6 +1,7 @@
 #include "foresight/protocol/trajectory_upload.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <sstream>
 #include <stdexcept>
@@ -104,7 +105,7 @@ TrajectoryAssembler::Progress TrajectoryAssembler::reject(std::uint64_t id, Uplo
   upload.code = code;
   upload.reason = "trajectory " + std::to_string(id) + ": " + std::move(reason);
   // Keep only the verdict: the data of a rejected upload is never used.
-  upload.values = {};
+  upload.chunk_values = {};
   upload.sample_covered = {};
   return progress(id, upload);
 }
@@ -121,6 +122,15 @@ TrajectoryAssembler::Progress TrajectoryAssembler::add(const msg::TrajectoryChun
                           std::to_string(uploads_.size()) + " uploads are already pending (limit " +
                               std::to_string(limits_.max_pending) + ")");
       return p;  // not remembered: the limit is about memory
+    }
+    const auto of_session = static_cast<std::size_t>(std::count_if(uploads_.begin(), uploads_.end(), [&](const auto& e) {
+      return !e.second.rejected && e.second.session_id == chunk.session_id;
+    }));
+    if (of_session >= limits_.max_pending_per_session) {
+      Progress p = reject(id, fresh, foresight_msg_REASON_BUSY,
+                          std::to_string(of_session) + " uploads of this session are already pending (limit " +
+                              std::to_string(limits_.max_pending_per_session) + " per session)");
+      return p;
     }
     it = uploads_.emplace(id, std::move(fresh)).first;
     Upload& u = it->second;
@@ -148,7 +158,7 @@ TrajectoryAssembler::Progress TrajectoryAssembler::add(const msg::TrajectoryChun
                     where + ": " + std::to_string(chunk.chunk_count) + " chunks for " +
                         std::to_string(chunk.sample_count) + " samples");
     }
-    u.values.assign(static_cast<std::size_t>(u.sample_count) * (u.joint_count + 1), 0.0);
+    u.chunk_values.resize(u.chunk_count);  // empty vectors: the values come with their chunks
     u.sample_covered.assign(u.sample_count, false);
     u.chunk_received.assign(u.chunk_count, false);
     u.chunk_first.assign(u.chunk_count, 0);
@@ -156,6 +166,7 @@ TrajectoryAssembler::Progress TrajectoryAssembler::add(const msg::TrajectoryChun
   }
   Upload& u = it->second;
   if (u.rejected) return progress(id, u);
+  u.last_chunk = std::chrono::steady_clock::now();
 
   // Every chunk must describe the same whole as the first one.
   auto mismatch = [&](const char* field, std::uint64_t got, std::uint64_t expected) {
@@ -190,11 +201,11 @@ TrajectoryAssembler::Progress TrajectoryAssembler::add(const msg::TrajectoryChun
                       std::to_string(u.sample_count));
   }
   const std::span<const double> values = view(chunk.samples);
-  double* dst = u.values.data() + static_cast<std::size_t>(chunk.first_sample) * row;
+  std::vector<double>& kept = u.chunk_values[chunk.chunk_index];
   if (u.chunk_received[chunk.chunk_index]) {
     const bool same = u.chunk_first[chunk.chunk_index] == chunk.first_sample &&
-                      u.chunk_samples[chunk.chunk_index] == n &&
-                      std::memcmp(dst, values.data(), values.size_bytes()) == 0;
+                      u.chunk_samples[chunk.chunk_index] == n && kept.size() == values.size() &&
+                      std::memcmp(kept.data(), values.data(), values.size_bytes()) == 0;
     if (same) return progress(id, u);  // harmless duplicate
     return reject(id, u, foresight_msg_REASON_BAD_ARGUMENT, where + ": received twice with different content");
   }
@@ -205,7 +216,7 @@ TrajectoryAssembler::Progress TrajectoryAssembler::add(const msg::TrajectoryChun
     }
   }
   std::fill(u.sample_covered.begin() + chunk.first_sample, u.sample_covered.begin() + chunk.first_sample + n, true);
-  std::memcpy(dst, values.data(), values.size_bytes());
+  kept.assign(values.begin(), values.end());
   u.chunk_received[chunk.chunk_index] = true;
   u.chunk_first[chunk.chunk_index] = chunk.first_sample;
   u.chunk_samples[chunk.chunk_index] = n;
@@ -234,10 +245,13 @@ std::optional<AssembledTrajectory> TrajectoryAssembler::take(std::uint64_t traje
   const std::uint32_t row = u.joint_count + 1;
   out.trajectory.time_s.resize(u.sample_count);
   out.trajectory.positions_rad.resize(u.sample_count, u.joint_count);
-  for (std::uint32_t s = 0; s < u.sample_count; ++s) {
-    out.trajectory.time_s[s] = u.values[static_cast<std::size_t>(s) * row];
-    for (std::uint32_t j = 0; j < u.joint_count; ++j) {
-      out.trajectory.positions_rad(s, j) = u.values[static_cast<std::size_t>(s) * row + 1 + j];
+  for (std::uint32_t c = 0; c < u.chunk_count; ++c) {
+    const std::vector<double>& v = u.chunk_values[c];
+    for (std::uint32_t k = 0; k < u.chunk_samples[c]; ++k) {
+      const std::uint32_t s = u.chunk_first[c] + k;
+      out.trajectory.time_s[s] = v[static_cast<std::size_t>(k) * row];
+      for (std::uint32_t j = 0; j < u.joint_count; ++j)
+        out.trajectory.positions_rad(s, j) = v[static_cast<std::size_t>(k) * row + 1 + j];
     }
   }
   uploads_.erase(it);
@@ -245,6 +259,27 @@ std::optional<AssembledTrajectory> TrajectoryAssembler::take(std::uint64_t traje
 }
 
 void TrajectoryAssembler::discard(std::uint64_t trajectory_id) { uploads_.erase(trajectory_id); }
+
+std::vector<TrajectoryAssembler::Progress> TrajectoryAssembler::expire(std::chrono::steady_clock::time_point now,
+                                                                        std::chrono::nanoseconds idle) {
+  std::vector<Progress> out;
+  for (auto& [id, u] : uploads_) {
+    if (u.rejected || u.chunks_received == u.chunk_count || now - u.last_chunk <= idle) continue;
+    char secs[32];
+    std::snprintf(secs, sizeof secs, "%.0f", std::chrono::duration<double>(idle).count());
+    out.push_back(reject(id, u, foresight_msg_REASON_INCOMPLETE_UPLOAD,
+                         std::string("no chunk for ") + secs + " s: " + std::to_string(u.chunks_received) + " of " +
+                             std::to_string(u.chunk_count) + " chunks arrived"));
+  }
+  return out;
+}
+
+std::size_t TrajectoryAssembler::values_held() const noexcept {
+  std::size_t n = 0;
+  for (const auto& [id, u] : uploads_)
+    for (const auto& v : u.chunk_values) n += v.size();
+  return n;
+}
 
 bool UploadVerdict::ok() const noexcept { return code == foresight_msg_REASON_NONE; }
 

@@ -441,6 +441,52 @@ TEST(ProtocolUpload, FirstChunkSizesAreCheckedAndPendingUploadsBounded) {
   }
 }
 
+// Issue 28: half uploads hold memory for what arrived, not for what their
+// first chunk declared (8 first chunks declaring 200,000 x 16 values took the
+// daemon from 153 to 365 MB); one session cannot take every slot; an idle
+// half upload is rejected and freed.
+TEST(ProtocolUpload, HalfUploadsHoldWhatArrivedAreCappedPerSessionAndExpire) {
+  fp::TrajectoryAssembler::Limits limits;
+  limits.max_pending = 8;
+  limits.max_pending_per_session = 2;
+  fp::TrajectoryAssembler assembler(limits);
+  const Trajectory t = make_trajectory(100, 16);
+  auto chunks = fp::make_chunks(t, 1, 7, 10);  // 10 chunks of 10 samples x 17 values
+  for (auto& c : chunks) c->sample_count = 200000;  // the first chunk declares a huge whole
+  for (auto& c : chunks) c->chunk_count = 4000;
+  EXPECT_EQ(assembler.add(*chunks[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+  EXPECT_EQ(assembler.values_held(), 10u * 17u);  // one chunk's values, not 200,000 x 17
+  EXPECT_EQ(assembler.add(*chunks[1]).state, foresight_msg_UPLOAD_ASSEMBLING);
+  EXPECT_EQ(assembler.values_held(), 2u * 10u * 17u);
+
+  // Session 7's second upload fits, its third does not; session 8's does.
+  auto second = fp::make_chunks(t, 2, 7, 10);
+  EXPECT_EQ(assembler.add(*second[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+  auto third = fp::make_chunks(t, 3, 7, 10);
+  const auto busy = assembler.add(*third[0]);
+  EXPECT_EQ(busy.code, foresight_msg_REASON_BUSY);
+  EXPECT_EQ(busy.reason, "trajectory 3: 2 uploads of this session are already pending (limit 2 per session)");
+  auto other = fp::make_chunks(t, 4, 8, 10);
+  EXPECT_EQ(assembler.add(*other[0]).state, foresight_msg_UPLOAD_ASSEMBLING);
+
+  // Idle past the timeout: every half upload rejected, its data freed.
+  const auto later = std::chrono::steady_clock::now() + std::chrono::seconds(61);
+  const auto expired = assembler.expire(later, std::chrono::seconds(60));
+  ASSERT_EQ(expired.size(), 3u);
+  EXPECT_EQ(expired[0].code, foresight_msg_REASON_INCOMPLETE_UPLOAD);
+  EXPECT_EQ(expired[0].reason, "trajectory 1: no chunk for 60 s: 2 of 4000 chunks arrived");
+  EXPECT_EQ(assembler.values_held(), 0u);
+  EXPECT_EQ(assembler.add(*chunks[2]).state, foresight_msg_UPLOAD_REJECTED);  // stays rejected
+  EXPECT_TRUE(assembler.expire(later, std::chrono::seconds(60)).empty());
+  // A whole upload still assembles and takes the same values back.
+  auto whole = fp::make_chunks(t, 5, 8, 10);
+  for (auto& c : whole) assembler.add(*c);
+  const auto a = assembler.take(5);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_EQ(a->trajectory.time_s, t.time_s);
+  EXPECT_EQ(a->trajectory.positions_rad, t.positions_rad);
+}
+
 TEST(ProtocolUpload, VerifyReportsHashMismatchAndViolations) {
   const Trajectory t = make_trajectory(50, 2);
   fp::TrajectoryAssembler assembler;

@@ -87,7 +87,7 @@ struct RemoteLink::Impl {
         assembler(protocol::TrajectoryAssembler::Limits{
             static_cast<std::uint32_t>(msg::kMaxJoints),
             static_cast<std::uint32_t>(config.trajectory_limits.max_samples),
-            config.max_pending_uploads + kRememberedRejections}),
+            config.max_pending_uploads + kRememberedRejections, std::max<std::size_t>(1, config.max_pending_per_session)}),
         boot_id(protocol::random_id()) {
     waitset.attach(stop_guard, kStop);
     waitset.attach(commands, kCommand);
@@ -170,6 +170,8 @@ struct RemoteLink::Impl {
   void run() noexcept;
   void serve_commands();
   void serve_chunks();
+  /// Half uploads idle for upload_idle_timeout_s: rejected, published, reported.
+  void expire_uploads();
   void serve_pings();
   void serve_heartbeats();
   void beat_and_watch();
@@ -266,6 +268,7 @@ void RemoteLink::Impl::run() noexcept {
       serve_heartbeats();
       serve_commands();
       serve_chunks();
+      expire_uploads();
     } catch (const std::exception& e) {
       // A DDS call failed (should not happen with valid entities): keep serving.
       spdlog::error("remote link: {}", e.what());
@@ -485,6 +488,39 @@ void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
     e.state = protocol::UploadState::Discarded;
     e.reason = gone.reason;
     emit_upload(e);
+  }
+}
+
+void RemoteLink::Impl::expire_uploads() {
+  for (const auto& p : assembler.expire(Clock::now(), seconds(config.upload_idle_timeout_s))) {
+    UploadRecord record;
+    record.state = p.state;
+    record.chunks_received = p.chunks_received;
+    record.chunk_count = p.chunk_count;
+    record.code = p.code;
+    record.reason = p.reason;
+    {
+      std::lock_guard lock(uploads_mutex);
+      if (auto it = records.find(p.trajectory_id); it != records.end()) record.hash = it->second.hash;
+      records[p.trajectory_id] = record;
+    }
+    rejected_uploads.push_back(p.trajectory_id);  // its later chunks stay rejected, the verdict bounded
+    if (rejected_uploads.size() > kRememberedRejections) {
+      assembler.discard(rejected_uploads.front());
+      rejected_uploads.pop_front();
+    }
+    n_upload_rejected.fetch_add(1);
+    publish_status(p.trajectory_id, record);
+    UploadEvent event;
+    event.trajectory_id = p.trajectory_id;
+    event.state = protocol::UploadState::Rejected;
+    event.chunks_received = record.chunks_received;
+    event.chunk_count = record.chunk_count;
+    event.code = static_cast<protocol::Reason>(record.code);
+    event.reason = record.reason;
+    event.hash = record.hash;
+    spdlog::warn("remote link: upload rejected: {}", record.reason);
+    emit_upload(event);
   }
 }
 

@@ -179,6 +179,7 @@ int main(int argc, char** argv) {
   std::string security_dir;
   bool ros2 = false;
   double telemetry_hz = 50.0;
+  double upload_idle_s = 60.0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--domain") domain = std::atoi(argv[i + 1]);
@@ -188,6 +189,7 @@ int main(int argc, char** argv) {
     else if (key == "--security") security_dir = argv[i + 1];
     else if (key == "--ros2") ros2 = std::string(argv[i + 1]) == "on";
     else if (key == "--telemetry-hz") telemetry_hz = std::atof(argv[i + 1]);
+    else if (key == "--upload-idle-s") upload_idle_s = std::atof(argv[i + 1]);
     else {
       std::fprintf(stderr, "link_test_remote: unknown option %s\n", argv[i]);
       return 2;
@@ -212,6 +214,7 @@ int main(int argc, char** argv) {
     config.link_loss_s = link_loss_s;
     config.trajectory_limits = foresight::TrajectoryLimits::from_model(model);
     config.max_committed = max_committed;
+    config.upload_idle_timeout_s = upload_idle_s;
     config.security_dir = security_dir;
     config.ros2 = ros2;
     Stub stub;

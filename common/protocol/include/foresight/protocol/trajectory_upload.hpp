@@ -7,6 +7,7 @@
 //
 // Not real-time: everything here allocates.
 
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -51,6 +52,8 @@ class TrajectoryAssembler {
     std::uint32_t max_joints = msg::kMaxJoints;
     std::uint32_t max_samples = 200000;  ///< as TrajectoryLimits::max_samples
     std::size_t max_pending = 4;         ///< uploads assembling at the same time
+    /// Of them, from one session (another session's half uploads cannot take every slot).
+    std::size_t max_pending_per_session = 4;
   };
 
   /// What add() did; `state` is UPLOAD_ASSEMBLING, UPLOAD_COMMITTED (here:
@@ -74,6 +77,13 @@ class TrajectoryAssembler {
   /// Forgets an upload (assembling or rejected).
   void discard(std::uint64_t trajectory_id);
   std::size_t pending() const noexcept { return uploads_.size(); }
+  /// Rejects (REASON_INCOMPLETE_UPLOAD, "no chunk for N s: k of n chunks
+  /// arrived") every upload still assembling whose last chunk came more than
+  /// `idle` before `now`, frees its data and returns their progress.
+  std::vector<Progress> expire(std::chrono::steady_clock::time_point now, std::chrono::nanoseconds idle);
+  /// Sample values held for uploads being assembled: what arrived, never what
+  /// a first chunk declared.
+  std::size_t values_held() const noexcept;
 
  private:
   struct Upload {
@@ -82,7 +92,10 @@ class TrajectoryAssembler {
     std::uint32_t joint_count = 0;
     std::uint32_t sample_count = 0;
     TrajectoryHash hash{};
-    std::vector<double> values;        ///< sample_count x (joint_count + 1), row-major
+    /// Per chunk index: its values as they arrived (t_s, q...; row-major),
+    /// empty until then. Memory follows what arrived, not what was declared.
+    std::vector<std::vector<double>> chunk_values;
+    std::chrono::steady_clock::time_point last_chunk{};
     std::vector<bool> chunk_received;  ///< per chunk index
     std::vector<bool> sample_covered;  ///< per sample
     std::vector<std::uint32_t> chunk_first, chunk_samples;  ///< per chunk index, for duplicates

@@ -45,6 +45,10 @@ struct Config {
   TrajectoryLimits trajectory_limits;      ///< from the robot model (TrajectoryLimits::from_model)
   std::size_t max_committed = 8;           ///< committed uploads kept; the oldest is discarded
   std::size_t max_pending_uploads = 4;     ///< uploads assembling at once
+  std::size_t max_pending_per_session = 2; ///< of them, from one ground session
+  /// An upload still assembling whose last chunk is this old is rejected
+  /// (INCOMPLETE_UPLOAD) and its data freed: a half upload holds no slot for ever.
+  double upload_idle_timeout_s = 60.0;
   std::size_t max_sessions = 16;           ///< ground sessions whose sequence is tracked (LRU)
   /// The remote's clock minus the ground's, for the expiry check (expires_ns
   /// is on the ground's clock). 0: both synchronized (NTP/PTP).
