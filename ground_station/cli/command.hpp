@@ -46,6 +46,9 @@ inline const Check PositiveNumber = make(Check::Kind::Positive);
 inline const Check NonNegativeNumber = make(Check::Kind::NonNegative);
 inline Check Range(int lo, int hi) { return make(Check::Kind::RangeInt, lo, hi); }
 inline Check Range(double lo, double hi) { return make(Check::Kind::RangeReal, lo, hi); }
+/// A wait in seconds: a millisecond to a day (1e300 s overflowed the clock
+/// arithmetic into "timed out after 0.0 s" at once).
+inline const Check WaitSeconds = make(Check::Kind::RangeReal, 0.001, 86400.0);
 inline Check IsMember(std::initializer_list<int> v) {
   Check c = make(Check::Kind::MemberInt);
   c.ints.assign(v.begin(), v.end());

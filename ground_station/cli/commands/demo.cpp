@@ -709,7 +709,7 @@ const bool registered = register_command(
            ->check(check::Range(0, 232));
        sub.add_option("--script", o->script, "the task script")->capture_default_str();
        sub.add_option("--ready-timeout", o->ready_timeout_s, "seconds to wait for the daemon's ready line")
-           ->check(check::PositiveNumber)
+           ->check(check::WaitSeconds)
            ->capture_default_str();
        sub.add_option("--stage", o->stage)->group("");  // internal: the ground half in the emulator's namespace
        return [o] { return demo(*o); };

@@ -18,13 +18,13 @@ inline void add_link_options(Command& sub, LinkOptions& o, bool final_ack = true
   sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
       ->check(check::Range(0, 232));
   sub.add_option("--connect-timeout", o.connect_timeout_s, "seconds to wait for the remote to answer")
-      ->check(check::PositiveNumber)
+      ->check(check::WaitSeconds)
       ->capture_default_str();
   if (final_ack)
     sub.add_option("--timeout", o.timeout_s,
                    "seconds to wait for the final acknowledgement (default: 1.5 x the expected duration + 3 x the "
                    "measured p99 round trip + 5 s)")
-        ->check(check::PositiveNumber);
+        ->check(check::WaitSeconds);
   if (json) sub.add_flag("--json", o.json, "print one JSON object");
 }
 

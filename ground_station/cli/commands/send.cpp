@@ -88,7 +88,7 @@ const bool registered = register_command(
        sub.add_flag("--run", o->run, "run it once committed and wait for the final ack");
        sub.add_flag("--compliant", o->compliant, "run under the wrist F/T compliance");
        sub.add_option("--upload-timeout", o->upload_timeout_s, "seconds to wait for COMMITTED (default: derived)")
-           ->check(check::PositiveNumber);
+           ->check(check::WaitSeconds);
        sub.add_option("--start-tolerance", o->start_tolerance_rad,
                       "max |q_actual - q(0)| to start, rad, at most 0.02 (0: the remote's default)")
            ->check(check::Range(0.0, kMaxStartToleranceRad));

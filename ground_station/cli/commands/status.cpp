@@ -105,7 +105,7 @@ const bool registered = register_command(
            ->check(check::Range(1, 10000))
            ->capture_default_str();
        sub.add_option("--sample-timeout", o->sample_timeout_s, "at most this long, s")
-           ->check(check::PositiveNumber)
+           ->check(check::WaitSeconds)
            ->capture_default_str();
        return [o] { return run(*o); };
      }});

@@ -88,6 +88,19 @@ std::string BadInput::cal_, BadInput::oru_, BadInput::q_, BadInput::cams_, BadIn
 
 // ---- crashes and hangs ----
 
+// Issue 26: a wait of 1e300 s overflowed the clock arithmetic ("timed out
+// after 0.0 s" at once while the remote went on): every wait is refused
+// beyond a day, before anything is sent.
+TEST_F(BadInput, WaitsBeyondADayExitTwoNamingTheOption) {
+  for (const char* args : {"abort --timeout 1e300", "status --connect-timeout 1e300", "status --sample-timeout inf",
+                           "recover --timeout 0"}) {
+    const auto r = run_foresight(args);
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+    EXPECT_TRUE(has(r.err, "--")) << args << "\n" << r.err;
+    EXPECT_TRUE(has(r.err, "86400")) << args << "\n" << r.err;
+  }
+}
+
 TEST_F(BadInput, AUrdfNestedOneHundredThousandDeepExitsTwo) {
   std::string deep;
   for (int i = 0; i < 100000; ++i) deep += "<a>";
