@@ -327,6 +327,31 @@ TEST_F(RemoteCommands, AnAbortStopsTheArmWhileTheJournalCannotBeWritten) {
   EXPECT_TRUE(received) << "the ABORT's RECEIVED row is missing";
 }
 
+// Issue 28: a ground station whose process ended (its participant left the
+// domain) does not keep the lease: the next one takes control at once (it
+// used to wait out control_lease_s, 10 s: `foresight take-control` on its own
+// left every later command refused for that long).
+TEST_F(RemoteCommands, ControlIsReleasedWhenTheCommandersParticipantLeaves) {
+  {
+    ground_link::Config c = ground_config_;
+    c.domain = domain_;
+    ground_link::GroundLink other(c);
+    ASSERT_TRUE(other.wait_for_remote(30s));
+    ASSERT_TRUE(other.execute(CommandKind::TakeControl, protocol::NoPayload{}, 2.0).succeeded());
+    const auto refused = run(CommandKind::TakeControl);
+    EXPECT_EQ(refused.code, Reason::NotInControl) << refused.reason;
+  }  // the other station's participant is gone
+  const auto left = std::chrono::steady_clock::now();
+  ASSERT_TRUE(test::eventually([&] { return run(CommandKind::TakeControl).succeeded(); }, 20s));
+  const double after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - left).count();
+  EXPECT_LT(after_s, 5.0) << "control was taken only " << after_s << " s after the commander left (the lease is 10 s)";
+  bool released = false;
+  const nlohmann::json journal = journal_json();
+  for (const auto& e : journal["events"])
+    released = released || e["text"].get<std::string>().find("control released: the commander's participant") == 0;
+  EXPECT_TRUE(released) << journal["events"].dump();
+}
+
 TEST_F(RemoteCommands, AbortStopsTheMotionAndRecoverResumes) {
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();

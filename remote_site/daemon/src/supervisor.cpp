@@ -853,6 +853,17 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
 }
 
 void Supervisor::handle(const remote_link::LinkEvent& e) {
+  if (e.kind == remote_link::LinkEvent::Kind::CommanderLeft) {
+    // Its process ended: nobody can speak in that session any more, so the
+    // lease would only keep the next ground station waiting.
+    if (commander_ != 0 && commander_writer_ == e.participant) {
+      journal_event("control", "control released: the commander's participant " + e.participant.hex() +
+                                   " left the DDS domain");
+      set_commander(0, {});
+      publish_reports(true);
+    }
+    return;
+  }
   link_lost_ = e.kind == remote_link::LinkEvent::Kind::Lost;
   p_.loop->set_link_lost(link_lost_);
   const std::string text = link_lost_ ? fmt("link lost: no ground heartbeat for %.2f s", e.silence_s) + " (policy " +

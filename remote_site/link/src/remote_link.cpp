@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <deque>
@@ -172,6 +173,9 @@ struct RemoteLink::Impl {
   void serve_chunks();
   /// Half uploads idle for upload_idle_timeout_s: rejected, published, reported.
   void expire_uploads();
+  /// Every 250 ms: the commander's participant still has a command writer, or on_link(CommanderLeft).
+  void watch_commander(Clock::time_point now);
+  Clock::time_point next_commander_check{};
   void serve_pings();
   void serve_heartbeats();
   void beat_and_watch();
@@ -277,8 +281,35 @@ void RemoteLink::Impl::run() noexcept {
   }
 }
 
+void RemoteLink::Impl::watch_commander(Clock::time_point now) {
+  if (now < next_commander_check) return;
+  next_commander_check = now + std::chrono::milliseconds(250);
+  protocol::ParticipantGuid who;
+  {
+    std::lock_guard lock(commander_mutex);
+    who = commander;
+  }
+  if (!who.known()) return;
+  std::array<dds_instance_handle_t, 64> handles{};
+  const dds_return_t n = dds_get_matched_publications(commands.get(), handles.data(), handles.size());
+  if (n < 0) return;
+  for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())); ++i)
+    if (protocol::writer_participant(commands.get(), handles[static_cast<std::size_t>(i)]) == who) return;
+  if (n > static_cast<dds_return_t>(handles.size())) return;  // more writers than looked at: not sure
+  {
+    std::lock_guard lock(commander_mutex);
+    if (commander == who) commander = protocol::ParticipantGuid{};
+  }
+  LinkEvent e;
+  e.kind = LinkEvent::Kind::CommanderLeft;
+  e.participant = who;
+  spdlog::info("remote link: the commander's participant {} left", who.hex());
+  emit_link(e);
+}
+
 void RemoteLink::Impl::beat_and_watch() {
   const auto now = Clock::now();
+  watch_commander(now);
   if (now >= next_beat) {
     heartbeat_sample->side = foresight_msg_SIDE_REMOTE;
     heartbeat_sample->boot_id = boot_id;

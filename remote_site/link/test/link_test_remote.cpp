@@ -132,6 +132,7 @@ struct Stub {
 
   void on_link(const rl::LinkEvent& e) {
     std::lock_guard lock(mutex);
+    if (e.kind == rl::LinkEvent::Kind::CommanderLeft) return;  // this stub has no commander
     if (e.kind == rl::LinkEvent::Kind::Lost) {
       mode = protocol::ControllerMode::Stopped;
       stop_reason = "link lost";

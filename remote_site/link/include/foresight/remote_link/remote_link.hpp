@@ -104,8 +104,11 @@ struct UploadEvent {
 };
 
 struct LinkEvent {
-  enum class Kind { Lost, Regained };
+  /// CommanderLeft: the participant set_commander() named has no command
+  /// writer on the domain any more (its process ended or its lease expired).
+  enum class Kind { Lost, Regained, CommanderLeft };
   Kind kind = Kind::Lost;
+  protocol::ParticipantGuid participant;  ///< CommanderLeft: the one that left
   double silence_s = 0.0;            ///< since the last ground heartbeat (Lost) / how long it was lost (Regained)
   std::uint64_t ground_boot_id = 0;  ///< of the last ground heartbeat (a change means a restarted ground)
 };
