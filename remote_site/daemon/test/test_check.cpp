@@ -238,7 +238,8 @@ TEST(CheckConfig, TheVideoSwitchSectionIsCheckedAsTheDaemonChecksIt) {
 
   ConfigDir good;
   o.remote_yaml = good.yaml();
-  const CheckItem& ok = must_find(foresight::remote::run_check(o), "config");
+  const CheckReport good_report = foresight::remote::run_check(o);
+  const CheckItem& ok = must_find(good_report, "config");
   EXPECT_EQ(ok.result, CheckResult::Pass) << ok.why;
   EXPECT_NE(ok.why.find("video switch 127.0.0.1:1503 (4 cameras); start-up up to "), std::string::npos) << ok.why;
 }
