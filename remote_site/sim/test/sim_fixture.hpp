@@ -101,7 +101,12 @@ struct SimRig {
       return s;
     }
     std::this_thread::sleep_until(deadline);
-    deadline += std::chrono::microseconds(static_cast<long>(1e6 / config.cycle_rate_hz));
+    deadline += period();
+    // A cycle this thread missed (descheduled on a loaded machine) is skipped,
+    // as the control loop skips it: catching up would send a burst of SYNCs
+    // faster than the simulator thread answers, and its drives would look
+    // silent (TpdoMissing in a CI run of Plant.LatchAndLoosenThroughTheLstFreeTheOru).
+    if (const auto now = Clock::now(); deadline < now) deadline = now;
     const CycleStatus s = drives->cycle_read(fb, ft);
     drives->cycle_write(targets);
     return s;
