@@ -28,6 +28,7 @@
 #include "foresight/common/plan.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/common/trajectory.hpp"
 #include "foresight/ground_link/ground_link.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
@@ -301,6 +302,61 @@ TEST_F(FaultCampaign, AnFtOverloadDuringAnInsertionFailsItWithForceLimitAndTheAr
   const auto o = run(CommandKind::InvokeAlgorithm, out, 8.0);
   EXPECT_TRUE(o.succeeded()) << protocol::to_string(o.code) << ": " << o.reason << "\n" << remote_->log();
   expect_journal_complete();
+}
+
+// A trajectory that passes validate() but whose interpolant leaves rest at
+// 120x joint 1's acceleration limit (it starts moving at its first sample):
+// the remote's rate limiter (issue 25 item 3) smooths it, the motion still
+// ends where the trajectory ends, and the journal and the status say so.
+TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  Trajectory traj;
+  traj.positions_rad.resize(101, 7);
+  for (int i = 0; i <= 100; ++i) {
+    traj.time_s.push_back(0.01 * i);
+    traj.positions_rad.row(i) = q0.transpose();
+    traj.positions_rad(i, 0) += 0.004 * i;  // 0.4 rad/s from the first sample, 0.4 rad in all
+  }
+  ASSERT_TRUE(validate(traj, TrajectoryLimits::from_model(model_)).empty());
+  const auto up = ground_->upload(traj, 30s);
+  ASSERT_TRUE(up.committed()) << up.reason;
+  protocol::RunTrajectory go;
+  go.trajectory_id = up.trajectory_id;
+  go.content_hash = up.local_hash;
+  const auto r = run(CommandKind::Trajectory, go, traj.duration_s());
+  ASSERT_TRUE(r.succeeded()) << protocol::to_string(r.code) << ": " << r.reason << "\n" << remote_->log();
+  // At rest on the trajectory's end (the limiter catches up after its lag).
+  ASSERT_TRUE(eventually([&] { return std::abs(current_q()(0) - (q0(0) + 0.4)) < 1e-4; }, 5s))
+      << current_q()(0) - q0(0);
+  // The journal: a row when it began limiting joint 1 of the command, one
+  // when it let go; twice: where the interpolant leaves rest and comes to rest.
+  std::vector<std::string> texts;
+  ASSERT_TRUE(eventually(
+      [&] {
+        texts.clear();
+        const nlohmann::json journal = journal_json();  // kept alive while its events are read
+        for (const auto& e : journal["events"])
+          if (e["kind"] == "rate_limit") texts.push_back(e["text"].get<std::string>());
+        return texts.size() >= 4;
+      },
+      5s))
+      << nlohmann::json(texts).dump();
+  EXPECT_EQ(texts[0], "the rate limiter limits joint(s) 1 of command " + std::to_string(r.command_id));
+  EXPECT_EQ(texts[1].rfind("the rate limiter let go of joint(s) 1 after ", 0), 0u) << texts[1];
+  EXPECT_EQ(texts[2], texts[0]);
+  EXPECT_EQ(texts.size(), 4u) << nlohmann::json(texts).dump();
+  // The operator's status: how often, which joints, which command.
+  const auto status = test::run_foresight("status --json --samples 2 --domain " + std::to_string(domain_));
+  ASSERT_EQ(status.status, 0) << status.err;
+  const auto sj = nlohmann::json::parse(status.out)["rate_limit"];
+  EXPECT_GT(sj["cycles"].get<std::uint64_t>(), 5u) << sj.dump();
+  EXPECT_FALSE(sj["limiting"].get<bool>());
+  EXPECT_EQ(sj["last_joints"], nlohmann::json::array({1}));
+  EXPECT_EQ(sj["last_command_id"], r.command_id);
+  EXPECT_GT(sj["last_max_lag_rad"].get<double>(), 1e-4);
+  const auto text = test::run_foresight("status --samples 2 --domain " + std::to_string(domain_));
+  EXPECT_NE(text.out.find("rate limiter: idle; "), std::string::npos) << text.out;
 }
 
 // A hostile second DDS participant on the daemon's domain: malformed and

@@ -205,6 +205,9 @@ TEST_F(JointVelocity, TheOperatorsJsonCarriesTheVelocities) {
   ASSERT_EQ(text.status, 0) << text.err;
   EXPECT_NE(text.out.find("control loop: "), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("no overrun stop"), std::string::npos) << text.out;
+  ASSERT_TRUE(sj.contains("rate_limit")) << status.out;
+  EXPECT_EQ(sj["rate_limit"]["cycles"], 0) << "nothing moved: the rate limiter never acted";
+  EXPECT_NE(text.out.find("rate limiter: never acted"), std::string::npos) << text.out;
   const auto req = test::run_foresight("request joints --json --domain " + std::to_string(domain_));
   ASSERT_EQ(req.status, 0) << req.err;
   const auto rj = nlohmann::json::parse(req.out);

@@ -395,6 +395,12 @@ bool cdr_fits(std::type_identity<msg::ControllerStatus>, const CdrPayload& p) no
         w.prim(kI4, 2);     // missed_streak_max, max_missed_cycles
         w.prim(kI8, 4);     // latency p99, max; compute p99, max
       });
+      w.final_struct([&] {  // rate_limit (RateLimit)
+        w.prim(kI8);        // cycles
+        w.prim(kBool);      // limiting
+        w.prim(kI4);        // last_joint_mask
+        w.prim(kI8, 2);     // last_command_id, last_max_lag_rad
+      });
     });
   });
 }

@@ -404,6 +404,8 @@ void to_wire(msg::ControllerStatus& out, const StatusReport& r) {
   out.loop = {l.realtime,          l.memory_locked,         l.realtime_required,     l.cycles,
               l.overruns,          l.missed_streak_max,     l.max_missed_cycles,     l.wakeup_latency_p99_us,
               l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
+  const RateLimitReport& rl = r.rate_limit;
+  out.rate_limit = {rl.cycles, rl.limiting, rl.last_joint_mask, rl.last_command_id, rl.last_max_lag_rad};
 }
 
 JointReport from_wire(const msg::JointState& s) {
@@ -457,6 +459,8 @@ StatusReport from_wire(const msg::ControllerStatus& s) {
   out.loop = {l.realtime,          l.memory_locked,         l.realtime_required,     l.cycles,
               l.overruns,          l.missed_streak_max,     l.max_missed_cycles,     l.wakeup_latency_p99_us,
               l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
+  const msg::RateLimit& rl = s.rate_limit;
+  out.rate_limit = {rl.cycles, rl.limiting, rl.last_joint_mask, rl.last_command_id, rl.last_max_lag_rad};
   return out;
 }
 

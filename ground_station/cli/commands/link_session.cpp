@@ -228,6 +228,16 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
                  {"max_missed_cycles", l.max_missed_cycles},
                  {"wakeup_latency_us", {{"p99", l.wakeup_latency_p99_us}, {"max", l.wakeup_latency_max_us}}},
                  {"compute_us", {{"p99", l.compute_p99_us}, {"max", l.compute_max_us}}}};
+    // The rate limiter: how often it changed a command, and its last episode.
+    const protocol::RateLimitReport& rl = s.rate_limit;
+    nlohmann::json rl_joints = nlohmann::json::array();
+    for (int b = 0; b < 32; ++b)
+      if ((rl.last_joint_mask >> b) & 1u) rl_joints.push_back(b + 1);
+    j["rate_limit"] = {{"cycles", rl.cycles},
+                       {"limiting", rl.limiting},
+                       {"last_joints", rl_joints},
+                       {"last_command_id", rl.last_command_id},
+                       {"last_max_lag_rad", rl.last_max_lag_rad}};
     if (s.fault_bits != 0 || !s.fault_text.empty())
       faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
     if (s.stop_category != protocol::StopCategory::None)

@@ -62,6 +62,21 @@ int run(const Options& o) {
                 limit > 0 ? ("stop at " + std::to_string(limit)).c_str() : "no overrun stop",
                 l["wakeup_latency_us"]["p99"].get<double>(), l["wakeup_latency_us"]["max"].get<double>());
   }
+  if (j.contains("rate_limit")) {
+    const auto& rl = j["rate_limit"];
+    const auto cycles = rl["cycles"].get<std::uint64_t>();
+    if (cycles == 0) {
+      std::printf("rate limiter: never acted\n");
+    } else {
+      std::string joints;
+      for (const auto& jn : rl["last_joints"]) joints += (joints.empty() ? "" : ", ") + std::to_string(jn.get<int>());
+      std::printf("rate limiter: %s; %llu cycles limited since start, last on joint(s) %s (command %llu), lag up to "
+                  "%.4f rad\n",
+                  rl["limiting"].get<bool>() ? "LIMITING now" : "idle", static_cast<unsigned long long>(cycles),
+                  joints.c_str(), static_cast<unsigned long long>(rl["last_command_id"].get<std::uint64_t>()),
+                  rl["last_max_lag_rad"].get<double>());
+    }
+  }
   if (!j["joints_rad"].empty()) {
     std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
     for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);

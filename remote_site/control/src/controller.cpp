@@ -54,6 +54,12 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (config.sensor_fault_cycles < 1) throw std::invalid_argument("sensor_fault_cycles must be >= 1");
   if (!finite_pos(config.velocity_filter_hz)) throw std::invalid_argument("velocity_filter_hz must be > 0");
   if (config.drive_velocity_max_age_cycles < 0) throw std::invalid_argument("drive_velocity_max_age_cycles must be >= 0");
+  if (!finite_pos(config.rate_limit_acceleration_fraction) || config.rate_limit_acceleration_fraction < 1.0 ||
+      config.rate_limit_acceleration_fraction > 10.0)
+    throw std::invalid_argument("rate_limit_acceleration_fraction must be in [1, 10]");
+  if (!finite_pos(config.rate_limit_jerk_per_s) || config.rate_limit_jerk_per_s < 10.0 ||
+      config.rate_limit_jerk_per_s > 100000.0)
+    throw std::invalid_argument("rate_limit_jerk_per_s must be in [10, 100000] 1/s");
   dt_ = 1.0 / config.cycle_rate_hz;
   for (std::size_t j = 0; j < dof_; ++j) {
     const JointLimits& l = model.limits()[j];
@@ -62,6 +68,14 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
     vmax_[j] = l.velocity_rad_s * config.velocity_limit_fraction;
     amax_[j] = l.acceleration_rad_s2 * config.stop_decel_fraction;
   }
+  RateLimits rl;
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const JointLimits& l = model.limits()[j];
+    rl.velocity[j] = vmax_[j];
+    rl.acceleration[j] = l.acceleration_rad_s2 * config.rate_limit_acceleration_fraction;
+    rl.jerk[j] = l.acceleration_rad_s2 * config.rate_limit_jerk_per_s;
+  }
+  limiter_.configure(dof_, rl, dt_);
   qv_.resize(static_cast<Eigen::Index>(dof_));
   qv2_.resize(static_cast<Eigen::Index>(dof_));
   dqv_.resize(static_cast<Eigen::Index>(dof_));
@@ -282,6 +296,7 @@ void Controller::drive_request_done(DriveRequest request, bool ok, const char* t
       drives_enabled_ = true;
       q_cmd_ = held;
       q_cmd_prev_ = held;
+      limiter_.reset(held);  // at rest on what the drives hold
       v_cmd_ = JointArray{};
       for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = held[j];
       tip_cmd_valid_ = false;
@@ -770,7 +785,41 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     case ControllerMode::Stopped: q_cmd_ = q_hold_; break;
   }
 
+  // The rate limiter: what a stiff motion or hold commands, limited in
+  // acceleration and jerk. Not inside the force loop: an algorithm, a
+  // compliant trajectory or hold is shaped by its admittance (its virtual
+  // mass and damping), and a limiter there, lagging behind the admittance at
+  // the bus's 3-cycle loop delay, made the contact unstable (docs/control.md,
+  // "The rate limiter"). Controlled stops shape their own ramp.
+  limiter_applied_ = false;
+  std::uint32_t limited = 0;
+  const bool stiff_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && !hold_compliant_) ||
+                            (mode_ == ControllerMode::Trajectory && !traj_compliant_);
+  if (stiff_motion) {
+    limited = limiter_.apply(q_cmd_, q_cmd_);
+    limiter_applied_ = true;
+  }
+
   record_evidence(in);
+  if (const std::uint32_t fast = limiter_applied_ ? limiter_.too_fast() : 0u; fast != 0) {
+    // The motion itself asks for more than the velocity limit: a broken
+    // command (validated trajectories and the compliance's capped steps
+    // never do). Cat2, the command dropped (the evidence shows it).
+    std::size_t j = 0;
+    while (((fast >> j) & 1u) == 0) ++j;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "joint %zu command speed %.3f rad/s > %.3f rad/s", j + 1,
+                  limiter_.target_speed()[j], vmax_[j]);
+    q_cmd_ = q_cmd_prev_;
+    limited = 0;
+    begin_stop(StopCause::JointVelocityLimit, StopCategory::Cat2, static_cast<int>(j), limiter_.target_speed()[j],
+               vmax_[j], buf);
+  }
+  if (limited != 0) {
+    ++rate_limited_cycles_;
+    for (std::size_t j = 0; j < dof_; ++j)
+      if ((limited >> j) & 1u) ++rate_limited_joint_cycles_[j];
+  }
   if (powered && mode_ != ControllerMode::Fault && mode_ != ControllerMode::Disabled) check_safety(in);
 
   // Outputs.
@@ -790,6 +839,12 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     for (std::size_t j = 0; j < dof_; ++j)
       if (std::abs(v_cmd_[j]) > vmax_[j]) v_cmd_[j] = v_cmd_[j] > 0 ? vmax_[j] : -vmax_[j];
   q_cmd_prev_ = q_cmd_;
+  // The limiter's state is what was sent: it follows the stops' own ramps and
+  // rests with the arm while the drives are off.
+  if (mode_ == ControllerMode::Disabled || mode_ == ControllerMode::Fault)
+    limiter_.reset(q_cmd_);
+  else if (!limiter_applied_)
+    limiter_.follow(q_cmd_);
   tip_cmd_valid_ = false;  // computed on demand (commanded_tip_now)
   out.q_cmd = q_cmd_;
   if (stop_new_) out.stop = &stop_;
@@ -822,6 +877,10 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   t.algorithm = active_ == Active::Algorithm ? algo_.kind() : AlgorithmKind::None;
   t.stop_category = stop_.category;
   t.stop_cause = stop_.cause;
+  t.rate_limited_mask = limited;
+  t.rate_limited_cycles = rate_limited_cycles_;
+  t.rate_limited_joint_cycles = rate_limited_joint_cycles_;
+  t.rate_limit_lag = limiter_.lag();
 
   out.event_count = pending_event_count_;
   for (std::size_t i = 0; i < pending_event_count_; ++i) out.events[i] = pending_events_[i];

@@ -885,6 +885,70 @@ std::vector<double> Supervisor::current_q() const {
   return std::vector<double>(latest_.q.begin(), latest_.q.begin() + static_cast<std::ptrdiff_t>(n));
 }
 
+namespace {
+std::string joint_list(std::uint32_t mask) {
+  std::string s;
+  for (std::size_t j = 0; j < control::kMaxJoints; ++j)
+    if ((mask >> j) & 1u) s += (s.empty() ? "" : ", ") + std::to_string(j + 1);
+  return s;
+}
+}  // namespace
+
+void Supervisor::track_rate_limiter(const control::TelemetrySample& t) {
+  const std::size_t n = std::min<std::size_t>(t.joints, control::kMaxJoints);
+  std::uint32_t joints = 0;
+  double lag = 0.0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (t.rate_limited_joint_cycles[j] != rate_limited_joint_cycles_[j]) joints |= std::uint32_t{1} << j;
+    lag = std::max(lag, std::abs(t.rate_limit_lag[j]));
+  }
+  rate_limited_joint_cycles_ = t.rate_limited_joint_cycles;
+  RateLimitEpisode& e = rate_limit_;
+  auto detail = [&](bool end) {
+    nlohmann::json d;
+    d["joints"] = nlohmann::json::array();
+    for (std::size_t j = 0; j < control::kMaxJoints; ++j)
+      if ((e.joints >> j) & 1u) d["joints"].push_back(j + 1);
+    d["command_id"] = e.command_id;
+    d["max_lag_rad"] = e.max_lag_rad;
+    if (end) d["cycles"] = t.rate_limited_cycles - e.first_cycles;
+    return d.dump();
+  };
+  if (joints != 0) {
+    const bool begins = !e.active;
+    if (begins) {
+      e = RateLimitEpisode{};
+      e.active = true;
+      e.first_cycles = rate_limit_report_.cycles;  // the count before this episode
+      e.command_id = running_ ? running_->command.command_id : 0;
+    }
+    e.joints |= joints;
+    e.max_lag_rad = std::max(e.max_lag_rad, lag);
+    e.last_limited_ns = t.stamp_ns;
+    if (begins) {
+      journal_event("rate_limit",
+                    "the rate limiter limits joint(s) " + joint_list(e.joints) +
+                        (e.command_id != 0 ? " of command " + std::to_string(e.command_id) : std::string()),
+                    detail(false));
+      spdlog::warn("rate limiter: limiting joint(s) {}", joint_list(e.joints));
+    }
+  } else if (e.active && t.stamp_ns - e.last_limited_ns >= 200'000'000) {
+    e.active = false;
+    journal_event("rate_limit",
+                  "the rate limiter let go of joint(s) " + joint_list(e.joints) + " after " +
+                      std::to_string(t.rate_limited_cycles - e.first_cycles) + " limited cycles, lag up to " +
+                      fmt("%.4f", e.max_lag_rad) + " rad",
+                  detail(true));
+  }
+  rate_limit_report_.cycles = t.rate_limited_cycles;
+  rate_limit_report_.limiting = e.active;
+  if (e.joints != 0) {
+    rate_limit_report_.last_joint_mask = e.joints;
+    rate_limit_report_.last_command_id = e.command_id;
+    rate_limit_report_.last_max_lag_rad = e.max_lag_rad;
+  }
+}
+
 std::int64_t Supervisor::to_wall_ns(std::int64_t mono_ns) const noexcept {
   return wall_now_ns() - (mono_now_ns() - mono_ns);
 }
@@ -905,6 +969,7 @@ void Supervisor::poll_loop() {
     }
     for (std::size_t i = 0; i < 6; ++i) row.wrench[i] = t.wrench_tool[i];
     (void)p_.journal->push_telemetry(row);
+    track_rate_limiter(t);
   }
   control::StopEvent s;
   while (p_.loop->poll_stop(s)) {
@@ -1047,6 +1112,7 @@ protocol::StatusReport Supervisor::status_report() const {
                 hw::canopen::power_enabled(static_cast<hw::canopen::PowerState>(d.state));
     s.drives.push_back(d);
   }
+  s.rate_limit = rate_limit_report_;
   if (p_.loop != nullptr) {
     const control::LoopStats st = p_.loop->stats();
     using LS = control::LoopStats;

@@ -46,6 +46,7 @@ using ControllerMode = foresight_msg_ControllerMode;
 using DriveState = foresight_msg_DriveState;
 using DriveStatus = foresight_msg_DriveStatus;
 using LoopTiming = foresight_msg_LoopTiming;
+using RateLimit = foresight_msg_RateLimit;
 using ToolDirection = foresight_msg_ToolDirection;
 using Side = foresight_msg_HeartbeatSide;
 using Sha256 = foresight_msg_Sha256;

@@ -55,6 +55,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/control/algorithms.hpp"
 #include "foresight/control/compliance.hpp"
+#include "foresight/control/rate_limiter.hpp"
 #include "foresight/control/rt_types.hpp"
 #include "foresight/control/trajectory_executor.hpp"
 
@@ -75,6 +76,16 @@ struct ControllerConfig {
   double force_limit_n = 150.0;            ///< |F| of the compensated contact force
   double torque_limit_nm = 15.0;           ///< |T| about the tip
   double stop_decel_fraction = 1.0;        ///< controlled stops: of the URDF acceleration limits
+  /// The rate limiter (rate_limiter.hpp) on every command of a stiff motion
+  /// or hold (trajectories, GOTOs, the stiff hold; not inside the force loop
+  /// of compliant modes): acceleration at most this multiple of the URDF
+  /// (planning) limit (a planned trajectory's C1 interpolant reaches 1.35x
+  /// between samples and passes untouched), jerk at most
+  /// rate_limit_jerk_per_s x the URDF acceleration limit (1000/s: the
+  /// acceleration may change by 2x its planning limit in a 2 ms cycle),
+  /// velocity at most the velocity limit.
+  double rate_limit_acceleration_fraction = 1.5;
+  double rate_limit_jerk_per_s = 1000.0;
   StopCategory estop_category = StopCategory::Cat0;
   LinkLossPolicy link_loss = LinkLossPolicy::FinishThenHold;
   int sensor_fault_cycles = 5;             ///< F/T saturated or faulty this many cycles in a row: Cat1
@@ -165,6 +176,7 @@ class Controller {
   const AlgorithmRunner& algorithm() const noexcept { return algo_; }
   const WrenchCompensator& compensator() const noexcept { return comp_; }
   const Admittance& admittance() const noexcept { return adm_; }
+  const JointRateLimiter& rate_limiter() const noexcept { return limiter_; }
 
  private:
   enum class Active : std::uint8_t { None, Hold, Trajectory, Algorithm, Enable, Disable, Recover, Tare };
@@ -247,6 +259,10 @@ class Controller {
 
   WrenchCompensator comp_;
   Admittance adm_;
+  JointRateLimiter limiter_;
+  bool limiter_applied_ = false;  // this cycle's command came out of limiter_.apply()
+  std::uint64_t rate_limited_cycles_ = 0;
+  std::array<std::uint32_t, kMaxJoints> rate_limited_joint_cycles_{};
   AlgorithmRunner algo_;
 
   std::array<MotionEvent, CycleOutputs::kMaxEvents> pending_events_{};

@@ -234,6 +234,13 @@ struct TelemetrySample {
   AlgorithmKind algorithm = AlgorithmKind::None;
   StopCategory stop_category = StopCategory::None;  ///< of the last stop (None after Recover)
   StopCause stop_cause = StopCause::None;
+  /// The rate limiter (rate_limiter.hpp): the joints it limited this cycle
+  /// (bit j = joint j + 1), the cycles it limited any joint since start, and
+  /// per joint (a reader diffs two samples to see what acted between them).
+  std::uint32_t rate_limited_mask = 0;
+  std::uint64_t rate_limited_cycles = 0;
+  std::array<std::uint32_t, kMaxJoints> rate_limited_joint_cycles{};
+  JointArray rate_limit_lag{};  ///< target - command per joint this cycle, rad
 };
 
 static_assert(std::is_trivially_copyable_v<MotionCommand>);

@@ -220,6 +220,20 @@ class Supervisor {
   std::uint64_t internal_counter_ = 0;
   std::string fault_text_;
 
+  /// The rate limiter's episodes, from the telemetry's counters: one journal
+  /// row when it starts limiting, one when it has let go for 200 ms.
+  void track_rate_limiter(const control::TelemetrySample& t);
+  struct RateLimitEpisode {
+    bool active = false;
+    std::uint32_t joints = 0;        ///< bit j: joint j + 1 limited in this episode
+    std::uint64_t first_cycles = 0;  ///< the loop's rate_limited_cycles when it began
+    std::uint64_t command_id = 0;    ///< the ground's command running when it began (0: none)
+    double max_lag_rad = 0.0;
+    std::int64_t last_limited_ns = 0;
+  } rate_limit_{};
+  protocol::RateLimitReport rate_limit_report_{};
+  std::array<std::uint32_t, control::kMaxJoints> rate_limited_joint_cycles_{};
+
   Clock::time_point next_joints_{}, next_wrench_{}, next_tool_{}, next_status_{}, next_input_check_{};
 };
 

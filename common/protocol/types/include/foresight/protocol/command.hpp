@@ -223,6 +223,16 @@ struct LoopTiming {
   double compute_max_us = 0.0;
 };
 
+/// The remote's rate limiter (the last limit on every command it sends the
+/// drives: acceleration and jerk): how often it acted and its last episode.
+struct RateLimitReport {
+  std::uint64_t cycles = 0;           ///< control cycles it changed a command since start
+  bool limiting = false;              ///< limiting now (an episode ends 200 ms after its last limited cycle)
+  std::uint32_t last_joint_mask = 0;  ///< the last episode's joints (bit j = joint j + 1)
+  std::uint64_t last_command_id = 0;  ///< the command running when it began (0: none)
+  double last_max_lag_rad = 0.0;      ///< the largest target - command of that episode
+};
+
 struct StatusReport {
   std::int64_t stamp_ns = 0;
   ControllerMode mode = ControllerMode::Disabled;
@@ -235,6 +245,7 @@ struct StatusReport {
   std::string fault_text;
   std::vector<DriveReport> drives;  ///< one per joint, joint order
   LoopTiming loop;
+  RateLimitReport rate_limit;
 };
 
 /// An upload's state as the link reports it on the trajectory status topic.
