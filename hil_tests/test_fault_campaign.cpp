@@ -23,6 +23,9 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <atomic>
+#include <thread>
+#include <set>
 
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/plan.hpp"
@@ -357,6 +360,95 @@ TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) 
   EXPECT_GT(sj["last_max_lag_rad"].get<double>(), 1e-4);
   const auto text = test::run_foresight("status --samples 2 --domain " + std::to_string(domain_));
   EXPECT_NE(text.out.find("rate limiter: idle; "), std::string::npos) << text.out;
+}
+
+// Issue 28: a flood of commands from another participant (32 sessions, as
+// fast as it can write) neither starves the commander's ABORT nor fills the
+// journal: the link drops what is over the participant's rate (50/s, burst
+// 100) before anything reads it, the ABORT goes to the loop ahead of the
+// rest of its batch, and the journal names the flooder once a second.
+TEST_F(FaultCampaign, AFloodFromAnotherParticipantNeitherStarvesAnAbortNorFillsTheJournal) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t motion = start_slow_motion(q0, 0.5);
+  fp::Participant hostile_p(static_cast<dds_domainid_t>(domain_));
+  fp::Writer<msg::Command> writer(hostile_p);
+  ASSERT_TRUE(writer.wait_for_readers(1, 20s));
+  std::vector<fp::CommandSequencer> sessions;
+  std::set<std::uint64_t> flood_sessions;
+  for (std::uint64_t k = 0; k < 32; ++k) {
+    sessions.emplace_back(0xf100d000 + k);
+    flood_sessions.insert(0xf100d000 + k);
+  }
+  constexpr int kFlood = 20000;
+  std::atomic<int> written{0};
+  std::thread flood([&] {
+    for (int i = 0; i < kFlood; ++i) {  // bounded: it ends by itself
+      auto c = sessions[static_cast<std::size_t>(i) % sessions.size()].next(foresight_msg_CMD_REQUEST);
+      try {
+        writer.write(c);
+      } catch (const fp::ProtocolError&) {  // the writer's own flow control: that sample is lost, go on
+      }
+      written.fetch_add(1);
+    }
+  });
+  ASSERT_TRUE(eventually([&] { return written.load() >= 2000; }, 20s));
+  protocol::Abort abort;
+  abort.category = protocol::StopCategory::Cat2;
+  const auto t_abort = Clock::now();
+  const std::uint64_t abort_id = ground_->send(CommandKind::Abort, abort);
+  // At rest on the drives' own record: joint 1 still over two records (>= 40 ms).
+  double at_rest_s = -1.0;
+  {
+    DriveRecord prev = record();
+    while (Clock::now() - t_abort < 5s) {
+      const DriveRecord r = record();
+      if (r.seq >= prev.seq + 2) {
+        if (std::abs(r.q[0] - prev.q[0]) < 1e-6) {
+          at_rest_s = std::chrono::duration<double>(Clock::now() - t_abort).count();
+          break;
+        }
+        prev = r;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+  }
+  const auto abort_ack = ground_->wait_final(abort_id, 10s);
+  const double ack_s = std::chrono::duration<double>(Clock::now() - t_abort).count();
+  flood.join();
+  ASSERT_GE(at_rest_s, 0.0) << "the arm did not come to rest within 5 s of the ABORT";
+  std::printf("flood of %d commands: ABORT to rest %.3f s (drive record, 20 ms polls), its final ack %.3f s\n",
+              written.load(), at_rest_s, ack_s);
+  EXPECT_LT(at_rest_s, 0.5);
+  EXPECT_EQ(abort_ack.state, AckState::Completed) << protocol::to_string(abort_ack.state) << ": " << abort_ack.reason;
+  const auto moved = ground_->wait_final(motion, 5s);
+  EXPECT_EQ(moved.state, AckState::Canceled) << protocol::to_string(moved.state);
+  EXPECT_LT(current_q()(0) - q0(0), 0.5) << "stopped short of its goal";
+
+  // The journal: the flood's commands mostly never reached it; the flooder is named.
+  std::size_t flood_rows = 0, named = 0;
+  std::uint64_t dropped = 0;
+  ASSERT_TRUE(eventually(
+      [&] {
+        const nlohmann::json journal = journal_json();  // kept alive while read
+        flood_rows = 0;
+        named = 0;
+        dropped = 0;
+        for (const auto& c : journal["commands"])
+          if (flood_sessions.count(c["session_id"].get<std::uint64_t>()) && c["state"] == "RECEIVED") ++flood_rows;
+        for (const auto& e : journal["events"])
+          if (e["kind"] == "command_rate_limit") {
+            ++named;
+            dropped += e["detail"]["dropped"].get<std::uint64_t>();
+            EXPECT_NE(e["text"].get<std::string>().find(" commands of participant "), std::string::npos) << e.dump();
+          }
+        return named > 0 && flood_rows + dropped + 200 >= static_cast<std::size_t>(kFlood);
+      },
+      10s))
+      << flood_rows << " flood commands journaled, " << dropped << " dropped in " << named << " rows";
+  std::printf("flood: %zu commands journaled, %llu dropped (%zu journal rows naming the flooder)\n", flood_rows,
+              static_cast<unsigned long long>(dropped), named);
+  EXPECT_LT(flood_rows, 1500u) << "burst 100 + 50/s over the flood";
 }
 
 // A hostile second DDS participant on the daemon's domain: malformed and

@@ -331,8 +331,13 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
   EXPECT_TRUE(run(protocol::CommandKind::Request, protocol::Request{}).succeeded());
 }
 
+// The flood comes from a participant of its own: the remote answers its
+// first 100 commands (the per-participant burst, then 50 a second: REJECTED,
+// each with its reason) and drops the rest unanswered (RemoteLink's rate
+// limit), while the well-behaved ground, another participant, is served.
 TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
-  RawCommander raw(ground_->participant());
+  fp::Participant hostile(static_cast<dds_domainid_t>(domain_));
+  RawCommander raw(hostile);
   constexpr int kFlood = 300;
   for (int i = 0; i < kFlood; ++i) {
     auto c = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
@@ -346,12 +351,16 @@ TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
   fp::Sample<msg::CommandAck> a;
   const auto deadline = Clock::now() + 30s;
   while (rejected < kFlood && Clock::now() < deadline) {
-    if (!raw.acks.wait_take(a, 100ms)) continue;
+    if (!raw.acks.wait_take(a, 100ms)) {
+      if (rejected >= 100) break;  // the answered part has arrived; the rest never will
+      continue;
+    }
     if (a->session_id != raw.sequencer.session_id() || a->state != foresight_msg_ACK_REJECTED) continue;
     EXPECT_EQ(a->code, foresight_msg_REASON_BAD_ARGUMENT);
     ++rejected;
   }
-  EXPECT_EQ(rejected, kFlood);
+  EXPECT_GE(rejected, 100) << "the burst is answered";
+  EXPECT_LT(rejected, 200) << "the rest of the flood is dropped, not answered";
   EXPECT_TRUE(run(protocol::CommandKind::GotoJoint, protocol::GotoJoint{std::vector<double>(7, 0.1), 0.5}).succeeded());
 }
 

@@ -160,7 +160,14 @@ void Supervisor::run_once() {
     std::lock_guard lock(inbox_mu_);
     batch.swap(inbox_);
   }
+  // An ABORT that stops the arm is sent to the loop before anything else of
+  // the batch is handled (journal rows, acks, other commands behind it): the
+  // stop never waits for what arrived just before it. The commands ahead of
+  // it are handled after, in order, against a stopping controller.
+  for (const auto& item : batch)
+    if (const auto* ce = std::get_if<remote_link::CommandEvent>(&item)) send_early_stop(*ce);
   for (const auto& item : batch) std::visit([this](const auto& e) { handle(e); }, item);
+  early_stops_.clear();
   poll_tool();
   poll_camera();
   poll_loop();
@@ -234,6 +241,10 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   const protocol::Command& c = event.command;
   current_writer_ = event.writer;
   early_stop_id_.reset();
+  if (auto it = early_stops_.find(&event); it != early_stops_.end()) {
+    early_stop_id_ = it->second;
+    early_stops_.erase(it);
+  }
   if (event.duplicate) {
     // A re-sent command: answer with its last state, never run it twice.
     if (auto it = last_ack_.find({c.session_id, c.command_id}); it != last_ack_.end()) {
@@ -244,12 +255,10 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   // An ABORT that stops the arm reaches the loop first: its RECEIVED row is
   // synced to the disk before the ack leaves (milliseconds; seconds on a disk
   // that stalls), and the stop must not wait for that.
-  if (event.accepted() && !event.duplicate && !shutting_down_ && c.kind == CommandKind::Abort && abort_stops_arm(c)) {
-    MotionCommand stop;
-    stop.command_id = internal_id();
-    stop.kind = MotionCommandKind::Stop;
-    stop.category = std::get<protocol::Abort>(c.payload).category;
-    if (p_.loop->send(stop)) early_stop_id_ = stop.command_id;
+  if (!early_stop_id_) send_early_stop(event);
+  if (auto it = early_stops_.find(&event); it != early_stops_.end()) {
+    early_stop_id_ = it->second;
+    early_stops_.erase(it);
   }
   ack(c, AckState::Received);
   if (!event.accepted()) {
@@ -729,6 +738,17 @@ void Supervisor::do_abort(const protocol::Command& c) {
   ack(c, AckState::Executing);
 }
 
+void Supervisor::send_early_stop(const remote_link::CommandEvent& event) {
+  const protocol::Command& c = event.command;
+  if (!event.accepted() || event.duplicate || shutting_down_ || c.kind != CommandKind::Abort) return;
+  if (early_stops_.count(&event) != 0 || !abort_stops_arm(c)) return;
+  MotionCommand stop;
+  stop.command_id = internal_id();
+  stop.kind = MotionCommandKind::Stop;
+  stop.category = std::get<protocol::Abort>(c.payload).category;
+  if (p_.loop->send(stop)) early_stops_[&event] = stop.command_id;
+}
+
 bool Supervisor::abort_stops_arm(const protocol::Command& c) const {
   const auto& a = std::get<protocol::Abort>(c.payload);
   if (a.category != protocol::StopCategory::Cat1 && a.category != protocol::StopCategory::Cat2) return false;
@@ -862,6 +882,19 @@ void Supervisor::handle(const remote_link::LinkEvent& e) {
       set_commander(0, {});
       publish_reports(true);
     }
+    return;
+  }
+  if (e.kind == remote_link::LinkEvent::Kind::RateLimited) {
+    // One row a second per flooding participant, naming it: the flood's own
+    // commands never reach the journal (nor rotate the commanders' out).
+    nlohmann::json d;
+    d["participant"] = e.participant.hex();
+    d["dropped"] = e.dropped;
+    d["seconds"] = e.silence_s;
+    journal_event("command_rate_limit",
+                  std::to_string(e.dropped) + " commands of participant " + e.participant.hex() + " dropped in " +
+                      fmt("%.1f s", e.silence_s) + ": over its rate limit",
+                  d.dump());
     return;
   }
   link_lost_ = e.kind == remote_link::LinkEvent::Kind::Lost;

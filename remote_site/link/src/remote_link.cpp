@@ -246,7 +246,20 @@ struct RemoteLink::Impl {
   std::atomic<bool> link_up{false};
   std::atomic<std::uint64_t> n_commands{0}, n_rejected{0}, n_acks{0}, n_write_failures{0}, n_pings{0},
       n_chunks{0}, n_committed{0}, n_upload_rejected{0}, n_handler_exceptions{0}, n_foreign_heartbeats{0},
-      n_foreign_chunks{0};
+      n_foreign_chunks{0}, n_rate_limited{0};
+  /// The per-participant command budget (Config::max_commands_per_s).
+  struct Bucket {
+    double tokens = 0.0;
+    Clock::time_point refilled{};
+    std::uint64_t dropped = 0;  ///< since the last report
+    Clock::time_point first_drop{};
+  };
+  static constexpr std::size_t kMaxBuckets = 256;
+  std::map<protocol::ParticipantGuid, Bucket> buckets;
+  /// Takes a token of `writer`'s bucket; false: over its rate (counted).
+  bool admit(const protocol::ParticipantGuid& writer, Clock::time_point now);
+  /// One LinkEvent::RateLimited a second per participant that was dropped from.
+  void report_rate_limits(Clock::time_point now);
   mutable std::mutex commander_mutex;
   protocol::ParticipantGuid commander;  // set_commander; unknown: anyone's heartbeats count
   /// True when `writer` may speak for the link: the commander, or anyone while nobody is in control.
@@ -307,9 +320,50 @@ void RemoteLink::Impl::watch_commander(Clock::time_point now) {
   emit_link(e);
 }
 
+bool RemoteLink::Impl::admit(const protocol::ParticipantGuid& writer, Clock::time_point now) {
+  if (!(config.max_commands_per_s > 0.0)) return true;
+  auto it = buckets.find(writer);
+  if (it == buckets.end()) {
+    if (buckets.size() >= kMaxBuckets) {  // forget the longest idle (a full bucket again when it returns)
+      auto idle = std::min_element(buckets.begin(), buckets.end(), [](const auto& a, const auto& b) {
+        return a.second.refilled < b.second.refilled;
+      });
+      buckets.erase(idle);
+    }
+    it = buckets.emplace(writer, Bucket{config.command_burst, now, 0, {}}).first;
+  }
+  Bucket& b = it->second;
+  b.tokens = std::min(config.command_burst,
+                      b.tokens + std::chrono::duration<double>(now - b.refilled).count() * config.max_commands_per_s);
+  b.refilled = now;
+  if (b.tokens >= 1.0) {
+    b.tokens -= 1.0;
+    return true;
+  }
+  if (b.dropped++ == 0) b.first_drop = now;
+  n_rate_limited.fetch_add(1);
+  return false;
+}
+
+void RemoteLink::Impl::report_rate_limits(Clock::time_point now) {
+  for (auto& [writer, b] : buckets) {
+    if (b.dropped == 0 || now - b.first_drop < std::chrono::seconds(1)) continue;
+    LinkEvent e;
+    e.kind = LinkEvent::Kind::RateLimited;
+    e.participant = writer;
+    e.dropped = b.dropped;
+    e.silence_s = std::chrono::duration<double>(now - b.first_drop).count();
+    spdlog::warn("remote link: {} commands of participant {} dropped in {:.1f} s (over {:.0f} a second)", b.dropped,
+                 writer.hex(), e.silence_s, config.max_commands_per_s);
+    b.dropped = 0;
+    emit_link(e);
+  }
+}
+
 void RemoteLink::Impl::beat_and_watch() {
   const auto now = Clock::now();
   watch_commander(now);
+  report_rate_limits(now);
   if (now >= next_beat) {
     heartbeat_sample->side = foresight_msg_SIDE_REMOTE;
     heartbeat_sample->boot_id = boot_id;
@@ -367,6 +421,9 @@ void RemoteLink::Impl::serve_commands() {
     const std::int64_t received = protocol::now_ns();
     CommandEvent event;
     event.writer = protocol::writer_participant(commands.get(), info.publication_handle);
+    const bool commanders_abort =
+        protocol::raw(c.payload._d) == foresight_msg_CMD_ABORT && from_commander(event.writer);
+    if (!commanders_abort && !admit(event.writer, Clock::now())) continue;  // over its rate: dropped, counted
     // Per-session sequence: a second ground station has its own; the least
     // recently used session is forgotten beyond max_sessions.
     const auto session_key = std::make_pair(c.session_id, event.writer);
@@ -717,6 +774,7 @@ LinkStats RemoteLink::stats() const noexcept {
   s.handler_exceptions = impl_->n_handler_exceptions.load();
   s.foreign_heartbeats = impl_->n_foreign_heartbeats.load();
   s.foreign_chunks = impl_->n_foreign_chunks.load();
+  s.rate_limited = impl_->n_rate_limited.load();
   s.link_up = impl_->link_up.load();
   return s;
 }

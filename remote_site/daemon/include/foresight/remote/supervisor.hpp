@@ -158,6 +158,10 @@ class Supervisor {
   void do_abort(const protocol::Command& command);
   /// Whether do_abort would stop the arm: a valid category, and no target, or
   /// the running motion as target.
+  /// An accepted ABORT that stops the arm: its Stop goes to the loop now
+  /// (remembered in early_stops_ for the ABORT's own handling).
+  void send_early_stop(const remote_link::CommandEvent& event);
+  std::map<const remote_link::CommandEvent*, std::uint64_t> early_stops_;
   bool abort_stops_arm(const protocol::Command& command) const;
   /// The loop id of a Stop sent for an ABORT before its RECEIVED row went to
   /// the disk (handle): do_abort takes it over instead of sending another.

@@ -50,6 +50,14 @@ struct Config {
   /// (INCOMPLETE_UPLOAD) and its data freed: a half upload holds no slot for ever.
   double upload_idle_timeout_s = 60.0;
   std::size_t max_sessions = 16;           ///< ground sessions whose sequence is tracked (LRU)
+  /// Commands one participant may send: a token bucket per writer
+  /// participant (command_burst deep, refilled at max_commands_per_s).
+  /// Beyond it a command is dropped unanswered before anything else reads
+  /// it (a flood costs the remote a map lookup a sample, no ack, no journal
+  /// row) and counted: LinkEvent::RateLimited once a second per participant.
+  /// The commander's ABORT always passes. 0: no limit.
+  double max_commands_per_s = 50.0;
+  double command_burst = 100.0;
   /// The remote's clock minus the ground's, for the expiry check (expires_ns
   /// is on the ground's clock). 0: both synchronized (NTP/PTP).
   std::int64_t clock_offset_ns = 0;
@@ -106,9 +114,12 @@ struct UploadEvent {
 struct LinkEvent {
   /// CommanderLeft: the participant set_commander() named has no command
   /// writer on the domain any more (its process ended or its lease expired).
-  enum class Kind { Lost, Regained, CommanderLeft };
+  /// RateLimited: `dropped` commands of `participant` were dropped over the
+  /// last `silence_s` seconds (Config::max_commands_per_s).
+  enum class Kind { Lost, Regained, CommanderLeft, RateLimited };
   Kind kind = Kind::Lost;
-  protocol::ParticipantGuid participant;  ///< CommanderLeft: the one that left
+  protocol::ParticipantGuid participant;  ///< CommanderLeft: the one that left; RateLimited: the sender
+  std::uint64_t dropped = 0;              ///< RateLimited
   double silence_s = 0.0;            ///< since the last ground heartbeat (Lost) / how long it was lost (Regained)
   std::uint64_t ground_boot_id = 0;  ///< of the last ground heartbeat (a change means a restarted ground)
 };
@@ -133,6 +144,7 @@ struct LinkStats {
   /// commander's wrote them (set_commander): they keep no link, hold no slot.
   std::uint64_t foreign_heartbeats = 0;
   std::uint64_t foreign_chunks = 0;
+  std::uint64_t rate_limited = 0;      ///< commands dropped by the per-participant rate limit
   bool link_up = false;                ///< a commander's (or, with none, a ground) heartbeat within link_loss_s
 };
 
