@@ -338,7 +338,7 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
 TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
   fp::Participant hostile(static_cast<dds_domainid_t>(domain_));
   RawCommander raw(hostile);
-  constexpr int kFlood = 300;
+  constexpr int kFlood = 1000;
   for (int i = 0; i < kFlood; ++i) {
     auto c = raw.sequencer.next(foresight_msg_CMD_GOTO_JOINT);
     foresight::protocol::fill_payload(*c, protocol::CommandKind::GotoJoint,
@@ -360,7 +360,9 @@ TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
     ++rejected;
   }
   EXPECT_GE(rejected, 100) << "the burst is answered";
-  EXPECT_LT(rejected, 200) << "the rest of the flood is dropped, not answered";
+  // 100 + 50/s while the link works through the flood: well under 700
+  // unless it took the link over 12 s.
+  EXPECT_LT(rejected, 700) << "the rest of the flood is dropped, not answered";
   EXPECT_TRUE(run(protocol::CommandKind::GotoJoint, protocol::GotoJoint{std::vector<double>(7, 0.1), 0.5}).succeeded());
 }
 
