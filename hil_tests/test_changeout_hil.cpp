@@ -54,13 +54,15 @@ class Changeout : public test::DaemonTest {
 
   /// Plans q -> goals with the ground's planner, uploads, runs; the final
   /// joints reported become the ground's arm (the paper's update step).
-  Eigen::VectorXd move(const std::string& what, const Eigen::VectorXd& q0, const std::vector<Goal>& goals) {
+  Eigen::VectorXd move(const std::string& what, const Eigen::VectorXd& q0, const std::vector<Goal>& goals,
+                       bool compliant = false) {
     const Plan plan = plan_motion(model_, q0, goals);
     const auto up = ground_->upload(plan.trajectory, 30s);
     EXPECT_TRUE(up.committed()) << what << ": " << up.reason;
     protocol::RunTrajectory run;
     run.trajectory_id = up.trajectory_id;
     run.content_hash = up.local_hash;
+    run.compliant = compliant;
     const auto r = step(what, CommandKind::Trajectory, run, plan.trajectory.duration_s());
     if (r.final_q_rad.size() != 7) return q0;
     return Eigen::Map<const Eigen::VectorXd>(r.final_q_rad.data(), 7);
@@ -117,7 +119,9 @@ TEST_F(Changeout, WholeContactSequenceFromARealisticLocalizationError) {
   // Withdraw 15 cm, then back in front of the slot: the ORU's back 1 cm
   // before the bore (the bore is 10 cm deep; the seated tip is at z = 6 cm).
   q = q_now();
-  q = move("withdraw", q, {tag_goal("withdrawn_15cm", base_T_oru, SegmentKind::Linear)});
+  // Compliant, as the script's step 9: the ORU's guide is still in its bore
+  // for the first centimetres, and the line is planned on the estimated axis.
+  q = move("withdraw", q, {tag_goal("withdrawn_15cm", base_T_oru, SegmentKind::Linear)}, true);
   q = move("align", q, {tag_goal("withdrawn_15cm", base_T_oru, SegmentKind::Linear, 0.04)});
   // The ORU's 0.38 m guide in a bore with 1 mm play jams at a fraction of a
   // degree: a slower, softer insertion than the tool's, with three times the
