@@ -93,8 +93,28 @@ struct DelayMonitor::Impl {
       void* buffers[1] = {self->listener_pong.get()};
       dds_sample_info_t info;
       if (dds_take(reader, buffers, &info, 1, 1) <= 0) break;
-      if (info.valid_data) self->record(*self->listener_pong, protocol::now_ns());
+      if (info.valid_data && self->from_remote(reader, info)) self->record(*self->listener_pong, protocol::now_ns());
     }
+  }
+
+  /// The writer check (set_writer_check); a writer's participant looked up once.
+  bool from_remote(dds_entity_t reader, const dds_sample_info_t& info) noexcept {
+    std::lock_guard lock(writer_mutex);
+    if (!accept_writer) return true;
+    auto it = writers.find(info.publication_handle);
+    if (it == writers.end()) {
+      if (writers.size() > 256) writers.clear();  // bounded: writers come and go
+      try {
+        it = writers.emplace(info.publication_handle, protocol::writer_participant(reader, info.publication_handle)).first;
+      } catch (...) {
+        return false;
+      }
+    }
+    if (accept_writer(it->second)) return true;
+    if (ignored.fetch_add(1) == 0)
+      spdlog::warn("delay monitor: pongs of participant {} ignored: not the remote (another process answering our pings)",
+                   it->second.hex());
+    return false;
   }
 
   void record(const msg::Pong& pong, std::int64_t t4) noexcept {
@@ -145,7 +165,9 @@ struct DelayMonitor::Impl {
         }
         waitset.wait(std::max(Clock::duration::zero(), next_ping - Clock::now()));
         if (!config.pong_in_listener) {
-          for (int i = 0; i < 64 && pongs.take(pong); ++i) record(*pong, protocol::now_ns());
+          dds_sample_info_t info{};
+          for (int i = 0; i < 64 && pongs.take(pong, &info); ++i)
+            if (from_remote(pongs.get(), info)) record(*pong, protocol::now_ns());
         }
       } catch (const std::exception& e) {
         spdlog::error("delay monitor: {}", e.what());
@@ -170,6 +192,10 @@ struct DelayMonitor::Impl {
   std::optional<protocol::DelaySample> latest;
   std::uint64_t received = 0;
   protocol::Sample<msg::Pong> listener_pong;  // Cyclone's receive thread only
+  std::mutex writer_mutex;  // accept_writer, writers
+  std::function<bool(const protocol::ParticipantGuid&)> accept_writer;
+  std::map<dds_instance_handle_t, protocol::ParticipantGuid> writers;
+  std::atomic<std::uint64_t> ignored{0};
   std::thread thread;
 };
 
@@ -232,6 +258,13 @@ bool DelayMonitor::wait_samples(std::size_t count, std::chrono::nanoseconds time
   std::unique_lock lock(impl_->mutex);
   return impl_->changed.wait_for(lock, timeout, [&] { return impl_->received >= count; });
 }
+
+void DelayMonitor::set_writer_check(std::function<bool(const protocol::ParticipantGuid&)> accept) {
+  std::lock_guard lock(impl_->writer_mutex);
+  impl_->accept_writer = std::move(accept);
+}
+
+std::uint64_t DelayMonitor::ignored_pongs() const noexcept { return impl_->ignored.load(); }
 
 void DelayMonitor::clear() {
   std::lock_guard lock(impl_->mutex);

@@ -74,6 +74,12 @@ struct GroundLink::Impl {
     waitset.attach(tools, kTool);
     waitset.attach(statuses, kStatus);
     waitset.attach(heartbeats, kHeartbeat);
+    // Round trips only from the remote: its participant once known (from its
+    // other topics); before that, any pong (as any first writer there).
+    delay.set_writer_check([this](const protocol::ParticipantGuid& writer) {
+      std::lock_guard lock(mutex);
+      return !remote_participant.known() || !writer.known() || writer == remote_participant;
+    });
     thread = std::thread([this] { run(); });
   }
 
@@ -450,8 +456,13 @@ protocol::ParticipantGuid GroundLink::remote_participant() const {
 }
 
 DroppedSamples GroundLink::dropped() const {
-  std::lock_guard lock(impl_->mutex);
-  return impl_->drops;
+  DroppedSamples d;
+  {
+    std::lock_guard lock(impl_->mutex);
+    d = impl_->drops;
+  }
+  d.foreign += impl_->delay.ignored_pongs();  // pongs of another participant than the remote
+  return d;
 }
 std::optional<Timed<protocol::WrenchReport>> GroundLink::wrench() const {
   std::lock_guard lock(impl_->mutex);

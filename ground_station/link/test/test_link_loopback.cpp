@@ -499,6 +499,42 @@ TEST_F(LinkLoopback, AParticipantPublishingAsTheRemoteIsIgnoredAndCounted) {
   EXPECT_NE(ground_->remote_boot_id(), 42u);
 }
 
+// Issue 28: another participant reads the ground's pings and answers each
+// at once with the remote's clock an hour ahead. Only the remote's pongs
+// count: the clock offset stays the remote's (about 0 on one machine) and
+// the forged pongs are ignored and counted.
+TEST_F(LinkLoopback, PongsOfAnotherParticipantAreIgnoredAndTheClockOffsetStaysTheRemotes) {
+  ASSERT_TRUE(eventually([&] { return ground_->joint_state() && ground_->status(); }, 10s));
+  ASSERT_TRUE(ground_->remote_participant().known());
+  fp::Participant impostor(domain_);
+  fp::Reader<msg::Ping> pings(impostor);
+  fp::Writer<msg::Pong> pongs(impostor);
+  ASSERT_TRUE(pings.wait_for_writers(1, kConnectTimeout));
+  ASSERT_TRUE(pongs.wait_for_readers(1, kConnectTimeout));
+  ground_->delay().clear();
+  const std::uint64_t foreign_before = ground_->dropped().foreign;
+  const std::uint64_t received_before = ground_->delay().stats().received;
+  fp::Sample<msg::Ping> ping;
+  fp::Sample<msg::Pong> pong;
+  int forged = 0;
+  const auto deadline = Clock::now() + 20s;
+  while ((forged < 10 || ground_->delay().stats().received < received_before + 10) && Clock::now() < deadline) {
+    if (!pings.wait_take(ping, 50ms)) continue;
+    pong->ping_id = ping->ping_id;
+    pong->ground_send_ns = ping->ground_send_ns;
+    pong->remote_receive_ns = fp::now_ns() + 3'600'000'000'000LL;  // an hour ahead
+    pong->remote_send_ns = pong->remote_receive_ns + 1000;
+    pongs.write(pong);
+    ++forged;
+  }
+  ASSERT_GE(forged, 10);
+  ASSERT_GE(ground_->delay().stats().received, received_before + 10) << "the remote's own pongs still count";
+  EXPECT_TRUE(eventually([&] { return ground_->dropped().foreign >= foreign_before + 5; }, 5s))
+      << ground_->dropped().foreign - foreign_before << " of " << forged << " forged pongs counted";
+  EXPECT_LT(std::abs(ground_->delay().stats().clock_offset_s), 1.0) << "a forged pong set the clock offset";
+  for (const auto& d : ground_->delay().window()) EXPECT_LT(std::abs(d.offset_ns), 1'000'000'000LL);
+}
+
 TEST_F(LinkLoopback, ADelayMonitorAloneMeasuresOnlyItsOwnPings) {
   // A second monitor in its own participant, pongs taken on its thread: it
   // and the link's monitor both ping; each counts only its own pongs.

@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "foresight/protocol/codec.hpp"
+#include <functional>
+
 #include "foresight/protocol/dds.hpp"
 
 namespace foresight::ground_link {
@@ -70,6 +72,13 @@ class DelayMonitor {
   bool wait_samples(std::size_t count, std::chrono::nanoseconds timeout) const;
   /// Empties the window (keeps the clock offset).
   void clear();
+  /// From now on a pong counts only when `accept` says its writer's
+  /// participant is the remote's (another participant can read our pings and
+  /// answer them with any stamps: a forged clock offset of an hour); the
+  /// others are ignored and counted. Unset: every pong counts.
+  void set_writer_check(std::function<bool(const protocol::ParticipantGuid&)> accept);
+  /// Pongs ignored by the writer check since start.
+  std::uint64_t ignored_pongs() const noexcept;
   void stop() noexcept;
 
  private:
