@@ -335,6 +335,42 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
 // first 100 commands (the per-participant burst, then 50 a second: REJECTED,
 // each with its reason) and drops the rest unanswered (RemoteLink's rate
 // limit), while the well-behaved ground, another participant, is served.
+// Issue 28: another participant opening 40 sessions (more than the 16 a
+// participant keeps) cannot evict a ground's session from the remote's
+// table: its sequence is remembered, and a command with an old sequence
+// number is still refused.
+TEST_F(LinkLoopback, AnotherParticipantsSessionsCannotEvictAGroundsSequence) {
+  RawCommander raw(ground_->participant());
+  for (int i = 0; i < 3; ++i) {
+    auto c = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+    raw.writer.write(c);
+    ASSERT_EQ(raw.acks_of(c->command_id).back().state, protocol::AckState::Completed);
+  }
+  fp::Participant hostile(static_cast<dds_domainid_t>(domain_));
+  RawCommander other(hostile);
+  for (std::uint64_t k = 0; k < 40; ++k) {
+    fp::CommandSequencer fresh(0xe71c7000 + k);
+    auto c = fresh.next(foresight_msg_CMD_REQUEST);
+    other.writer.write(c);
+  }
+  // Its last session answered: all 40 were seen before the replay below.
+  {
+    fp::Sample<msg::CommandAck> a;
+    bool seen = false;
+    const auto deadline = Clock::now() + 10s;
+    while (!seen && Clock::now() < deadline)
+      if (other.acks.wait_take(a, 100ms)) seen = a->session_id == 0xe71c7000 + 39 && fp::is_terminal(fp::from_wire(*a).state);
+    ASSERT_TRUE(seen);
+  }
+  auto replay = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  replay->sequence_number = 2;  // an old sequence number of the ground's session
+  raw.writer.write(replay);
+  const auto acks = raw.acks_of(replay->command_id);
+  ASSERT_FALSE(acks.empty());
+  EXPECT_EQ(acks.back().state, protocol::AckState::Rejected);
+  EXPECT_EQ(acks.back().code, protocol::Reason::BadSequence) << acks.back().reason;
+}
+
 TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
   fp::Participant hostile(static_cast<dds_domainid_t>(domain_));
   RawCommander raw(hostile);

@@ -424,16 +424,27 @@ void RemoteLink::Impl::serve_commands() {
     const bool commanders_abort =
         protocol::raw(c.payload._d) == foresight_msg_CMD_ABORT && from_commander(event.writer);
     if (!commanders_abort && !admit(event.writer, Clock::now())) continue;  // over its rate: dropped, counted
-    // Per-session sequence: a second ground station has its own; the least
-    // recently used session is forgotten beyond max_sessions.
+    // Per-session sequence: a second ground station has its own. Beyond
+    // max_sessions of one participant, its own least recently used session
+    // is forgotten: another participant's new sessions can never evict a
+    // ground's (and so reset its sequence for a replay). The participants
+    // themselves are bounded by the rate limit's table (kMaxBuckets).
     const auto session_key = std::make_pair(c.session_id, event.writer);
     auto it = sessions.find(session_key);
     if (it == sessions.end()) {
-      if (sessions.size() >= std::max<std::size_t>(1, config.max_sessions)) {
-        auto oldest = std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
+      auto oldest = sessions.end();
+      std::size_t own = 0;
+      for (auto s = sessions.begin(); s != sessions.end(); ++s) {
+        if (s->first.second != event.writer) continue;
+        if (oldest == sessions.end() || s->second.last_used < oldest->second.last_used) oldest = s;
+        ++own;
+      }
+      if (own >= std::max<std::size_t>(1, config.max_sessions)) sessions.erase(oldest);
+      if (sessions.size() >= kMaxBuckets * std::max<std::size_t>(1, config.max_sessions)) {
+        // Every participant at its bound (only without a rate limit): the stalest overall.
+        sessions.erase(std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
           return a.second.last_used < b.second.last_used;
-        });
-        sessions.erase(oldest);
+        }));
       }
       it = sessions.emplace(session_key, Session{}).first;
     }

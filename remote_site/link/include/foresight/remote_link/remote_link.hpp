@@ -49,7 +49,7 @@ struct Config {
   /// An upload still assembling whose last chunk is this old is rejected
   /// (INCOMPLETE_UPLOAD) and its data freed: a half upload holds no slot for ever.
   double upload_idle_timeout_s = 60.0;
-  std::size_t max_sessions = 16;           ///< ground sessions whose sequence is tracked (LRU)
+  std::size_t max_sessions = 16;           ///< sessions of one participant whose sequence is tracked (LRU)
   /// Commands one participant may send: a token bucket per writer
   /// participant (command_burst deep, refilled at max_commands_per_s).
   /// Beyond it a command is dropped unanswered before anything else reads
