@@ -169,7 +169,8 @@ int ScriptRunner::child(const std::vector<std::string>& args, const std::string&
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-nlohmann::json ScriptRunner::update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted) {
+nlohmann::json ScriptRunner::update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
+                                        bool completed) {
   nlohmann::json j;
   if (static_cast<int>(reported.size()) != model_.dof()) {
     j["update"] = "no final joints reported; the simulated arm keeps the predicted ones";
@@ -184,8 +185,16 @@ nlohmann::json ScriptRunner::update_arm(const std::vector<double>& reported, con
   const double dr = Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
   q_ = q;  // the paper's update step
   char buf[200];
-  std::snprintf(buf, sizeof buf, "update: reported final joints differ from the predicted by %.4f deg max; tool tip %.2f mm, %.3f deg",
-                dq * 180.0 / M_PI, dp * 1e3, dr * 180.0 / M_PI);
+  if (completed)
+    std::snprintf(buf, sizeof buf,
+                  "update: reported final joints differ from the predicted by %.4f deg max; tool tip %.2f mm, %.3f deg",
+                  dq * 180.0 / M_PI, dp * 1e3, dr * 180.0 / M_PI);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "update: the motion ended short of its planned end: the arm stopped %.4f deg max, tool tip %.2f mm "
+                  "from it (the reported joints are the arm's now)",
+                  dq * 180.0 / M_PI, dp * 1e3);
+  j["completed"] = completed;
   say(buf);
   j["predicted_final_q_rad"] = std::vector<double>(predicted.data(), predicted.data() + predicted.size());
   j["reported_final_q_rad"] = reported;
@@ -372,7 +381,8 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
   const auto r = send_and_wait(*link_, kind, run, final_ack_timeout(*link_, plan.trajectory.duration_s(), s_.timeout_s),
                                interrupted);
   Outcome o = from_result(kind, r, t0);
-  if (r.finished) pending_journal_.update(update_arm(r.final_q_rad, predicted));
+  if (r.finished)
+    pending_journal_.update(update_arm(r.final_q_rad, predicted, r.state == protocol::AckState::Completed));
   return o;
 }
 
@@ -481,7 +491,8 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
   const auto r = send_and_wait(*link_, kind, payload, final_ack_timeout(*link_, expected_s, s_.timeout_s), interrupted);
   Outcome o = from_result(kind, r, t0);
   if (r.finished && !r.final_q_rad.empty()) {
-    if (predicted) pending_journal_.update(update_arm(r.final_q_rad, *predicted));
+    if (predicted)
+      pending_journal_.update(update_arm(r.final_q_rad, *predicted, r.state == protocol::AckState::Completed));
     else q_ = Eigen::Map<const Eigen::VectorXd>(r.final_q_rad.data(), static_cast<Eigen::Index>(r.final_q_rad.size()));
   }
   return o;

@@ -60,7 +60,11 @@ class ScriptRunner : public script::CommandRunner {
   script::Outcome remote(const script::Command& c, const std::function<bool()>& interrupted);
   /// The paper's update step: the simulated arm takes the reported joints;
   /// returns the journal fields comparing them with the predicted ones.
-  nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted);
+  /// The paper's update step: the reported final joints become the simulated
+  /// arm's. `completed` false (canceled, failed): the motion ended short of
+  /// its planned end, and the line says so instead of reporting a difference.
+  nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
+                            bool completed = true);
   int child(const std::vector<std::string>& args, const std::string& stdout_path,
             const std::function<bool()>& interrupted, std::string* error);
   std::string path(const std::string& name) const;
