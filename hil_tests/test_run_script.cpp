@@ -22,6 +22,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <map>
+#include <sstream>
 #include <thread>
 
 #include "foresight/ground_link/ground_link.hpp"
@@ -89,6 +90,17 @@ class PtyRun {
     return -2;
   }
   const std::string& output() const { return out_; }
+  /// For a failure message: the runner's own lines (indented) and the last
+  /// screen, without the redraws in between (the whole output of a long run
+  /// is cut in the middle by CI's log, where the cause is).
+  std::string brief() const {
+    std::string said, line;
+    std::istringstream in(out_);
+    while (std::getline(in, line))
+      if (line.rfind("    ", 0) == 0) said += line + "\n";
+    const auto last = out_.rfind("\x1b[H\x1b[J");
+    return "the runner said:\n" + said + "the last screen:\n" + (last == std::string::npos ? out_ : out_.substr(last + 6));
+  }
 
  private:
   /// False once the terminal closed (the run exited).
@@ -215,39 +227,39 @@ TEST_F(RunScript, StepCancelAndGoOnFromTheKeyboard) {
   for (const auto& a : common_args()) args.push_back(a);
   PtyRun run(args);
   ASSERT_TRUE(run.started());
-  ASSERT_TRUE(run.wait_for("keys: s step", 60.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("keys: s step", 60.0)) << run.brief();
   const Eigen::VectorXd q_start = joints();
 
   run.press('s');  // line 1 only: step mode stops before line 2
-  ASSERT_TRUE(run.wait_for("[x]    1  REQUEST", 30.0)) << run.output();
-  ASSERT_TRUE(run.wait_for("> [ ]    2  TRAJECTORY", 5.0)) << run.output();
-  ASSERT_TRUE(run.wait_for("step | ready", 5.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("[x]    1  REQUEST", 30.0)) << run.brief();
+  ASSERT_TRUE(run.wait_for("> [ ]    2  TRAJECTORY", 5.0)) << run.brief();
+  ASSERT_TRUE(run.wait_for("step | ready", 5.0)) << run.brief();
 
   run.press('s');  // line 2 starts ...
-  ASSERT_TRUE(run.wait_for("> [~]    2  TRAJECTORY", 60.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("> [~]    2  TRAJECTORY", 60.0)) << run.brief();
   // ... and moves the arm, then the operator cancels it.
   const auto deadline = Clock::now() + 30s;
   while ((joints() - q_start).cwiseAbs().maxCoeff() < 0.01 && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
-  ASSERT_GT((joints() - q_start).cwiseAbs().maxCoeff(), 0.01) << "the arm did not start moving\n" << run.output();
+  ASSERT_GT((joints() - q_start).cwiseAbs().maxCoeff(), 0.01) << "the arm did not start moving\n" << run.brief();
   run.press('c');
-  ASSERT_TRUE(run.wait_for("> [c]    2  TRAJECTORY", 30.0)) << run.output();
-  EXPECT_TRUE(run.wait_for("stopped", 5.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("> [c]    2  TRAJECTORY", 30.0)) << run.brief();
+  EXPECT_TRUE(run.wait_for("stopped", 5.0)) << run.brief();
   // The update step says the motion ended short, not that the joints "differ".
   EXPECT_NE(run.output().find("update: the motion ended short of its planned end: the arm stopped "),
             std::string::npos)
-      << run.output();
+      << run.brief();
   Eigen::VectorXd q_held;
   ASSERT_TRUE(arm_holds(&q_held)) << "the arm did not come to rest after the cancel";
   EXPECT_EQ(states_of("TRAJECTORY").back(), "CANCELED");
 
   run.press('r');  // retry the same step: still in step mode, so it waits for s
-  ASSERT_TRUE(run.wait_for("> [ ]    2  TRAJECTORY", 10.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("> [ ]    2  TRAJECTORY", 10.0)) << run.brief();
   run.press('s');
-  ASSERT_TRUE(run.wait_for("[x]    2  TRAJECTORY", 120.0)) << run.output();
+  ASSERT_TRUE(run.wait_for("[x]    2  TRAJECTORY", 120.0)) << run.brief();
   run.press('s');
-  ASSERT_TRUE(run.wait_for("[x]    3  TRAJECTORY", 120.0)) << run.output();
-  EXPECT_EQ(run.wait_exit(30.0), 0) << run.output();
-  EXPECT_NE(run.output().find(": finished"), std::string::npos) << run.output();
+  ASSERT_TRUE(run.wait_for("[x]    3  TRAJECTORY", 120.0)) << run.brief();
+  EXPECT_EQ(run.wait_exit(30.0), 0) << run.brief();
+  EXPECT_NE(run.output().find(": finished"), std::string::npos) << run.brief();
   // Back at the start (TRAJECTORY to=start), within the remote's tracking.
   ASSERT_TRUE(arm_holds());
   EXPECT_LT((joints() - q_start).cwiseAbs().maxCoeff(), 0.01);
