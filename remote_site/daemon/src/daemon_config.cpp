@@ -25,7 +25,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   const yaml::MapReader s(root["controller"], source_name, "controller");
   c.line = s.line();
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
-                "default_algorithm_timeout_s", "control_lease_s"});
+                "default_algorithm_timeout_s", "control_lease_s", "rate_limit"});
   c.start_tolerance_rad = s.get_or_in("start_tolerance_rad", c.start_tolerance_rad, 1e-6, 1e6, "rad");
   if (c.start_tolerance_rad > kMaxStartToleranceRad)
     s.fail_key("start_tolerance_rad", "must be at most 0.02 rad (a larger start offset would jump the arm: plan an approach "
@@ -38,6 +38,16 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
       s.get_or_in("default_algorithm_timeout_s", c.default_algorithm_timeout_s, 0.1, kMaxAlgorithmTimeoutS, "s");
   c.control_lease_s = s.get_or_in("control_lease_s", c.control_lease_s, 0.1, 86400, "s");
 
+  if (s["rate_limit"]) {
+    // The ranges the controller takes (ControllerConfig); below 1x the limiter
+    // would act on every planned motion.
+    const yaml::MapReader rl = s.map("rate_limit");
+    rl.check_keys({"acceleration_fraction", "jerk_per_s"});
+    c.rate_limit_acceleration_fraction = rl.get_or_in("acceleration_fraction", c.rate_limit_acceleration_fraction, 1.0,
+                                                      10.0, "x the URDF acceleration limit");
+    c.rate_limit_jerk_per_s =
+        rl.get_or_in("jerk_per_s", c.rate_limit_jerk_per_s, 10.0, 100000.0, "1/s (x the URDF acceleration limit)");
+  }
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");
     link.check_keys({"loss_timeout_s", "loss_policy"});

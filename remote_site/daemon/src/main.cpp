@@ -215,6 +215,8 @@ int run_daemon(Options o) {
   control::ControllerConfig cc;
   cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
   cc.start_tolerance_rad = config.start_tolerance_rad;
+  cc.rate_limit_acceleration_fraction = config.rate_limit_acceleration_fraction;
+  cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
   cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
   cc.link_loss = config.link_loss_policy == remote::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;

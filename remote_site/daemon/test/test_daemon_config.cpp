@@ -47,7 +47,8 @@ TEST(DaemonConfig, EveryKeyIsRead) {
       "  estop_file: /tmp/estop\n"
       "  tool_poll_hz: 3\n"
       "  default_algorithm_timeout_s: 30\n"
-      "  control_lease_s: 4\n",
+      "  control_lease_s: 4\n"
+      "  rate_limit: {acceleration_fraction: 2, jerk_per_s: 500}\n",
       "r.yaml");
   EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.02);
   EXPECT_DOUBLE_EQ(c.link_loss_timeout_s, 7.5);
@@ -64,12 +65,21 @@ TEST(DaemonConfig, EveryKeyIsRead) {
   EXPECT_DOUBLE_EQ(c.tool_poll_hz, 3);
   EXPECT_DOUBLE_EQ(c.default_algorithm_timeout_s, 30);
   EXPECT_DOUBLE_EQ(c.control_lease_s, 4);
+  EXPECT_DOUBLE_EQ(c.rate_limit_acceleration_fraction, 2);
+  EXPECT_DOUBLE_EQ(c.rate_limit_jerk_per_s, 500);
 }
 
 TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
-            "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s)");
+            "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s, rate_limit)");
+  // The rate limiter: below its planning limit it would act on every motion.
+  EXPECT_EQ(error_of("controller:\n  rate_limit: {acceleration_fraction: 0.5}\n"),
+            "r.yaml:2: controller.rate_limit.acceleration_fraction: 0.5 is outside [1, 10] x the URDF acceleration "
+            "limit");
+  EXPECT_EQ(error_of("controller:\n  rate_limit: {jerk_per_s: .nan}\n"),
+            "r.yaml:2: controller.rate_limit.jerk_per_s: nan is outside [10, 100000] 1/s (x the URDF acceleration "
+            "limit)");
   // Issue 25: a start tolerance above 0.02 rad let a trajectory jump the arm.
   EXPECT_EQ(error_of("controller:\n  start_tolerance_rad: 2.5\n"),
             "r.yaml:2: controller.start_tolerance_rad: must be at most 0.02 rad (a larger start offset would jump "

@@ -44,6 +44,11 @@ struct DaemonConfig {
   /// with nothing of its own running, may be superseded by another's
   /// TAKE_CONTROL (a commander that crashed does not lock the robot).
   double control_lease_s = 10.0;
+  /// The real-time rate limiter on stiff motion (control::ControllerConfig,
+  /// docs/control.md "The rate limiter"): acceleration as a multiple of the
+  /// URDF limit, jerk as a multiple of it per second.
+  double rate_limit_acceleration_fraction = 1.5;
+  double rate_limit_jerk_per_s = 1000.0;
 };
 
 /// Reads the optional `controller:` section (defaults when absent). Unknown
