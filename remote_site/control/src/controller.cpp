@@ -61,16 +61,13 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
       config.rate_limit_jerk_per_s > 100000.0)
     throw std::invalid_argument("rate_limit_jerk_per_s must be in [10, 100000] 1/s");
   dt_ = 1.0 / config.cycle_rate_hz;
+  RateLimits rl;
   for (std::size_t j = 0; j < dof_; ++j) {
     const JointLimits& l = model.limits()[j];
     lower_[j] = l.lower_rad + config.position_margin_rad;
     upper_[j] = l.upper_rad - config.position_margin_rad;
     vmax_[j] = l.velocity_rad_s * config.velocity_limit_fraction;
     amax_[j] = l.acceleration_rad_s2 * config.stop_decel_fraction;
-  }
-  RateLimits rl;
-  for (std::size_t j = 0; j < dof_; ++j) {
-    const JointLimits& l = model.limits()[j];
     rl.velocity[j] = vmax_[j];
     rl.acceleration[j] = l.acceleration_rad_s2 * config.rate_limit_acceleration_fraction;
     rl.jerk[j] = l.acceleration_rad_s2 * config.rate_limit_jerk_per_s;

@@ -241,10 +241,6 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   const protocol::Command& c = event.command;
   current_writer_ = event.writer;
   early_stop_id_.reset();
-  if (auto it = early_stops_.find(&event); it != early_stops_.end()) {
-    early_stop_id_ = it->second;
-    early_stops_.erase(it);
-  }
   if (event.duplicate) {
     // A re-sent command: answer with its last state, never run it twice.
     if (auto it = last_ack_.find({c.session_id, c.command_id}); it != last_ack_.end()) {
@@ -255,7 +251,7 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
   // An ABORT that stops the arm reaches the loop first: its RECEIVED row is
   // synced to the disk before the ack leaves (milliseconds; seconds on a disk
   // that stalls), and the stop must not wait for that.
-  if (!early_stop_id_) send_early_stop(event);
+  send_early_stop(event);  // nothing when run_once() sent it ahead of the batch
   if (auto it = early_stops_.find(&event); it != early_stops_.end()) {
     early_stop_id_ = it->second;
     early_stops_.erase(it);
@@ -919,10 +915,16 @@ std::vector<double> Supervisor::current_q() const {
 }
 
 namespace {
+/// The 1-based joints of a bit mask (bit j = joint j + 1).
+std::vector<std::size_t> joint_numbers(std::uint32_t mask) {
+  std::vector<std::size_t> out;
+  for (std::size_t j = 0; j < control::kMaxJoints; ++j)
+    if ((mask >> j) & 1u) out.push_back(j + 1);
+  return out;
+}
 std::string joint_list(std::uint32_t mask) {
   std::string s;
-  for (std::size_t j = 0; j < control::kMaxJoints; ++j)
-    if ((mask >> j) & 1u) s += (s.empty() ? "" : ", ") + std::to_string(j + 1);
+  for (const std::size_t j : joint_numbers(mask)) s += (s.empty() ? "" : ", ") + std::to_string(j);
   return s;
 }
 }  // namespace
@@ -939,9 +941,7 @@ void Supervisor::track_rate_limiter(const control::TelemetrySample& t) {
   RateLimitEpisode& e = rate_limit_;
   auto detail = [&](bool end) {
     nlohmann::json d;
-    d["joints"] = nlohmann::json::array();
-    for (std::size_t j = 0; j < control::kMaxJoints; ++j)
-      if ((e.joints >> j) & 1u) d["joints"].push_back(j + 1);
+    d["joints"] = joint_numbers(e.joints);
     d["command_id"] = e.command_id;
     d["max_lag_rad"] = e.max_lag_rad;
     if (end) d["cycles"] = t.rate_limited_cycles - e.first_cycles;
