@@ -283,13 +283,20 @@ TEST_F(FaultCampaign, AnFtOverloadDuringAnInsertionFailsItWithForceLimitAndTheAr
   ASSERT_EQ(r.final_q_rad.size(), 7u);
   // The arm holds where the insert stopped: the drives' record stays still.
   // Not a controller stop: the step failed, the arm holds in IDLE.
-  EXPECT_TRUE(eventually(
+  const bool holding = eventually(
       [&] {
         const auto s = ground_->status();
         return s && s->age_s < 0.5 && s->value.mode == protocol::ControllerMode::Idle &&
                s->value.stop_category == protocol::StopCategory::None;
       },
-      5s));
+      5s);
+  if (!holding) {
+    // What the controller saw: the stop's evidence (q, q_cmd, the contact
+    // wrench of its last cycles) from the journal, so a red run says why.
+    const nlohmann::json j = journal_json();
+    ADD_FAILURE() << "not holding in IDLE after the insert's failure (" << r.reason
+                  << "); the journal's faults: " << j.value("faults", nlohmann::json::array()).dump().substr(0, 6000);
+  }
   mark();
   const std::uint64_t s0 = record().seq;
   DriveRecord later;
