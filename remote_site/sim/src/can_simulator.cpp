@@ -213,14 +213,19 @@ void CanSimulator::recover_bus(std::size_t bus) {
   b.write_now(hw::make_frame(CAN_ERR_FLAG | CAN_ERR_RESTARTED, {0, 0, 0, 0, 0, 0, 0, 0}));
 }
 
+namespace {
+bool is_sync(const can_frame& f) noexcept {
+  return (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 && (f.can_id & CAN_SFF_MASK) == hw::canopen::kSync;
+}
+}  // namespace
+
 void CanSimulator::dispatch(std::size_t bus, const can_frame& f, Clock::time_point now) {
   ++frames_in_;
   Bus& b = *buses_[bus];
   // A CAN controller with own-message reception loops the master's SYNC back
   // in bus order, before the TPDOs that answer it (SocketCAN
   // CAN_RAW_RECV_OWN_MSGS); DriveSystem uses it to spot late TPDOs.
-  const bool sync = (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 &&
-                    (f.can_id & CAN_SFF_MASK) == hw::canopen::kSync;
+  const bool sync = is_sync(f);
   {
     std::lock_guard lock(b.write_mu);
     if (b.bus_off) return;  // nothing reaches the nodes
@@ -254,22 +259,51 @@ void CanSimulator::step(Clock::time_point now, bool stamped) {
     }
     b->flush(now);
   }
-  for (std::size_t i = 0; i < buses_.size(); ++i) {
+  // The buses one cycle at a time, in turn: each bus's frames up to its next
+  // SYNC, then the next bus's. A late simulator thread finds several cycles
+  // waiting; draining one bus before the next moved the drives of the first
+  // through all of them while the F/T sensor on the second still sampled its
+  // first SYNC with those joints already at the last: a reading of an arm
+  // pose that never was (the likely cause of a CI run's F/T saturation, a
+  // phantom shaft-in-wall contact of 2-3 mm during an insertion). One frame
+  // of lookahead per bus.
+  struct Next {
     can_frame f{};
+    std::int64_t stamp_ns = 0;
+    bool have = false;
+    bool done = false;
     Clock::time_point last{};
-    for (int k = 0; k < 4096; ++k) {
-      std::int64_t stamp_ns = 0;
-      const hw::CanIo io = buses_[i]->end->read(f, stamp_ns);
+    int read = 0;
+  };
+  std::vector<Next> next(buses_.size());
+  auto pull = [&](std::size_t i) {
+    Next& n = next[i];
+    n.have = false;
+    while (!n.done && n.read < 4096) {
+      ++n.read;
+      const hw::CanIo io = buses_[i]->end->read(n.f, n.stamp_ns);
       if (io == hw::CanIo::Ok) {
+        n.have = true;
+        return;
+      }
+      if (io != hw::CanIo::ErrorFrame) n.done = true;
+    }
+  };
+  for (std::size_t i = 0; i < buses_.size(); ++i) pull(i);
+  for (bool any = true; any;) {
+    any = false;
+    for (std::size_t i = 0; i < buses_.size(); ++i) {
+      Next& n = next[i];
+      for (bool first = true; n.have && (first || !is_sync(n.f)); first = false) {
         // When the master wrote it (bounded by now, and in bus order); the
         // read time where the kernel gave no stamp.
         Clock::time_point at = now;
-        if (stamped && stamp_ns > 0)
-          at = std::clamp(Clock::time_point(std::chrono::nanoseconds(stamp_ns)), last, now);
-        last = at;
-        dispatch(i, f, at);
-      } else if (io != hw::CanIo::ErrorFrame) {
-        break;
+        if (stamped && n.stamp_ns > 0)
+          at = std::clamp(Clock::time_point(std::chrono::nanoseconds(n.stamp_ns)), n.last, now);
+        n.last = at;
+        dispatch(i, n.f, at);
+        pull(i);
+        any = true;
       }
     }
   }
