@@ -288,6 +288,7 @@ bool cdr_fits(std::type_identity<msg::Command>, const CdrPayload& p) noexcept {
       w.prim(kI8);  // issued_ns
       w.prim(kI8);  // expires_ns
       w.required([&] { command_payload(w); });  // payload
+      w.prim(kI8);  // after_command_id (appended)
     });
   });
 }
@@ -400,6 +401,12 @@ bool cdr_fits(std::type_identity<msg::ControllerStatus>, const CdrPayload& p) no
         w.prim(kBool);      // limiting
         w.prim(kI4);        // last_joint_mask
         w.prim(kI8, 2);     // last_command_id, last_max_lag_rad
+      });
+      w.seq(foresight_msg_MAX_QUEUE, [&] {  // queue (QueuedCommand)
+        w.prim(kI8);     // command_id
+        w.prim(kEnum8);  // kind
+        w.prim(kI8);     // after_command_id
+        w.prim(kEnum8);  // state
       });
     });
   });

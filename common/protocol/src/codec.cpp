@@ -57,6 +57,10 @@ const char* enum_error(const msg::ControllerStatus& s, char* buf, std::size_t si
   if (const char* e = past(s.stop_category, foresight_msg_STOP_CAT2, "stop_category", buf, size)) return e;
   for (const auto& d : view(s.drives))
     if (const char* e = past(d.state, foresight_msg_DRIVE_UNKNOWN, "drives[].state", buf, size)) return e;
+  for (const auto& q : view(s.queue)) {
+    if (const char* e = past(q.kind, foresight_msg_CMD_RECOVER, "queue[].kind", buf, size)) return e;
+    if (const char* e = past(q.state, foresight_msg_ACK_CANCELED, "queue[].state", buf, size)) return e;
+  }
   return nullptr;
 }
 

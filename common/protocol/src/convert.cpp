@@ -168,6 +168,7 @@ Command envelope_of(const msg::Command& c, std::int64_t received_ns) {
   out.received_ns = received_ns;
   out.kind = static_cast<CommandKind>(protocol::raw(c.payload._d));  // fixed underlying type: any value
   out.payload = NoPayload{};
+  out.after_command_id = c.after_command_id;
   return out;
 }
 
@@ -406,6 +407,14 @@ void to_wire(msg::ControllerStatus& out, const StatusReport& r) {
               l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
   const RateLimitReport& rl = r.rate_limit;
   out.rate_limit = {rl.cycles, rl.limiting, rl.last_joint_mask, rl.last_command_id, rl.last_max_lag_rad};
+  std::array<msg::QueuedCommand, msg::kMaxQueue> queue{};
+  const std::size_t nq = std::min<std::size_t>(r.queue.size(), queue.size());
+  for (std::size_t i = 0; i < nq; ++i) {
+    const QueuedCommand& q = r.queue[i];
+    queue[i] = {q.command_id, static_cast<msg::CommandKind>(q.kind), q.after_command_id,
+                static_cast<foresight_msg_AckState>(q.state)};
+  }
+  protocol::assign(out.queue, std::span<const msg::QueuedCommand>(queue.data(), nq), msg::kMaxQueue, "status queue");
 }
 
 JointReport from_wire(const msg::JointState& s) {
@@ -461,6 +470,9 @@ StatusReport from_wire(const msg::ControllerStatus& s) {
               l.wakeup_latency_max_us, l.compute_p99_us,    l.compute_max_us};
   const msg::RateLimit& rl = s.rate_limit;
   out.rate_limit = {rl.cycles, rl.limiting, rl.last_joint_mask, rl.last_command_id, rl.last_max_lag_rad};
+  for (const auto& q : view(s.queue))  // enums checked by enum_error
+    out.queue.push_back({q.command_id, static_cast<CommandKind>(protocol::raw(q.kind)), q.after_command_id,
+                         static_cast<AckState>(protocol::raw(q.state))});
   return out;
 }
 

@@ -418,8 +418,14 @@ TEST(CdrCheck, ACommandWithoutItsPayloadIsRefused) {
   fp::CommandSequencer seq(1);
   auto c = seq.next(foresight_msg_CMD_RECOVER, 10.0);
   const Encoded good = write(*c, true, true);
-  ASSERT_EQ(good.bytes.size(), 4u + 44u + 1u);  // envelope, then the discriminator alone
+  // DHEADER, envelope, the discriminator alone, padding, after_command_id.
+  ASSERT_EQ(good.bytes.size(), 4u + 44u + 1u + 3u + 8u);
   ASSERT_TRUE(fp::cdr_fits<msg::Command>(good.payload()));
+  {  // an older ground's command ends after the discriminator: after_command_id absent, fine
+    Encoded old = good;
+    put_u32(old.bytes, 0, 45u);
+    EXPECT_TRUE(fp::cdr_fits<msg::Command>(old.payload(4 + 45)));
+  }
   for (const std::uint32_t dheader : {44u, 2u, 0u}) {
     Encoded e = good;
     put_u32(e.bytes, 0, dheader);

@@ -238,6 +238,14 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
                        {"last_joints", rl_joints},
                        {"last_command_id", rl.last_command_id},
                        {"last_max_lag_rad", rl.last_max_lag_rad}};
+    // What the remote holds: the running command, then the queued ones (chains).
+    nlohmann::json queue = nlohmann::json::array();
+    for (const auto& q : s.queue)
+      queue.push_back({{"command_id", q.command_id},
+                       {"kind", protocol::to_string(q.kind)},
+                       {"after_command_id", q.after_command_id},
+                       {"state", protocol::to_string(q.state)}});
+    j["queue"] = queue;
     if (s.fault_bits != 0 || !s.fault_text.empty())
       faults.push_back(s.fault_text.empty() ? "fault bits " + std::to_string(s.fault_bits) : s.fault_text);
     if (s.stop_category != protocol::StopCategory::None)
@@ -246,6 +254,7 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
   } else {
     j["state"] = "unknown";
     j["drives"] = nlohmann::json::array();
+    j["queue"] = nlohmann::json::array();
   }
   if (const auto t = link.tool()) {
     const auto& v = t->value;

@@ -77,6 +77,17 @@ int run(const Options& o) {
                   rl["last_max_lag_rad"].get<double>());
     }
   }
+  if (j.contains("queue") && !j["queue"].empty()) {
+    std::printf("queue:");
+    for (const auto& q : j["queue"]) {
+      std::printf(" %llu %s (%s", static_cast<unsigned long long>(q["command_id"].get<std::uint64_t>()),
+                  q["kind"].get<std::string>().c_str(), q["state"].get<std::string>().c_str());
+      if (const auto after = q["after_command_id"].get<std::uint64_t>(); after != 0)
+        std::printf(", after %llu", static_cast<unsigned long long>(after));
+      std::printf(")");
+    }
+    std::printf("\n");
+  }
   if (!j["joints_rad"].empty()) {
     std::printf("joints (deg, %.2f s old):", j["joints_age_s"].get<double>());
     for (const auto& q : j["joints_rad"]) std::printf(" %.2f", q.get<double>() * 180.0 / M_PI);

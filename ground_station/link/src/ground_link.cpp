@@ -351,12 +351,14 @@ bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
   return impl_->delay.wait_samples(1, std::chrono::duration_cast<std::chrono::nanoseconds>(left));
 }
 
-std::uint64_t GroundLink::send(protocol::CommandKind kind, const protocol::Payload& payload, double lifetime_s) {
+std::uint64_t GroundLink::send(protocol::CommandKind kind, const protocol::Payload& payload, double lifetime_s,
+                               std::uint64_t after_command_id) {
   if (!impl_->commands) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot send commands");
   const double lifetime = lifetime_s < 0.0 ? impl_->config.command_lifetime_s : lifetime_s;
   std::lock_guard send_lock(impl_->send_mutex);
   auto c = impl_->sequencer.next(static_cast<msg::CommandKind>(kind), lifetime);
   protocol::fill_payload(*c, kind, payload);  // throws before the sequence is used on the wire
+  c->after_command_id = after_command_id;
   const std::uint64_t id = c->command_id;
   {
     std::lock_guard lock(impl_->mutex);

@@ -211,7 +211,10 @@ void Supervisor::ack(const protocol::Command& command, AckState state, Reason co
   row.code = upper(control::to_string(code));
   row.reason = reason;
   nlohmann::json detail = state == AckState::Received ? payload_json(command) : nlohmann::json::object();
-  if (state == AckState::Received) detail["writer"] = current_writer_.hex();  // the participant that sent it
+  if (state == AckState::Received) {
+    detail["writer"] = current_writer_.hex();  // the participant that sent it
+    if (command.after_command_id != 0) detail["after_command_id"] = command.after_command_id;
+  }
   if (!a.final_q_rad.empty()) detail["final_q_rad"] = a.final_q_rad;
   row.detail = json_text(detail);
   try {
@@ -336,6 +339,12 @@ std::string Supervisor::check_can_move(Reason* code) const {
 
 void Supervisor::dispatch(const protocol::Command& c) {
   Reason code = Reason::None;
+  if (c.after_command_id != 0 && !chainable(c.kind)) {
+    reject(c, Reason::BadArgument,
+           std::string(control::to_string(c.kind)) + " cannot follow another command (after_command_id " +
+               std::to_string(c.after_command_id) + "): only trajectories, GOTOs and algorithms chain");
+    return;
+  }
   switch (c.kind) {
     case CommandKind::TakeControl: {
       const bool lease_over = commander_ != 0 && !running_ && queue_.empty() &&
@@ -387,6 +396,10 @@ void Supervisor::dispatch(const protocol::Command& c) {
       reject(c, code, why);
       return;
     }
+  }
+  if (std::string why = check_queue(c, &code); !why.empty()) {
+    reject(c, code, why);
+    return;
   }
   std::string reason;
   auto job = make_job(c, &code, &reason);
@@ -605,14 +618,19 @@ void Supervisor::start_next() {
     queue_.pop_front();
     Reason code = Reason::None;
     std::string reason;
+    // A job that cannot start fails, and so does the rest of its chain.
+    auto fail = [&](Reason why_code, const std::string& why) {
+      ack(job->command, AckState::Failed, why_code, why, current_q());
+      cancel_chain(job->command, std::string("failed: ") + why);
+    };
     if (job->kind != JobKind::Recover) {
       if (std::string why = check_can_move(&code); !why.empty()) {
-        ack(job->command, AckState::Failed, code, why, current_q());
+        fail(code, why);
         continue;
       }
     }
     if (job->kind == JobKind::Goto && !job->prepared && !plan_goto(*job, &code, &reason)) {
-      ack(job->command, AckState::Failed, code, reason, current_q());
+      fail(code, reason);
       continue;
     }
     MotionCommand mc;
@@ -647,7 +665,7 @@ void Supervisor::start_next() {
         hold.compliant = false;
         (void)p_.loop->send(hold);
         if (!p_.tool->start_step(job->tool_step)) {
-          ack(job->command, AckState::Failed, Reason::Busy, "the tool is busy", current_q());
+          fail(Reason::Busy, "the tool is busy");
           continue;
         }
         job->executing = true;
@@ -657,7 +675,7 @@ void Supervisor::start_next() {
       }
     }
     if (!p_.loop->send(mc)) {
-      ack(job->command, AckState::Failed, Reason::Busy, "the control loop's command ring is full", current_q());
+      fail(Reason::Busy, "the control loop's command ring is full");
       continue;
     }
     running_ = std::move(job);
@@ -673,8 +691,78 @@ void Supervisor::finish_running(AckState state, Reason code, const std::string& 
                                    control::to_string(running_->command.kind) + ", " + control::to_string(state) + ")",
                   p_.sim_truth());
   ack(running_->command, state, code, reason, std::move(final_q));
+  const protocol::Command done = running_->command;
   running_.reset();
+  if (state != AckState::Completed) cancel_chain(done, std::string(control::to_string(state)) + ": " + reason);
   start_next();
+}
+
+bool Supervisor::chainable(CommandKind kind) noexcept {
+  return kind == CommandKind::Trajectory || kind == CommandKind::InvokeAlgorithm || kind == CommandKind::GotoJoint ||
+         kind == CommandKind::GotoCart;
+}
+
+const protocol::Command* Supervisor::held_command(std::uint64_t session, std::uint64_t command_id) const {
+  if (running_ && running_->command.session_id == session && running_->command.command_id == command_id)
+    return &running_->command;
+  for (const auto& job : queue_)
+    if (job->command.session_id == session && job->command.command_id == command_id) return &job->command;
+  return nullptr;
+}
+
+std::string Supervisor::check_queue(const protocol::Command& c, Reason* code) const {
+  const std::size_t held = queue_.size() + (running_ ? 1 : 0);
+  if (held >= p_.config.max_queued_commands) {
+    *code = Reason::Busy;
+    return "the remote already holds " + std::to_string(held) + " commands (controller.max_queued_commands " +
+           std::to_string(p_.config.max_queued_commands) + ")";
+  }
+  if (c.after_command_id == 0) return {};
+  const std::string after = "command " + std::to_string(c.after_command_id);
+  *code = Reason::BadArgument;
+  if (c.after_command_id == c.command_id) return "command " + std::to_string(c.command_id) + " cannot follow itself";
+  if (const protocol::Command* pred = held_command(c.session_id, c.after_command_id)) {
+    // The chain's length: this command and every predecessor still held.
+    std::size_t length = 2;
+    for (const protocol::Command* p = pred; p->after_command_id != 0; ++length) {
+      p = held_command(p->session_id, p->after_command_id);
+      if (p == nullptr) break;
+    }
+    if (length > p_.config.max_chain_length)
+      return "a chain of " + std::to_string(length) + " commands exceeds controller.max_chain_length " +
+             std::to_string(p_.config.max_chain_length);
+    return {};
+  }
+  const auto it = last_ack_.find({c.session_id, c.after_command_id});
+  if (it == last_ack_.end())
+    return after + " is not a command of this session (unknown here, or too old to be remembered)";
+  const protocol::Ack& a = it->second;
+  if (a.state == AckState::Completed) return {};  // done: this one starts from where it left the arm
+  if (protocol::is_terminal(a.state)) {
+    *code = Reason::Aborted;
+    return "chain broken at " + after + ": " + control::to_string(a.state) + (a.reason.empty() ? "" : ": " + a.reason);
+  }
+  return after + " is not a motion the remote runs (" + std::string(control::to_string(a.kind)) +
+         " cannot be followed)";
+}
+
+void Supervisor::cancel_chain(const protocol::Command& broken, const std::string& why) {
+  // Every held command that follows `broken`, directly or through another,
+  // is canceled with the place and cause of the break; nothing of it runs.
+  const std::string reason = "chain broken at command " + std::to_string(broken.command_id) + ": " + why;
+  std::vector<std::uint64_t> broken_ids{broken.command_id};
+  for (std::size_t k = 0; k < broken_ids.size(); ++k) {
+    for (auto it = queue_.begin(); it != queue_.end();) {
+      const protocol::Command& q = (*it)->command;
+      if (q.session_id == broken.session_id && q.after_command_id == broken_ids[k]) {
+        broken_ids.push_back(q.command_id);
+        ack(q, AckState::Canceled, Reason::Aborted, reason, current_q());
+        it = queue_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
 }
 
 void Supervisor::cancel_queued(const std::string& why) {
@@ -694,8 +782,10 @@ void Supervisor::do_abort(const protocol::Command& c) {
   if (a.target_command_id != 0) {
     for (auto it = queue_.begin(); it != queue_.end(); ++it) {
       if ((*it)->command.command_id == a.target_command_id) {
-        ack((*it)->command, AckState::Canceled, Reason::Aborted, why, current_q());
+        const protocol::Command canceled = (*it)->command;
+        ack(canceled, AckState::Canceled, Reason::Aborted, why, current_q());
         queue_.erase(it);
+        cancel_chain(canceled, "canceled: " + why);
         ack(c, AckState::Completed, Reason::None, "canceled the queued command", current_q());
         return;
       }
@@ -737,7 +827,7 @@ void Supervisor::do_abort(const protocol::Command& c) {
 void Supervisor::send_early_stop(const remote_link::CommandEvent& event) {
   const protocol::Command& c = event.command;
   if (!event.accepted() || event.duplicate || shutting_down_ || c.kind != CommandKind::Abort) return;
-  if (early_stops_.count(&event) != 0 || !abort_stops_arm(c)) return;
+  if (early_stops_.count(&event) != 0 || c.after_command_id != 0 || !abort_stops_arm(c)) return;
   MotionCommand stop;
   stop.command_id = internal_id();
   stop.kind = MotionCommandKind::Stop;
@@ -1146,6 +1236,11 @@ protocol::StatusReport Supervisor::status_report() const {
     s.drives.push_back(d);
   }
   s.rate_limit = rate_limit_report_;
+  if (running_)
+    s.queue.push_back({running_->command.command_id, running_->command.kind, running_->command.after_command_id,
+                       AckState::Executing});
+  for (const auto& job : queue_)  // at most controller.max_queued_commands (<= the IDL's MAX_QUEUE)
+    s.queue.push_back({job->command.command_id, job->command.kind, job->command.after_command_id, AckState::Queued});
   if (p_.loop != nullptr) {
     const control::LoopStats st = p_.loop->stats();
     using LS = control::LoopStats;

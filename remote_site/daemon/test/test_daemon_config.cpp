@@ -48,8 +48,12 @@ TEST(DaemonConfig, EveryKeyIsRead) {
       "  tool_poll_hz: 3\n"
       "  default_algorithm_timeout_s: 30\n"
       "  control_lease_s: 4\n"
-      "  rate_limit: {acceleration_fraction: 2, jerk_per_s: 500}\n",
+      "  rate_limit: {acceleration_fraction: 2, jerk_per_s: 500}\n"
+      "  max_queued_commands: 10\n"
+      "  max_chain_length: 5\n",
       "r.yaml");
+  EXPECT_EQ(c.max_queued_commands, 10u);
+  EXPECT_EQ(c.max_chain_length, 5u);
   EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.02);
   EXPECT_DOUBLE_EQ(c.link_loss_timeout_s, 7.5);
   EXPECT_EQ(c.link_loss_policy, LinkLossPolicy::Stop);
@@ -72,7 +76,13 @@ TEST(DaemonConfig, EveryKeyIsRead) {
 TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
-            "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s, rate_limit)");
+            "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s, rate_limit, max_queued_commands, "
+            "max_chain_length)");
+  // The status lists every held command: at most the IDL's MAX_QUEUE.
+  EXPECT_EQ(error_of("controller:\n  max_queued_commands: 65\n"),
+            "r.yaml:2: controller.max_queued_commands: 65 is outside [1, 64] commands");
+  EXPECT_EQ(error_of("controller:\n  max_chain_length: 0\n"),
+            "r.yaml:2: controller.max_chain_length: 0 is outside [1, 64] commands");
   // The rate limiter: below its planning limit it would act on every motion.
   EXPECT_EQ(error_of("controller:\n  rate_limit: {acceleration_fraction: 0.5}\n"),
             "r.yaml:2: controller.rate_limit.acceleration_fraction: 0.5 is outside [1, 10] x the URDF acceleration "

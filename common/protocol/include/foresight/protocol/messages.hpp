@@ -45,6 +45,7 @@ using StopCategory = foresight_msg_StopCategory;
 using ControllerMode = foresight_msg_ControllerMode;
 using DriveState = foresight_msg_DriveState;
 using DriveStatus = foresight_msg_DriveStatus;
+using QueuedCommand = foresight_msg_QueuedCommand;
 using LoopTiming = foresight_msg_LoopTiming;
 using RateLimit = foresight_msg_RateLimit;
 using ToolDirection = foresight_msg_ToolDirection;
@@ -53,6 +54,7 @@ using Sha256 = foresight_msg_Sha256;
 
 inline constexpr unsigned kProtocolVersion = foresight_msg_CURRENT_PROTOCOL_VERSION;
 inline constexpr unsigned kMaxJoints = foresight_msg_MAX_JOINTS;
+inline constexpr unsigned kMaxQueue = foresight_msg_MAX_QUEUE;
 inline constexpr unsigned kMaxChunkValues = foresight_msg_MAX_CHUNK_VALUES;
 inline constexpr unsigned kMaxChunks = foresight_msg_MAX_CHUNKS;
 inline constexpr unsigned kMaxParams = foresight_msg_MAX_PARAMS;

@@ -129,10 +129,13 @@ class GroundLink {
   bool wait_for_remote(std::chrono::nanoseconds timeout);
 
   /// Sends one command; returns its id. `lifetime_s` < 0 uses
-  /// Config::command_lifetime_s. Throws std::invalid_argument (payload not of
-  /// `kind`), std::length_error (a bound), protocol::ProtocolError (write).
+  /// Config::command_lifetime_s. `after_command_id` (0: none) chains it: the
+  /// remote starts it only once that command (of this session) COMPLETED,
+  /// and cancels it when that one does not. Throws std::invalid_argument
+  /// (payload not of `kind`), std::length_error (a bound),
+  /// protocol::ProtocolError (write).
   std::uint64_t send(protocol::CommandKind kind, const protocol::Payload& payload = protocol::NoPayload{},
-                     double lifetime_s = -1.0);
+                     double lifetime_s = -1.0, std::uint64_t after_command_id = 0);
   /// Every ack of `command_id` until a terminal one or `timeout`.
   CommandResult wait_final(std::uint64_t command_id, std::chrono::nanoseconds timeout);
   /// send() then wait_final() with timeout_for(expected_duration_s).

@@ -5,6 +5,7 @@
 // E-stop input of the simulated cabinet, trajectory start tolerance.
 // Set-up code only: throws InputError "<file>:<line>: controller.<key> ...".
 
+#include <cstddef>
 #include <string>
 
 namespace foresight::remote {
@@ -49,6 +50,11 @@ struct DaemonConfig {
   /// URDF limit, jerk as a multiple of it per second.
   double rate_limit_acceleration_fraction = 1.5;
   double rate_limit_jerk_per_s = 1000.0;
+  /// Commands the remote holds at once (running + queued; the status lists
+  /// them all: at most the IDL's MAX_QUEUE), and the longest chain of
+  /// commands following each other (after_command_id).
+  std::size_t max_queued_commands = 32;
+  std::size_t max_chain_length = 32;
 };
 
 /// Reads the optional `controller:` section (defaults when absent). Unknown

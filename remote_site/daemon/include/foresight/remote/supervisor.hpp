@@ -155,6 +155,16 @@ class Supervisor {
                       std::vector<double> final_q);
   void cancel_queued(const std::string& why);
 
+  // Chains (after_command_id): a command waits in the queue behind the one it
+  // follows; when that one does not complete, cancel_chain cancels every held
+  // command after it ("chain broken at command N: ...").
+  static bool chainable(protocol::CommandKind kind) noexcept;
+  /// The running or queued command (session, id); null when not held.
+  const protocol::Command* held_command(std::uint64_t session, std::uint64_t command_id) const;
+  /// The queue's bound and the chain's checks at receipt; "" when fine.
+  std::string check_queue(const protocol::Command& command, protocol::Reason* code) const;
+  void cancel_chain(const protocol::Command& broken, const std::string& why);
+
   void do_abort(const protocol::Command& command);
   /// Whether do_abort would stop the arm: a valid category, and no target, or
   /// the running motion as target.

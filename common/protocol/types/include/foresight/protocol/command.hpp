@@ -154,6 +154,8 @@ struct Command {
   std::int64_t received_ns = 0; ///< remote clock
   CommandKind kind = CommandKind::Request;
   Payload payload = NoPayload{};
+  /// A chain: the command of the same session this one follows (0: none).
+  std::uint64_t after_command_id = 0;
 };
 
 /// One state change of a command (RECEIVED ... COMPLETED).
@@ -233,6 +235,14 @@ struct RateLimitReport {
   double last_max_lag_rad = 0.0;      ///< the largest target - command of that episode
 };
 
+/// A command the remote holds: running (Executing) or waiting (Queued).
+struct QueuedCommand {
+  std::uint64_t command_id = 0;
+  CommandKind kind = CommandKind::Request;
+  std::uint64_t after_command_id = 0;  ///< the chain's predecessor (0: none)
+  AckState state = AckState::Queued;
+};
+
 struct StatusReport {
   std::int64_t stamp_ns = 0;
   ControllerMode mode = ControllerMode::Disabled;
@@ -246,6 +256,7 @@ struct StatusReport {
   std::vector<DriveReport> drives;  ///< one per joint, joint order
   LoopTiming loop;
   RateLimitReport rate_limit;
+  std::vector<QueuedCommand> queue;  ///< the running command first, then the queued ones in order
 };
 
 /// An upload's state as the link reports it on the trajectory status topic.

@@ -1,0 +1,271 @@
+// Chains (issue 29 item 1) against the real daemon over DDS: commands that
+// name the command they follow (after_command_id) are queued by the remote and
+// run back to back without a round trip between them; a command of a chain
+// that does not complete cancels the rest ("chain broken at command N: ...")
+// and nothing of it moves the arm (the simulated drives' own record); bad
+// predecessors are refused with their reason; the status lists the queue.
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "hil_support.hpp"
+
+namespace foresight {
+namespace {
+
+using namespace std::chrono_literals;
+using protocol::AckState;
+using protocol::CommandKind;
+using protocol::Reason;
+using test::DriveRecord;
+using test::eventually;
+
+class Chains : public test::DaemonTest {
+ protected:
+  void SetUp() override {
+    use_sim_faults();
+    DaemonTest::SetUp();
+  }
+
+  /// A GOTO_JOINT of joint 1 to q0[0] + delta at `speed` of the limits.
+  static protocol::GotoJoint goto_joint1(const Eigen::VectorXd& q0, double delta, double speed = 0.3) {
+    protocol::GotoJoint g;
+    g.q_rad.assign(q0.data(), q0.data() + 7);
+    g.q_rad[0] += delta;
+    g.speed_fraction = speed;
+    return g;
+  }
+
+  /// The ack of `state` among a result's acks (null when none).
+  static const protocol::Ack* ack_of(const ground_link::CommandResult& r, AckState state) {
+    for (const auto& a : r.acks)
+      if (a.state == state) return &a;
+    return nullptr;
+  }
+};
+
+// Three GOTOs sent at once, each following the one before: the remote queues
+// them, shows them in its status, and starts each one as the one before it
+// completes (its EXECUTING within 50 ms of the predecessor's COMPLETED, remote
+// clock), without waiting for the ground; the arm ends where the last one goes.
+TEST_F(Chains, AChainRunsBackToBackWithoutWaitingForTheGround) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t a = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.05));
+  Eigen::VectorXd q1 = q0;
+  q1[0] += 0.05;
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q1, 0.05), -1.0, a);
+  Eigen::VectorXd q2 = q1;
+  q2[0] += 0.05;
+  const std::uint64_t c = ground_->send(CommandKind::GotoJoint, goto_joint1(q2, 0.05), -1.0, b);
+
+  // The status lists what the remote holds: the running one, then its chain.
+  bool listed = false;
+  std::string seen;
+  ASSERT_TRUE(eventually(
+      [&] {
+        const auto s = ground_->status();
+        if (!s) return false;
+        const auto& q = s->value.queue;
+        seen = std::to_string(q.size()) + " held";
+        listed = q.size() == 2 && q[0].command_id == b && q[0].state == AckState::Executing &&
+                 q[0].after_command_id == a && q[1].command_id == c && q[1].after_command_id == b &&
+                 q[1].state == AckState::Queued;
+        return listed || (q.empty() && ground_->wait_final(c, 0ms).finished);
+      },
+      30s));
+  EXPECT_TRUE(listed) << "never saw [b executing after a, c queued after b]; last: " << seen;
+
+  const auto ra = ground_->wait_final(a, 30s);
+  const auto rb = ground_->wait_final(b, 30s);
+  const auto rc = ground_->wait_final(c, 30s);
+  ASSERT_TRUE(ra.succeeded()) << ra.reason;
+  ASSERT_TRUE(rb.succeeded()) << rb.reason;
+  ASSERT_TRUE(rc.succeeded()) << rc.reason;
+  // Sent ahead: queued on the remote before the one it follows completed.
+  for (const auto* r : {&rb, &rc}) {
+    const protocol::Ack* queued = ack_of(*r, AckState::Queued);
+    ASSERT_NE(queued, nullptr);
+    const protocol::Ack* before = ack_of(r == &rb ? ra : rb, AckState::Completed);
+    ASSERT_NE(before, nullptr);
+    EXPECT_LT(queued->stamp_ns, before->stamp_ns) << "command " << r->command_id << " was not queued ahead";
+    // Started on the remote right after its predecessor: no round trip.
+    const protocol::Ack* executing = ack_of(*r, AckState::Executing);
+    ASSERT_NE(executing, nullptr);
+    const double gap_s = 1e-9 * static_cast<double>(executing->stamp_ns - before->stamp_ns);
+    EXPECT_GE(gap_s, 0.0);
+    EXPECT_LT(gap_s, 0.05) << "command " << r->command_id << " started " << gap_s << " s after its predecessor";
+    std::printf("chained command %llu: EXECUTING %.1f ms after its predecessor's COMPLETED (remote clock)\n",
+                static_cast<unsigned long long>(r->command_id), 1e3 * gap_s);
+  }
+  const DriveRecord rec = fresh_record();
+  ASSERT_EQ(rec.q.size(), 7u);
+  EXPECT_NEAR(rec.q[0], q0[0] + 0.15, 2e-3);
+  // The journal has the chain: each RECEIVED row names its predecessor.
+  const nlohmann::json j = journal_json();
+  int chained_rows = 0;
+  for (const auto& row : j["commands"])
+    if (row["state"] == "RECEIVED" && row["detail"].contains("after_command_id")) {
+      const auto id = row["command_id"].get<std::uint64_t>();
+      EXPECT_EQ(row["detail"]["after_command_id"].get<std::uint64_t>(), id == b ? a : b);
+      ++chained_rows;
+    }
+  EXPECT_EQ(chained_rows, 2);
+}
+
+// The second command of a chain fails when it starts (a Cartesian goal out of
+// reach, planned only when its turn comes): the third is CANCELED with the
+// place and cause of the break, and the arm stays where the first left it
+// (the drives' own record).
+TEST_F(Chains, AFailureBreaksTheChainAndNothingAfterItMoves) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t a = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.08, 0.2));
+  protocol::GotoCart far;
+  far.frame = "lst_tip";
+  far.base_T_frame = Pose(Eigen::Translation3d(3.0, 0.0, 0.5));  // beyond the arm's reach
+  const std::uint64_t b = ground_->send(CommandKind::GotoCart, far, -1.0, a);
+  Eigen::VectorXd q1 = q0;
+  q1[0] += 0.08;
+  const std::uint64_t c = ground_->send(CommandKind::GotoJoint, goto_joint1(q1, -0.2), -1.0, b);
+
+  const auto ra = ground_->wait_final(a, 30s);
+  const auto rb = ground_->wait_final(b, 30s);
+  const auto rc = ground_->wait_final(c, 30s);
+  ASSERT_TRUE(ra.succeeded()) << ra.reason;
+  ASSERT_TRUE(rb.finished);
+  EXPECT_EQ(rb.state, AckState::Failed) << protocol::to_string(rb.state) << ": " << rb.reason;
+  EXPECT_EQ(rb.code, Reason::Unreachable) << rb.reason;
+  ASSERT_TRUE(rc.finished);
+  EXPECT_EQ(rc.state, AckState::Canceled) << protocol::to_string(rc.state) << ": " << rc.reason;
+  EXPECT_EQ(rc.code, Reason::Aborted);
+  EXPECT_EQ(rc.reason.rfind("chain broken at command " + std::to_string(b) + ": failed: ", 0), 0u) << rc.reason;
+  EXPECT_EQ(ack_of(rc, AckState::Executing), nullptr) << "the canceled command ran";
+
+  // Nothing moved after the first: the arm holds at its end.
+  mark();
+  const DriveRecord rec = fresh_record();
+  ASSERT_EQ(rec.q.size(), 7u);
+  EXPECT_NEAR(rec.q[0], ra.final_q_rad[0], 1e-3);
+  EXPECT_NEAR(rec.q[0], q0[0] + 0.08, 2e-3);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(rec.span(j), 1e-4) << "joint " << j + 1 << " moved";
+  const auto s = ground_->status();
+  ASSERT_TRUE(s);
+  EXPECT_TRUE(s->value.queue.empty());
+}
+
+// An ABORT of a running chain's command stops it and cancels the rest.
+TEST_F(Chains, AnAbortStopsTheRunningCommandAndCancelsTheRestOfItsChain) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t a = start_slow_motion(q0, 0.3);
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
+  ASSERT_TRUE(eventually(
+      [&] {
+        for (const auto& ack : ground_->wait_final(b, 0ms).acks)
+          if (ack.state == AckState::Queued) return true;
+        return false;
+      },
+      10s));
+  protocol::Abort abort;
+  abort.category = protocol::StopCategory::Cat2;
+  const auto r = run(CommandKind::Abort, abort, 2.0);
+  EXPECT_TRUE(r.succeeded()) << r.reason;
+  const auto ra = ground_->wait_final(a, 10s);
+  const auto rb = ground_->wait_final(b, 10s);
+  EXPECT_EQ(ra.state, AckState::Canceled) << ra.reason;
+  EXPECT_EQ(rb.state, AckState::Canceled) << rb.reason;
+  EXPECT_EQ(ack_of(rb, AckState::Executing), nullptr) << "the canceled command ran";
+}
+
+// Bad predecessors, each REJECTED with its reason, the running chain untouched.
+TEST_F(Chains, BadPredecessorsAreRefusedWithTheirReason) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  auto rejected = [&](const ground_link::CommandResult& r, Reason code, const std::string& starts) {
+    EXPECT_EQ(r.state, AckState::Rejected) << protocol::to_string(r.state) << ": " << r.reason;
+    EXPECT_EQ(r.code, code) << protocol::to_string(r.code) << ": " << r.reason;
+    EXPECT_NE(r.reason.find(starts), std::string::npos) << r.reason;
+  };
+  auto send_wait = [&](CommandKind kind, const protocol::Payload& p, std::uint64_t after) {
+    return ground_->wait_final(ground_->send(kind, p, -1.0, after), 10s);
+  };
+  // Itself: the next command id of this session is the sequence's next.
+  {
+    const std::uint64_t next = ground_->send(CommandKind::Request, protocol::Request{}) + 1;
+    rejected(send_wait(CommandKind::GotoJoint, goto_joint1(q0, 0.01), next), Reason::BadArgument,
+             "command " + std::to_string(next) + " cannot follow itself");
+  }
+  // Unknown in this session.
+  rejected(send_wait(CommandKind::GotoJoint, goto_joint1(q0, 0.01), 987654), Reason::BadArgument,
+           "command 987654 is not a command of this session");
+  // A predecessor that ended without completing: the chain is broken already.
+  protocol::GotoJoint beyond = goto_joint1(q0, 0.0);
+  beyond.q_rad[0] = 100.0;  // outside joint 1's limits: REJECTED at once
+  const auto bad = run(CommandKind::GotoJoint, beyond);
+  ASSERT_EQ(bad.state, AckState::Rejected) << bad.reason;
+  rejected(send_wait(CommandKind::GotoJoint, goto_joint1(q0, 0.01), bad.command_id), Reason::Aborted,
+           "chain broken at command " + std::to_string(bad.command_id) + ": rejected: ");
+  // Kinds that do not chain.
+  const std::uint64_t slow = start_slow_motion(q0, 0.1);
+  protocol::Abort abort;
+  abort.category = protocol::StopCategory::Cat2;
+  rejected(send_wait(CommandKind::Abort, abort, slow), Reason::BadArgument,
+           "abort cannot follow another command (after_command_id " + std::to_string(slow) + ")");
+  // The running motion was not touched by any of it.
+  const auto rs = ground_->wait_final(slow, 30s);
+  EXPECT_TRUE(rs.succeeded()) << protocol::to_string(rs.state) << ": " << rs.reason;
+  // A predecessor that completed: this one starts from where it left the arm.
+  Eigen::VectorXd q1 = q0;
+  q1[0] += 0.1;
+  const auto after_done = send_wait(CommandKind::GotoJoint, goto_joint1(q1, -0.1), slow);
+  EXPECT_TRUE(after_done.succeeded()) << protocol::to_string(after_done.state) << ": " << after_done.reason;
+}
+
+// controller.max_chain_length: the command that would make the chain longer
+// is refused naming the key and the bound.
+TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
+  // The shipped configuration with the bound at 2.
+  std::ifstream in(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string yaml = text.str();
+  const std::string key = "max_chain_length: 32";
+  const auto at = yaml.find(key);
+  ASSERT_NE(at, std::string::npos) << "config/remote.yaml has no '" << key << "'";
+  yaml.replace(at, key.size(), "max_chain_length: 2");
+  // In a folder of its own beside the other shipped files (the URDF, the
+  // scene, the drive files: read from the configuration's folder).
+  const std::string dir = test::temp_path(".config");
+  std::filesystem::create_directories(dir);
+  for (const auto& e : std::filesystem::directory_iterator(FORESIGHT_CONFIG_DIR))
+    if (e.path().filename() != "remote.yaml") std::filesystem::create_symlink(e.path(), std::filesystem::path(dir) / e.path().filename());
+  const std::string path = dir + "/remote.yaml";
+  std::ofstream(path) << yaml;
+  ground_.reset();
+  ASSERT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
+  test::RemoteProcess::Options o = remote_options_;
+  o.config = path;
+  ASSERT_NO_FATAL_FAILURE(start_remote(o));
+  ASSERT_NO_FATAL_FAILURE(connect_ground());
+  take_and_recover();
+
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t a = start_slow_motion(q0, 0.1);
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
+  const auto rc = ground_->wait_final(ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.05), -1.0, b), 10s);
+  EXPECT_EQ(rc.state, AckState::Rejected) << rc.reason;
+  EXPECT_EQ(rc.code, Reason::BadArgument);
+  EXPECT_NE(rc.reason.find("a chain of 3 commands exceeds controller.max_chain_length 2"), std::string::npos)
+      << rc.reason;
+  EXPECT_TRUE(ground_->wait_final(a, 30s).succeeded());
+  EXPECT_TRUE(ground_->wait_final(b, 30s).succeeded());
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace foresight
