@@ -500,3 +500,32 @@ TEST(CanSimulatorThread, AClosedMasterEndDoesNotMakeItSpin) {
   s.stop();
   EXPECT_LT(cpu, 0.2 * wall) << cpu << " s of CPU over " << wall << " s with the master gone";
 }
+
+// A simulator thread that finds several cycles waiting on two buses steps
+// them one cycle at a time, in turn: the F/T sensor (arm_b) samples each SYNC
+// with the arm_a drives at that same SYNC, not already at the last one (a
+// wrench of an arm pose that never was, when one bus was drained first).
+TEST(CanSimulatorThread, ABacklogOnTwoBusesIsSteppedOneCycleAtATime) {
+  const hw::RemoteConfig config = project_config();
+  ASSERT_EQ(config.bus_index(config.drives[0].bus), 0);
+  ASSERT_EQ(config.bus_index(config.ft.bus), 1);
+  auto buses = sim::make_mock_buses(config);
+  auto s = sim::CanSimulator::from_config(config, std::move(buses.far));
+  std::vector<std::uint64_t> seen;  // joint 1's SYNC count at each F/T sample
+  sim::CanSimulator* sim = s.get();
+  s->ft_sensor()->set_wrench_source([&seen, sim] {
+    seen.push_back(sim->drive(0).sync_count());
+    return sim::SimFtSensor::Wrench{};
+  });
+  can_frame start{};
+  start.can_id = hw::canopen::kNmt;
+  start.can_dlc = 2;
+  start.data[0] = 0x01;  // start, every node
+  can_frame sync{};
+  sync.can_id = hw::canopen::kSync;
+  for (auto& m : buses.master) ASSERT_EQ(m->write(start), hw::CanIo::Ok);
+  for (int k = 0; k < 3; ++k)  // three cycles, each bus's SYNC in the master's order
+    for (auto& m : buses.master) ASSERT_EQ(m->write(sync), hw::CanIo::Ok);
+  s->process_at(std::chrono::steady_clock::now());
+  EXPECT_EQ(seen, (std::vector<std::uint64_t>{1, 2, 3}));
+}
