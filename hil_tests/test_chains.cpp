@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "hil_support.hpp"
 
@@ -58,7 +57,8 @@ TEST_F(Chains, AChainRunsBackToBackWithoutWaitingForTheGround) {
   const std::uint64_t a = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.05));
   Eigen::VectorXd q1 = q0;
   q1[0] += 0.05;
-  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q1, 0.05), -1.0, a);
+  // The middle one slow (about 2 s): the 2 Hz status sees it running, its successor queued.
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q1, 0.05, 0.05), -1.0, a);
   Eigen::VectorXd q2 = q1;
   q2[0] += 0.05;
   const std::uint64_t c = ground_->send(CommandKind::GotoJoint, goto_joint1(q2, 0.05), -1.0, b);
@@ -230,10 +230,7 @@ TEST_F(Chains, BadPredecessorsAreRefusedWithTheirReason) {
 // is refused naming the key and the bound.
 TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
   // The shipped configuration with the bound at 2.
-  std::ifstream in(FORESIGHT_CONFIG_DIR "/remote.yaml");
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string yaml = text.str();
+  std::string yaml = test::read_file(FORESIGHT_CONFIG_DIR "/remote.yaml");
   const std::string key = "max_chain_length: 32";
   const auto at = yaml.find(key);
   ASSERT_NE(at, std::string::npos) << "config/remote.yaml has no '" << key << "'";
