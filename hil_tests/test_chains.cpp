@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "foresight/common/plan.hpp"
 #include "hil_support.hpp"
 
 namespace foresight {
@@ -37,6 +38,18 @@ class Chains : public test::DaemonTest {
     g.q_rad[0] += delta;
     g.speed_fraction = speed;
     return g;
+  }
+
+  /// A joint move of joints 1 and 4 by `delta`, planned from q0 (about 1-2 s).
+  Trajectory joint_move(const Eigen::VectorXd& q0, double delta) const {
+    Goal goal;
+    goal.name = "there";
+    goal.kind = SegmentKind::Joint;
+    goal.is_pose = false;
+    goal.q = q0;
+    goal.q[0] += delta;
+    goal.q[3] -= delta;
+    return plan_motion(model_, q0, {goal}).trajectory;
   }
 
   /// The ack of `state` among a result's acks (null when none).
@@ -262,6 +275,91 @@ TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
   EXPECT_TRUE(ground_->wait_final(a, 30s).succeeded());
   EXPECT_TRUE(ground_->wait_final(b, 30s).succeeded());
   std::filesystem::remove_all(dir);
+}
+
+// Upload and run in one go (item 2): a RUN that arrives before any chunk of
+// its upload is QUEUED ("waiting for upload N"), and starts as soon as the
+// whole upload committed with its hash; the arm ends at the trajectory's end.
+TEST_F(Chains, ARunThatOvertakesItsUploadRunsOnceTheUploadCommitted) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const Trajectory traj = joint_move(q0, 0.1);
+  const std::uint64_t id = 424242;
+  protocol::RunTrajectory run_cmd;
+  run_cmd.trajectory_id = id;
+  run_cmd.content_hash = trajectory_hash(traj);
+  run_cmd.upload_wait_s = 20.0;
+  const std::uint64_t c = ground_->send(CommandKind::Trajectory, run_cmd);
+  // The RUN is held, waiting, before a single chunk went out.
+  std::string note;
+  ASSERT_TRUE(eventually(
+      [&] {
+        for (const auto& a : ground_->wait_final(c, 0ms).acks)
+          if (a.state == AckState::Queued) note = a.reason;
+        return !note.empty();
+      },
+      10s));
+  EXPECT_EQ(note, "waiting for upload 424242 to commit (at most 20.0 s)");
+  auto up = ground_->start_upload(traj, id);
+  const auto r = ground_->wait_final(c, 30s);
+  ASSERT_TRUE(r.succeeded()) << protocol::to_string(r.state) << ": " << r.reason;
+  ground_->wait_upload(up, 5s);
+  EXPECT_TRUE(up.committed());
+  const DriveRecord rec = fresh_record();
+  ASSERT_EQ(rec.q.size(), 7u);
+  EXPECT_NEAR(rec.q[0], q0[0] + 0.1, 2e-3);
+  EXPECT_NEAR(rec.q[3], q0[3] - 0.1, 2e-3);
+}
+
+// An upload that never arrives fails its RUN after upload_wait_s, with the
+// reason; the command chained after it is canceled; nothing moves. A RUN
+// whose hash differs from the upload that then commits FAILS with both
+// hashes; a wait above controller.max_upload_wait_s is REJECTED.
+TEST_F(Chains, ARunWhoseUploadNeverCommitsFailsAndBreaksItsChain) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  mark();
+  protocol::RunTrajectory run_cmd;
+  run_cmd.trajectory_id = 777001;
+  run_cmd.upload_wait_s = 1.0;
+  const std::uint64_t a = ground_->send(CommandKind::Trajectory, run_cmd);
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.05), -1.0, a);
+  const auto ra = ground_->wait_final(a, 15s);
+  const auto rb = ground_->wait_final(b, 15s);
+  ASSERT_TRUE(ra.finished);
+  EXPECT_EQ(ra.state, AckState::Failed) << ra.reason;
+  EXPECT_EQ(ra.code, Reason::IncompleteUpload);
+  EXPECT_EQ(ra.reason, "upload 777001 did not commit within 1.0 s of the RUN (upload_wait_s): nothing of it ran");
+  EXPECT_EQ(rb.state, AckState::Canceled) << rb.reason;
+  EXPECT_EQ(rb.reason.rfind("chain broken at command " + std::to_string(a) + ": failed: upload 777001", 0), 0u)
+      << rb.reason;
+  EXPECT_EQ(ack_of(rb, AckState::Executing), nullptr) << "the canceled command ran";
+
+  // The hash in the RUN is not the upload's: FAILED when the upload commits.
+  const Trajectory traj = joint_move(q0, 0.1);
+  run_cmd.trajectory_id = 777002;
+  run_cmd.content_hash = trajectory_hash(traj);
+  run_cmd.content_hash[0] ^= 1;
+  run_cmd.upload_wait_s = 20.0;
+  const std::uint64_t c = ground_->send(CommandKind::Trajectory, run_cmd);
+  ASSERT_TRUE(eventually([&] { return ack_of(ground_->wait_final(c, 0ms), AckState::Queued) != nullptr; }, 10s));
+  (void)ground_->start_upload(traj, 777002);
+  const auto rc = ground_->wait_final(c, 30s);
+  EXPECT_EQ(rc.state, AckState::Failed) << rc.reason;
+  EXPECT_EQ(rc.code, Reason::HashMismatch);
+  EXPECT_NE(rc.reason.find("differs from the committed upload's " + to_hex(trajectory_hash(traj))), std::string::npos)
+      << rc.reason;
+
+  // Longer than the remote allows (controller.max_upload_wait_s 60).
+  run_cmd.upload_wait_s = 61.0;
+  const auto rd = run(CommandKind::Trajectory, run_cmd);
+  EXPECT_EQ(rd.state, AckState::Rejected);
+  EXPECT_EQ(rd.reason, "upload_wait_s 61 out of range [0, 60] s (controller.max_upload_wait_s)");
+
+  // Nothing of it moved the arm: the drives' own record since the mark.
+  const DriveRecord rec = fresh_record();
+  ASSERT_EQ(rec.q.size(), 7u);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(rec.span(j), 1e-4) << "joint " << j + 1 << " moved";
 }
 
 }  // namespace

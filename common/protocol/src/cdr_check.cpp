@@ -176,6 +176,7 @@ void run_trajectory(Walk& w) {
     sha256(w);          // content_hash
     w.prim(kBool);      // compliant
     w.prim(kI8);        // start_tolerance_rad
+    w.prim(kI8);        // upload_wait_s
   });
 }
 void named_value(Walk& w) {

@@ -95,6 +95,7 @@ PayloadVerdict check_payload(const msg::Command& c, const PayloadLimits& limits)
       const auto& p = u.trajectory;
       if (p.trajectory_id == 0) return bad("trajectory.trajectory_id is 0", Reason::UnknownTrajectory);
       if (auto v = check_non_negative(p.start_tolerance_rad, "trajectory.start_tolerance_rad")) return *v;
+      if (auto v = check_non_negative(p.upload_wait_s, "trajectory.upload_wait_s")) return *v;
       return {};
     }
     case foresight_msg_CMD_INVOKE_ALGORITHM: {
@@ -182,6 +183,7 @@ Command from_wire(const msg::Command& c, std::int64_t received_ns) {
       p.content_hash = protocol::get_hash(u.trajectory.content_hash);
       p.compliant = u.trajectory.compliant;
       p.start_tolerance_rad = u.trajectory.start_tolerance_rad;
+      p.upload_wait_s = u.trajectory.upload_wait_s;
       out.payload = p;
       break;
     }
@@ -263,6 +265,7 @@ void fill_payload(msg::Command& out, CommandKind kind, const Payload& payload) {
       protocol::set_hash(u.trajectory.content_hash, p.content_hash);
       u.trajectory.compliant = p.compliant;
       u.trajectory.start_tolerance_rad = p.start_tolerance_rad;
+      u.trajectory.upload_wait_s = p.upload_wait_s;
       return;
     }
     case CommandKind::InvokeAlgorithm: {

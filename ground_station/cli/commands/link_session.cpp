@@ -47,8 +47,13 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, protocol
                                          const protocol::Payload& payload, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted) {
   const auto t0 = Clock::now();
-  const std::uint64_t id = link.send(kind, payload);
-  const auto deadline = t0 + timeout;
+  return wait_or_abort(link, link.send(kind, payload), t0, timeout, interrupted);
+}
+
+ground_link::CommandResult wait_or_abort(ground_link::GroundLink& link, std::uint64_t id,
+                                         std::chrono::steady_clock::time_point sent, std::chrono::nanoseconds timeout,
+                                         const std::function<bool()>& interrupted) {
+  const auto deadline = sent + timeout;
   bool aborted = false;
   ground_link::CommandResult r;
   r.command_id = id;
@@ -65,7 +70,7 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, protocol
       link.send(protocol::CommandKind::Abort, a);
     }
   }
-  r.elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.elapsed_s = std::chrono::duration<double>(Clock::now() - sent).count();
   return r;
 }
 
@@ -137,6 +142,11 @@ std::optional<ground_link::Timed<protocol::JointReport>> wait_joints(const groun
 ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const Trajectory& trajectory,
                                            double timeout_s) {
   const auto r = link.upload(trajectory, seconds(timeout_s));
+  require_committed(r, timeout_s);
+  return r;
+}
+
+void require_committed(const ground_link::UploadResult& r, double timeout_s) {
   if (r.state == protocol::UploadState::Committed && r.local_hash != r.remote_hash)
     throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": the remote committed hash " +
                       to_hex(r.remote_hash) + " but the local hash is " + to_hex(r.local_hash));
@@ -146,7 +156,25 @@ ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const 
   if (r.state != protocol::UploadState::Committed)
     throw LinkFailure("upload " + std::to_string(r.trajectory_id) + ": not committed within " + fixed(timeout_s, 1) +
                       " s");
-  return r;
+}
+
+double upload_wait_for(const ground_link::GroundLink& link, const Trajectory& trajectory) {
+  const double derived =
+      std::chrono::duration<double>(link.timeout_for(1.0 + trajectory.samples() * 1e-4)).count();
+  return std::min(derived, kMaxUploadWaitS);
+}
+
+UploadAndRun upload_and_run(ground_link::GroundLink& link, const Trajectory& trajectory, protocol::RunTrajectory run,
+                            std::uint64_t after_command_id) {
+  UploadAndRun u;
+  u.upload_wait_s = upload_wait_for(link, trajectory);
+  u.upload = link.start_upload(trajectory);
+  run.trajectory_id = u.upload.trajectory_id;
+  run.content_hash = u.upload.local_hash;
+  run.upload_wait_s = u.upload_wait_s;
+  u.sent = Clock::now();
+  u.command_id = link.send(protocol::CommandKind::Trajectory, run, -1.0, after_command_id);
+  return u;
 }
 
 double planned_goto_duration_s(const RobotModel& model, const std::vector<double>& q_now,

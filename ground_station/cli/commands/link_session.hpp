@@ -50,6 +50,11 @@ ground_link::CommandResult send_and_wait(ground_link::GroundLink& link, protocol
                                          const protocol::Payload& payload, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted = {});
 
+/// The waiting half of send_and_wait, for a command already sent at `sent`.
+ground_link::CommandResult wait_or_abort(ground_link::GroundLink& link, std::uint64_t command_id,
+                                         std::chrono::steady_clock::time_point sent, std::chrono::nanoseconds timeout,
+                                         const std::function<bool()>& interrupted = {});
+
 /// Each CLI process is its own ground session: a command that moves the arm
 /// takes control first (LinkFailure when refused, e.g. another station holds
 /// it) and gives it back when the guard goes out of scope.
@@ -88,6 +93,29 @@ std::optional<ground_link::Timed<protocol::JointReport>> wait_joints(const groun
 /// one (LinkFailure otherwise, naming both hashes or the rejection reason).
 ground_link::UploadResult upload_committed(ground_link::GroundLink& link, const Trajectory& trajectory,
                                            double timeout_s);
+/// upload_committed's check of a finished wait (LinkFailure with the same messages).
+void require_committed(const ground_link::UploadResult& r, double timeout_s);
+
+/// The ground's cap on RunTrajectory::upload_wait_s (the shipped remote's
+/// controller.max_upload_wait_s).
+inline constexpr double kMaxUploadWaitS = 60.0;
+/// How long a RUN sent together with its upload lets the remote wait for the
+/// commit: the link's derived timeout for the transfer (3 x the measured p99
+/// round trip + margin: a lost chunk's repair), at most kMaxUploadWaitS.
+double upload_wait_for(const ground_link::GroundLink& link, const Trajectory& trajectory);
+
+/// Upload and RUN in one go: every chunk written, then the RUN at once with
+/// the local hash and upload_wait_for(); the remote runs the trajectory only
+/// once the whole upload committed with that hash (else FAILS the RUN with
+/// why). `run`'s id, hash and wait are filled in; `after_command_id` chains it.
+struct UploadAndRun {
+  ground_link::UploadResult upload;
+  std::uint64_t command_id = 0;
+  std::chrono::steady_clock::time_point sent{};
+  double upload_wait_s = 0.0;
+};
+UploadAndRun upload_and_run(ground_link::GroundLink& link, const Trajectory& trajectory, protocol::RunTrajectory run,
+                            std::uint64_t after_command_id = 0);
 
 /// The duration of the path the remote will plan for a GOTO_JOINT or GOTO_CART
 /// from joints `q_now` (the same common plan_motion, the same options as the

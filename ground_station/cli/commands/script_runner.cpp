@@ -17,6 +17,7 @@
 #include "foresight/common/plan.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/localization/pose_json.hpp"
+#include "format.hpp"
 #include "link_session.hpp"
 
 namespace foresight::cli {
@@ -368,18 +369,24 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
     q_ = predicted;
     return done("dry run: not sent (sha256 " + hash.substr(0, 12) + ")", t0);
   }
-  const auto up = upload_committed(*link_, plan.trajectory,
-                                   std::chrono::duration<double>(link_->timeout_for(1.0 + plan.trajectory.samples() * 1e-4)).count());
-  say("committed trajectory " + std::to_string(up.trajectory_id) + ": remote sha256 " + to_hex(up.remote_hash) +
-      " = local");
-  pending_journal_["remote_sha256"] = to_hex(up.remote_hash);
+  // Upload and run in one go: the RUN follows the chunks at once and the
+  // remote starts it once the whole upload committed with this hash.
   protocol::RunTrajectory run;
-  run.trajectory_id = up.trajectory_id;
-  run.content_hash = up.remote_hash;
   run.compliant = c.flag_or("compliant", false);
+  const auto sent = upload_and_run(*link_, plan.trajectory, run);
   const auto kind = protocol::CommandKind::Trajectory;
-  const auto r = send_and_wait(*link_, kind, run, final_ack_timeout(*link_, plan.trajectory.duration_s(), s_.timeout_s),
+  say("sent trajectory " + std::to_string(sent.upload.trajectory_id) + " with its RUN (runs once the whole upload " +
+      "is there with this hash; waits at most " + fixed(sent.upload_wait_s, 1) + " s for it)");
+  const auto r = wait_or_abort(*link_, sent.command_id, sent.sent,
+                               final_ack_timeout(*link_, plan.trajectory.duration_s() + sent.upload_wait_s, s_.timeout_s),
                                interrupted);
+  auto up = sent.upload;
+  link_->wait_upload(up, std::chrono::nanoseconds(0));  // its status came before the RUN started
+  if (up.state == protocol::UploadState::Committed) {
+    say("committed trajectory " + std::to_string(up.trajectory_id) + ": remote sha256 " + to_hex(up.remote_hash) +
+        (up.remote_hash == up.local_hash ? " = local" : " != local"));
+    pending_journal_["remote_sha256"] = to_hex(up.remote_hash);
+  }
   Outcome o = from_result(kind, r, t0);
   if (r.finished)
     pending_journal_.update(update_arm(r.final_q_rad, predicted, r.state == protocol::AckState::Completed));

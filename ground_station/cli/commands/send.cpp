@@ -1,9 +1,12 @@
 // foresight send TRAJ.csv [--run] [--compliant]: validate the trajectory with
 // the remote's rules, upload it, wait for COMMITTED with the remote's content
-// hash equal to the local one (both printed); with --run start it by id and
-// hash and wait for the final ack (COMPLETED with the final joints, or why).
+// hash equal to the local one (both printed); with --run the RUN (by id and
+// hash) goes out right behind the chunks, the remote starts it once the
+// upload committed, and the final ack is awaited (COMPLETED with the final
+// joints, or why).
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #include "command.hpp"
 #include "foresight/common/robot_model.hpp"
@@ -39,7 +42,25 @@ int run(const Options& o) {
   const double upload_timeout =
       o.upload_timeout_s > 0 ? o.upload_timeout_s
                              : std::chrono::duration<double>(link->timeout_for(1.0 + traj.samples() * 1e-4)).count();
-  const auto up = upload_committed(*link, traj, upload_timeout);
+  // With --run, the RUN goes out right behind the chunks (upload and run in
+  // one go): the remote starts it once the whole upload committed with this
+  // hash, not a round trip later.
+  std::optional<ControlGuard> control_guard;
+  UploadAndRun sent;
+  ground_link::UploadResult up;
+  if (o.run) {
+    control_guard.emplace(*link);
+    protocol::RunTrajectory run;
+    run.compliant = o.compliant;
+    run.start_tolerance_rad = o.start_tolerance_rad;
+    sent = upload_and_run(*link, traj, run);
+    up = sent.upload;
+    link->wait_upload(up, std::chrono::duration_cast<std::chrono::nanoseconds>(
+                              std::chrono::duration<double>(upload_timeout)));
+    require_committed(up, upload_timeout);
+  } else {
+    up = upload_committed(*link, traj, upload_timeout);
+  }
   nlohmann::json j = {{"file", o.trajectory},
                       {"samples", traj.samples()},
                       {"duration_s", traj.duration_s()},
@@ -56,16 +77,12 @@ int run(const Options& o) {
                 up.elapsed_s, local.c_str(), to_hex(up.remote_hash).c_str());
   int status = kExitOk;
   if (o.run) {
-    const ControlGuard control_guard(*link);
-    protocol::RunTrajectory run;
-    run.trajectory_id = up.trajectory_id;
-    run.content_hash = up.remote_hash;
-    run.compliant = o.compliant;
-    run.start_tolerance_rad = o.start_tolerance_rad;
     const auto kind = protocol::CommandKind::Trajectory;
-    const auto r = send_and_wait(*link, kind, run, final_ack_timeout(*link, traj.duration_s(), o.link.timeout_s));
+    const auto r = wait_or_abort(*link, sent.command_id, sent.sent,
+                                 final_ack_timeout(*link, traj.duration_s() + sent.upload_wait_s, o.link.timeout_s));
     j["run"] = result_json(kind, r);
     j["compliant"] = o.compliant;
+    j["upload_wait_s"] = sent.upload_wait_s;
     status = exit_status(r);
     if (!o.link.json) {
       std::cout << result_line(kind, r) << "\n";

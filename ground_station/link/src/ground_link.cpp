@@ -414,8 +414,13 @@ CommandResult GroundLink::execute(protocol::CommandKind kind, const protocol::Pa
 
 UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
                                 std::uint64_t trajectory_id) {
+  UploadResult r = start_upload(trajectory, trajectory_id);
+  wait_upload(r, timeout);
+  return r;
+}
+
+UploadResult GroundLink::start_upload(const Trajectory& trajectory, std::uint64_t trajectory_id) {
   if (!impl_->chunks) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot upload");
-  const auto start = Clock::now();
   UploadResult r;
   r.trajectory_id = trajectory_id != 0 ? trajectory_id : protocol::random_id();
   r.local_hash = trajectory_hash(trajectory);
@@ -425,16 +430,21 @@ UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanos
     std::lock_guard lock(impl_->mutex);
     impl_->upload_log.erase(r.trajectory_id);
   }
+  r.started_ = Clock::now();
   {
     std::lock_guard lock(impl_->chunk_mutex);
     for (const auto& chunk : parts) impl_->chunks->write(chunk);
   }
+  return r;
+}
+
+void GroundLink::wait_upload(UploadResult& r, std::chrono::nanoseconds timeout) {
   std::unique_lock lock(impl_->mutex);
   const auto final_state = [&] {
     const auto it = impl_->upload_log.find(r.trajectory_id);
     return it != impl_->upload_log.end() && it->second.state != protocol::UploadState::Assembling;
   };
-  impl_->changed.wait_until(lock, start + timeout, final_state);
+  impl_->changed.wait_until(lock, r.started_ + timeout, final_state);
   const auto it = impl_->upload_log.find(r.trajectory_id);
   if (it != impl_->upload_log.end()) {
     r.state = it->second.state;
@@ -442,8 +452,7 @@ UploadResult GroundLink::upload(const Trajectory& trajectory, std::chrono::nanos
     r.reason = it->second.reason;
     if (r.state != protocol::UploadState::Assembling) r.remote_hash = it->second.hash;
   }
-  r.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
-  return r;
+  r.elapsed_s = std::chrono::duration<double>(Clock::now() - r.started_).count();
 }
 
 std::optional<Timed<protocol::JointReport>> GroundLink::joint_state() const {

@@ -26,7 +26,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   c.line = s.line();
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
                 "default_algorithm_timeout_s", "control_lease_s", "rate_limit", "max_queued_commands",
-                "max_chain_length"});
+                "max_chain_length", "max_upload_wait_s"});
   c.start_tolerance_rad = s.get_or_in("start_tolerance_rad", c.start_tolerance_rad, 1e-6, 1e6, "rad");
   if (c.start_tolerance_rad > kMaxStartToleranceRad)
     s.fail_key("start_tolerance_rad", "must be at most 0.02 rad (a larger start offset would jump the arm: plan an approach "
@@ -43,6 +43,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
       s.get_or_int_in("max_queued_commands", static_cast<long long>(c.max_queued_commands), 1, 64, "commands"));
   c.max_chain_length = static_cast<std::size_t>(
       s.get_or_int_in("max_chain_length", static_cast<long long>(c.max_chain_length), 1, 64, "commands"));
+  c.max_upload_wait_s = s.get_or_in("max_upload_wait_s", c.max_upload_wait_s, 1.0, 600.0, "s");
 
   if (s["rate_limit"]) {
     // The ranges the controller takes (ControllerConfig); below 1x the limiter

@@ -71,6 +71,7 @@ nlohmann::json payload_json(const protocol::Command& c) {
           j["hash"] = to_hex(p.content_hash);
           j["compliant"] = p.compliant;
           j["start_tolerance_rad"] = p.start_tolerance_rad;
+          j["upload_wait_s"] = p.upload_wait_s;
         } else if constexpr (std::is_same_v<P, protocol::InvokeAlgorithm>) {
           j["name"] = p.name;
           nlohmann::json params = nlohmann::json::object();
@@ -171,6 +172,7 @@ void Supervisor::run_once() {
   poll_tool();
   poll_camera();
   poll_loop();
+  check_upload_waits();
   check_inputs();
   publish_reports(false);
 }
@@ -427,7 +429,11 @@ void Supervisor::dispatch(const protocol::Command& c) {
       }
     }
   }
-  enqueue(std::move(job));
+  std::string note;
+  if (job->awaiting_upload != 0)
+    note = "waiting for upload " + std::to_string(job->awaiting_upload) +
+           fmt(" to commit (at most %.1f s)", std::get<protocol::RunTrajectory>(c.payload).upload_wait_s);
+  enqueue(std::move(job), note);
 }
 
 std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c, Reason* code, std::string* reason) {
@@ -437,18 +443,6 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c
   switch (c.kind) {
     case CommandKind::Trajectory: {
       const auto& p = std::get<protocol::RunTrajectory>(c.payload);
-      const auto it = uploads_.find(p.trajectory_id);
-      if (it == uploads_.end()) {
-        *code = Reason::UnknownTrajectory;
-        *reason = "no committed upload with id " + std::to_string(p.trajectory_id);
-        return nullptr;
-      }
-      if (upload_hash_[p.trajectory_id] != p.content_hash) {
-        *code = Reason::HashMismatch;
-        *reason = "trajectory " + std::to_string(p.trajectory_id) + ": the command's hash " + to_hex(p.content_hash) +
-                  " differs from the committed upload's " + to_hex(upload_hash_[p.trajectory_id]);
-        return nullptr;
-      }
       if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) ||
           p.start_tolerance_rad > kMaxStartToleranceRad) {
         *code = Reason::BadArgument;
@@ -457,10 +451,43 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c
                       "the first sample)", kMaxStartToleranceRad);
         return nullptr;
       }
+      if (!(p.upload_wait_s >= 0.0) || !(p.upload_wait_s <= p_.config.max_upload_wait_s)) {
+        *code = Reason::BadArgument;
+        *reason = fmt("upload_wait_s %g out of range [0, %g] s (controller.max_upload_wait_s)", p.upload_wait_s,
+                      p_.config.max_upload_wait_s);
+        return nullptr;
+      }
       job->kind = JobKind::Trajectory;
-      job->trajectory = it->second;
       job->compliant = p.compliant;
       job->start_tolerance_rad = p.start_tolerance_rad;
+      const auto it = uploads_.find(p.trajectory_id);
+      if (it == uploads_.end()) {
+        const auto refused = upload_refused_.find(p.trajectory_id);
+        if (refused != upload_refused_.end()) {
+          *code = Reason::IncompleteUpload;
+          *reason = "upload " + std::to_string(p.trajectory_id) + " was refused: " + refused->second;
+          return nullptr;
+        }
+        if (p.upload_wait_s == 0.0) {
+          *code = Reason::UnknownTrajectory;
+          *reason = "no committed upload with id " + std::to_string(p.trajectory_id) +
+                    " (a RUN with upload_wait_s > 0 may overtake its upload)";
+          return nullptr;
+        }
+        // RUN overtook its upload (issue 29): held until the whole upload
+        // committed with this hash, or failed at the deadline.
+        job->awaiting_upload = p.trajectory_id;
+        job->upload_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                  std::chrono::duration<double>(p.upload_wait_s));
+        return job;
+      }
+      if (upload_hash_[p.trajectory_id] != p.content_hash) {
+        *code = Reason::HashMismatch;
+        *reason = "trajectory " + std::to_string(p.trajectory_id) + ": the command's hash " + to_hex(p.content_hash) +
+                  " differs from the committed upload's " + to_hex(upload_hash_[p.trajectory_id]);
+        return nullptr;
+      }
+      job->trajectory = it->second;
       try {
         job->prepared = std::make_unique<control::PreparedTrajectory>(*it->second, p.trajectory_id);
       } catch (const std::exception& e) {
@@ -606,14 +633,15 @@ bool Supervisor::plan_goto(Job& job, Reason* code, std::string* reason) {
   return true;
 }
 
-void Supervisor::enqueue(std::unique_ptr<Job> job) {
-  ack(job->command, AckState::Queued);
+void Supervisor::enqueue(std::unique_ptr<Job> job, const std::string& note) {
+  ack(job->command, AckState::Queued, Reason::None, note);
   queue_.push_back(std::move(job));
   start_next();
 }
 
 void Supervisor::start_next() {
   while (!running_ && !queue_.empty()) {
+    if (queue_.front()->awaiting_upload != 0) return;  // the head waits for its upload; the rest behind it
     std::unique_ptr<Job> job = std::move(queue_.front());
     queue_.pop_front();
     Reason code = Reason::None;
@@ -763,6 +791,74 @@ void Supervisor::cancel_chain(const protocol::Command& broken, const std::string
       }
     }
   }
+}
+
+void Supervisor::fail_queued(std::unique_ptr<Job> job, Reason code, const std::string& why) {
+  ack(job->command, AckState::Failed, code, why, current_q());
+  cancel_chain(job->command, std::string("failed: ") + why);
+}
+
+void Supervisor::resolve_upload_waits(std::uint64_t trajectory_id) {
+  std::vector<std::pair<std::unique_ptr<Job>, std::pair<Reason, std::string>>> failed;
+  const auto committed = uploads_.find(trajectory_id);
+  const auto refused = upload_refused_.find(trajectory_id);
+  for (auto it = queue_.begin(); it != queue_.end();) {
+    Job& job = **it;
+    if (job.awaiting_upload != trajectory_id) {
+      ++it;
+      continue;
+    }
+    const auto& run = std::get<protocol::RunTrajectory>(job.command.payload);
+    Reason code = Reason::None;
+    std::string why;
+    if (committed != uploads_.end()) {
+      if (upload_hash_[trajectory_id] != run.content_hash) {
+        code = Reason::HashMismatch;
+        why = "trajectory " + std::to_string(trajectory_id) + ": the command's hash " + to_hex(run.content_hash) +
+              " differs from the committed upload's " + to_hex(upload_hash_[trajectory_id]);
+      } else {
+        try {
+          job.prepared = std::make_unique<control::PreparedTrajectory>(*committed->second, trajectory_id);
+          job.trajectory = committed->second;
+          job.awaiting_upload = 0;
+        } catch (const std::exception& e) {
+          code = Reason::ValidationFailed;
+          why = e.what();
+        }
+      }
+    } else if (refused != upload_refused_.end()) {
+      code = Reason::IncompleteUpload;
+      why = "upload " + std::to_string(trajectory_id) + " was refused: " + refused->second;
+    }
+    if (code == Reason::None) {
+      ++it;
+      continue;
+    }
+    failed.emplace_back(std::move(*it), std::make_pair(code, why));
+    it = queue_.erase(it);
+  }
+  for (auto& [job, why] : failed) fail_queued(std::move(job), why.first, why.second);
+  start_next();
+}
+
+void Supervisor::check_upload_waits() {
+  const auto now = Clock::now();
+  bool changed = false;
+  for (auto it = std::find_if(queue_.begin(), queue_.end(),
+                              [&](const auto& j) { return j->awaiting_upload != 0 && now >= j->upload_deadline; });
+       it != queue_.end();
+       it = std::find_if(queue_.begin(), queue_.end(),
+                         [&](const auto& j) { return j->awaiting_upload != 0 && now >= j->upload_deadline; })) {
+    std::unique_ptr<Job> job = std::move(*it);
+    queue_.erase(it);
+    const auto& run = std::get<protocol::RunTrajectory>(job->command.payload);
+    const std::string why = "upload " + std::to_string(run.trajectory_id) +
+                            fmt(" did not commit within %.1f s of the RUN (upload_wait_s): nothing of it ran",
+                                run.upload_wait_s);
+    fail_queued(std::move(job), Reason::IncompleteUpload, why);
+    changed = true;
+  }
+  if (changed) start_next();
 }
 
 void Supervisor::cancel_queued(const std::string& why) {
@@ -950,11 +1046,19 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
     }
     spdlog::info("upload {} committed: {} samples x {} joints, {:.2f} s, hash {}", e.trajectory_id,
                  e.trajectory->samples(), e.trajectory->joints(), e.trajectory->duration_s(), row.hash_hex);
-  } else if (e.state == protocol::UploadState::Rejected) {
-    spdlog::warn("upload {} rejected: {}", e.trajectory_id, e.reason);
-  } else if (e.state == protocol::UploadState::Discarded) {
+    resolve_upload_waits(e.trajectory_id);
+  } else if (e.state == protocol::UploadState::Rejected || e.state == protocol::UploadState::Discarded) {
+    if (e.state == protocol::UploadState::Rejected) spdlog::warn("upload {} rejected: {}", e.trajectory_id, e.reason);
     uploads_.erase(e.trajectory_id);
     upload_hash_.erase(e.trajectory_id);
+    if (!upload_refused_.count(e.trajectory_id)) upload_refused_order_.push_back(e.trajectory_id);
+    upload_refused_[e.trajectory_id] = std::string(row.state == "REJECTED" ? "rejected" : "discarded") + " (" +
+                                       control::to_string(e.code) + ")" + (e.reason.empty() ? "" : ": " + e.reason);
+    while (upload_refused_order_.size() > kUploadsKept) {
+      upload_refused_.erase(upload_refused_order_.front());
+      upload_refused_order_.pop_front();
+    }
+    resolve_upload_waits(e.trajectory_id);
   }
 }
 

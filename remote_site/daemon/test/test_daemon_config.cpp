@@ -50,8 +50,10 @@ TEST(DaemonConfig, EveryKeyIsRead) {
       "  control_lease_s: 4\n"
       "  rate_limit: {acceleration_fraction: 2, jerk_per_s: 500}\n"
       "  max_queued_commands: 10\n"
-      "  max_chain_length: 5\n",
+      "  max_chain_length: 5\n"
+      "  max_upload_wait_s: 12\n",
       "r.yaml");
+  EXPECT_DOUBLE_EQ(c.max_upload_wait_s, 12);
   EXPECT_EQ(c.max_queued_commands, 10u);
   EXPECT_EQ(c.max_chain_length, 5u);
   EXPECT_DOUBLE_EQ(c.start_tolerance_rad, 0.02);
@@ -77,7 +79,9 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
             "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s, rate_limit, max_queued_commands, "
-            "max_chain_length)");
+            "max_chain_length, max_upload_wait_s)");
+  EXPECT_EQ(error_of("controller:\n  max_upload_wait_s: 0.5\n"),
+            "r.yaml:2: controller.max_upload_wait_s: 0.5 is outside [1, 600] s");
   // The status lists every held command: at most the IDL's MAX_QUEUE.
   EXPECT_EQ(error_of("controller:\n  max_queued_commands: 65\n"),
             "r.yaml:2: controller.max_queued_commands: 65 is outside [1, 64] commands");

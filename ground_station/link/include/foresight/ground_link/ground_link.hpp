@@ -104,6 +104,7 @@ struct UploadResult {
   bool committed() const noexcept {
     return state == protocol::UploadState::Committed && local_hash == remote_hash;
   }
+  std::chrono::steady_clock::time_point started_{};  ///< first chunk written (GroundLink::wait_upload)
 };
 
 /// A telemetry value with its age: ground now - (remote stamp - clock offset).
@@ -150,6 +151,13 @@ class GroundLink {
   /// Throws std::invalid_argument (make_chunks) or protocol::ProtocolError.
   UploadResult upload(const Trajectory& trajectory, std::chrono::nanoseconds timeout,
                       std::uint64_t trajectory_id = 0);
+  /// upload() in two halves, for a RUN that goes out before the upload
+  /// committed (RunTrajectory::upload_wait_s): start_upload writes every
+  /// chunk and returns at once (state Assembling); wait_upload waits for
+  /// this upload's COMMITTED or REJECTED (bounded by `timeout`, counted
+  /// from the first chunk written) and fills `r` in.
+  UploadResult start_upload(const Trajectory& trajectory, std::uint64_t trajectory_id = 0);
+  void wait_upload(UploadResult& r, std::chrono::nanoseconds timeout);
 
   /// The latest valid JointState: q_rad, dq_rad_s (the drives' velocity
   /// actual 0x606C where mapped, else differentiated; docs/protocol.md) and

@@ -55,6 +55,9 @@ struct DaemonConfig {
   /// commands following each other (after_command_id).
   std::size_t max_queued_commands = 32;
   std::size_t max_chain_length = 32;
+  /// The longest a RUN that overtook its upload waits for it to commit
+  /// (RunTrajectory.upload_wait_s is capped here): past it the RUN FAILS.
+  double max_upload_wait_s = 60.0;
 };
 
 /// Reads the optional `controller:` section (defaults when absent). Unknown

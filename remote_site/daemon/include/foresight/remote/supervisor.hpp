@@ -114,6 +114,7 @@ class Supervisor {
 
  private:
   enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover, Tare };
+  using Clock = std::chrono::steady_clock;
   struct Job {
     protocol::Command command;
     JobKind kind = JobKind::Trajectory;
@@ -125,12 +126,16 @@ class Supervisor {
     bool compliant = false;
     double start_tolerance_rad = 0.0;
     bool executing = false;
+    /// A RUN that overtook its upload (RunTrajectory.upload_wait_s > 0): the
+    /// upload's id (0: not waiting); it starts only once that upload
+    /// committed with the RUN's hash, and FAILS at upload_deadline.
+    std::uint64_t awaiting_upload = 0;
+    Clock::time_point upload_deadline{};
     /// The id the control loop knows this job's MotionCommand by: internal_id(),
     /// unique whatever the sessions' own command ids (a loop event is matched
     /// by it, so another session's command with the same id cannot finish it).
     std::uint64_t loop_id = 0;
   };
-  using Clock = std::chrono::steady_clock;
   using Inbox = std::variant<remote_link::CommandEvent, remote_link::UploadEvent, remote_link::LinkEvent>;
 
   void handle(const remote_link::CommandEvent& event);
@@ -149,7 +154,7 @@ class Supervisor {
 
   std::unique_ptr<Job> make_job(const protocol::Command& command, protocol::Reason* code, std::string* reason);
   bool plan_goto(Job& job, protocol::Reason* code, std::string* reason);
-  void enqueue(std::unique_ptr<Job> job);
+  void enqueue(std::unique_ptr<Job> job, const std::string& note = {});
   void start_next();
   void finish_running(protocol::AckState state, protocol::Reason code, const std::string& reason,
                       std::vector<double> final_q);
@@ -164,6 +169,13 @@ class Supervisor {
   /// The queue's bound and the chain's checks at receipt; "" when fine.
   std::string check_queue(const protocol::Command& command, protocol::Reason* code) const;
   void cancel_chain(const protocol::Command& broken, const std::string& why);
+  /// A queued job that will never start: FAILED, and its chain canceled.
+  void fail_queued(std::unique_ptr<Job> job, protocol::Reason code, const std::string& why);
+
+  // RUN before its upload committed: the jobs waiting for `trajectory_id`
+  // get it (or fail: hash, rejected upload); a wait past its deadline fails.
+  void resolve_upload_waits(std::uint64_t trajectory_id);
+  void check_upload_waits();
 
   void do_abort(const protocol::Command& command);
   /// Whether do_abort would stop the arm: a valid category, and no target, or
@@ -200,6 +212,9 @@ class Supervisor {
   std::map<std::uint64_t, std::shared_ptr<const Trajectory>> uploads_;  ///< committed, by id
   std::map<std::uint64_t, TrajectoryHash> upload_hash_;
   std::deque<std::uint64_t> upload_order_;
+  /// Why recent uploads were refused (bounded): a RUN waiting for one fails with it.
+  std::map<std::uint64_t, std::string> upload_refused_;
+  std::deque<std::uint64_t> upload_refused_order_;
   using CommandKey = std::pair<std::uint64_t, std::uint64_t>;  ///< (session, command id): ids restart per session
   std::map<CommandKey, protocol::Ack> last_ack_;  ///< the last ack of each command (bounded)
   std::deque<CommandKey> last_ack_order_;

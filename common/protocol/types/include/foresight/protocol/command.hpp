@@ -95,6 +95,9 @@ struct RunTrajectory {
   TrajectoryHash content_hash{};
   bool compliant = false;
   double start_tolerance_rad = 0.0;  ///< 0 = the daemon's default
+  /// 0: the upload must be committed when RUN arrives. > 0: RUN may overtake
+  /// its upload; the remote waits this long (bounded) for it to commit.
+  double upload_wait_s = 0.0;
 };
 
 struct NamedValue {
