@@ -26,7 +26,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <mutex>
+#include <set>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -56,8 +58,10 @@ struct Options {
   std::string out = "demo";
   double rtt_s = 4.0;  // the paper's round trip
   bool fast = false;
+  bool chain = false;  ///< --chain: the changeout's motions sent ahead as chains
   int domain = -1;
   std::string stage;  ///< "" (everything) or "ground" (the ground half only, hidden)
+  std::string compare;  ///< --compare: another run's report.json whose timing report.md shows beside this one's
   std::string script = default_config("scripts/oru_changeout.task");
   double ready_timeout_s = 60.0;
 };
@@ -410,6 +414,8 @@ int ground_stage(const Options& o, const std::string& out) {
     monitor = connect_remote(o.domain, o.fast ? 30.0 : 60.0);
     sampler = std::make_unique<DelaySampler>(*monitor);
     take_control(*link);
+    report["session_id"] = link->session_id();  // the timing picks the script's commands of this session
+    report["chain"] = o.chain;
 
     RunSettings s;
     s.work_dir = out;
@@ -418,6 +424,7 @@ int ground_stage(const Options& o, const std::string& out) {
     s.scene = default_config("scene.yaml");
     s.self_exe = self;
     s.preview = true;
+    s.chain = o.chain;
     s.preview_speed = o.fast ? 8.0 : 4.0;
     const script::Script parsed = script::load_script(o.script);
     script::check_script(parsed, ScriptRunner::context_for(RobotModel::from_file(s.robot),
@@ -426,7 +433,7 @@ int ground_stage(const Options& o, const std::string& out) {
     script::Executor ex(parsed, 0);
     ex.set_auto(true);
     InterruptControls controls;
-    std::size_t last = 0;
+    std::vector<script::CommandState> printed(parsed.commands.size(), script::CommandState::Pending);
     const auto n_total = parsed.commands.size();
     const auto on_change = [&](const script::Executor& e) {
       const script::Command* c = e.current_command();
@@ -434,14 +441,16 @@ int ground_stage(const Options& o, const std::string& out) {
         say("> [" + std::to_string(static_cast<std::size_t>(c - e.script().commands.data()) + 1) + "/" +
             std::to_string(n_total) + "] line " +
             std::to_string(c->line) + ": " + c->text + (c->note.empty() ? "" : "   # " + c->note));
-      for (std::size_t i = last; i < e.script().commands.size(); ++i) {
+      for (std::size_t i = 0; i < e.script().commands.size() && i < printed.size(); ++i) {
         const auto st = e.command_state(i);
-        if (st == script::CommandState::Pending || st == script::CommandState::Running) break;
+        if (st == printed[i]) continue;  // a chained step prints when sent and when it ended
+        printed[i] = st;
+        if (st == script::CommandState::Pending || st == script::CommandState::Running) continue;
         const auto& oc = e.outcome(i);
         char buf[64];
         std::snprintf(buf, sizeof buf, " (%.2f s)", oc.seconds);
-        say(std::string("  ") + script::to_string(st) + buf + (oc.message.empty() ? "" : ": " + oc.message));
-        last = i + 1;
+        say(std::string("  line ") + std::to_string(e.script().commands[i].line) + " " + script::to_string(st) + buf +
+            (oc.message.empty() ? "" : ": " + oc.message));
       }
     };
     const auto end = script::drive(ex, runner, controls, on_change);
@@ -524,6 +533,21 @@ void write_markdown(const json& r, const std::string& out) {
     if (s.contains("contact_sheet")) md << "[sheet](" << s["contact_sheet"].get<std::string>() << ")";
     md << " |\n";
   }
+  if (r.contains("timing")) {
+    md << "\n## Timing (the remote's clock: its journal)\n\n"
+          "Work is the sum of the script's commands' EXECUTING-to-final times; the span runs from the first "
+          "command received to the last final state; waiting = span - work (the remote idle for the link or "
+          "the ground).\n\n| run | commands | work s | span s | waiting s | round trip s |\n|---|---|---|---|---|---|\n";
+    const auto row = [&](const json& t, const std::string& name) {
+      md << "| " << name << " | " << t.value("commands", 0) << " | " << fmt("%.1f", num(t, "work_s")) << " | "
+         << fmt("%.1f", num(t, "remote_span_s")) << " | " << fmt("%.1f", num(t, "overhead_s")) << " | "
+         << fmt("%.2f", num(t, "rtt_s")) << " |\n";
+    };
+    const auto name = [](const json& t) { return std::string(t.value("chain", false) ? "chained (--chain)" : "step by step"); };
+    row(r["timing"], "this run: " + name(r["timing"]));
+    if (r.contains("timing_compare")) row(r["timing_compare"], name(r["timing_compare"]) + " (--compare)");
+    if (r["timing"].contains("timeline")) md << "\n![the steps against time](timeline.png)\n";
+  }
   md << "\nFinal alignment of the re-inserted ORU against its slot (the simulator's truth): ";
   if (r["final_alignment_error_m"].is_number())
     md << fmt("%.2f", r["final_alignment_error_m"].get<double>() * 1e3) << " mm";
@@ -544,6 +568,116 @@ void write_markdown(const json& r, const std::string& out) {
   } else if (r.contains("delay_plot")) {
     md << "\nNo delay plot: " << r["delay_plot"].value("error", std::string("?")) << "\n";
   }
+}
+
+/// The script's remote commands as the remote saw them (its journal, its
+/// clock): each command's RECEIVED, EXECUTING and final stamps. work_s sums
+/// EXECUTING -> final; remote_span_s runs from the first RECEIVED to the last
+/// final state; overhead_s = span - work: the time the remote waited for the
+/// link (and for the ground). `ids`: the command ids the script sent (its
+/// run.jsonl), of session `session`.
+json remote_timing(const json& journal, std::uint64_t session, const std::set<std::uint64_t>& ids, double rtt_s,
+                   bool chain) {
+  struct Times {
+    std::string kind;
+    double received = NAN, executing = NAN, end = NAN;
+    std::string state;
+  };
+  std::map<std::uint64_t, Times> by_id;
+  for (const auto& c : journal.value("commands", json::array())) {
+    const auto id = c.value("command_id", std::uint64_t{0});
+    if (c.value("session_id", std::uint64_t{0}) != session || ids.count(id) == 0) continue;
+    Times& t = by_id[id];
+    t.kind = c.value("kind", "");
+    const std::string st = c.value("state", "");
+    const double at = static_cast<double>(c.value("stamp_ns", std::int64_t{0})) * 1e-9;
+    if (st == "RECEIVED") t.received = at;
+    else if (st == "EXECUTING") t.executing = at;
+    else if (st == "COMPLETED" || st == "FAILED" || st == "CANCELED" || st == "REJECTED") {
+      t.end = at;
+      t.state = st;
+    }
+  }
+  double first = INFINITY, last = -INFINITY, work = 0.0;
+  for (const auto& [id, t] : by_id) {
+    if (std::isfinite(t.received)) first = std::min(first, t.received);
+    if (std::isfinite(t.end)) last = std::max(last, t.end);
+    if (std::isfinite(t.executing) && std::isfinite(t.end)) work += t.end - t.executing;
+  }
+  json steps = json::array();
+  for (const auto& [id, t] : by_id) {
+    const auto rel = [&](double v) { return std::isfinite(v) ? json(v - first) : json(nullptr); };
+    steps.push_back({{"command_id", id}, {"kind", t.kind}, {"received_s", rel(t.received)},
+                     {"executing_s", rel(t.executing)}, {"end_s", rel(t.end)}, {"state", t.state}});
+  }
+  const double span = std::isfinite(first) && std::isfinite(last) ? last - first : 0.0;
+  return {{"chain", chain},         {"commands", by_id.size()}, {"work_s", work}, {"remote_span_s", span},
+          {"overhead_s", span - work}, {"rtt_s", std::isfinite(rtt_s) ? json(rtt_s) : json(nullptr)},
+          {"steps", steps}};
+}
+
+/// The steps against time (remote clock, from the first command received):
+/// each command a row, queued (light) then running (its colour), the sent time
+/// estimated half a round trip before it was received, and the round trip as a
+/// scale bar. Throws when the PNG cannot be written.
+void draw_timeline(const json& timing, const std::string& png) {
+  const auto& steps = timing["steps"];
+  const double span = std::max(1.0, timing["remote_span_s"].get<double>());
+  const double rtt = timing["rtt_s"].is_number() ? timing["rtt_s"].get<double>() : 0.0;
+  const int row = 16, W = 1000, left = 150, right = 20, top = 50;
+  const int H = top + row * static_cast<int>(std::max<std::size_t>(steps.size(), 1)) + 60;
+  const double t0 = -0.5 * rtt;  // room for the first command's send
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  const auto X = [&](double t) { return left + static_cast<int>(std::lround((t - t0) / (span - t0) * (W - left - right))); };
+  const cv::Scalar black(0, 0, 0), grey(200, 200, 200), queued(225, 215, 190), run(200, 90, 0), algo(40, 140, 40),
+      bad(0, 0, 220), sent(60, 60, 60);
+  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  for (double t = 0; t <= span + 1e-9; t += tick_step(span, 10)) {
+    cv::line(img, {X(t), top - 5}, {X(t), H - 55}, grey, 1);
+    cv::putText(img, axis_label(t), {X(t) - 10, H - 38}, font, 0.42, black, 1, cv::LINE_AA);
+  }
+  int y = top;
+  for (const auto& s : steps) {
+    cv::putText(img, std::to_string(s["command_id"].get<std::uint64_t>()) + " " + s["kind"].get<std::string>(),
+                {6, y + 12}, font, 0.4, black, 1, cv::LINE_AA);
+    const bool ok = s["state"] == "COMPLETED";
+    if (s["received_s"].is_number()) {
+      const double r = s["received_s"].get<double>();
+      const double e = s["executing_s"].is_number() ? s["executing_s"].get<double>()
+                                                     : (s["end_s"].is_number() ? s["end_s"].get<double>() : r);
+      if (rtt > 0) cv::line(img, {X(r - 0.5 * rtt), y + 8}, {X(r), y + 8}, sent, 1, cv::LINE_AA);
+      cv::rectangle(img, {X(r), y + 3}, {std::max(X(e), X(r) + 1), y + 13}, queued, cv::FILLED);
+      if (s["executing_s"].is_number() && s["end_s"].is_number())
+        cv::rectangle(img, {X(e), y + 2}, {std::max(X(s["end_s"].get<double>()), X(e) + 2), y + 14},
+                      ok ? (s["kind"] == "INVOKE_ALGORITHM" ? algo : run) : bad, cv::FILLED);
+    }
+    y += row;
+  }
+  if (rtt > 0) {
+    cv::line(img, {X(0), H - 18}, {X(rtt), H - 18}, bad, 3);
+    cv::putText(img, "one round trip (" + seconds_label(rtt) + ")", {X(rtt) + 8, H - 13}, font, 0.45, bad, 1,
+                cv::LINE_AA);
+  }
+  char title[200];
+  std::snprintf(title, sizeof title, "%s: work %.1f s, remote span %.1f s, waiting %.1f s (remote clock, s)",
+                timing["chain"].get<bool>() ? "chained (--chain)" : "step by step", timing["work_s"].get<double>(),
+                timing["remote_span_s"].get<double>(), timing["overhead_s"].get<double>());
+  cv::putText(img, title, {left, 22}, font, 0.5, black, 1, cv::LINE_AA);
+  cv::putText(img, "thin line: sent (half a round trip before received); light: queued; dark: running", {left, 40},
+              font, 0.4, sent, 1, cv::LINE_AA);
+  if (!cv::imwrite(png, img)) throw std::runtime_error(png + ": cannot write the timeline");
+}
+
+/// The command ids the task script sent (run.jsonl rows with a command_id).
+std::set<std::uint64_t> script_command_ids(const std::string& out) {
+  std::set<std::uint64_t> ids;
+  std::istringstream in(read_text(out + "/run.jsonl"));
+  for (std::string line; std::getline(in, line);) {
+    const json j = json::parse(line, nullptr, false);
+    if (!j.is_discarded() && j.contains("command_id") && j["command_id"].is_number_unsigned())
+      ids.insert(j["command_id"].get<std::uint64_t>());
+  }
+  return ids;
 }
 
 /// The contact sheets from the runner's journal (run.jsonl), by script line.
@@ -572,6 +706,13 @@ int demo(Options& o) {
     return kExitOk;
   }
   if (!o.stage.empty()) throw std::invalid_argument("--stage: 'ground', 'plot' or nothing");
+  json compare = nullptr;  // checked before anything runs
+  if (!o.compare.empty()) {
+    if (!fs::is_regular_file(o.compare)) throw InputError(o.compare, "--compare: cannot open the report");
+    compare = json::parse(read_text(o.compare), nullptr, false);
+    if (compare.is_discarded() || !compare.contains("timing") || !compare["timing"].is_object())
+      throw InputError(o.compare, "--compare: not a demo report with timing (report.json of foresight demo)");
+  }
   if (o.domain < 0) o.domain = static_cast<int>(protocol::claim_free_domain(100, 219));
   fs::remove(out + "/run.jsonl");
   fs::remove(out + "/ground.json");
@@ -634,6 +775,7 @@ int demo(Options& o) {
       std::vector<std::string> g = {emu_exe, "exec",  ground_ns,      "--exit-with-parent", "--",       self,
                                     "demo",  "--out", out,            "--domain",           std::to_string(o.domain),
                                     "--stage", "ground", "--script",  o.script};
+      if (o.chain) g.push_back("--chain");
       const pid_t ground = spawn(g, "", "");
       int grc = wait_for(ground, 7200.0, [ground] { ::kill(ground, SIGINT); });
       if (grc == -1) grc = stop_child(ground, 30.0);
@@ -652,6 +794,25 @@ int demo(Options& o) {
   if (emu > 0) stop_child(emu, 15.0);
 
   const json truth = last_sim_truth(remote_exe, db, out);
+  if (report.contains("session_id")) {
+    const json journal = json::parse(read_text(out + "/remote_journal.json"), nullptr, false);
+    if (!journal.is_discarded()) {
+      const double rtt = num(report["rtt_s"], "median");
+      report["timing"] = remote_timing(journal, report["session_id"].get<std::uint64_t>(), script_command_ids(out),
+                                       rtt, report.value("chain", false));
+      try {
+        draw_timeline(report["timing"], out + "/timeline.png");
+        report["timing"]["timeline"] = "timeline.png";
+      } catch (const std::exception& e) {
+        report["timing"]["timeline_error"] = e.what();
+      }
+    }
+  }
+  if (compare.is_object()) {  // another run's timing (e.g. without --chain), side by side in report.md
+    report["timing_compare"] = compare["timing"];
+    report["timing_compare"].erase("steps");
+    report["timing_compare"]["report"] = o.compare;
+  }
   report["link"] = link_text;
   report["domain"] = o.domain;
   report["remote_exit"] = remote_rc;
@@ -705,12 +866,17 @@ const bool registered = register_command(
                                          "cannot be made)")
            ->capture_default_str();
        sub.add_flag("--fast", o->fast, "loopback, no emulated delay, faster previews (tests)");
+       sub.add_flag("--chain", o->chain,
+                    "send the changeout's motions ahead as chains (foresight run --chain): the work plus about "
+                    "one round trip per WAIT, not one per step");
        sub.add_option("--domain", o->domain, "DDS domain id (default: one in 100-219 that no other process on this host holds)")
            ->check(check::Range(0, 232));
        sub.add_option("--script", o->script, "the task script")->capture_default_str();
        sub.add_option("--ready-timeout", o->ready_timeout_s, "seconds to wait for the daemon's ready line")
            ->check(check::WaitSeconds)
            ->capture_default_str();
+       sub.add_option("--compare", o->compare,
+                      "another run's report.json (e.g. without --chain): its timing beside this run's in report.md");
        sub.add_option("--stage", o->stage)->group("");  // internal: the ground half in the emulator's namespace
        return [o] { return demo(*o); };
      }});

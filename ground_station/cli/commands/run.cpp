@@ -155,7 +155,9 @@ int run(Options& o) {
   else base = std::make_unique<script::ScriptedControls>(keys);
   InterruptibleControls controls(*base);
 
-  std::size_t last_reported = 0;
+  // Each command's state as last printed: a chained command is printed when
+  // sent and again when it ended; a retried one again when it ends anew.
+  std::vector<script::CommandState> printed(parsed.commands.size(), script::CommandState::Pending);
   bool first = true;
   const auto on_change = [&](const script::Executor& e) {
     if (interactive) {
@@ -173,16 +175,17 @@ int run(Options& o) {
     const script::Command* c = e.current_command();
     if (e.state() == script::RunState::Running && c != nullptr)
       out << "> line " << c->line << ": " << c->text << "\n" << std::flush;
-    for (std::size_t i = last_reported; i < e.script().commands.size(); ++i) {
+    for (std::size_t i = 0; i < e.script().commands.size() && i < printed.size(); ++i) {
       const auto st = e.command_state(i);
-      if (st == script::CommandState::Pending || st == script::CommandState::Running) break;
+      if (st == printed[i]) continue;
+      printed[i] = st;
+      if (st == script::CommandState::Pending || st == script::CommandState::Running) continue;
       const auto& oc = e.outcome(i);
       char buf[64];
       std::snprintf(buf, sizeof buf, " (%.2f s)", oc.seconds);
       out << "  line " << e.script().commands[i].line << " " << script::to_string(st)
           << (st == script::CommandState::Skipped ? "" : buf) << (oc.message.empty() ? "" : ": " + oc.message) << "\n"
           << std::flush;
-      last_reported = i + 1;
     }
   };
   const script::DriveEnd end = script::drive(ex, runner, controls, on_change);
@@ -231,6 +234,9 @@ const bool registered = register_command(
                       "(0.1 s each while a command runs) pass");
        sub.add_option("--from-line", o->from_line, "go on from the command at or after this line (earlier: skipped)")
            ->capture_default_str();
+       sub.add_flag("--chain", o->settings.chain,
+                    "send the motions ahead as a chain: each planned from the planned end of the one before, "
+                    "previewed, sent without waiting; WAIT, CALIBRATE, LOCALIZE, REQUEST and CAMERA wait for it");
        sub.add_flag("--recover", o->settings.recover, "send RECOVER after taking control (drives on, holding)");
        sub.add_flag("--dry-run", o->dry_run, "plan and preview every motion without a remote");
        sub.add_option("--joints", o->joints, "dry run: the start joint angles (rad)");

@@ -247,6 +247,8 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
     case Op::Tag: tag_ = c.positional[0].text; return done("tag " + tag_ + " selected", t0);
     case Op::Grab: grabbed_ = true; return done("the object's graphics move with the tool", t0);
     case Op::Release: grabbed_ = false; return done("the object's graphics stay where they are", t0);
+    case Op::Wait:  // drive() settled every command sent ahead before this one
+      return done(s_.chain ? "the chain ended here: every command sent ahead has ended" : "nothing sent ahead", t0);
     case Op::Object:
       if (c.has("pose")) {
         base_T_object_ = read_object_pose_json(c.text_or("pose", ""));
@@ -373,8 +375,14 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
   // remote starts it once the whole upload committed with this hash.
   protocol::RunTrajectory run;
   run.compliant = c.flag_or("compliant", false);
-  const auto sent = upload_and_run(*link_, plan.trajectory, run);
   const auto kind = protocol::CommandKind::Trajectory;
+  if (s_.chain) {
+    const auto sent = upload_and_run(*link_, plan.trajectory, run, chain_tail_);
+    return send_ahead(c, kind, sent.command_id, sent.sent, plan.trajectory.duration_s() + sent.upload_wait_s,
+                      predicted, "trajectory " + std::to_string(sent.upload.trajectory_id) + " with its RUN");
+  }
+  const auto sent = upload_and_run(*link_, plan.trajectory, run);
+  pending_journal_["command_id"] = sent.command_id;
   say("sent trajectory " + std::to_string(sent.upload.trajectory_id) + " with its RUN (runs once the whole upload " +
       "is there with this hash; waits at most " + fixed(sent.upload_wait_s, 1) + " s for it)");
   const auto r = wait_or_abort(*link_, sent.command_id, sent.sent,
@@ -495,7 +503,14 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
     if (predicted) q_ = *predicted;
     return done(std::string("dry run: ") + protocol::to_string(kind) + " not sent", t0);
   }
+  if (s_.chain && chains(c)) {
+    if (!predicted) predicted = algorithm_end(c);
+    const auto sent = Clock::now();
+    const auto id = link_->send(kind, payload, -1.0, chain_tail_);
+    return send_ahead(c, kind, id, sent, expected_s, *predicted, protocol::to_string(kind));
+  }
   const auto r = send_and_wait(*link_, kind, payload, final_ack_timeout(*link_, expected_s, s_.timeout_s), interrupted);
+  pending_journal_["command_id"] = r.command_id;
   Outcome o = from_result(kind, r, t0);
   if (r.finished && !r.final_q_rad.empty()) {
     if (predicted)
@@ -503,6 +518,108 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
     else q_ = Eigen::Map<const Eigen::VectorXd>(r.final_q_rad.data(), static_cast<Eigen::Index>(r.final_q_rad.size()));
   }
   return o;
+}
+
+bool ScriptRunner::chains(const script::Command& c) const {
+  if (!s_.chain || !link_) return false;
+  switch (c.op) {
+    case Op::Trajectory:
+    case Op::GotoJoint:
+    case Op::GotoCart:
+    case Op::Preview:
+    case Op::Graphics:
+    case Op::Video:
+    case Op::Object:
+    case Op::Frame:
+    case Op::Tag:
+    case Op::Grab:
+    case Op::Release: return true;
+    case Op::InvokeAlgorithm: {
+      const std::string name = c.positional[0].text;
+      if (name == "insert") return c.has("depth_m");
+      if (name == "pull_out") return c.has("distance_m");
+      return name != "guarded_move";  // it ends at a contact nobody can place in advance
+    }
+    default: return false;  // CALIBRATE, LOCALIZE, WAIT, REQUEST, CAMERA: the arm where it is now
+  }
+}
+
+std::optional<Eigen::VectorXd> ScriptRunner::algorithm_end(const script::Command& c) const {
+  const std::string name = c.positional[0].text;
+  double along_z = 0.0;
+  if (name == "insert") along_z = c.number_or("depth_m", std::nan(""));
+  else if (name == "pull_out") along_z = -c.number_or("distance_m", std::nan(""));
+  else if (name == "guarded_move") return std::nullopt;
+  if (!std::isfinite(along_z)) return std::nullopt;
+  if (along_z == 0.0) return q_;  // latch, unlatch, loosen, tighten, tare: the arm holds
+  // The remote's task frame is the tool tip's at the start: the tip moves
+  // along its own z axis with its orientation kept (a straight line).
+  KinematicsWorkspace ws(model_);
+  const Pose tip = forward_kinematics(model_, ws, q_);
+  Goal goal;
+  goal.kind = SegmentKind::Linear;
+  goal.base_T_tip = tip;
+  goal.base_T_tip.translation() += tip.linear() * Eigen::Vector3d(0.0, 0.0, along_z);
+  return plan_motion(model_, q_, {goal}, PlanOptions{}).segments.back().q_end;
+}
+
+Outcome ScriptRunner::send_ahead(const script::Command& c, protocol::CommandKind kind, std::uint64_t command_id,
+                                 Clock::time_point sent, double expected_s, const Eigen::VectorXd& predicted,
+                                 const std::string& what) {
+  const std::uint64_t after = chain_tail_;
+  pending_journal_["command_id"] = command_id;
+  pending_journal_["after_command_id"] = after;
+  sent_ahead_.push_back({c, kind, command_id, sent, expected_s, predicted, pending_journal_});
+  chain_tail_ = command_id;
+  q_ = predicted;  // the next step is planned from this one's planned end
+  const std::string line = "sent " + what + " as command " + std::to_string(command_id) +
+                           (after != 0 ? " after command " + std::to_string(after) : " (heads a chain)");
+  say(line + "; not waited for: the next step starts from its planned end");
+  return {CommandState::Sent, line, since(sent)};
+}
+
+void ScriptRunner::settle(const std::function<bool()>& interrupted,
+                          const std::function<void(int line, const Outcome&)>& on_settled) {
+  if (sent_ahead_.empty()) return;
+  bool aborted = false;
+  const auto abort_all = [&](const std::string& why) {
+    if (aborted) return;
+    aborted = true;
+    protocol::Abort a;
+    a.target_command_id = 0;  // what runs stops (category 2), every queued command is canceled
+    a.category = protocol::StopCategory::Cat2;
+    a.reason = why;
+    link_->send(protocol::CommandKind::Abort, a);
+    say("ABORT sent: " + why + " (it reaches the remote half a round trip from now)");
+  };
+  bool canceled = false;
+  for (auto& a : sent_ahead_) {
+    auto deadline = Clock::now() + final_ack_timeout(*link_, a.expected_s, s_.timeout_s);
+    bool extended = false;
+    ground_link::CommandResult r;
+    while (true) {
+      r = link_->wait_final(a.command_id, std::chrono::milliseconds(100));
+      if (r.finished) break;
+      if (!aborted && interrupted && interrupted()) abort_all("canceled by the operator: the chain stops here");
+      if (Clock::now() >= deadline) {
+        if (extended) break;
+        abort_all("no final acknowledgement of command " + std::to_string(a.command_id) + " in time");
+        deadline = Clock::now() + link_->timeout_for(5.0);
+        extended = true;
+      }
+    }
+    Outcome o = from_result(a.kind, r, a.sent);
+    if (r.finished && !r.final_q_rad.empty())
+      a.journal.update(update_arm(r.final_q_rad, a.predicted, r.state == protocol::AckState::Completed));
+    a.journal["chained"] = true;
+    say("line " + std::to_string(a.command.line) + ": " + o.message);
+    journal(a.command, o, a.journal);
+    canceled = canceled || o.state == CommandState::Canceled;
+    on_settled(a.command.line, o);
+  }
+  sent_ahead_.clear();
+  chain_tail_ = 0;
+  if (canceled) recover_before_next_ = true;
 }
 
 }  // namespace foresight::cli

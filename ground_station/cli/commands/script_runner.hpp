@@ -7,11 +7,13 @@
 // real-time code.
 
 #include <Eigen/Core>
+#include <chrono>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
@@ -37,6 +39,7 @@ struct RunSettings {
   double timeout_s = 0.0;         ///< final-ack override (0: derived from the delay)
   bool quiet = false;             ///< --json: progress goes to stderr
   bool recover = false;           ///< send RECOVER after taking control (drives on, hold)
+  bool chain = false;             ///< --chain: motions sent ahead as a chain (after_command_id), not waited for
 };
 
 class ScriptRunner : public script::CommandRunner {
@@ -48,6 +51,11 @@ class ScriptRunner : public script::CommandRunner {
   ScriptRunner(const ScriptRunner&) = delete;
   ScriptRunner& operator=(const ScriptRunner&) = delete;
   script::Outcome run(const script::Command& command, const std::function<bool()>& interrupted) override;
+  /// --chain: TRAJECTORY, INVOKE_ALGORITHM (but guarded_move, and insert or
+  /// pull_out without their distance), the GOTOs and the display commands.
+  bool chains(const script::Command& command) const override;
+  void settle(const std::function<bool()>& interrupted,
+              const std::function<void(int line, const script::Outcome&)>& on_settled) override;
 
   /// The configuration a script is checked against (tags, cameras, objects,
   /// joint count and limits), before anything connects.
@@ -63,6 +71,15 @@ class ScriptRunner : public script::CommandRunner {
   /// The paper's update step: the reported final joints become the simulated
   /// arm's. `completed` false (canceled, failed): the motion ended short of
   /// its planned end, and the line says so instead of reporting a difference.
+  /// --chain: sends a motion after the last one sent ahead; the arm is then
+  /// taken to be at `predicted` (the next is planned from there).
+  script::Outcome send_ahead(const script::Command& c, protocol::CommandKind kind, std::uint64_t command_id,
+                             std::chrono::steady_clock::time_point sent, double expected_s,
+                             const Eigen::VectorXd& predicted, const std::string& what);
+  /// Where an INVOKE_ALGORITHM leaves the arm when it succeeds: insert moves the
+  /// tool tip depth_m along its own z axis, pull_out distance_m back; the others
+  /// do not move it. nullopt when that is not known (guarded_move).
+  std::optional<Eigen::VectorXd> algorithm_end(const script::Command& c) const;
   nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
                             bool completed = true);
   int child(const std::vector<std::string>& args, const std::string& stdout_path,
@@ -86,6 +103,17 @@ class ScriptRunner : public script::CommandRunner {
   int motion_count_ = 0;
   std::ofstream journal_;
   nlohmann::json pending_journal_;
+  struct SentAhead {  ///< a command sent in the chain, its end not known yet
+    script::Command command;
+    protocol::CommandKind kind;
+    std::uint64_t command_id = 0;
+    std::chrono::steady_clock::time_point sent;
+    double expected_s = 0.0;
+    Eigen::VectorXd predicted;
+    nlohmann::json journal;
+  };
+  std::vector<SentAhead> sent_ahead_;
+  std::uint64_t chain_tail_ = 0;  ///< the last command sent ahead (0: nothing outstanding)
 };
 
 }  // namespace foresight::cli

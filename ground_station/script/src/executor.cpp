@@ -14,6 +14,7 @@ const char* to_string(CommandState state) noexcept {
     case CommandState::Failed: return "failed";
     case CommandState::Canceled: return "canceled";
     case CommandState::Skipped: return "skipped";
+    case CommandState::Sent: return "sent";
   }
   return "?";
 }
@@ -53,11 +54,11 @@ void Executor::finish(const Outcome& outcome) {
   if (outcomes_.empty() || current_ >= outcomes_.size() || outcomes_[current_].state != CommandState::Running)
     throw std::logic_error("script: finish() without a running command");
   if (outcome.state != CommandState::Completed && outcome.state != CommandState::Failed &&
-      outcome.state != CommandState::Canceled)
-    throw std::logic_error("script: a command ends completed, failed or canceled");
+      outcome.state != CommandState::Canceled && outcome.state != CommandState::Sent)
+    throw std::logic_error("script: a command ends completed, failed, canceled or sent");
   outcomes_[current_] = outcome;
   if (state_ == RunState::Aborted) return;
-  if (outcome.state == CommandState::Completed) {
+  if (outcome.state == CommandState::Completed || outcome.state == CommandState::Sent) {
     ++current_;
     state_ = current_ == script_.commands.size() ? RunState::Finished : RunState::Ready;
     return;
@@ -66,6 +67,33 @@ void Executor::finish(const Outcome& outcome) {
   stop_reason_ = "line " + std::to_string(c.line) + " " + to_string(c.op) + " " + to_string(outcome.state) +
                  (outcome.message.empty() ? "" : ": " + outcome.message);
   state_ = RunState::Stopped;
+}
+
+void Executor::settle(int line, const Outcome& outcome) {
+  if (outcome.state != CommandState::Completed && outcome.state != CommandState::Failed &&
+      outcome.state != CommandState::Canceled)
+    throw std::logic_error("script: a sent command settles completed, failed or canceled");
+  if (state_ == RunState::Running) throw std::logic_error("script: settle() while a command runs");
+  std::size_t i = 0;
+  while (i < script_.commands.size() &&
+         !(script_.commands[i].line == line && outcomes_[i].state == CommandState::Sent))
+    ++i;
+  if (i == script_.commands.size())
+    throw std::logic_error("script: no command sent ahead on line " + std::to_string(line));
+  outcomes_[i] = outcome;
+  if (outcome.state == CommandState::Completed || state_ == RunState::Aborted) return;
+  if (state_ == RunState::Stopped && current_ < i) return;  // an earlier command already stopped the run
+  current_ = i;
+  const Command& c = script_.commands[i];
+  stop_reason_ = "line " + std::to_string(c.line) + " " + to_string(c.op) + " " + to_string(outcome.state) +
+                 (outcome.message.empty() ? "" : ": " + outcome.message);
+  state_ = RunState::Stopped;
+}
+
+bool Executor::has_sent() const noexcept {
+  for (const auto& o : outcomes_)
+    if (o.state == CommandState::Sent) return true;
+  return false;
 }
 
 void Executor::retry() {
@@ -127,6 +155,7 @@ std::string Executor::listing() const {
       case CommandState::Failed: mark = "[!]"; break;
       case CommandState::Canceled: mark = "[c]"; break;
       case CommandState::Skipped: mark = "[-]"; break;
+      case CommandState::Sent: mark = "[>]"; break;
     }
     char head[32];
     std::snprintf(head, sizeof head, "%s %s %4d  ", i == current_ && state_ != RunState::Finished ? ">" : " ", mark,
@@ -167,17 +196,16 @@ DriveEnd drive(Executor& ex, CommandRunner& runner, Controls& controls,
   const auto changed = [&] {
     if (on_change) on_change(ex);
   };
-  const auto run_current = [&] {
-    const Command& c = ex.start();
-    changed();
-    bool interrupted = false;
-    const auto poll = [&]() -> bool {
+  // The operator's keys while something runs: Cancel or Abort interrupts it
+  // (`where` names the line for the abort's reason), Step and Auto switch mode.
+  const auto poller = [&](bool& interrupted, const std::string& where) {
+    return [&interrupted, &ex, &controls, where]() -> bool {
       if (interrupted) return true;
       switch (controls.poll(0.0)) {
         case Key::Cancel: interrupted = true; break;
         case Key::Abort:
           interrupted = true;
-          ex.abort("aborted by the operator at line " + std::to_string(c.line));
+          ex.abort("aborted by the operator " + where);
           break;
         case Key::Step: ex.set_auto(false); break;
         case Key::Auto: ex.set_auto(true); break;
@@ -185,22 +213,54 @@ DriveEnd drive(Executor& ex, CommandRunner& runner, Controls& controls,
       }
       return interrupted;
     };
-    Outcome o = runner.run(c, poll);
+  };
+  // Waits for what was sent ahead (chained runs); `interrupt`: abort it all.
+  const auto settle = [&](bool interrupt) {
+    if (!ex.has_sent()) return;
+    bool interrupted = interrupt;
+    runner.settle(poller(interrupted, "while the chain ran"), [&](int line, const Outcome& o) {
+      Outcome settled = o;
+      if (settled.state != CommandState::Completed && settled.state != CommandState::Canceled)
+        settled.state = CommandState::Failed;
+      ex.settle(line, settled);
+      changed();
+    });
+    if (ex.has_sent()) throw std::logic_error("script: the runner left commands sent ahead unsettled");
+  };
+  const auto run_current = [&] {
+    const Command& c = ex.start();
+    changed();
+    bool interrupted = false;
+    Outcome o = runner.run(c, poller(interrupted, "at line " + std::to_string(c.line)));
     if (o.state == CommandState::Running || o.state == CommandState::Pending || o.state == CommandState::Skipped)
       o.state = CommandState::Failed;
     ex.finish(o);
     changed();
+    if (interrupted) settle(true);  // the rest of the chain is stopped too
+  };
+  // A command that needs the arm where it is now waits for the chain first.
+  const auto ready_to_run = [&] {
+    const Command* next = ex.current_command();
+    if (next != nullptr && !runner.chains(*next)) settle(false);
+    return ex.state() == RunState::Ready;
   };
   changed();
   std::size_t keys = 0;
   while (keys < max_keys) {
     switch (ex.state()) {
-      case RunState::Finished: return DriveEnd::Finished;
-      case RunState::Aborted: return DriveEnd::Aborted;
+      case RunState::Finished:
+        if (ex.has_sent()) {
+          settle(false);
+          break;
+        }
+        return DriveEnd::Finished;
+      case RunState::Aborted:
+        settle(true);
+        return DriveEnd::Aborted;
       case RunState::Running: throw std::logic_error("script: drive() found a command still running");
       case RunState::Ready: {
         if (ex.auto_mode()) {  // keys are read while the command runs
-          run_current();
+          if (ready_to_run()) run_current();
           break;
         }
         const Key k = controls.poll(0.2);
@@ -209,17 +269,22 @@ DriveEnd drive(Executor& ex, CommandRunner& runner, Controls& controls,
           ex.abort("aborted by the operator");
           changed();
         } else if (k == Key::Quit) {
-          return DriveEnd::Quit;
+          settle(false);
+          if (ex.state() == RunState::Ready) return DriveEnd::Quit;
         } else if (k == Key::Skip) {
           ex.skip();
           changed();
         } else if (k == Key::Step || k == Key::Auto) {
           if (k == Key::Auto) ex.set_auto(true);
-          run_current();
+          if (ready_to_run()) run_current();
         }
         break;
       }
       case RunState::Stopped: {
+        if (ex.has_sent()) {  // what was sent ahead runs on: its ends first (an earlier failure stops the run there)
+          settle(false);
+          break;
+        }
         const Key k = controls.poll(0.2);
         ++keys;
         if (k == Key::Retry) {
@@ -238,6 +303,7 @@ DriveEnd drive(Executor& ex, CommandRunner& runner, Controls& controls,
       }
     }
   }
+  settle(false);
   return ex.state() == RunState::Stopped ? DriveEnd::Stopped : DriveEnd::Quit;
 }
 

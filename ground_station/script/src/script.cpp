@@ -49,6 +49,7 @@ const std::vector<OpSpec>& specs() {
       {Op::Tag, "TAG", false, {{"tag", Type::Name, {}, true}}, {}},
       {Op::Grab, "GRAB", false, {}, {}},
       {Op::Release, "RELEASE", false, {}, {}},
+      {Op::Wait, "WAIT", false, {}, {}},
       {Op::Preview,
        "PREVIEW",
        false,

@@ -22,14 +22,16 @@
 
 namespace foresight::script {
 
-enum class CommandState { Pending, Running, Completed, Failed, Canceled, Skipped };
+/// Sent: a command sent ahead in a chain (`run --chain`); the run goes on, and
+/// settle() records how it ended once the remote says so.
+enum class CommandState { Pending, Running, Completed, Failed, Canceled, Skipped, Sent };
 const char* to_string(CommandState state) noexcept;
 
 enum class RunState { Ready, Running, Stopped, Aborted, Finished };
 const char* to_string(RunState state) noexcept;
 
 struct Outcome {
-  CommandState state = CommandState::Completed;  ///< Completed, Failed or Canceled
+  CommandState state = CommandState::Completed;  ///< Completed, Failed, Canceled, or Sent (chained)
   std::string message;                           ///< why it failed; what it did
   double seconds = 0.0;
 };
@@ -54,9 +56,17 @@ class Executor {
 
   /// Ready -> Running; returns the command to run. std::logic_error otherwise.
   const Command& start();
-  /// Running -> Ready/Finished (Completed) or Stopped (Failed, Canceled).
+  /// Running -> Ready/Finished (Completed, Sent) or Stopped (Failed, Canceled).
   /// After abort() the outcome is recorded and the run stays Aborted.
   void finish(const Outcome& outcome);
+  /// How a Sent command (by its line) ended. Completed: only its mark changes.
+  /// Failed or Canceled: the run stops at it (the earliest such command of the
+  /// chain), so retry goes on from the first command that did not complete.
+  /// std::logic_error when no Sent command is on that line, or the outcome is
+  /// not Completed, Failed or Canceled.
+  void settle(int line, const Outcome& outcome);
+  /// True while any command is Sent (its end not known yet).
+  bool has_sent() const noexcept;
   /// Stopped -> Ready at the same command.
   void retry();
   /// Ready or Stopped: mark the current command Skipped and go to the next.
@@ -136,6 +146,22 @@ class CommandRunner {
   /// the command), waits for that, and returns Canceled. Poll it at least
   /// every 0.1 s while waiting.
   virtual Outcome run(const Command& command, const std::function<bool()>& interrupted) = 0;
+  /// Chained mode: waits until every command the runner sent ahead (returned
+  /// as Sent) has ended, calling `on_settled(line, outcome)` for each, in the
+  /// order sent. `interrupted()` true: the runner aborts what runs and what is
+  /// queued, and reports each as it ended. A runner that never sends ahead has
+  /// nothing to settle.
+  virtual void settle(const std::function<bool()>& interrupted,
+                      const std::function<void(int line, const Outcome&)>& on_settled) {
+    (void)interrupted;
+    (void)on_settled;
+  }
+  /// False for a command that may be sent while commands sent ahead still run
+  /// (it does not depend on where the arm is now); drive() settles first otherwise.
+  virtual bool chains(const Command& command) const {
+    (void)command;
+    return false;
+  }
 };
 
 /// How drive() ended.
@@ -149,6 +175,9 @@ enum class DriveEnd { Finished, Aborted, Stopped, Quit };
 /// Abort, Step, Auto) and while waiting for the operator.
 /// `on_change` is called after every state change (the CLI redraws the
 /// listing). At most `max_keys` keys are read while idle (a bound on the loop).
+/// Chained runs: before a command the runner does not chain, at the script's
+/// end, and after an interruption, drive() settles what was sent ahead (a
+/// chain broken on the remote stops the run at its first failed command).
 DriveEnd drive(Executor& executor, CommandRunner& runner, Controls& controls,
                const std::function<void(const Executor&)>& on_change = {}, std::size_t max_keys = 1000000);
 

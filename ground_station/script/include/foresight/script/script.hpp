@@ -57,7 +57,9 @@ enum class Op {
   Preview,    ///< PREVIEW to=GOALS [...]: plan and render, nothing sent
   Calibrate,  ///< CALIBRATE [cameras=a,b] [points=arm.csv]
   Localize,   ///< LOCALIZE [views=a,b] [points=oru.csv]
-  // remote: sent to the robot, each waits for its final acknowledgement
+  Wait,       ///< WAIT: the end of a chain (`run --chain`): every command sent ahead has ended before the next
+  // remote: sent to the robot; each waits for its final acknowledgement, or with
+  // `run --chain` TRAJECTORY, INVOKE_ALGORITHM and the GOTOs are sent ahead as a chain
   Trajectory,       ///< TRAJECTORY to=GOALS [compliant=yes] [speed_m_s=] [limit=] [dwell_s=]: plan, preview, send, run
   InvokeAlgorithm,  ///< INVOKE_ALGORITHM NAME [k=v ...] [timeout_s=]
   Request,          ///< REQUEST joints|wrench|tool|status|trajectories
