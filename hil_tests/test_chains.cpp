@@ -11,7 +11,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "foresight/common/object_model.hpp"
 #include "foresight/common/plan.hpp"
+#include "foresight/common/scene.hpp"
 #include "hil_support.hpp"
 
 namespace foresight {
@@ -50,6 +52,28 @@ class Chains : public test::DaemonTest {
     goal.q[0] += delta;
     goal.q[3] -= delta;
     return plan_motion(model_, q0, {goal}).trajectory;
+  }
+
+  /// Every command of `ids` has its final state in the remote's journal.
+  void expect_journaled(const std::vector<std::uint64_t>& ids) const {
+    const auto j = journal_json();
+    for (const auto id : ids) {
+      bool final_row = false;
+      for (const auto& c : j["commands"])
+        if (c["command_id"] == id && c["session_id"] == ground_->session_id())
+          final_row = final_row || c["state"] == "COMPLETED" || c["state"] == "FAILED" || c["state"] == "CANCELED";
+      EXPECT_TRUE(final_row) << "command " << id << " has no final state in the journal";
+    }
+  }
+
+  /// The arm stays still from now on (the drives' own record, about 0.5 s).
+  void expect_nothing_moves(const char* why) {
+    mark();
+    const DriveRecord first = fresh_record();
+    DriveRecord later;
+    ASSERT_TRUE(eventually([&] { return (later = record()).seq >= first.seq + 25; }, 10s));
+    ASSERT_EQ(later.q.size(), 7u);
+    for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(later.span(j), 1e-3) << "joint " << j + 1 << " moved " << why;
   }
 
   /// The ack of `state` among a result's acks (null when none).
@@ -360,6 +384,141 @@ TEST_F(Chains, ARunWhoseUploadNeverCommitsFailsAndBreaksItsChain) {
   const DriveRecord rec = fresh_record();
   ASSERT_EQ(rec.q.size(), 7u);
   for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(rec.span(j), 1e-4) << "joint " << j + 1 << " moved";
+}
+
+// Faults in the middle of a chain (issue 29): each fails its own step with its
+// reason, cancels the rest of the chain ("chain broken at command N: failed:
+// ..."), nothing of the rest runs or moves the arm (the drives' record), and
+// the journal has every command's end.
+TEST_F(Chains, AToolJamInLoosenBreaksTheChainAndNothingAfterItMoves) {
+  take_and_recover();
+  fault_on("tool_jam");
+  const Eigen::VectorXd q0 = current_q();
+  protocol::InvokeAlgorithm loosen;
+  loosen.name = "loosen";
+  loosen.params = {{"turns", 2.0}};
+  const std::uint64_t a = ground_->send(CommandKind::InvokeAlgorithm, loosen);
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.1), -1.0, a);
+  const std::uint64_t c = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, -0.1), -1.0, b);
+  const auto ra = ground_->wait_final(a, 30s);
+  const auto rb = ground_->wait_final(b, 10s);
+  const auto rc = ground_->wait_final(c, 10s);
+  EXPECT_EQ(ra.state, AckState::Failed) << ra.reason;
+  EXPECT_EQ(ra.code, Reason::ToolFault) << ra.reason;
+  EXPECT_EQ(ra.reason.rfind("loosen: tool jammed", 0), 0u) << ra.reason;
+  for (const auto* r : {&rb, &rc}) {
+    EXPECT_EQ(r->state, AckState::Canceled) << r->reason;
+    EXPECT_EQ(r->code, Reason::Aborted);
+    EXPECT_EQ(ack_of(*r, AckState::Executing), nullptr) << "a canceled command ran";
+  }
+  // Both name the cause: the command that broke the chain, not the one before them.
+  for (const auto* r : {&rb, &rc})
+    EXPECT_EQ(r->reason.rfind("chain broken at command " + std::to_string(a) + ": failed: loosen: tool jammed", 0), 0u)
+        << r->reason;
+  expect_nothing_moves("after the jam");
+  const auto rec = record();
+  EXPECT_NEAR(rec.q[0], q0[0], 1e-3) << "the chained GOTO moved joint 1";
+  fault_off("tool_jam");
+  expect_journaled({a, b, c});
+}
+
+TEST_F(Chains, AnFtOverloadInTheInsertBreaksTheChainAndTheArmHolds) {
+  take_and_recover();
+  protocol::InvokeAlgorithm tare;
+  tare.name = "tare";
+  ASSERT_TRUE(run(CommandKind::InvokeAlgorithm, tare).succeeded());
+  // 1 cm in front of the bore, then a fast insert with a low force limit
+  // (the tool bottoms in the bore), then a pull-out and a GOTO chained behind it.
+  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+  const auto tag_goal = [&](const std::string& name, SegmentKind kind, double dz) {
+    Goal g;
+    g.name = name;
+    g.kind = kind;
+    g.base_T_tip = scene.base_T_object * oru.tags.at(name) * Pose(Eigen::Translation3d(0.0, 0.0, dz));
+    return g;
+  };
+  const Eigen::VectorXd q_home = current_q();
+  const Plan plan = plan_motion(model_, q_home,
+                                {tag_goal("approach_20cm", SegmentKind::Joint, 0.0),
+                                 tag_goal("hole_entrance", SegmentKind::Linear, -0.01)});
+  const auto up = ground_->upload(plan.trajectory, 30s);
+  ASSERT_TRUE(up.committed()) << up.reason;
+  protocol::RunTrajectory go;
+  go.trajectory_id = up.trajectory_id;
+  go.content_hash = up.local_hash;
+  const std::uint64_t t = ground_->send(CommandKind::Trajectory, go);
+  protocol::InvokeAlgorithm insert;
+  insert.name = "insert";
+  insert.params = {{"depth_m", 0.12}, {"speed_m_s", 0.06}, {"contact_force_n", 10.0}, {"max_force_n", 20.0}};
+  const std::uint64_t a = ground_->send(CommandKind::InvokeAlgorithm, insert, -1.0, t);
+  protocol::InvokeAlgorithm pull;
+  pull.name = "pull_out";
+  pull.params = {{"distance_m", 0.05}};
+  const std::uint64_t b = ground_->send(CommandKind::InvokeAlgorithm, pull, -1.0, a);
+  const std::uint64_t c = ground_->send(CommandKind::GotoJoint, goto_joint1(q_home, 0.0), -1.0, b);
+  ASSERT_TRUE(ground_->wait_final(t, 60s).succeeded());
+  const auto ra = ground_->wait_final(a, 30s);
+  const auto rb = ground_->wait_final(b, 10s);
+  const auto rc = ground_->wait_final(c, 10s);
+  EXPECT_EQ(ra.state, AckState::Failed) << ra.reason;
+  EXPECT_EQ(ra.code, Reason::ForceLimit) << ra.reason;
+  EXPECT_EQ(ra.reason.rfind("insert: force limit ", 0), 0u) << ra.reason;
+  EXPECT_EQ(rb.state, AckState::Canceled) << rb.reason;
+  EXPECT_EQ(rb.reason.rfind("chain broken at command " + std::to_string(a) + ": failed: insert: force limit", 0), 0u)
+      << rb.reason;
+  EXPECT_EQ(rc.state, AckState::Canceled) << rc.reason;
+  EXPECT_EQ(ack_of(rb, AckState::Executing), nullptr) << "the pull-out ran";
+  EXPECT_EQ(ack_of(rc, AckState::Executing), nullptr) << "the GOTO ran";
+  // The arm holds where the insert stopped (not a controller stop: IDLE).
+  ASSERT_TRUE(eventually(
+      [&] {
+        const auto s = ground_->status();
+        return s && s->age_s < 0.5 && s->value.mode == protocol::ControllerMode::Idle &&
+               s->value.stop_category == protocol::StopCategory::None;
+      },
+      5s));
+  expect_nothing_moves("after the overload");
+  ASSERT_EQ(ra.final_q_rad.size(), 7u);
+  const auto rec = record();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NEAR(rec.q[j], ra.final_q_rad[j], 2e-3) << "joint " << j + 1;
+  expect_journaled({t, a, b, c});
+}
+
+TEST_F(Chains, ALostDriveHeartbeatMidChainStopsTheArmAndCancelsTheRest) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const double delta = 0.4;
+  const std::uint64_t a = start_slow_motion(q0, delta);
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
+  ASSERT_TRUE(eventually(
+      [&] {
+        for (const auto& ack : ground_->wait_final(b, 0ms).acks)
+          if (ack.state == AckState::Queued) return true;
+        return false;
+      },
+      10s));
+  fault_on("drive_silent_4");
+  const auto ra = ground_->wait_final(a, 15s);
+  const auto rb = ground_->wait_final(b, 10s);
+  EXPECT_TRUE(ra.state == AckState::Canceled || ra.state == AckState::Failed) << protocol::to_string(ra.state);
+  EXPECT_NE(ra.reason.find("heartbeat"), std::string::npos) << ra.reason;
+  // The stop itself cancels every queued command, with its cause.
+  EXPECT_EQ(rb.state, AckState::Canceled) << rb.reason;
+  EXPECT_EQ(rb.reason.rfind("the controller stopped: hw: heartbeat lost node 4 joint 4", 0), 0u) << rb.reason;
+  EXPECT_EQ(ack_of(rb, AckState::Executing), nullptr) << "the chained GOTO ran";
+  ASSERT_TRUE(eventually(
+      [&] {
+        const auto s = ground_->status();
+        return s && s->value.stop_category == protocol::StopCategory::Cat0;
+      },
+      10s));
+  expect_nothing_moves("after the category 0 stop");
+  const auto rec = record();
+  EXPECT_GE(rec.q[0], q0[0] - 2e-3);
+  EXPECT_LE(rec.q[0], q0[0] + delta + 2e-3);
+  fault_off("drive_silent_4");
+  expect_journaled({a, b});
 }
 
 }  // namespace

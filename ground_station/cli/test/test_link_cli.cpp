@@ -4,6 +4,7 @@
 // the changeout script plans every motion of the paper's steps 3-17.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -129,8 +130,12 @@ TEST(RunCli, DryRunPlansTheWholeChangeoutFromTheFirstMotion) {
   while (!q.empty() && (q.back() == '\n' || q.back() == ' ')) q.pop_back();
   const std::string work = temp_path("_run");
   // From the first TAG line (after CALIBRATE and LOCALIZE), the ORU at its true pose.
+  const std::string script_text = foresight::test::read_file(kChangeout);
+  const auto tag_at = script_text.find("\nTAG ");
+  ASSERT_NE(tag_at, std::string::npos);
+  const auto tag_line = 2 + std::count(script_text.begin(), script_text.begin() + static_cast<long>(tag_at), '\n');
   const auto r = run_foresight("run " + kChangeout + " --auto --dry-run --no-preview --object-pose scene --json" +
-                               " --joints " + q + " --work " + work + " --from-line 17");
+                               " --joints " + q + " --work " + work + " --from-line " + std::to_string(tag_line));
   ASSERT_EQ(r.status, 0) << r.err << r.out;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["end"], "finished");
@@ -143,7 +148,7 @@ TEST(RunCli, DryRunPlansTheWholeChangeoutFromTheFirstMotion) {
   EXPECT_EQ(skipped, 6);  // OBJECT VIDEO GRAPHICS FRAME CALIBRATE LOCALIZE
   EXPECT_EQ(completed, static_cast<int>(j["steps"].size()) - 6);
   EXPECT_GE(trajectories, 4);  // approach, hole entrance, stow, ..., start
-  // `TRAJECTORY to=start` brings the simulated arm back to where it began.
+  // `GOTO_JOINT start` brings the simulated arm back to where it began.
   const auto q_end = j["final_q_rad"].get<std::vector<double>>();
   ASSERT_EQ(q_end.size(), 7u);
   std::vector<double> q0;

@@ -3,6 +3,8 @@
 // through drive() with scripted keys and a fake runner.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "foresight/script/executor.hpp"
 
 namespace foresight::script {
@@ -208,6 +210,135 @@ TEST(Executor, MisuseIsALogicError) {
   EXPECT_THROW(ex.finish({CommandState::Skipped, "", 0}), std::logic_error);
   ex.finish({CommandState::Completed, "", 0});
   EXPECT_EQ(ex.current(), 1u);
+}
+
+/// Chained mode (`run --chain`): TRAJECTORY and INVOKE_ALGORITHM are sent
+/// ahead (Sent) and end when settled; REQUEST needs the arm where it is, so
+/// drive() settles first. `break_at` (by line): that command ends Failed and
+/// every later one sent ahead Canceled, as the remote's broken chain does.
+class ChainRunner : public CommandRunner {
+ public:
+  int break_at = 0;
+  std::vector<std::string> calls;  ///< "run LINE" and "settle LINE outcome", in order
+  std::vector<int> outstanding;
+  bool interrupted_settle = false;
+  bool broke_once = false;
+
+  Outcome run(const Command& c, const std::function<bool()>& interrupted) override {
+    calls.push_back("run " + std::to_string(c.line));
+    if (interrupted()) return {CommandState::Canceled, "interrupted", 0.0};
+    if (chains(c) && is_remote(c.op)) {
+      outstanding.push_back(c.line);
+      return {CommandState::Sent, "sent", 0.0};
+    }
+    return {CommandState::Completed, "", 0.0};
+  }
+  bool chains(const Command& c) const override { return c.op != Op::Request && c.op != Op::Wait; }
+  void settle(const std::function<bool()>& interrupted,
+              const std::function<void(int, const Outcome&)>& on_settled) override {
+    bool broken = false;
+    for (const int line : outstanding) {
+      if (interrupted()) interrupted_settle = true;
+      Outcome o{CommandState::Completed, "done", 1.0};
+      if (broken || interrupted_settle) o = {CommandState::Canceled, "chain broken at command " + std::to_string(break_at), 0.0};
+      else if (line == break_at && !broke_once) {
+        o = {CommandState::Failed, "tool jam", 2.0};
+        broken = broke_once = true;  // the fault cleared: a retry goes through
+      }
+      calls.push_back("settle " + std::to_string(line) + " " + to_string(o.state));
+      on_settled(line, o);
+    }
+    outstanding.clear();
+  }
+};
+
+const char* kChained =
+    "TRAJECTORY to=approach_20cm\n"                // line 1
+    "INVOKE_ALGORITHM insert depth_m=0.06\n"       // line 2
+    "GRAB\n"                                       // line 3
+    "INVOKE_ALGORITHM loosen\n"                    // line 4
+    "WAIT\n"                                       // line 5
+    "INVOKE_ALGORITHM unlatch\n"                   // line 6
+    "REQUEST status\n";                            // line 7
+
+TEST(Executor, AChainIsSentAheadAndSettledBeforeACommandThatNeedsTheArm) {
+  Executor ex(parse_script(kChained, "c.task"));
+  ChainRunner runner;
+  ScriptedControls keys({Key::Auto});
+  std::vector<std::string> marks;  // the listing's mark of line 2 as the run goes
+  EXPECT_EQ(drive(ex, runner, keys, [&](const Executor& e) { marks.push_back(to_string(e.command_state(1))); }),
+            DriveEnd::Finished);
+  EXPECT_EQ(runner.calls, (std::vector<std::string>{"run 1", "run 2", "run 3", "run 4", "settle 1 completed",
+                                                    "settle 2 completed", "settle 4 completed", "run 5", "run 6",
+                                                    "settle 6 completed", "run 7"}));
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_EQ(ex.command_state(i), CommandState::Completed) << i;
+  EXPECT_NE(std::find(marks.begin(), marks.end(), "sent"), marks.end()) << "line 2 was shown sent before it ended";
+  EXPECT_FALSE(ex.has_sent());
+}
+
+TEST(Executor, ABrokenChainStopsTheRunAtItsFirstFailedCommandAndRetryGoesOnFromThere) {
+  Executor ex(parse_script(kChained, "c.task"));
+  ChainRunner runner;
+  runner.break_at = 2;
+  ScriptedControls keys({Key::Auto, Key::Retry, Key::Auto});
+  EXPECT_EQ(drive(ex, runner, keys), DriveEnd::Finished);
+  // The chain 1, 2, 4 settled at WAIT: 2 failed, 4 canceled; the run stopped at
+  // line 2 (not at WAIT), and the retry ran 2, 3, 4 again (the runner replans
+  // from where the arm is).
+  EXPECT_EQ(runner.calls, (std::vector<std::string>{"run 1", "run 2", "run 3", "run 4", "settle 1 completed",
+                                                    "settle 2 failed", "settle 4 canceled", "run 2", "run 3", "run 4",
+                                                    "settle 2 completed", "settle 4 completed", "run 5", "run 6",
+                                                    "settle 6 completed", "run 7"}));
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_EQ(ex.command_state(i), CommandState::Completed) << i;
+}
+
+TEST(Executor, ABrokenChainReportsItsCauseAndCancelsTheRest) {
+  Executor ex(parse_script(kChained, "c.task"));
+  ChainRunner runner;
+  runner.break_at = 2;
+  ScriptedControls keys({Key::Auto});
+  EXPECT_EQ(drive(ex, runner, keys), DriveEnd::Stopped);  // the keys ran out while stopped
+  EXPECT_EQ(ex.current(), 1u);
+  EXPECT_EQ(ex.stop_reason(), "line 2 INVOKE_ALGORITHM failed: tool jam");
+  EXPECT_EQ(ex.command_state(0), CommandState::Completed);
+  EXPECT_EQ(ex.command_state(1), CommandState::Failed);
+  EXPECT_EQ(ex.command_state(2), CommandState::Completed);  // GRAB: the ground's display only
+  EXPECT_EQ(ex.command_state(3), CommandState::Canceled);
+  EXPECT_EQ(ex.outcome(3).message, "chain broken at command 2");
+  EXPECT_EQ(ex.command_state(4), CommandState::Pending);  // WAIT never ran
+  EXPECT_EQ(ex.listing(),
+            "  [x]    1  TRAJECTORY to=approach_20cm\n"
+            "> [!]    2  INVOKE_ALGORITHM insert depth_m=0.06\n"
+            "  [x]    3  GRAB\n"
+            "  [c]    4  INVOKE_ALGORITHM loosen\n"
+            "  [ ]    5  WAIT\n"
+            "  [ ]    6  INVOKE_ALGORITHM unlatch\n"
+            "  [ ]    7  REQUEST status\n");
+}
+
+TEST(Executor, AbortWhileAChainRunsStopsItAll) {
+  Executor ex(parse_script(kChained, "c.task"));
+  ChainRunner runner;
+  // Lines 1 and 2 are sent; GRAB reads Abort: the runner is told to stop the chain.
+  ScriptedControls keys({Key::Auto, Key::None, Key::None, Key::Abort});
+  EXPECT_EQ(drive(ex, runner, keys), DriveEnd::Aborted);
+  EXPECT_TRUE(runner.interrupted_settle);
+  EXPECT_EQ(ex.command_state(0), CommandState::Canceled);
+  EXPECT_EQ(ex.command_state(1), CommandState::Canceled);
+  EXPECT_EQ(ex.command_state(2), CommandState::Canceled);
+  EXPECT_FALSE(ex.has_sent());
+  EXPECT_EQ(ex.stop_reason(), "aborted by the operator at line 3");
+}
+
+TEST(Executor, SettleMisuseIsALogicError) {
+  Executor ex(parse_script(kChained, "c.task"));
+  EXPECT_THROW(ex.settle(1, {CommandState::Completed, "", 0.0}), std::logic_error);  // nothing sent
+  ex.start();
+  ex.finish({CommandState::Sent, "sent", 0.0});
+  EXPECT_TRUE(ex.has_sent());
+  EXPECT_THROW(ex.settle(1, {CommandState::Sent, "", 0.0}), std::logic_error);
+  ex.start();
+  EXPECT_THROW(ex.settle(1, {CommandState::Completed, "", 0.0}), std::logic_error);  // while a command runs
 }
 
 TEST(Executor, KeysFromCharactersAndNames) {

@@ -90,7 +90,7 @@ TEST(ScriptParser, ParsesCommandsValuesNotesAndColumns) {
 
 TEST(ScriptParser, SyntaxErrorsNameLineAndColumn) {
   EXPECT_EQ(error_of("VIDEO side\n  TRAJECTRY to=stow\n"),
-            "t.task:2:3: unknown command 'TRAJECTRY' (commands: GRAPHICS, VIDEO, OBJECT, FRAME, TAG, GRAB, RELEASE, "
+            "t.task:2:3: unknown command 'TRAJECTRY' (commands: GRAPHICS, VIDEO, OBJECT, FRAME, TAG, GRAB, RELEASE, WAIT, "
             "PREVIEW, CALIBRATE, LOCALIZE, TRAJECTORY, INVOKE_ALGORITHM, REQUEST, CAMERA, GOTO_JOINT, GOTO_CART)");
   EXPECT_EQ(error_of("TRAJECTORY to=stow sped=0.1\n"),
             "t.task:1:20: TRAJECTORY: unknown key 'sped' (keys: to, compliant, speed_m_s, limit, dwell_s)");
