@@ -219,6 +219,28 @@ TEST_F(Chains, AnAbortStopsTheRunningCommandAndCancelsTheRestOfItsChain) {
   EXPECT_EQ(ack_of(rb, AckState::Executing), nullptr) << "the canceled command ran";
 }
 
+// A REQUEST may follow a motion: the remote queues it and reports when the
+// motion COMPLETED (the chain's end seen half a round trip later, not one and
+// a half).
+TEST_F(Chains, AReportChainedBehindAMotionComesOnceTheMotionCompleted) {
+  take_and_recover();
+  const std::uint64_t a = start_slow_motion(current_q(), 0.1);
+  protocol::Request status;
+  status.what = protocol::RequestWhat::Status;
+  const std::uint64_t b = ground_->send(CommandKind::Request, status, -1.0, a);
+  const auto rb = ground_->wait_final(b, 30s);
+  const auto ra = ground_->wait_final(a, 1s);
+  ASSERT_TRUE(ra.succeeded()) << ra.reason;
+  ASSERT_TRUE(rb.succeeded()) << rb.reason;
+  ASSERT_NE(ack_of(rb, AckState::Queued), nullptr) << "the report was not held behind the motion";
+  const auto* done_a = ack_of(ra, AckState::Completed);
+  const auto* done_b = ack_of(rb, AckState::Completed);
+  ASSERT_TRUE(done_a && done_b);
+  EXPECT_GE(done_b->stamp_ns, done_a->stamp_ns) << "reported before the motion ended";
+  ASSERT_EQ(rb.final_q_rad.size(), 7u);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NEAR(rb.final_q_rad[j], ra.final_q_rad[j], 1e-3) << "joint " << j + 1;
+}
+
 // Bad predecessors, each REJECTED with its reason, the running chain untouched.
 TEST_F(Chains, BadPredecessorsAreRefusedWithTheirReason) {
   take_and_recover();

@@ -504,7 +504,7 @@ Outcome ScriptRunner::remote(const script::Command& c, const std::function<bool(
     return done(std::string("dry run: ") + protocol::to_string(kind) + " not sent", t0);
   }
   if (s_.chain && chains(c)) {
-    if (!predicted) predicted = algorithm_end(c);
+    if (!predicted) predicted = c.op == Op::InvokeAlgorithm ? algorithm_end(c) : std::optional<Eigen::VectorXd>(q_);
     const auto sent = Clock::now();
     const auto id = link_->send(kind, payload, -1.0, chain_tail_);
     return send_ahead(c, kind, id, sent, expected_s, *predicted, protocol::to_string(kind));
@@ -533,14 +533,15 @@ bool ScriptRunner::chains(const script::Command& c) const {
     case Op::Frame:
     case Op::Tag:
     case Op::Grab:
-    case Op::Release: return true;
+    case Op::Release:
+    case Op::Request: return true;  // the report once the chain got there (the remote queues it too)
     case Op::InvokeAlgorithm: {
       const std::string name = c.positional[0].text;
       if (name == "insert") return c.has("depth_m");
       if (name == "pull_out") return c.has("distance_m");
       return name != "guarded_move";  // it ends at a contact nobody can place in advance
     }
-    default: return false;  // CALIBRATE, LOCALIZE, WAIT, REQUEST, CAMERA: the arm where it is now
+    default: return false;  // CALIBRATE, LOCALIZE, WAIT, CAMERA: the arm where it is now
   }
 }
 

@@ -52,7 +52,7 @@ class ScriptRunner : public script::CommandRunner {
   ScriptRunner& operator=(const ScriptRunner&) = delete;
   script::Outcome run(const script::Command& command, const std::function<bool()>& interrupted) override;
   /// --chain: TRAJECTORY, INVOKE_ALGORITHM (but guarded_move, and insert or
-  /// pull_out without their distance), the GOTOs and the display commands.
+  /// pull_out without their distance), the GOTOs, REQUEST and the display commands.
   bool chains(const script::Command& command) const override;
   void settle(const std::function<bool()>& interrupted,
               const std::function<void(int line, const script::Outcome&)>& on_settled) override;

@@ -344,7 +344,7 @@ void Supervisor::dispatch(const protocol::Command& c) {
   if (c.after_command_id != 0 && !chainable(c.kind)) {
     reject(c, Reason::BadArgument,
            std::string(control::to_string(c.kind)) + " cannot follow another command (after_command_id " +
-               std::to_string(c.after_command_id) + "): only trajectories, GOTOs and algorithms chain");
+               std::to_string(c.after_command_id) + "): only trajectories, GOTOs, algorithms and reports chain");
     return;
   }
   switch (c.kind) {
@@ -380,8 +380,11 @@ void Supervisor::dispatch(const protocol::Command& c) {
       do_abort(c);
       return;
     case CommandKind::Request:
-      do_request(c);
-      return;
+      if (c.after_command_id == 0) {  // a chained one reports once its predecessor completed (queued below)
+        do_request(c);
+        return;
+      }
+      break;
     default:
       break;
   }
@@ -393,7 +396,7 @@ void Supervisor::dispatch(const protocol::Command& c) {
     do_camera(c);
     return;
   }
-  if (c.kind != CommandKind::Recover) {
+  if (c.kind != CommandKind::Recover && c.kind != CommandKind::Request) {
     if (std::string why = check_can_move(&code); !why.empty()) {
       reject(c, code, why);
       return;
@@ -593,6 +596,9 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c
     case CommandKind::Recover:
       job->kind = JobKind::Recover;
       return job;
+    case CommandKind::Request:  // chained: the report once the chain got here
+      job->kind = JobKind::Report;
+      return job;
     default:
       *code = Reason::Internal;
       *reason = std::string("no handler for ") + control::to_string(c.kind);
@@ -651,6 +657,10 @@ void Supervisor::start_next() {
       ack(job->command, AckState::Failed, why_code, why, current_q());
       cancel_chain(job->command, std::string("failed: ") + why);
     };
+    if (job->kind == JobKind::Report) {  // no motion: reported and COMPLETED at once
+      do_request(job->command);
+      continue;
+    }
     if (job->kind != JobKind::Recover) {
       if (std::string why = check_can_move(&code); !why.empty()) {
         fail(code, why);
@@ -682,6 +692,7 @@ void Supervisor::start_next() {
         mc.kind = MotionCommandKind::Tare;
         mc.tare_samples = job->tare_samples;
         break;
+      case JobKind::Report: break;  // handled above
       case JobKind::ToolStep: {
         // The arm holds its position stiffly while the tool latches or turns:
         // when the screw comes free the ORU's weight moves onto the tool, and
@@ -727,7 +738,7 @@ void Supervisor::finish_running(AckState state, Reason code, const std::string& 
 
 bool Supervisor::chainable(CommandKind kind) noexcept {
   return kind == CommandKind::Trajectory || kind == CommandKind::InvokeAlgorithm || kind == CommandKind::GotoJoint ||
-         kind == CommandKind::GotoCart;
+         kind == CommandKind::GotoCart || kind == CommandKind::Request;
 }
 
 const protocol::Command* Supervisor::held_command(std::uint64_t session, std::uint64_t command_id) const {

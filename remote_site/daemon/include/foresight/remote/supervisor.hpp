@@ -113,7 +113,7 @@ class Supervisor {
   std::uint64_t commander() const noexcept { return commander_; }
 
  private:
-  enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover, Tare };
+  enum class JobKind { Trajectory, Goto, Algorithm, ToolStep, Recover, Tare, Report };
   using Clock = std::chrono::steady_clock;
   struct Job {
     protocol::Command command;
