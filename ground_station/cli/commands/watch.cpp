@@ -1,6 +1,6 @@
 // foresight watch: one line a second with the link's round trip, the remote's
-// mode and active command, the joints and their velocities, the wrist force
-// and the tool, until
+// mode and active command, the joints and their velocities, the wrist force,
+// the tool and the remote's queue (a chain: what runs, what is queued), until
 // Ctrl-C (or --count lines). Any station may watch; it commands nothing.
 #include <atomic>
 #include <chrono>
@@ -61,6 +61,16 @@ int run(const Options& o) {
     if (j.contains("tool"))
       std::printf(" | tool %s %.2f turns", j["tool"]["latched"].get<bool>() ? "latched" : "free",
                   j["tool"]["turns"].get<double>());
+    if (j.contains("queue") && !j["queue"].empty()) {  // a chain on the remote: what runs, what waits
+      std::string running, queued;
+      for (const auto& e : j["queue"]) {
+        const std::string id = std::to_string(e["command_id"].get<std::uint64_t>());
+        if (e["state"] == "queued") queued += (queued.empty() ? "" : " ") + id;
+        else running += (running.empty() ? "" : " ") + id + " " + e["kind"].get<std::string>();
+      }
+      std::printf(" | running %s | queued %s", running.empty() ? "-" : running.c_str(),
+                  queued.empty() ? "-" : queued.c_str());
+    }
     if (!j["faults"].empty()) std::printf(" | FAULT %s", j["faults"][0].get<std::string>().c_str());
     std::printf("\n");
     std::fflush(stdout);
