@@ -28,8 +28,15 @@ OUT=${FORESIGHT_DEMO_DIR:-$BUILD/demo}
 rm -rf "$OUT"
 mkdir -p "$OUT"
 
+# The changeout twice: step by step (every step waits for the one before to be
+# acknowledged), then with the motions sent ahead as chains; the second
+# report shows both timings side by side (report.md, "Timing").
+printf '== the changeout step by step (for comparison): %s/step_by_step ==\n' "$OUT"
 # shellcheck disable=SC2086
-"$F" demo --out "$OUT" ${FORESIGHT_DEMO_ARGS:-}
+"$F" demo --out "$OUT/step_by_step" ${FORESIGHT_DEMO_ARGS:-}
+printf '\n== the changeout with its motions sent ahead as chains (--chain): %s ==\n' "$OUT"
+# shellcheck disable=SC2086
+"$F" demo --chain --compare "$OUT/step_by_step/report.json" --out "$OUT" ${FORESIGHT_DEMO_ARGS:-}
 
 printf '\n== accuracy study: the paper'"'"'s Tables 1-3 beside the Cramer-Rao bound (200 trials, 1 px) ==\n'
 "$F" eval localization --trials 200 --noise-px 1 >"$OUT/eval_localization.txt" 2>/dev/null
