@@ -694,6 +694,13 @@ std::map<int, std::string> contact_sheets(const std::string& out) {
 
 int demo(Options& o) {
   const auto t0 = Clock::now();
+  json compare = nullptr;  // checked before anything runs or is made
+  if (!o.compare.empty()) {
+    if (!fs::is_regular_file(o.compare)) throw InputError(o.compare, "--compare: cannot open the report");
+    compare = json::parse(read_text(o.compare), nullptr, false);
+    if (compare.is_discarded() || !compare.contains("timing") || !compare["timing"].is_object())
+      throw InputError(o.compare, "--compare: not a demo report with timing (report.json of foresight demo)");
+  }
   fs::create_directories(o.out);
   const std::string out = fs::absolute(o.out).lexically_normal().string();
   if (o.rtt_s < 0) throw std::invalid_argument("--rtt must be >= 0");
@@ -706,13 +713,6 @@ int demo(Options& o) {
     return kExitOk;
   }
   if (!o.stage.empty()) throw std::invalid_argument("--stage: 'ground', 'plot' or nothing");
-  json compare = nullptr;  // checked before anything runs
-  if (!o.compare.empty()) {
-    if (!fs::is_regular_file(o.compare)) throw InputError(o.compare, "--compare: cannot open the report");
-    compare = json::parse(read_text(o.compare), nullptr, false);
-    if (compare.is_discarded() || !compare.contains("timing") || !compare["timing"].is_object())
-      throw InputError(o.compare, "--compare: not a demo report with timing (report.json of foresight demo)");
-  }
   if (o.domain < 0) o.domain = static_cast<int>(protocol::claim_free_domain(100, 219));
   fs::remove(out + "/run.jsonl");
   fs::remove(out + "/ground.json");
