@@ -195,6 +195,23 @@ TEST_F(Chains, AFailureBreaksTheChainAndNothingAfterItMoves) {
   EXPECT_TRUE(s->value.queue.empty());
 }
 
+// `foresight watch` shows the chain the remote holds: what runs, what is queued.
+TEST_F(Chains, WatchShowsWhatRunsAndWhatIsQueued) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  const std::uint64_t a = start_slow_motion(q0, q0[0] > 0.0 ? -1.0 : 1.0);  // about 8 s at 10%
+  const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
+  const std::string want = "running " + std::to_string(a) + " goto_joint | queued " + std::to_string(b);
+  std::string out;
+  for (int i = 0; i < 3 && out.find(want) == std::string::npos && !ground_->wait_final(a, 0ms).finished; ++i)
+    out = test::run_foresight("watch --count 1 --period 0.2 --domain " + std::to_string(domain_)).out;
+  EXPECT_NE(out.find(want), std::string::npos) << out;
+  protocol::Abort stop;
+  stop.category = protocol::StopCategory::Cat2;
+  EXPECT_TRUE(run(CommandKind::Abort, stop, 2.0).succeeded());
+  EXPECT_EQ(ground_->wait_final(b, 10s).state, AckState::Canceled);
+}
+
 // An ABORT of a running chain's command stops it and cancels the rest.
 TEST_F(Chains, AnAbortStopsTheRunningCommandAndCancelsTheRestOfItsChain) {
   take_and_recover();

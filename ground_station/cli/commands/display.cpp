@@ -232,6 +232,8 @@ int run_display(const DisplayArgs& a) {
                                                 (js ? ", joints " + fixed(js->age_s, 2) + " s old" : "");
       if (const auto st = link->status()) {
         state.controller_text = std::string("controller ") + protocol::to_string(st->value.mode);
+        if (const std::string queue = queue_text(st->value); !queue.empty())
+          state.controller_text += " | " + queue;  // a chain: what runs, what is queued
         if (st->value.stop_category != protocol::StopCategory::None)
           state.fault_text = std::string(protocol::to_string(st->value.stop_category)) + ": " + st->value.stop_reason;
         if (!st->value.fault_text.empty())

@@ -203,6 +203,18 @@ double planned_goto_duration_s(const RobotModel& model, const std::vector<double
   return plan_motion(model, q0, {goal}, options).trajectory.duration_s();
 }
 
+std::string queue_text(const protocol::StatusReport& status) {
+  std::string running, queued;
+  for (const auto& q : status.queue) {
+    const std::string id = std::to_string(q.command_id);
+    if (q.state == protocol::AckState::Queued) queued += (queued.empty() ? "" : " ") + id;
+    else running += (running.empty() ? "" : " ") + id + " " + protocol::to_string(q.kind);
+  }
+  if (running.empty() && queued.empty()) return "";
+  return "running " + (running.empty() ? std::string("-") : running) + " | queued " +
+         (queued.empty() ? std::string("-") : queued);
+}
+
 nlohmann::json status_json(const ground_link::GroundLink& link) {
   const auto d = link.delay().stats();
   nlohmann::json j;

@@ -131,5 +131,8 @@ double planned_goto_duration_s(const RobotModel& model, const std::vector<double
 /// joint {joint, node_id, state, powered} as the drive reported itself, state
 /// in CiA 402 snake case or "unknown" while the drive is silent).
 nlohmann::json status_json(const ground_link::GroundLink& link);
+/// The remote's queue (a chain) in one line: "running 5 trajectory | queued
+/// 6 7 8", "" when it holds nothing (watch, display).
+std::string queue_text(const protocol::StatusReport& status);
 
 }  // namespace foresight::cli

@@ -61,15 +61,9 @@ int run(const Options& o) {
     if (j.contains("tool"))
       std::printf(" | tool %s %.2f turns", j["tool"]["latched"].get<bool>() ? "latched" : "free",
                   j["tool"]["turns"].get<double>());
-    if (j.contains("queue") && !j["queue"].empty()) {  // a chain on the remote: what runs, what waits
-      std::string running, queued;
-      for (const auto& e : j["queue"]) {
-        const std::string id = std::to_string(e["command_id"].get<std::uint64_t>());
-        if (e["state"] == "queued") queued += (queued.empty() ? "" : " ") + id;
-        else running += (running.empty() ? "" : " ") + id + " " + e["kind"].get<std::string>();
-      }
-      std::printf(" | running %s | queued %s", running.empty() ? "-" : running.c_str(),
-                  queued.empty() ? "-" : queued.c_str());
+    if (const auto st = link->status()) {  // a chain on the remote: what runs, what waits
+      const std::string queue = queue_text(st->value);
+      if (!queue.empty()) std::printf(" | %s", queue.c_str());
     }
     if (!j["faults"].empty()) std::printf(" | FAULT %s", j["faults"][0].get<std::string>().c_str());
     std::printf("\n");
