@@ -158,8 +158,15 @@ class FaultCampaign : public test::DaemonTest {
   /// (a bus outage: the F/T sensor on that bus can miss its limit a cycle
   /// before the drives; the motion then ends with its category 1, the stop
   /// escalates to the drives' category 0 a cycle later).
-  void drive_side_fault(const std::string& file, const std::string& cause_text, bool recovers = true,
+  /// `causes`: the stop names one of them (a bus outage can begin between two
+  /// drives' TPDOs of one cycle, so any drive of that bus may be missed first).
+  void drive_side_fault(const std::string& file, const std::vector<std::string>& causes, bool recovers = true,
                         const std::string& also_first = "") {
+    const auto names_any = [&](const std::string& text) {
+      for (const auto& c : causes)
+        if (text.find(c) != std::string::npos) return true;
+      return false;
+    };
     take_and_recover();
     const Eigen::VectorXd q0 = current_q();
     mark();
@@ -169,11 +176,10 @@ class FaultCampaign : public test::DaemonTest {
     const auto moved = ground_->wait_final(id, 15s);
     note(ground_->session_id(), moved);
     EXPECT_TRUE(moved.state == AckState::Canceled || moved.state == AckState::Failed) << protocol::to_string(moved.state);
-    EXPECT_TRUE(moved.reason.find(cause_text) != std::string::npos ||
-                (!also_first.empty() && moved.reason.find(also_first) != std::string::npos))
+    EXPECT_TRUE(names_any(moved.reason) || (!also_first.empty() && moved.reason.find(also_first) != std::string::npos))
         << moved.reason;
     const auto st = wait_stop(protocol::StopCategory::Cat0);
-    EXPECT_NE(st.stop_reason.find(cause_text), std::string::npos) << st.stop_reason;
+    EXPECT_TRUE(names_any(st.stop_reason)) << st.stop_reason;
     // The drives' own record over the motion and the stop: joint 1 within
     // [q0, q0 + delta], every other joint still.
     DriveRecord d = fresh_record();
@@ -228,17 +234,19 @@ class FaultCampaign : public test::DaemonTest {
 }  // namespace
 
 TEST_F(FaultCampaign, ADrivesHeartbeatLostMidMotionIsACategoryZeroStop) {
-  drive_side_fault("drive_silent_4", "heartbeat");
+  drive_side_fault("drive_silent_4", {"heartbeat"});
 }
 
 TEST_F(FaultCampaign, ABusLosingEveryFrameMidMotionIsACategoryZeroStop) {
   // The F/T sensor shares the bus: its heartbeat, lost during the outage,
   // is cleared by RECOVER once heard again (it used to stay lost: a stop
   // with no named cause right after every RECOVER).
-  // Its first drive (node 5) is reported first: TPDO missing, or heartbeat
-  // lost when the heartbeat consumer runs out first (a loaded machine); the
-  // motion's own end may name the F/T sensor (node 32), silent a cycle sooner.
-  drive_side_fault("bus_loss_1", "node 5 joint 5", true, "node 32 joint 0");
+  // A drive of that bus (nodes 5-7) is reported: TPDO missing, or heartbeat
+  // lost when the heartbeat consumer runs out first (a loaded machine). Usually
+  // node 5; node 7 when the outage began after nodes 5 and 6 had answered the
+  // cycle's SYNC (seen once in a loaded CI run). The motion's own end may name
+  // the F/T sensor (node 32), silent a cycle sooner.
+  drive_side_fault("bus_loss_1", {"node 5 joint 5", "node 6 joint 6", "node 7 joint 7"}, true, "node 32 joint 0");
 }
 
 // F/T overload during an insertion: the tool driven fast into the bottom of
