@@ -18,7 +18,10 @@
 
 #include <Eigen/Core>
 
+#include "foresight/common/object_model.hpp"
+#include "foresight/common/plan.hpp"
 #include "foresight/common/robot_model.hpp"
+#include "foresight/common/scene.hpp"
 #include "foresight/ground_link/ground_link.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/test/cli.hpp"
@@ -229,6 +232,34 @@ class DaemonTest : public ::testing::Test {
     return test::start_slow_motion(*ground_, q0, delta);
   }
   std::uint64_t start_slow_motion(double delta) { return start_slow_motion(current_q(), delta); }
+  /// Waits (at most 10 s) until the remote reports command `id` QUEUED.
+  bool wait_queued(std::uint64_t id) {
+    return eventually(
+        [&] {
+          for (const auto& ack : ground_->wait_final(id, std::chrono::milliseconds(0)).acks)
+            if (ack.state == protocol::AckState::Queued) return true;
+          return false;
+        },
+        std::chrono::seconds(10));
+  }
+  /// A plan from the arm's joints to 1 cm in front of the ORU's bore at the work
+  /// site's true pose: to approach_20cm, then straight along the hole's axis.
+  Trajectory plan_to_before_the_bore() {
+    const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
+    const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
+    const auto tag_goal = [&](const std::string& name, SegmentKind kind, double dz) {
+      Goal g;
+      g.name = name;
+      g.kind = kind;
+      g.is_pose = true;
+      g.base_T_tip = scene.base_T_object * oru.tags.at(name) * Pose(Eigen::Translation3d(0.0, 0.0, dz));
+      return g;
+    };
+    return plan_motion(model_, current_q(),
+                       {tag_goal("approach_20cm", SegmentKind::Joint, 0.0),
+                        tag_goal("hole_entrance", SegmentKind::Linear, -0.01)})
+        .trajectory;
+  }
 
   /// The running (or stopped) daemon's journal.
   nlohmann::json journal_json() const { return test::journal_json(remote_->journal()); }

@@ -11,9 +11,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "foresight/common/object_model.hpp"
 #include "foresight/common/plan.hpp"
-#include "foresight/common/scene.hpp"
 #include "hil_support.hpp"
 
 namespace foresight {
@@ -218,13 +216,7 @@ TEST_F(Chains, AnAbortStopsTheRunningCommandAndCancelsTheRestOfItsChain) {
   const Eigen::VectorXd q0 = current_q();
   const std::uint64_t a = start_slow_motion(q0, 0.3);
   const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
-  ASSERT_TRUE(eventually(
-      [&] {
-        for (const auto& ack : ground_->wait_final(b, 0ms).acks)
-          if (ack.state == AckState::Queued) return true;
-        return false;
-      },
-      10s));
+  ASSERT_TRUE(wait_queued(b));
   protocol::Abort abort;
   abort.category = protocol::StopCategory::Cat2;
   const auto r = run(CommandKind::Abort, abort, 2.0);
@@ -468,20 +460,9 @@ TEST_F(Chains, AnFtOverloadInTheInsertBreaksTheChainAndTheArmHolds) {
   ASSERT_TRUE(run(CommandKind::InvokeAlgorithm, tare).succeeded());
   // 1 cm in front of the bore, then a fast insert with a low force limit
   // (the tool bottoms in the bore), then a pull-out and a GOTO chained behind it.
-  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
-  const auto tag_goal = [&](const std::string& name, SegmentKind kind, double dz) {
-    Goal g;
-    g.name = name;
-    g.kind = kind;
-    g.base_T_tip = scene.base_T_object * oru.tags.at(name) * Pose(Eigen::Translation3d(0.0, 0.0, dz));
-    return g;
-  };
   const Eigen::VectorXd q_home = current_q();
-  const Plan plan = plan_motion(model_, q_home,
-                                {tag_goal("approach_20cm", SegmentKind::Joint, 0.0),
-                                 tag_goal("hole_entrance", SegmentKind::Linear, -0.01)});
-  const auto up = ground_->upload(plan.trajectory, 30s);
+  const Trajectory to_bore = plan_to_before_the_bore();
+  const auto up = ground_->upload(to_bore, 30s);
   ASSERT_TRUE(up.committed()) << up.reason;
   protocol::RunTrajectory go;
   go.trajectory_id = up.trajectory_id;
@@ -530,13 +511,7 @@ TEST_F(Chains, ALostDriveHeartbeatMidChainStopsTheArmAndCancelsTheRest) {
   const double delta = 0.4;
   const std::uint64_t a = start_slow_motion(q0, delta);
   const std::uint64_t b = ground_->send(CommandKind::GotoJoint, goto_joint1(q0, 0.0), -1.0, a);
-  ASSERT_TRUE(eventually(
-      [&] {
-        for (const auto& ack : ground_->wait_final(b, 0ms).acks)
-          if (ack.state == AckState::Queued) return true;
-        return false;
-      },
-      10s));
+  ASSERT_TRUE(wait_queued(b));
   fault_on("drive_silent_4");
   const auto ra = ground_->wait_final(a, 15s);
   const auto rb = ground_->wait_final(b, 10s);

@@ -259,26 +259,13 @@ TEST_F(FaultCampaign, AnFtOverloadDuringAnInsertionFailsItWithForceLimitAndTheAr
   protocol::InvokeAlgorithm tare;
   tare.name = "tare";
   ASSERT_TRUE(run(CommandKind::InvokeAlgorithm, tare).succeeded());
-  const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
-  auto tag_goal = [&](const std::string& name, SegmentKind kind, double dz) {
-    Goal g;
-    g.name = name;
-    g.kind = kind;
-    g.is_pose = true;
-    g.base_T_tip = scene.base_T_object * oru.tags.at(name) * Pose(Eigen::Translation3d(0.0, 0.0, dz));
-    return g;
-  };
-  const Eigen::VectorXd q_home = current_q();
-  const Plan plan = plan_motion(model_, q_home,
-                                {tag_goal("approach_20cm", SegmentKind::Joint, 0.0),
-                                 tag_goal("hole_entrance", SegmentKind::Linear, -0.01)});
-  const auto up = ground_->upload(plan.trajectory, 30s);
+  const Trajectory to_bore = plan_to_before_the_bore();
+  const auto up = ground_->upload(to_bore, 30s);
   ASSERT_TRUE(up.committed()) << up.reason;
   protocol::RunTrajectory go;
   go.trajectory_id = up.trajectory_id;
   go.content_hash = up.local_hash;
-  ASSERT_TRUE(run(CommandKind::Trajectory, go, plan.trajectory.duration_s()).succeeded());
+  ASSERT_TRUE(run(CommandKind::Trajectory, go, to_bore.duration_s()).succeeded());
 
   mark();
   protocol::InvokeAlgorithm insert;
