@@ -30,6 +30,15 @@ string(REGEX REPLACE "interface: mock, bitrate: ([0-9]+)}([ ]*)# real robot: (ca
 string(REPLACE "path: foresight-journal.db    # relative to the working directory"
        "path: foresight-journal.db    # relative to the working directory (the unit: /var/lib/foresight)"
        _remote_yaml "${_remote_yaml}")
+# The cabinet runs DDS Security (docs/deploy.md, section 3): the daemon refuses to
+# start until the identities exist in /etc/foresight/dds-security.
+string(REPLACE "security: \"\"                  # installed: dds-security (/etc/foresight/dds-security)"
+       "security: dds-security        # /etc/foresight/dds-security: make_dds_security.sh (docs/deploy.md, 3)"
+       _remote_yaml "${_remote_yaml}")
+if(NOT _remote_yaml MATCHES "security: dds-security")
+  message(FATAL_ERROR "cmake/Install.cmake: config/remote.yaml's controller.link.security line changed: update the "
+                      "installed file's replacement")
+endif()
 file(WRITE ${_stage}/remote.yaml
      "# Installed by the foresight-remote package (a conffile: your edits are kept).\n"
      "# Check it before the first motion: foresight-remote check --config /etc/foresight/remote.yaml\n"
@@ -63,7 +72,10 @@ file(CHMOD ${_stage}/remote/postinst ${_stage}/remote/postrm ${_stage}/remote/pr
      PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE GROUP_READ GROUP_EXECUTE WORLD_READ WORLD_EXECUTE)
 file(WRITE ${_stage}/ground/foresight-ground.sh
      "# The foresight CLI reads its configuration from /etc/foresight-ground unless told otherwise.\n"
-     ": \"\${FORESIGHT_CONFIG_DIR:=/etc/foresight-ground}\"\nexport FORESIGHT_CONFIG_DIR\n")
+     ": \"\${FORESIGHT_CONFIG_DIR:=/etc/foresight-ground}\"\nexport FORESIGHT_CONFIG_DIR\n"
+     "# and uses this station's DDS Security identity once it is installed there (docs/deploy.md, 3).\n"
+     "if [ -z \"\${FORESIGHT_DDS_SECURITY:-}\" ] && [ -d /etc/foresight-ground/dds-security ]; then\n"
+     "  FORESIGHT_DDS_SECURITY=/etc/foresight-ground/dds-security; export FORESIGHT_DDS_SECURITY\nfi\n")
 file(WRITE ${_stage}/ground/conffiles
      "/etc/foresight-ground/robot.urdf\n/etc/foresight-ground/oru.yaml\n/etc/foresight-ground/scene.yaml\n"
      "/etc/foresight-ground/remote.yaml\n/etc/foresight-ground/scripts/oru_changeout.task\n"

@@ -9,7 +9,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <optional>
+#include <set>
 
 #include "foresight/common/plan.hpp"
 #include "foresight/common/robot_model.hpp"
@@ -17,6 +19,7 @@
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/convert.hpp"
 #include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/security.hpp"
 #include "foresight/test/cli.hpp"
 #include "hil_support.hpp"
 
@@ -718,7 +721,8 @@ class SecureRemote : public test::DaemonTest {
  protected:
   void SetUp() override {
     dir_ = test::temp_path(".sec");
-    const int rc = std::system(("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir_ + " > /dev/null 2>&1").c_str());
+    const int rc = std::system(
+        ("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir_ + " 0-230 station-b > /dev/null 2>&1").c_str());
     ASSERT_EQ(rc, 0) << "make_dds_security.sh failed";
     remote_options_.extra_args = {"--security", dir_};
     ground_config_.security_dir = dir_;
@@ -751,4 +755,63 @@ TEST_F(SecureRemote, AuthenticatedGroundCommandsAndAnObserverOnlyWatches) {
   EXPECT_TRUE(watching);
   EXPECT_THROW(observer.send(CommandKind::TakeControl), std::logic_error);
   EXPECT_EQ(remote_->stop(SIGTERM), 0);
+}
+
+// Issue 28, item 6: with DDS Security a ground station is its identity. The
+// operator types take-control, recover, goto, each a process of its own, and
+// keeps control between them (the remote binds it to the identity, not to a
+// process): another station cannot slip in while the lease lives, and gets
+// control once the operator releases it. The journal names the station.
+TEST_F(SecureRemote, TheStationKeepsControlAcrossItsCommandsAndAnotherStationWaits) {
+  ground_.reset();  // only the CLI's processes from here on
+  const std::string link = "--domain " + std::to_string(domain_) + " --security " + dir_ + " --connect-timeout 60";
+  auto cli = [&](const std::string& args) {
+    const test::CliRun r = test::run_foresight(args + " " + link);
+    return r;
+  };
+  test::CliRun r = cli("take-control");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("take_control"), std::string::npos) << r.out;
+  r = cli("recover");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const auto t_recovered = std::chrono::steady_clock::now();
+
+  // Another station, while the operator's lease lives (10 s of silence).
+  r = cli("take-control --identity station-b --json");
+  const double since_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_recovered).count();
+  if (since_s < 9.0) {
+    EXPECT_EQ(r.status, 1) << r.out << r.err;
+    const auto j = nlohmann::json::parse(r.out, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << r.out;
+    EXPECT_EQ(j["state"], "rejected");
+    EXPECT_EQ(j["code"], "not_in_control");
+    const std::string ground_id = protocol::identity_of_certificate(dir_ + "/identities/ground/cert.pem").hex();
+    EXPECT_EQ(j["reason"], "station 'ground' (" + ground_id +
+                               ") holds control (it may RELEASE_CONTROL, or its lease ends after 10 s of silence)");
+  } else {
+    std::cerr << "the other station's take-control came " << since_s << " s after the recover: past the lease\n";
+  }
+
+  // The operator's next command, in a process of its own, needs no take-control.
+  r = cli("goto --joints-deg 5,0,0,0,0,0,0");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("completed"), std::string::npos) << r.out;
+  r = cli("release-control");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+
+  // Now the other station may take it, and the operator's station is the one refused.
+  r = cli("take-control --identity station-b");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  r = cli("goto --joints-deg 0,0,0,0,0,0,0");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE((r.out + r.err).find("station 'station-b' ("), std::string::npos) << r.out << r.err;
+
+  // Every RECEIVED row names its station.
+  std::set<std::string> stations;
+  const nlohmann::json journal = journal_json();
+  for (const auto& row : journal["commands"])
+    if (row["state"] == "RECEIVED" && row["detail"].contains("station")) stations.insert(row["detail"]["station"]);
+  std::set<std::string> names;
+  for (const auto& st : stations) names.insert(st.substr(0, st.find(" (")));
+  EXPECT_EQ(names, (std::set<std::string>{"station 'ground'", "station 'station-b'"}));
 }

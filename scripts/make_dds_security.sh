@@ -3,33 +3,49 @@
 # builtin plugins) into the folder given as argument. Nothing here is committed:
 # the keys are made on the machine that uses them.
 #
-#   bash scripts/make_dds_security.sh DIR [DOMAIN_ID_RANGE]
+#   bash scripts/make_dds_security.sh DIR [MIN-MAX] [STATION[:observer] ...]
 #
 # DIR/
 #   ca.pem, ca_key.pem             the project's CA (identity and permissions CA)
 #   governance.xml/.p7s            domain rules: only authenticated participants
 #                                  join; discovery, liveliness and every foresight
 #                                  topic encrypted and access controlled
-#   permissions.xml/.p7s           grants, signed by the CA:
-#                                    ground, remote: publish + subscribe everything
-#                                    observer: subscribe everything; publish only
-#                                    ping and heartbeat (watches telemetry, cannot
-#                                    command or upload)
-#   identities/NAME/cert.pem, key.pem   for NAME in ground, remote, observer
+#   permissions.xml/.p7s           one grant per identity in identities/, by the
+#                                  role in its `role` file, signed by the CA:
+#                                    remote:    publishes what the robot reports
+#                                               (acks, upload status, telemetry,
+#                                               status, pongs, heartbeats, rt/*)
+#                                    commander: publishes commands, trajectory
+#                                               chunks, pings, heartbeats
+#                                    observer:  publishes pings and heartbeats only
+#                                               (watches telemetry; cannot command
+#                                               or upload)
+#                                  everyone subscribes to everything
+#   identities/NAME/cert.pem, key.pem, role
+#                                  remote (role remote), ground (commander) and
+#                                  observer (observer) always; one more per STATION
+#                                  argument: a commander, or an observer with
+#                                  ":observer" (e.g. station-b station-c:observer)
 #   foreign/                       a second, unrelated CA with the same layout and
 #                                  one identity, "intruder" (tests: it must not join)
 #
-# Domain ids: DOMAIN_ID_RANGE "MIN-MAX" (default 0-230, Cyclone's largest id) limits the grants and
-# the governance to those domains. Requires openssl. Idempotent: an existing DIR
-# is left as it is unless its files are missing (then they are made anew).
+# One identity per ground station: the remote binds control to the identity
+# (every process of one station shares it), so two stations with one identity
+# could not keep each other out. Adding a station later: run the script again
+# with its name; every identity already in DIR keeps its keys and its grant.
+# Domain ids: MIN-MAX (default 0-230, Cyclone's largest id) limits the grants and
+# the governance to those domains. Requires openssl. Idempotent: existing keys
+# and certificates are kept (missing ones are made anew); the permissions are
+# signed anew every time.
 set -euo pipefail
 
 if [[ $# -lt 1 ]]; then
-  echo "usage: make_dds_security.sh DIR [MIN-MAX]" >&2
+  echo "usage: make_dds_security.sh DIR [MIN-MAX] [STATION[:observer] ...]" >&2
   exit 2
 fi
 out=$1
 range=${2:-0-230}
+stations=("${@:3}")
 dmin=${range%-*}
 dmax=${range#*-}
 if ! [[ $dmin =~ ^[0-9]+$ && $dmax =~ ^[0-9]+$ ]] || ((dmin > dmax)); then
@@ -132,16 +148,47 @@ permissions_head='<?xml version="1.0" encoding="UTF-8"?>
 permissions_tail='  </permissions>
 </dds>'
 
-# The project's CA and identities.
+# The project's CA and identities, each with its role.
+# make_role_identity NAME ROLE
+make_role_identity() {
+  local name=$1 role=$2
+  make_identity "$out" "$name" Foresight
+  echo "$role" >"$out/identities/$name/role"
+}
+for st in "${stations[@]}"; do  # every name checked before anything is made
+  name=${st%:*}
+  if ! [[ $name =~ ^[A-Za-z0-9][A-Za-z0-9_.-]*$ && ($st == "$name" || ${st#*:} =~ ^(observer|commander)$) ]]; then
+    echo "make_dds_security.sh: '$st' is not STATION or STATION:observer / STATION:commander (a name of letters, digits, '_', '.', '-')" >&2
+    exit 2
+  fi
+done
 make_ca "$out" Foresight
-for who in ground remote observer; do make_identity "$out" "$who" Foresight; done
+make_role_identity remote remote
+make_role_identity ground commander
+make_role_identity observer observer
+for st in "${stations[@]}"; do
+  case $st in
+    *:observer) make_role_identity "${st%:observer}" observer ;;
+    *:commander) make_role_identity "${st%:commander}" commander ;;
+    *) make_role_identity "$st" commander ;;
+  esac
+done
 governance >"$out/governance.xml"
 {
   echo "$permissions_head"
-  grant ground Foresight '*'
-  grant remote Foresight '*'
-  # The observer pings (delay) and beats (liveness) but never commands or uploads.
-  grant observer Foresight foresight/ping foresight/heartbeat
+  for id in "$out"/identities/*/; do
+    name=$(basename "$id")
+    role=$(cat "$id/role" 2>/dev/null || echo observer)
+    case $role in
+      remote)
+        grant "$name" Foresight foresight/command/ack foresight/trajectory/status 'foresight/telemetry/*' \
+          foresight/status foresight/pong foresight/heartbeat 'rt/*' ;;
+      commander)
+        grant "$name" Foresight foresight/command foresight/trajectory/chunk foresight/ping foresight/heartbeat ;;
+      *)
+        grant "$name" Foresight foresight/ping foresight/heartbeat ;;
+    esac
+  done
   echo "$permissions_tail"
 } >"$out/permissions.xml"
 sign "$out" "$out/governance.xml"
@@ -159,4 +206,4 @@ governance >"$out/foreign/governance.xml"
 sign "$out/foreign" "$out/foreign/governance.xml"
 sign "$out/foreign" "$out/foreign/permissions.xml"
 
-echo "DDS Security material in $out (identities: ground remote observer; foreign/: intruder)"
+echo "DDS Security material in $out (identities: $(cd "$out/identities" && echo *); foreign/: intruder)"

@@ -2,11 +2,13 @@
 
 #include <openssl/bio.h>
 #include <openssl/err.h>
+#include <openssl/evp.h>
 #include <openssl/pem.h>
 #include <openssl/pkcs7.h>
 #include <openssl/x509.h>
 #include <openssl/x509_vfy.h>
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <memory>
@@ -185,6 +187,41 @@ Participant make_participant(dds_domainid_t domain, const std::string& security_
   if (security_dir.empty()) return Participant(domain);
   (void)verify_security_files(security_dir, identity);  // a damaged file named, not Cyclone's bare "Error"
   return Participant(domain, security_qos(security_dir, identity));
+}
+
+ParticipantGuid identity_of(const ParticipantGuid& guid) {
+  ParticipantGuid out;
+  std::copy(guid.bytes.begin(), guid.bytes.begin() + 6, out.bytes.begin());
+  return out;
+}
+
+ParticipantGuid identity_of_certificate(const std::string& cert_pem_path) {
+  const X509Ptr cert = read_certificate(cert_pem_path);
+  unsigned char* der = nullptr;
+  const int n = i2d_X509_NAME(X509_get_subject_name(cert.get()), &der);
+  if (n <= 0) refuse(cert_pem_path, "its subject cannot be encoded" + openssl_reason());
+  std::array<unsigned char, EVP_MAX_MD_SIZE> h{};
+  unsigned int len = 0;
+  const int ok = EVP_Digest(der, static_cast<std::size_t>(n), h.data(), &len, EVP_sha256(), nullptr);
+  OPENSSL_free(der);
+  if (ok != 1 || len < 6) refuse(cert_pem_path, "SHA-256 failed" + openssl_reason());
+  ParticipantGuid out;
+  out.bytes[0] = static_cast<std::uint8_t>(0x80u | (h[0] >> 1));
+  for (std::size_t i = 1; i < 6; ++i) out.bytes[i] = static_cast<std::uint8_t>(((h[i - 1] << 7) & 0xffu) | (h[i] >> 1));
+  return out;
+}
+
+std::vector<std::pair<ParticipantGuid, std::string>> known_identities(const std::string& dir) {
+  std::vector<std::pair<ParticipantGuid, std::string>> out;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(fs::path(dir) / "identities", ec)) {
+    try {
+      out.emplace_back(identity_of_certificate((e.path() / "cert.pem").string()), e.path().filename().string());
+    } catch (const ProtocolError&) {
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace foresight::protocol

@@ -18,7 +18,7 @@ struct Options {
 };
 
 int run(const Options& o) {
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   protocol::Abort a;
   a.target_command_id = o.command_id;
   a.category = o.category == 1 ? protocol::StopCategory::Cat1 : protocol::StopCategory::Cat2;

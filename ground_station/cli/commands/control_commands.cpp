@@ -20,7 +20,7 @@ bool register_control_command(const char* name, const char* help, protocol::Comm
                              auto o = std::make_shared<LinkOptions>();
                              add_link_options(sub, *o);
                              return [o, kind, hold_control] {
-                               auto link = connect_remote(resolve_domain(o->domain), o->connect_timeout_s);
+                               auto link = connect_remote(*o);
                                std::optional<ControlGuard> guard;
                                if (hold_control) guard.emplace(*link);
                                const auto r = send_and_wait(*link, kind, protocol::NoPayload{},

@@ -146,7 +146,7 @@ int run_display(const DisplayArgs& a) {
   if (synthetic) scene = Scene::from_file(a.scene);
 
   std::unique_ptr<ground_link::GroundLink> link;
-  if (a.remote) link = connect_remote(resolve_domain(a.link.domain), a.link.connect_timeout_s);
+  if (a.remote) link = connect_remote(a.link);
 
   auto context = GlContext::create(backend);
   display::DisplayComposer composer(*context, robot, &object, base_T_object);

@@ -67,7 +67,7 @@ int run(const Options& o) {
     kind = protocol::CommandKind::GotoJoint;
     target = "joints";
   }
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   const auto joints = wait_joints(*link, o.link.connect_timeout_s);
   if (!joints) throw LinkFailure("no joint report from the remote; cannot plan the move");
   double expected_s = 0.0;

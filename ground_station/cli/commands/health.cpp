@@ -102,7 +102,7 @@ int run_health(const HealthArgs& a) {
   cv::VideoCapture cap(a.video);
   if (!cap.isOpened()) throw InputError(a.video, "cannot read video or image");
 
-  const auto link = telemetry ? connect_remote(resolve_domain(a.link.domain), a.link.connect_timeout_s) : nullptr;
+  const auto link = telemetry ? connect_remote(a.link) : nullptr;
   auto context = GlContext::create(backend);
   ModelAligner aligner(*context, model, object ? &*object : nullptr, camera.viewport);
   HealthMonitor monitor;

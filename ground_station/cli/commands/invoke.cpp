@@ -46,7 +46,7 @@ protocol::InvokeAlgorithm parse(const Options& o) {
 
 int run(const Options& o) {
   const protocol::InvokeAlgorithm inv = parse(o);  // bad input before connecting
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   const auto kind = protocol::CommandKind::InvokeAlgorithm;
   // The algorithm's own timeout bounds it; 60 s when it uses its default.
   const double expected = o.algorithm_timeout_s > 0 ? o.algorithm_timeout_s : 60.0;

@@ -3,20 +3,19 @@
 // from commands/*.cpp that register a command).
 
 #include "command.hpp"
+#include "link_session.hpp"
 
 namespace foresight::cli {
-
-struct LinkOptions {
-  int domain = -1;               ///< < 0: $FORESIGHT_DDS_DOMAIN, else 0
-  double connect_timeout_s = 10.0;
-  double timeout_s = 0.0;        ///< final-ack timeout; 0 = derived from the measured delay
-  bool json = false;
-};
 
 /// `json`: false when the command adds its own --json (e.g. with the render options).
 inline void add_link_options(Command& sub, LinkOptions& o, bool final_ack = true, bool json = true) {
   sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
       ->check(check::Range(0, 232));
+  sub.add_option("--security", o.security_dir,
+                 "DDS Security: the folder made by make_dds_security.sh (default: $FORESIGHT_DDS_SECURITY; unset: "
+                 "plain DDS)");
+  sub.add_option("--identity", o.identity,
+                 "this station's identity in that folder (default: $FORESIGHT_DDS_IDENTITY, else ground)");
   sub.add_option("--connect-timeout", o.connect_timeout_s, "seconds to wait for the remote to answer")
       ->check(check::WaitSeconds)
       ->capture_default_str();

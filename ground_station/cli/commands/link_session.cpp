@@ -5,10 +5,12 @@
 #include "foresight/common/plan.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/security.hpp"
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <thread>
 
 namespace foresight::cli {
@@ -28,14 +30,49 @@ int resolve_domain(int option) {
   return protocol::domain_from_environment().value_or(0);
 }
 
-std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s) {
-  ground_link::Config config;
-  config.domain = domain;
+namespace {
+std::unique_ptr<ground_link::GroundLink> connect(const ground_link::Config& config, double timeout_s) {
+  const int domain = config.domain;
   auto link = std::make_unique<ground_link::GroundLink>(config);
   if (!link->wait_for_remote(seconds(timeout_s)))
     throw LinkFailure("no remote answered on DDS domain " + std::to_string(domain) + " within " +
-                      fixed(timeout_s, 1) + " s (is foresight-remote running? --domain / FORESIGHT_DDS_DOMAIN)");
+                      fixed(timeout_s, 1) + " s (is foresight-remote running? --domain / FORESIGHT_DDS_DOMAIN" +
+                      (config.security_dir.empty() ? std::string(")")
+                                                   : "; does it run with the same DDS Security CA, and is '" +
+                                                         config.security_identity + "' granted?)"));
   return link;
+}
+}  // namespace
+
+std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s) {
+  ground_link::Config config;
+  config.domain = domain;
+  return connect(config, timeout_s);
+}
+
+std::unique_ptr<ground_link::GroundLink> connect_remote(const LinkOptions& o) {
+  ground_link::Config config;
+  config.domain = resolve_domain(o.domain);
+  config.security_dir = o.security_dir;
+  if (config.security_dir.empty())
+    if (const char* env = std::getenv("FORESIGHT_DDS_SECURITY")) config.security_dir = env;
+  config.security_identity = o.identity;
+  if (config.security_identity.empty()) {
+    const char* env = std::getenv("FORESIGHT_DDS_IDENTITY");
+    config.security_identity = env != nullptr && *env != '\0' ? env : "ground";
+  }
+  if (!config.security_dir.empty()) {
+    try {
+      protocol::verify_security_files(config.security_dir, config.security_identity);
+    } catch (const protocol::ProtocolError& e) {
+      throw InputError(o.security_dir.empty() ? "FORESIGHT_DDS_SECURITY" : "--security", e.what());
+    }
+    // An observer may not create command or chunk writers: it watches.
+    std::ifstream role(config.security_dir + "/identities/" + config.security_identity + "/role");
+    std::string r;
+    config.read_only = role >> r && r == "observer";
+  }
+  return connect(config, o.connect_timeout_s);
 }
 
 std::chrono::nanoseconds final_ack_timeout(const ground_link::GroundLink& link, double expected_s,
@@ -80,6 +117,7 @@ ControlGuard::ControlGuard(ground_link::GroundLink& link) : link_(link) {
 }
 
 ControlGuard::~ControlGuard() {
+  if (link_.secured()) return;  // the station keeps control across its commands (its lease)
   try {
     send_and_wait(link_, protocol::CommandKind::ReleaseControl, protocol::NoPayload{}, link_.timeout_for(0.0));
   } catch (const std::exception&) {

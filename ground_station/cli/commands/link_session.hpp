@@ -28,6 +28,17 @@ class LinkFailure : public ComputationError {
   using ComputationError::ComputationError;
 };
 
+/// The options every command that talks to the remote shares
+/// (link_options.hpp registers them).
+struct LinkOptions {
+  int domain = -1;               ///< < 0: $FORESIGHT_DDS_DOMAIN, else 0
+  double connect_timeout_s = 10.0;
+  double timeout_s = 0.0;        ///< final-ack timeout; 0 = derived from the measured delay
+  bool json = false;
+  std::string security_dir;      ///< "": $FORESIGHT_DDS_SECURITY, else plain DDS
+  std::string identity;          ///< "": $FORESIGHT_DDS_IDENTITY, else "ground"
+};
+
 /// The DDS domain: `option` when >= 0, else $FORESIGHT_DDS_DOMAIN, else 0.
 /// std::invalid_argument "FORESIGHT_DDS_DOMAIN: 'x' is not a DDS domain id (0-232)".
 int resolve_domain(int option);
@@ -36,6 +47,10 @@ int resolve_domain(int option);
 /// first pong), at most `timeout_s`. LinkFailure "no remote answered on DDS
 /// domain D within T s".
 std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s);
+/// The same with the options' domain, DDS Security folder and identity (each
+/// from the environment when not given). A damaged security file is named
+/// (protocol::verify_security_files): InputError "--security: ...".
+std::unique_ptr<ground_link::GroundLink> connect_remote(const LinkOptions& options);
 
 /// How long a command may take before its final ack: the link's
 /// timeout_for(expected_s), or `override_s` when > 0.
@@ -55,9 +70,12 @@ ground_link::CommandResult wait_or_abort(ground_link::GroundLink& link, std::uin
                                          std::chrono::steady_clock::time_point sent, std::chrono::nanoseconds timeout,
                                          const std::function<bool()>& interrupted = {});
 
-/// Each CLI process is its own ground session: a command that moves the arm
-/// takes control first (LinkFailure when refused, e.g. another station holds
-/// it) and gives it back when the guard goes out of scope.
+/// A command that moves the arm takes control first (LinkFailure when
+/// refused, e.g. another station holds it). Without DDS Security each CLI
+/// process is its own ground station and gives control back when the guard
+/// goes out of scope. With it, the station is its identity: control stays
+/// with it across its commands (the remote binds it to the identity) until
+/// `release-control` or the lease (controller.control_lease_s of silence).
 class ControlGuard {
  public:
   explicit ControlGuard(ground_link::GroundLink& link);

@@ -23,7 +23,7 @@ int run(const Options& o) {
   else if (o.what == "tool") req.what = protocol::RequestWhat::ToolState;
   else if (o.what == "trajectories") req.what = protocol::RequestWhat::Trajectories;
   else req.what = protocol::RequestWhat::Status;
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   const auto kind = protocol::CommandKind::Request;
   const auto r = send_and_wait(*link, kind, req, final_ack_timeout(*link, 0.0, o.link.timeout_s));
   // The report the request made travels beside the ack: give it a moment (bounded).

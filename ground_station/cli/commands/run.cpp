@@ -142,7 +142,7 @@ int run(Options& o) {
                                  : parse_joints(o.joints_deg, "--joints-deg", model, true);
   }
   std::unique_ptr<ground_link::GroundLink> link;
-  if (!o.dry_run) link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  if (!o.dry_run) link = connect_remote(o.link);
   ScriptRunner runner(s, std::move(link));
 
   script::Executor ex(parsed, script::Executor::index_at_line(parsed, o.from_line));

@@ -38,7 +38,7 @@ int run(const Options& o) {
     return kExitFailure;
   }
   const std::string local = to_hex(trajectory_hash(traj));
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   const double upload_timeout =
       o.upload_timeout_s > 0 ? o.upload_timeout_s
                              : std::chrono::duration<double>(link->timeout_for(1.0 + traj.samples() * 1e-4)).count();

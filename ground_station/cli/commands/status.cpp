@@ -21,7 +21,7 @@ struct Options {
 };
 
 int run(const Options& o) {
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   // A few round trips for the statistics, and the first telemetry (both bounded).
   link->delay().wait_samples(static_cast<std::size_t>(o.samples),
                              std::chrono::duration_cast<std::chrono::nanoseconds>(

@@ -27,7 +27,7 @@ struct Options {
 };
 
 int run(const Options& o) {
-  auto link = connect_remote(resolve_domain(o.link.domain), o.link.connect_timeout_s);
+  auto link = connect_remote(o.link);
   std::signal(SIGINT, on_sigint);
   std::signal(SIGTERM, on_sigint);
   using Clock = std::chrono::steady_clock;

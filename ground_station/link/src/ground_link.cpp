@@ -511,6 +511,7 @@ DelayMonitor& GroundLink::delay() noexcept { return impl_->delay; }
 const DelayMonitor& GroundLink::delay() const noexcept { return impl_->delay; }
 std::uint64_t GroundLink::session_id() const noexcept { return impl_->sequencer.session_id(); }
 const protocol::Participant& GroundLink::participant() const noexcept { return impl_->participant; }
+bool GroundLink::secured() const noexcept { return !impl_->config.security_dir.empty(); }
 void GroundLink::pause_heartbeat() noexcept { impl_->heartbeat_paused.store(true); }
 void GroundLink::resume_heartbeat() noexcept { impl_->heartbeat_paused.store(false); }
 

@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -140,5 +141,77 @@ TEST_F(SecureLink, AnObserverReadsTelemetryButCannotCommand) {
     } catch (const fp::ProtocolError& e) {
       EXPECT_EQ(e.what(), "create writer on " + std::string(topic) + ": Not Allowed By Security") << e.what();
     }
+  }
+}
+
+// DDS Security 1.1, 9.3.3: an authenticated participant's GUID begins with 48
+// bits of its certificate's subject. The remote binds control to them, so
+// every process of one station is the same commander (issue 28, item 6).
+TEST_F(SecureLink, AnAuthenticatedParticipantsGuidBeginsWithItsIdentity) {
+  auto guid_of = [](const fp::Participant& p) {
+    dds_guid_t g;
+    EXPECT_EQ(dds_get_guid(p.get(), &g), DDS_RETCODE_OK);
+    fp::ParticipantGuid out;
+    std::memcpy(out.bytes.data(), g.v, 16);
+    return out;
+  };
+  fp::Participant a(domain_, fp::security_qos(dir_, "ground"));
+  fp::Participant b(domain_, fp::security_qos(dir_, "ground"));
+  fp::Participant o(domain_, fp::security_qos(dir_, "observer"));
+  const fp::ParticipantGuid ground = fp::identity_of_certificate(dir_ + "/identities/ground/cert.pem");
+  EXPECT_NE(guid_of(a), guid_of(b));
+  EXPECT_EQ(fp::identity_of(guid_of(a)), ground) << guid_of(a).hex();
+  EXPECT_EQ(fp::identity_of(guid_of(b)), ground) << guid_of(b).hex();
+  EXPECT_EQ(fp::identity_of(guid_of(o)), fp::identity_of_certificate(dir_ + "/identities/observer/cert.pem"));
+  EXPECT_NE(fp::identity_of(guid_of(o)), ground);
+  EXPECT_EQ(ground.bytes[0] & 0x80u, 0x80u);
+  for (std::size_t i = 6; i < 16; ++i) EXPECT_EQ(ground.bytes[i], 0u);
+
+  const auto known = fp::known_identities(dir_);
+  std::vector<std::string> names;
+  for (const auto& [id, name] : known) {
+    names.push_back(name);
+    if (name == "ground") EXPECT_EQ(id, ground);
+  }
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"ground", "observer", "remote"}));
+  try {
+    fp::identity_of_certificate(dir_ + "/ca_key.pem");
+    ADD_FAILURE() << "a key taken for a certificate";
+  } catch (const fp::ProtocolError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("DDS Security: " + dir_ + "/ca_key.pem: is not a PEM certificate", 0), 0u)
+        << e.what();
+  }
+}
+
+// Each role publishes only its own side's topics: a ground station cannot
+// speak as the remote (acks, status, telemetry, pongs), the remote cannot
+// command. One participant at a time: Cyclone 0.10 gives participants that
+// live at once in one domain of one process the first one's permissions.
+TEST_F(SecureLink, EachRolePublishesOnlyItsOwnSidesTopics) {
+  auto refused = [](const std::string& topic, auto make) {
+    try {
+      make();
+      ADD_FAILURE() << "allowed to write " << topic;
+    } catch (const fp::ProtocolError& e) {
+      EXPECT_EQ(e.what(), "create writer on " + topic + ": Not Allowed By Security") << e.what();
+    }
+  };
+  {
+    fp::Participant ground(domain_, fp::security_qos(dir_, "ground"));
+    refused(fp::topics::kCommandAck, [&] { fp::Writer<msg::CommandAck> w(ground); });
+    refused(fp::topics::kControllerStatus, [&] { fp::Writer<msg::ControllerStatus> w(ground); });
+    refused(fp::topics::kJointState, [&] { fp::Writer<msg::JointState> w(ground); });
+    refused(fp::topics::kPong, [&] { fp::Writer<msg::Pong> w(ground); });
+    refused(fp::topics::kTrajectoryStatus, [&] { fp::Writer<msg::TrajectoryStatus> w(ground); });
+    EXPECT_NO_THROW(fp::Writer<msg::Command> w(ground));
+    EXPECT_NO_THROW(fp::Writer<msg::TrajectoryChunk> w(ground));
+  }
+  {
+    fp::Participant remote(domain_, fp::security_qos(dir_, "remote"));
+    refused(fp::topics::kCommand, [&] { fp::Writer<msg::Command> w(remote); });
+    refused(fp::topics::kTrajectoryChunk, [&] { fp::Writer<msg::TrajectoryChunk> w(remote); });
+    EXPECT_NO_THROW(fp::Writer<msg::ControllerStatus> w(remote));
+    EXPECT_NO_THROW(fp::Writer<msg::Pong> w(remote));
   }
 }

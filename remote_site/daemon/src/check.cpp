@@ -321,10 +321,20 @@ CheckItem check_journal_dir(const std::string& journal_path) {
 
 // ---- DDS security -------------------------------------------------------------------------
 
-CheckItem check_security(const std::string& dir, const std::string& identity) {
+/// `dir` and `identity` as the daemon takes them (--security, else
+/// controller.link.security); `insecure`: controller.link.insecure.
+CheckItem check_security(const std::string& dir, const std::string& identity, bool sim, bool insecure) {
   const std::string name = "DDS security";
+  if (dir.empty() && insecure)
+    return item(name, CheckResult::Warn,
+                "controller.link.insecure: true: the link runs without DDS Security; any participant of the DDS "
+                "domain can command the arm (make_dds_security.sh, docs/deploy.md)");
+  if (dir.empty() && sim)
+    return item(name, CheckResult::Skip, "not configured (no --security folder): the simulated link runs unauthenticated");
   if (dir.empty())
-    return item(name, CheckResult::Skip, "not configured (no --security folder): the link runs unauthenticated");
+    return item(name, CheckResult::Fail,
+                "not configured: the daemon refuses to start off --sim without controller.link.security (or "
+                "--security DIR), unless controller.link.insecure: true");
   protocol::SecurityFacts facts;
   try {
     facts = protocol::verify_security_files(dir, identity);  // what the daemon's participant reads, read the same way
@@ -458,7 +468,12 @@ CheckReport run_check(const CheckOptions& o) {
     add(check_journal_dir(o.journal_path.empty() ? daemon_config->journal.path : o.journal_path));
   else
     add(item("journal", CheckResult::Skip, "the configuration did not load"));
-  add(check_security(o.security_dir, o.security_identity));
+  {
+    std::string dir = o.security_dir, identity = o.security_identity;
+    if (dir.empty() && daemon_config) dir = daemon_config->security_dir;
+    if (identity.empty()) identity = daemon_config ? daemon_config->security_identity : "remote";
+    add(check_security(dir, identity, o.sim, o.security_dir.empty() && daemon_config && daemon_config->insecure));
+  }
   return report;
 }
 

@@ -1,6 +1,7 @@
 #include "foresight/remote/daemon_config.hpp"
 
 #include <cmath>
+#include <filesystem>
 
 #include "foresight/common/text_file.hpp"
 #include "foresight/common/trajectory.hpp"
@@ -57,7 +58,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   }
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");
-    link.check_keys({"loss_timeout_s", "loss_policy"});
+    link.check_keys({"loss_timeout_s", "loss_policy", "security", "identity", "insecure"});
     c.link_loss_timeout_s = link.get_or_in("loss_timeout_s", c.link_loss_timeout_s, 0.05, 3600, "s");
     const std::string policy = link.get_or<std::string>("loss_policy", "finish_and_hold");
     if (policy == "finish_and_hold") {
@@ -67,6 +68,17 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
     } else {
       link.fail_key("loss_policy", "'" + policy + "' is not a policy (expected finish_and_hold or stop)");
     }
+    c.security_dir = link.get_or<std::string>("security", "");
+    if (!c.security_dir.empty() && std::filesystem::path(c.security_dir).is_relative())
+      c.security_dir = (std::filesystem::path(source_name).parent_path() / c.security_dir).lexically_normal().string();
+    c.security_identity = link.get_or<std::string>("identity", c.security_identity);
+    if (c.security_identity.empty() || c.security_identity.find('/') != std::string::npos ||
+        c.security_identity.find("..") != std::string::npos)
+      link.fail_key("identity", "'" + c.security_identity + "' is not an identity name (a folder under identities/)");
+    c.insecure = link.get_or<bool>("insecure", false);
+    if (c.insecure && !c.security_dir.empty())
+      link.fail_key("insecure", "contradicts link.security '" + link.get_or<std::string>("security", "") +
+                                    "': say one or the other");
   }
   if (s["reports"]) {
     const yaml::MapReader rep = s.map("reports");

@@ -149,7 +149,7 @@ struct Options {
   std::string estop_file;
   std::string sim_faults;
   std::string security_dir;
-  std::string security_identity = "remote";
+  std::string security_identity;  ///< "": controller.link.identity (remote)
   bool ros2 = false;
   int loop_cpu = -1;      ///< pin the control loop thread (an isolated CPU); -1: not pinned
   int rt_priority = 80;   ///< the control loop's SCHED_FIFO priority
@@ -165,13 +165,30 @@ int run_daemon(Options o) {
   // The DDS Security files read and checked before any hardware is touched: a
   // damaged certificate, key or signed document is named here (Cyclone would
   // say only "create participant: Error", after the drives were configured).
-  if (!o.security_dir.empty()) {
+  // --security / --identity override controller.link.security / identity.
+  const bool security_flag = !o.security_dir.empty();
+  if (security_flag) config.security_dir = o.security_dir;
+  if (!o.security_identity.empty()) config.security_identity = o.security_identity;
+  if (security_flag && config.insecure)
+    throw InputError(o.config, "controller.link.insecure: true contradicts --security " + o.security_dir);
+  if (!config.security_dir.empty()) {
     try {
-      const protocol::SecurityFacts facts = protocol::verify_security_files(o.security_dir, o.security_identity);
+      const protocol::SecurityFacts facts = protocol::verify_security_files(config.security_dir, config.security_identity);
       spdlog::info("DDS Security: {}", facts.describe());
     } catch (const protocol::ProtocolError& e) {
-      throw InputError("--security", e.what());
+      throw InputError(security_flag ? "--security" : o.config + ": controller.link.security", e.what());
     }
+  } else if (!o.sim && !config.insecure) {
+    // Off the simulator an open link would take commands from every
+    // participant of the domain: refused unless the configuration says so.
+    throw InputError(o.config, "controller.link.security is not set: the DDS link would be open to every participant "
+                               "of domain " + std::to_string(o.domain) +
+                               ". Make the identities (make_dds_security.sh DIR, docs/deploy.md) and set "
+                               "controller.link.security: DIR (or --security DIR), or say controller.link.insecure: "
+                               "true to run it open");
+  } else if (config.insecure) {
+    spdlog::warn("controller.link.insecure: true: the DDS link runs without DDS Security (any participant of domain "
+                 "{} can reach it)", o.domain);
   }
   if (!o.journal.empty()) config.journal.path = o.journal;
   if (!o.estop_file.empty()) config.estop_file = o.estop_file;
@@ -267,6 +284,7 @@ int run_daemon(Options o) {
   remote::SupervisorParts parts;
   parts.model = &model;
   parts.config = config;
+  if (!config.security_dir.empty()) parts.identities = protocol::known_identities(config.security_dir);
   parts.loop = &loop;
   parts.journal = &journal;
   parts.tool = &tool;
@@ -309,8 +327,8 @@ int run_daemon(Options o) {
   lc.domain = o.domain;
   lc.link_loss_s = config.link_loss_timeout_s;
   lc.trajectory_limits = TrajectoryLimits::from_model(model);
-  lc.security_dir = o.security_dir;
-  lc.security_identity = o.security_identity;
+  lc.security_dir = config.security_dir;
+  lc.security_identity = config.security_identity;
   lc.ros2 = o.ros2;
   lc.ros2_joint_names = model.joint_names();
   remote_link::Handlers handlers;
@@ -325,7 +343,11 @@ int run_daemon(Options o) {
     journal::EventRow start;
     start.kind = "start";
     start.text = std::string("foresight-remote started") + (o.sim ? " (--sim)" : "") + ", config " + o.config +
-                 ", DDS domain " + std::to_string(o.domain);
+                 ", DDS domain " + std::to_string(o.domain) +
+                 (!config.security_dir.empty() ? ", DDS Security as '" + config.security_identity + "' (" +
+                                                     config.security_dir + ")"
+                  : config.insecure ? ", WITHOUT DDS Security (controller.link.insecure: true)"
+                                    : ", without DDS Security (--sim)");
     journal.record_event(start);
   }
   spdlog::info("foresight-remote ready: DDS domain {}, journal {}, drives disabled until RECOVER", o.domain,
@@ -393,8 +415,10 @@ int main(int argc, char** argv) {
   app.add_option("--estop-file", o.estop_file, "E-stop (category 0) while this file exists (HIL tests, --sim)");
   app.add_option("--security", o.security_dir,
                  "DDS Security: the folder made by scripts/make_dds_security.sh (authentication, access control, "
-                 "encryption; docs/protocol.md)");
-  app.add_option("--identity", o.security_identity, "DDS Security identity in that folder (default remote)");
+                 "encryption; docs/protocol.md; default controller.link.security). Off --sim the daemon refuses to "
+                 "start without it unless controller.link.insecure: true");
+  app.add_option("--identity", o.security_identity,
+                 "DDS Security identity in that folder (default controller.link.identity, remote)");
   app.add_flag("--ros2", o.ros2, "also publish rt/joint_states and rt/wrench as ROS 2 types");
   app.add_option("--sim-faults", o.sim_faults,
                  "with --sim: fault injection folder (tool_jam, ft_fault, oru_stuck, video_silent, drive_emcy_J, drive_silent_J, bus_loss_B files; drive_record out; HIL tests)");

@@ -54,6 +54,13 @@ std::int64_t wall_now_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
 }
 
+/// A session id as 16 hex digits.
+std::string hex16(std::uint64_t v) {
+  char buf[20];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
 std::string fmt(const char* f, double a, double b = 0.0) {
   char buf[160];
   std::snprintf(buf, sizeof buf, f, a, b);
@@ -214,7 +221,8 @@ void Supervisor::ack(const protocol::Command& command, AckState state, Reason co
   row.reason = reason;
   nlohmann::json detail = state == AckState::Received ? payload_json(command) : nlohmann::json::object();
   if (state == AckState::Received) {
-    detail["writer"] = current_writer_.hex();  // the participant that sent it
+    detail["writer"] = current_writer_.hex();  // the participant (with DDS Security: the identity) that sent it
+    if (stations()) detail["station"] = writer_text(current_writer_);
     if (command.after_command_id != 0) detail["after_command_id"] = command.after_command_id;
   }
   if (!a.final_q_rad.empty()) detail["final_q_rad"] = a.final_q_rad;
@@ -278,7 +286,7 @@ void Supervisor::handle(const remote_link::CommandEvent& event) {
     link_lost_ = false;
     p_.loop->set_link_lost(false);
     journal_event("link_regained", "a command arrived from session " + std::to_string(c.session_id) +
-                                       " (participant " + current_writer_.hex() + ")");
+                                       " (" + writer_text(current_writer_) + ")");
     publish_reports(true);
   }
   if (from_commander(c)) commander_active_ = Clock::now();
@@ -292,24 +300,26 @@ void Supervisor::set_commander(std::uint64_t session, const protocol::Participan
   if (p_.outbox.commander) p_.outbox.commander(commander_writer_);
 }
 
+std::string Supervisor::writer_text(const protocol::ParticipantGuid& writer) const {
+  if (!stations()) return "participant " + writer.hex();
+  for (const auto& [id, name] : p_.identities)
+    if (id == writer) return "station '" + name + "' (" + writer.hex() + ")";
+  return "station " + writer.hex();
+}
+
 std::string Supervisor::check_commander(const protocol::Command& c, Reason* code) const {
   if (from_commander(c)) return {};
   *code = Reason::NotInControl;
   if (commander_ != 0 && c.session_id == commander_) {
     // The commander's session id from another participant: read off a
     // published ack, it must not move the arm (journaled with its writer).
-    char buf[200];
-    std::snprintf(buf, sizeof buf, "session %016llx is in control from participant %s; this command came from participant %s",
-                  static_cast<unsigned long long>(commander_), commander_writer_.hex().c_str(),
-                  current_writer_.hex().c_str());
-    return buf;
+    return "session " + hex16(commander_) + " is in control from " + writer_text(commander_writer_) +
+           "; this command came from " + writer_text(current_writer_);
   }
   if (commander_ == 0)
     return std::string("no ground station holds control: send TAKE_CONTROL first");
-  char buf[120];
-  std::snprintf(buf, sizeof buf, "ground session %016llx holds control",
-                static_cast<unsigned long long>(commander_));
-  return buf;
+  if (stations()) return writer_text(commander_writer_) + " holds control";
+  return "ground session " + hex16(commander_) + " holds control";
 }
 
 std::string Supervisor::check_can_move(Reason* code) const {
@@ -358,11 +368,14 @@ void Supervisor::dispatch(const protocol::Command& c) {
                                             fmt("%.0f s", p_.config.control_lease_s) + " of silence)");
         return;
       }
-      if (lease_over && !from_commander(c))
-        journal_event("control", "control lease of a silent session ended; taken over");
+      const bool kept = from_commander(c);  // with DDS Security: this station already held it
+      if (lease_over && !kept)
+        journal_event("control", "control lease of a silent session ended; taken over by " + writer_text(current_writer_));
       set_commander(c.session_id, current_writer_);
       commander_active_ = Clock::now();
-      ack(c, AckState::Completed, Reason::None, "control taken", current_q());
+      ack(c, AckState::Completed, Reason::None,
+          kept && stations() ? "control kept: " + writer_text(current_writer_) + " already held it" : "control taken",
+          current_q());
       publish_reports(true);
       return;
     }

@@ -454,6 +454,72 @@ TEST(CheckSecurity, SignedDocumentsAndDamagedFilesAreNamedByCheckAndTheDaemon) {
   fs::remove_all(dir, ec);
 }
 
+// Security by default (issue 28): off the simulator the daemon does not run
+// an open link unless the configuration says `insecure: true` in so many
+// words; check says the same; a relative folder is the configuration's.
+TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
+  ConfigDir cfg;
+  cfg.real_buses();
+  const std::string journal = (cfg.dir / "j.db").string();
+  const ShellRun open = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() + " --journal " +
+                                  journal + " --domain 7 2>&1");
+  EXPECT_EQ(open.status, 2) << open.out;
+  EXPECT_NE(open.out.find("foresight-remote: error: " + cfg.yaml() +
+                          ": controller.link.security is not set: the DDS link would be open to every participant of "
+                          "domain 7. Make the identities (make_dds_security.sh DIR, docs/deploy.md) and set "
+                          "controller.link.security: DIR (or --security DIR), or say controller.link.insecure: true "
+                          "to run it open\n"),
+            std::string::npos)
+      << open.out;
+  EXPECT_EQ(open.out.find("configuring"), std::string::npos) << "the hardware was touched:\n" << open.out;
+  EXPECT_FALSE(fs::exists(journal));
+
+  auto security_item = [&](const std::string& yaml) {
+    const ShellRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --json --config " + yaml +
+                                 " 2>/dev/null");
+    const auto report = nlohmann::json::parse(r.out);
+    for (const auto& i : report.at("items"))
+      if (i.at("name") == "DDS security") return std::make_pair(i.at("result").get<std::string>(), i.at("why").get<std::string>());
+    ADD_FAILURE() << "no DDS security item:\n" << r.out;
+    return std::make_pair(std::string(), std::string());
+  };
+  auto [result, why] = security_item(cfg.yaml());
+  EXPECT_EQ(result, "FAIL");
+  EXPECT_EQ(why, "not configured: the daemon refuses to start off --sim without controller.link.security (or "
+                 "--security DIR), unless controller.link.insecure: true");
+
+  // Said in so many words: the daemon goes on (to the missing CAN interface here) with a warning; check warns.
+  cfg.replace("    identity: remote\n", "    identity: remote\n    insecure: true\n");
+  const ShellRun insecure = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() +
+                                      " --journal " + journal + " --domain 7 2>&1");
+  EXPECT_NE(insecure.status, 0);
+  EXPECT_EQ(insecure.out.find("controller.link.security is not set"), std::string::npos) << insecure.out;
+  EXPECT_NE(insecure.out.find("controller.link.insecure: true: the DDS link runs without DDS Security (any participant "
+                              "of domain 7 can reach it)"),
+            std::string::npos)
+      << insecure.out;
+  std::tie(result, why) = security_item(cfg.yaml());
+  EXPECT_EQ(result, "WARN");
+  EXPECT_EQ(why, "controller.link.insecure: true: the link runs without DDS Security; any participant of the DDS domain "
+                 "can command the arm (make_dds_security.sh, docs/deploy.md)");
+
+  // Both at once contradict each other: check and the daemon refuse the configuration.
+  cfg.replace("security: \"\"", "security: sec");
+  const ShellRun both = run_shell("timeout 60 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>&1");
+  EXPECT_EQ(both.status, 1) << both.out;
+  EXPECT_NE(both.out.find(": controller.link.insecure: contradicts link.security 'sec': say one or the other"),
+            std::string::npos)
+      << both.out;
+
+  // The folder relative to the configuration file.
+  cfg.replace("    insecure: true\n", "");
+  if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
+  ASSERT_EQ(run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + (cfg.dir / "sec").string()).status, 0);
+  std::tie(result, why) = security_item(cfg.yaml());
+  EXPECT_EQ(result, "PASS") << why;
+  EXPECT_NE(why.find("identity 'remote' in " + (cfg.dir / "sec").string() + ":"), std::string::npos) << why;
+}
+
 // ---- deployment files -----------------------------------------------------------------------------
 
 TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {

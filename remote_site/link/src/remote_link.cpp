@@ -262,6 +262,13 @@ struct RemoteLink::Impl {
   void report_rate_limits(Clock::time_point now);
   mutable std::mutex commander_mutex;
   protocol::ParticipantGuid commander;  // set_commander; unknown: anyone's heartbeats count
+  /// Who wrote a sample: its participant, or with DDS Security its
+  /// identity (protocol::identity_of: every process of one ground station is
+  /// one writer, so control, sessions and rate limits belong to the station).
+  protocol::ParticipantGuid writer_of(dds_entity_t reader, dds_instance_handle_t handle) const {
+    const protocol::ParticipantGuid p = protocol::writer_participant(reader, handle);
+    return config.security_dir.empty() ? p : protocol::identity_of(p);
+  }
   /// True when `writer` may speak for the link: the commander, or anyone while nobody is in control.
   bool from_commander(const protocol::ParticipantGuid& writer) const {
     std::lock_guard lock(commander_mutex);
@@ -295,6 +302,10 @@ void RemoteLink::Impl::run() noexcept {
 }
 
 void RemoteLink::Impl::watch_commander(Clock::time_point now) {
+  // With DDS Security control belongs to the station's identity, not to one
+  // of its processes: it keeps control between commands until it releases it
+  // or its lease ends (the supervisor's control_lease_s).
+  if (!config.security_dir.empty()) return;
   if (now < next_commander_check) return;
   next_commander_check = now + std::chrono::milliseconds(250);
   protocol::ParticipantGuid who;
@@ -307,7 +318,7 @@ void RemoteLink::Impl::watch_commander(Clock::time_point now) {
   const dds_return_t n = dds_get_matched_publications(commands.get(), handles.data(), handles.size());
   if (n < 0) return;
   for (dds_return_t i = 0; i < std::min<dds_return_t>(n, static_cast<dds_return_t>(handles.size())); ++i)
-    if (protocol::writer_participant(commands.get(), handles[static_cast<std::size_t>(i)]) == who) return;
+    if (writer_of(commands.get(), handles[static_cast<std::size_t>(i)]) == who) return;
   if (n > static_cast<dds_return_t>(handles.size())) return;  // more writers than looked at: not sure
   {
     std::lock_guard lock(commander_mutex);
@@ -388,7 +399,7 @@ void RemoteLink::Impl::serve_heartbeats() {
   dds_sample_info_t info{};
   for (int i = 0; i < kTakeBatch && heartbeats.take(heartbeat_in, &info); ++i) {
     if (protocol::raw(heartbeat_in->side) != foresight_msg_SIDE_GROUND) continue;  // our own, looped back (or invalid)
-    if (!from_commander(protocol::writer_participant(heartbeats.get(), info.publication_handle))) {
+    if (!from_commander(writer_of(heartbeats.get(), info.publication_handle))) {
       n_foreign_heartbeats.fetch_add(1);  // an observer's or an impostor's: keeps no link
       continue;
     }
@@ -420,7 +431,7 @@ void RemoteLink::Impl::serve_commands() {
     const msg::Command& c = *command_in;
     const std::int64_t received = protocol::now_ns();
     CommandEvent event;
-    event.writer = protocol::writer_participant(commands.get(), info.publication_handle);
+    event.writer = writer_of(commands.get(), info.publication_handle);
     const bool commanders_abort =
         protocol::raw(c.payload._d) == foresight_msg_CMD_ABORT && from_commander(event.writer);
     if (!commanders_abort && !admit(event.writer, Clock::now())) continue;  // over its rate: dropped, counted
@@ -484,7 +495,7 @@ void RemoteLink::Impl::serve_chunks() {
   dds_sample_info_t info{};
   for (int i = 0; i < kTakeBatch && chunks.take(chunk_in, &info); ++i) {
     n_chunks.fetch_add(1);
-    if (!from_commander(protocol::writer_participant(chunks.get(), info.publication_handle))) {
+    if (!from_commander(writer_of(chunks.get(), info.publication_handle))) {
       n_foreign_chunks.fetch_add(1);  // never stored: another participant holds no upload slot
       continue;
     }

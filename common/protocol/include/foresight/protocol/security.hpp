@@ -12,6 +12,8 @@
 // Set-up only (allocates, may throw).
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/qos.hpp"
@@ -46,6 +48,24 @@ SecurityFacts verify_security_files(const std::string& dir, const std::string& i
 /// dir/identities/<identity>/{cert,key}.pem). Throws ProtocolError naming
 /// the first file that is missing.
 Qos security_qos(const std::string& dir, const std::string& identity);
+
+/// The identity part of an authenticated participant's GUID (DDS Security
+/// 1.1, 9.3.3): its first 48 bits are derived from its certificate's
+/// subject, 0x80 | SHA-256(subject, DER) >> 1, and the handshake refuses a
+/// participant whose GUID does not match its certificate. Every process of
+/// one identity (one ground station) shares them; nobody else can have
+/// them. Returns `guid` with bytes 6..15 zeroed (unknown stays unknown).
+ParticipantGuid identity_of(const ParticipantGuid& guid);
+
+/// The same 48 bits computed from a certificate (PEM): the identity_of() of
+/// every participant authenticated with it. Throws ProtocolError naming the
+/// file when it is not a certificate.
+ParticipantGuid identity_of_certificate(const std::string& cert_pem_path);
+
+/// Every identity in `dir`/identities/*/cert.pem: its identity_of_certificate()
+/// and its name (the folder's), to name the writers in messages. Files that
+/// are not certificates are skipped.
+std::vector<std::pair<ParticipantGuid, std::string>> known_identities(const std::string& dir);
 
 /// The one way both links make their participant: on `domain`, secured as
 /// `identity` with the material in `security_dir` (verify_security_files

@@ -181,6 +181,9 @@ class GroundLink {
   const DelayMonitor& delay() const noexcept;
   std::uint64_t session_id() const noexcept;
   const protocol::Participant& participant() const noexcept;
+  /// With DDS Security: this station is its identity (Config::security_identity),
+  /// and the remote binds control to it, not to this process.
+  bool secured() const noexcept;
 
   /// Stops our heartbeat (the remote then sees a link loss); tests and the
   /// link-loss drill. resume_heartbeat() starts it again.

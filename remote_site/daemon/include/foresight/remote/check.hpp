@@ -53,8 +53,8 @@ struct CheckOptions {
   std::string remote_yaml;            ///< config/remote.yaml (robot.urdf, scene.yaml, oru.yaml beside it)
   std::string urdf;                   ///< default: robot.urdf beside remote_yaml
   bool sim = false;                   ///< check the simulated site (--sim) instead of CAN + Modbus hardware
-  std::string security_dir;           ///< DDS security folder (scripts/make_dds_security.sh); "" = not configured
-  std::string security_identity = "remote";
+  std::string security_dir;           ///< DDS security folder (--security); "" = controller.link.security
+  std::string security_identity;      ///< "" = controller.link.identity (remote)
   std::string journal_path;           ///< overrides controller.journal.path ("" = the config's)
   double tool_timeout_s = 0.3;        ///< per Modbus attempt, no retries
   int rt_priority = 80;               ///< the control loop's SCHED_FIFO priority (LoopOptions)
@@ -93,8 +93,9 @@ CheckItem check_memlock(bool required);
 CheckItem check_kernel();
 CheckItem check_clock();
 CheckItem check_journal_dir(const std::string& journal_path);
-/// SKIP when dir is empty.
-CheckItem check_security(const std::string& dir, const std::string& identity);
+/// `dir` empty: WARN when `insecure` (controller.link.insecure: true), SKIP
+/// with `sim`, else FAIL (the daemon would refuse to start).
+CheckItem check_security(const std::string& dir, const std::string& identity, bool sim = true, bool insecure = false);
 
 /// The subcommand: prints the report (text, or one JSON object with `json`)
 /// on `out`; returns 0 when fit, 1 when not.

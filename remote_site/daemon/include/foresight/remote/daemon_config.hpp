@@ -36,6 +36,13 @@ struct DaemonConfig {
   double start_tolerance_rad = 0.01;      ///< a trajectory must start this close to the arm, every joint
   double link_loss_timeout_s = 3.0;       ///< no ground heartbeat this long: the link is lost
   LinkLossPolicy link_loss_policy = LinkLossPolicy::FinishAndHold;
+  /// DDS Security on the link (`link.security`: the folder made by
+  /// make_dds_security.sh, relative to this file; --security overrides) and
+  /// this side's identity in it. Empty: plain DDS, which the daemon accepts
+  /// only with --sim or `link.insecure: true` (said in so many words).
+  std::string security_dir;
+  std::string security_identity = "remote";
+  bool insecure = false;
   ReportRates reports;
   JournalSettings journal;
   std::string estop_file;                 ///< E-stop (category 0) while this file exists; "" = no such input

@@ -84,6 +84,11 @@ struct SupervisorParts {
   /// event after every motion and tool step, for the demo's report. Empty on
   /// a real cabinet, where no such truth exists.
   std::function<std::string()> sim_truth;
+  /// With DDS Security (config.security_dir set) the link names writers by
+  /// identity (protocol::identity_of) and control belongs to a station's
+  /// identity, across its processes and sessions. The identities known by
+  /// name (protocol::known_identities), for messages and the journal.
+  std::vector<std::pair<protocol::ParticipantGuid, std::string>> identities;
 };
 
 class Supervisor {
@@ -230,10 +235,15 @@ class Supervisor {
   protocol::ParticipantGuid commander_writer_;
   /// The writer of the command handle() is working on.
   protocol::ParticipantGuid current_writer_;
-  /// The command at hand is the commander's: its session, from its participant.
+  /// The command at hand is the commander's: its session, from its
+  /// participant; with DDS Security any session of the commanding station.
   bool from_commander(const protocol::Command& c) const noexcept {
-    return commander_ != 0 && c.session_id == commander_ && current_writer_ == commander_writer_;
+    return commander_ != 0 && current_writer_ == commander_writer_ && (stations() || c.session_id == commander_);
   }
+  bool stations() const noexcept { return !p_.config.security_dir.empty(); }
+  /// "participant 0110a4c1.5e3f0001.00000000.000001c1", or with DDS Security
+  /// "station 'ground' (eb49bb7a.00a60000.00000000.00000000)".
+  std::string writer_text(const protocol::ParticipantGuid& writer) const;
   void set_commander(std::uint64_t session, const protocol::ParticipantGuid& writer);
   Clock::time_point commander_active_{};
   std::uint64_t last_sequence_ = 0;
