@@ -72,12 +72,20 @@ file(CHMOD ${_stage}/remote/postinst ${_stage}/remote/postrm ${_stage}/remote/pr
      PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE GROUP_READ GROUP_EXECUTE WORLD_READ WORLD_EXECUTE)
 file(WRITE ${_stage}/ground/foresight-ground.sh
      "# The foresight CLI reads its configuration from /etc/foresight-ground unless told otherwise.\n"
-     ": \"\${FORESIGHT_CONFIG_DIR:=/etc/foresight-ground}\"\nexport FORESIGHT_CONFIG_DIR\n"
-     "# and uses this station's DDS Security identity once it is installed there (docs/deploy.md, 3).\n"
-     "if [ -z \"\${FORESIGHT_DDS_SECURITY:-}\" ] && [ -d /etc/foresight-ground/dds-security ]; then\n"
-     "  FORESIGHT_DDS_SECURITY=/etc/foresight-ground/dds-security; export FORESIGHT_DDS_SECURITY\nfi\n")
+     ": \"\${FORESIGHT_CONFIG_DIR:=/etc/foresight-ground}\"\nexport FORESIGHT_CONFIG_DIR\n")
+# The station's ground.yaml: DDS Security on (docs/deploy.md, section 3).
+set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/config/ground.yaml)
+file(READ ${CMAKE_SOURCE_DIR}/config/ground.yaml _ground_yaml)
+string(REPLACE "security: \"\"                  # installed: dds-security (/etc/foresight-ground/dds-security)"
+       "security: dds-security        # /etc/foresight-ground/dds-security: this station's identity (docs/deploy.md, 3)"
+       _ground_yaml "${_ground_yaml}")
+if(NOT _ground_yaml MATCHES "security: dds-security")
+  message(FATAL_ERROR "cmake/Install.cmake: config/ground.yaml's link.security line changed: update the "
+                      "installed file's replacement")
+endif()
+file(WRITE ${_stage}/ground.yaml "# Installed by the foresight-ground package (a conffile: your edits are kept).\n${_ground_yaml}")
 file(WRITE ${_stage}/ground/conffiles
-     "/etc/foresight-ground/robot.urdf\n/etc/foresight-ground/oru.yaml\n/etc/foresight-ground/scene.yaml\n"
+     "/etc/foresight-ground/ground.yaml\n/etc/foresight-ground/robot.urdf\n/etc/foresight-ground/oru.yaml\n/etc/foresight-ground/scene.yaml\n"
      "/etc/foresight-ground/remote.yaml\n/etc/foresight-ground/scripts/oru_changeout.task\n"
      "/etc/profile.d/foresight-ground.sh\n")
 
@@ -107,6 +115,7 @@ install(TARGETS foresight RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT 
 install(FILES ${CMAKE_SOURCE_DIR}/config/robot.urdf ${CMAKE_SOURCE_DIR}/config/oru.yaml
               ${CMAKE_SOURCE_DIR}/config/scene.yaml ${CMAKE_SOURCE_DIR}/config/remote.yaml
         DESTINATION /etc/foresight-ground COMPONENT ground)
+install(FILES ${_stage}/ground.yaml DESTINATION /etc/foresight-ground COMPONENT ground)
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/config/scripts/ DESTINATION /etc/foresight-ground/scripts COMPONENT ground)
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/config/drives/ DESTINATION /etc/foresight-ground/drives COMPONENT ground)
 install(FILES ${_stage}/ground/foresight-ground.sh DESTINATION /etc/profile.d COMPONENT ground)

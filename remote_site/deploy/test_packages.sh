@@ -40,6 +40,9 @@ for f in /usr/bin/foresight-remote \
   grep -qx "$f" "$tmp/remote.files" || fail "foresight-remote lacks $f"
 done
 grep -qx /usr/bin/foresight "$tmp/remote.files" && fail "foresight-remote holds the ground CLI"
+# The cabinet's configuration runs the link with DDS Security (issue 28).
+dpkg-deb --fsys-tarfile "$remote" | tar -xO ./etc/foresight/remote.yaml | grep -q '^    security: dds-security ' ||
+  fail "the installed remote.yaml does not run DDS Security (controller.link.security)"
 depends=$(dpkg-deb -f "$remote" Depends)
 echo "foresight-remote Depends: $depends"
 grep -Eiq 'opencv|libgl|osmesa|libegl|mesa|ceres' <<<"$depends" && fail "foresight-remote depends on a ground library: $depends"
@@ -70,12 +73,14 @@ grep -Eq '^[[:space:]]*(deb-systemd-invoke|systemctl (start|enable|restart))' "$
 
 # ---- foresight-ground -----------------------------------------------------------------
 dpkg-deb -c "$ground" | awk '{print $NF}' | sed 's#^\./#/#' >"$tmp/ground.files"
-for f in /usr/bin/foresight /etc/foresight-ground/robot.urdf /etc/foresight-ground/oru.yaml \
+for f in /usr/bin/foresight /etc/foresight-ground/ground.yaml /etc/foresight-ground/robot.urdf /etc/foresight-ground/oru.yaml \
          /etc/foresight-ground/scene.yaml /etc/foresight-ground/scripts/oru_changeout.task \
          /etc/profile.d/foresight-ground.sh /usr/share/foresight-ground/scripts/make_dds_security.sh; do
   grep -qx "$f" "$tmp/ground.files" || fail "foresight-ground lacks $f"
 done
 grep -qx /usr/bin/foresight-remote "$tmp/ground.files" && fail "foresight-ground holds the daemon"
+dpkg-deb --fsys-tarfile "$ground" | tar -xO ./etc/foresight-ground/ground.yaml | grep -q '^  security: dds-security ' ||
+  fail "the installed ground.yaml does not run DDS Security (link.security)"
 # No file in both packages (they install side by side).
 common=$(comm -12 <(grep -v '/$' "$tmp/remote.files" | sort) <(grep -v '/$' "$tmp/ground.files" | sort))
 [[ -z $common ]] || fail "both packages hold: $common"

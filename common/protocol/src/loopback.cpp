@@ -1,4 +1,5 @@
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/network.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -14,27 +15,9 @@
 
 namespace foresight::protocol {
 
-std::string loopback_config_xml() {
-  // MaxAutoParticipantIndex bounds the unicast discovery sweep (one port per
-  // index); 20 participants per domain on one host is plenty for tests.
-  return "<CycloneDDS><Domain id=\"any\">"
-         "<General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
-         "<AllowMulticast>false</AllowMulticast></General>"
-         "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
-         "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
-         "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>"
-         "<Tracing><Verbosity>severe</Verbosity></Tracing>"
-         "</Domain></CycloneDDS>";
-}
+std::string loopback_config_xml() { return cyclone_config_xml(NetworkSettings{}); }
 
-bool use_loopback_if_unconfigured() {
-  const char* existing = std::getenv("CYCLONEDDS_URI");
-  if (existing != nullptr && *existing != '\0') return false;
-  if (setenv("CYCLONEDDS_URI", loopback_config_xml().c_str(), 1) != 0) {
-    throw ProtocolError("setenv CYCLONEDDS_URI failed");
-  }
-  return true;
-}
+bool use_loopback_if_unconfigured() { return apply_network(NetworkSettings{}); }
 
 std::optional<int> domain_from_environment() {
   const char* env = std::getenv("FORESIGHT_DDS_DOMAIN");

@@ -1,15 +1,20 @@
 // The link commands' shared helpers (link_session.hpp). Registers no command.
 #include "link_session.hpp"
 
+#include "command.hpp"
 #include "format.hpp"
+#include "foresight/common/text_file.hpp"
+#include "foresight/common/yaml_util.hpp"
 #include "foresight/common/plan.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/loopback.hpp"
+#include "foresight/protocol/network.hpp"
 #include "foresight/protocol/security.hpp"
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -50,27 +55,66 @@ std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeo
   return connect(config, timeout_s);
 }
 
+GroundLinkFile load_ground_link_file(const std::string& path) {
+  GroundLinkFile f;
+  f.path = path;
+  f.network.source = path + ": link.network (the default)";
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return f;
+  const YAML::Node root = yaml::parse(read_text_file(path, "cannot open the ground configuration"), path);
+  const yaml::MapReader top(root, path, "");
+  top.check_keys({"link"});
+  if (!top["link"]) return f;
+  const yaml::MapReader link = top.map("link");
+  link.check_keys({"security", "identity", "network"});
+  f.security_dir = link.get_or<std::string>("security", "");
+  if (!f.security_dir.empty() && std::filesystem::path(f.security_dir).is_relative())
+    f.security_dir = (std::filesystem::path(path).parent_path() / f.security_dir).lexically_normal().string();
+  f.identity = link.get_or<std::string>("identity", f.identity);
+  if (f.identity.empty() || f.identity.find('/') != std::string::npos || f.identity.find("..") != std::string::npos)
+    link.fail_key("identity", "'" + f.identity + "' is not an identity name (a folder under identities/)");
+  if (link["network"]) f.network = protocol::read_network(link.map("network"));
+  return f;
+}
+
 std::unique_ptr<ground_link::GroundLink> connect_remote(const LinkOptions& o) {
+  const GroundLinkFile file = load_ground_link_file(default_config("ground.yaml"));
   ground_link::Config config;
   config.domain = resolve_domain(o.domain);
+  // Options, then the environment, then ground.yaml.
+  auto env = [](const char* name) -> std::string {
+    const char* v = std::getenv(name);
+    return v != nullptr ? v : "";
+  };
+  std::string from = "--security";
   config.security_dir = o.security_dir;
-  if (config.security_dir.empty())
-    if (const char* env = std::getenv("FORESIGHT_DDS_SECURITY")) config.security_dir = env;
-  config.security_identity = o.identity;
-  if (config.security_identity.empty()) {
-    const char* env = std::getenv("FORESIGHT_DDS_IDENTITY");
-    config.security_identity = env != nullptr && *env != '\0' ? env : "ground";
+  if (config.security_dir.empty()) {
+    config.security_dir = env("FORESIGHT_DDS_SECURITY");
+    from = "FORESIGHT_DDS_SECURITY";
   }
+  if (config.security_dir.empty()) {
+    config.security_dir = file.security_dir;
+    from = file.path + ": link.security";
+  }
+  config.security_identity = !o.identity.empty()                        ? o.identity
+                             : !env("FORESIGHT_DDS_IDENTITY").empty() ? env("FORESIGHT_DDS_IDENTITY")
+                                                                       : file.identity;
   if (!config.security_dir.empty()) {
     try {
       protocol::verify_security_files(config.security_dir, config.security_identity);
     } catch (const protocol::ProtocolError& e) {
-      throw InputError(o.security_dir.empty() ? "FORESIGHT_DDS_SECURITY" : "--security", e.what());
+      throw InputError(from, e.what());
     }
     // An observer may not create command or chunk writers: it watches.
     std::ifstream role(config.security_dir + "/identities/" + config.security_identity + "/role");
     std::string r;
     config.read_only = role >> r && r == "observer";
+  }
+  // The DDS network, before the first participant (a CYCLONEDDS_URI wins).
+  if (env("CYCLONEDDS_URI").empty()) {
+    if (const auto problems = protocol::network_problems(file.network); !problems.empty())
+      throw InputError(file.network.source, problems.front());
+    protocol::apply_network(file.network);
   }
   return connect(config, o.connect_timeout_s);
 }

@@ -17,6 +17,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/protocol/command.hpp"
+#include "foresight/protocol/network.hpp"
 #include "foresight/ground_link/ground_link.hpp"
 
 namespace foresight::cli {
@@ -39,6 +40,18 @@ struct LinkOptions {
   std::string identity;          ///< "": $FORESIGHT_DDS_IDENTITY, else "ground"
 };
 
+/// ground.yaml's `link:` section: the station's DDS Security folder and
+/// identity and its DDS network. Defaults (no security, "ground", loopback)
+/// when the file does not exist; InputError "<file>:<line>: link.<key>: ..."
+/// for a bad one.
+struct GroundLinkFile {
+  std::string path;
+  std::string security_dir;  ///< absolute, or relative to the working directory
+  std::string identity = "ground";
+  protocol::NetworkSettings network;
+};
+GroundLinkFile load_ground_link_file(const std::string& path);
+
 /// The DDS domain: `option` when >= 0, else $FORESIGHT_DDS_DOMAIN, else 0.
 /// std::invalid_argument "FORESIGHT_DDS_DOMAIN: 'x' is not a DDS domain id (0-232)".
 int resolve_domain(int option);
@@ -48,8 +61,12 @@ int resolve_domain(int option);
 /// domain D within T s".
 std::unique_ptr<ground_link::GroundLink> connect_remote(int domain, double timeout_s);
 /// The same with the options' domain, DDS Security folder and identity (each
-/// from the environment when not given). A damaged security file is named
-/// (protocol::verify_security_files): InputError "--security: ...".
+/// from the environment when not given, else from ground.yaml) and
+/// ground.yaml's DDS network (unless CYCLONEDDS_URI is set). A damaged
+/// security file is named (protocol::verify_security_files): InputError
+/// "--security: ..." (or the variable or file it came from); a missing
+/// interface or a peer that does not resolve: InputError "<ground.yaml>:
+/// link.network: ...".
 std::unique_ptr<ground_link::GroundLink> connect_remote(const LinkOptions& options);
 
 /// How long a command may take before its final ack: the link's

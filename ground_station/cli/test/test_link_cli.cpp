@@ -6,6 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <sys/wait.h>
@@ -90,6 +93,54 @@ TEST(LinkCli, NoRemoteExits1NamingTheDomain) {
                          " within 0.5 s (is foresight-remote running? --domain / FORESIGHT_DDS_DOMAIN)\n")
         << cmd;
   }
+}
+
+// Issue 28, item 5: the daemon and the CLI in two terminals of one machine,
+// with no CYCLONEDDS_URI (nor any other variable): both take the network of
+// their configuration (loopback, unicast discovery), so they find each other
+// on a host whose multicast does not loop back.
+TEST(LinkCli, DaemonAndCliFindEachOtherWithoutAnyEnvironment) {
+  const int domain = static_cast<int>(protocol::unique_test_domain());
+  const std::string d = std::to_string(domain);
+  const std::string journal = temp_path(".db"), log = temp_path(".log");
+  const std::string bin = std::string(FORESIGHT_BIN_DIR);
+  const std::string clean = "env -u CYCLONEDDS_URI -u FORESIGHT_DDS_DOMAIN -u FORESIGHT_DDS_SECURITY ";
+  // The daemon in the background, ended by the test (at most 120 s by itself).
+  ASSERT_EQ(std::system((clean + "timeout 120 " + bin + "/foresight-remote --sim --domain " + d + " --journal " +
+                         journal + " >/dev/null 2>" + log + " & echo $! > " + log + ".pid")
+                            .c_str()),
+            0);
+  const std::string err = temp_path(".err");
+  const std::string out = temp_path(".out");
+  const int st = std::system((clean + "timeout 120 " + bin + "/foresight status --domain " + d +
+                              " --connect-timeout 60 --json >" + out + " 2>" + err)
+                                 .c_str());
+  std::system(("kill $(cat " + log + ".pid) 2>/dev/null").c_str());
+  EXPECT_EQ(WEXITSTATUS(st), 0) << foresight::test::read_file(err) << "\ndaemon:\n" << foresight::test::read_file(log);
+  EXPECT_NE(foresight::test::read_file(out).find("\"remote_alive\": true"), std::string::npos) << foresight::test::read_file(out);
+  EXPECT_NE(foresight::test::read_file(log).find("DDS network: interface lo, peers 127.0.0.1, multicast off"),
+            std::string::npos)
+      << foresight::test::read_file(log);
+}
+
+// A network the configuration names but this machine lacks: the CLI names
+// the file and the problem, exit 2, before any DDS.
+TEST(LinkCli, AMissingInterfaceInGroundYamlIsNamed) {
+  const std::string dir = temp_path("_cfg");
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/ground.yaml") << "link:\n  network:\n    interface: nosuch0\n";
+  const std::string err = temp_path(".err");
+  const int st = std::system(("env -u CYCLONEDDS_URI FORESIGHT_CONFIG_DIR=" + dir + " " +
+                              std::string(FORESIGHT_BIN_DIR) + "/foresight status --connect-timeout 0.5 2>" + err)
+                                 .c_str());
+  EXPECT_EQ(WEXITSTATUS(st), 2);
+  const std::string text = foresight::test::read_file(err);
+  EXPECT_EQ(text.rfind("foresight status: error: " + dir +
+                           "/ground.yaml: link.network: interface 'nosuch0' does not exist (this machine has: lo",
+                       0),
+            0u)
+      << text;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(LinkCli, SendRefusesATrajectoryTheRemoteWouldReject) {

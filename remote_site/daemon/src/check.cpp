@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -351,6 +352,21 @@ CheckItem check_security(const std::string& dir, const std::string& identity, bo
   return item(name, CheckResult::Pass, facts.describe());
 }
 
+// ---- DDS network --------------------------------------------------------------------------
+
+CheckItem check_network(const protocol::NetworkSettings& n) {
+  const std::string name = "DDS network";
+  if (const char* uri = std::getenv("CYCLONEDDS_URI"); uri != nullptr && *uri != '\0')
+    return item(name, CheckResult::Skip,
+                "CYCLONEDDS_URI is set in this environment: a daemon started from it uses that instead of " +
+                    n.source);
+  const auto problems = protocol::network_problems(n);
+  if (problems.empty()) return item(name, CheckResult::Pass, n.describe() + " (" + n.source + ")");
+  std::string why = n.source + ": ";
+  for (std::size_t i = 0; i < problems.size(); ++i) why += (i ? "; " : "") + problems[i];
+  return item(name, CheckResult::Fail, why);
+}
+
 // ---- the whole check ----------------------------------------------------------------------
 
 CheckReport run_check(const CheckOptions& o) {
@@ -468,6 +484,10 @@ CheckReport run_check(const CheckOptions& o) {
     add(check_journal_dir(o.journal_path.empty() ? daemon_config->journal.path : o.journal_path));
   else
     add(item("journal", CheckResult::Skip, "the configuration did not load"));
+  if (daemon_config)
+    add(check_network(daemon_config->network));
+  else
+    add(item("DDS network", CheckResult::Skip, "the configuration did not load"));
   {
     std::string dir = o.security_dir, identity = o.security_identity;
     if (dir.empty() && daemon_config) dir = daemon_config->security_dir;

@@ -22,9 +22,11 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   const YAML::Node root = yaml::parse(yaml_text, source_name);
   DaemonConfig c;
   c.source = source_name;
+  c.network.source = source_name + ": controller.link.network (the default)";
   if (!root["controller"]) return c;
   const yaml::MapReader s(root["controller"], source_name, "controller");
   c.line = s.line();
+  c.network.source = source_name + ": controller.link.network (the default)";
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
                 "default_algorithm_timeout_s", "control_lease_s", "rate_limit", "max_queued_commands",
                 "max_chain_length", "max_upload_wait_s"});
@@ -58,7 +60,8 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   }
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");
-    link.check_keys({"loss_timeout_s", "loss_policy", "security", "identity", "insecure"});
+    link.check_keys({"loss_timeout_s", "loss_policy", "security", "identity", "insecure", "network"});
+    if (link["network"]) c.network = protocol::read_network(link.map("network"));
     c.link_loss_timeout_s = link.get_or_in("loss_timeout_s", c.link_loss_timeout_s, 0.05, 3600, "s");
     const std::string policy = link.get_or<std::string>("loss_policy", "finish_and_hold");
     if (policy == "finish_and_hold") {

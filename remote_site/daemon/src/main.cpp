@@ -190,6 +190,17 @@ int run_daemon(Options o) {
     spdlog::warn("controller.link.insecure: true: the DDS link runs without DDS Security (any participant of domain "
                  "{} can reach it)", o.domain);
   }
+  // The DDS network (controller.link.network), before the first participant.
+  // A user's own CYCLONEDDS_URI wins; otherwise a missing interface or a
+  // peer that does not resolve is named here, before the hardware.
+  if (const char* uri = std::getenv("CYCLONEDDS_URI"); uri != nullptr && *uri != '\0') {
+    spdlog::info("DDS network: CYCLONEDDS_URI is set; it wins over controller.link.network");
+  } else {
+    if (const auto problems = protocol::network_problems(config.network); !problems.empty())
+      throw InputError(config.network.source, problems.front());
+    protocol::apply_network(config.network);
+    spdlog::info("DDS network: {}", config.network.describe());
+  }
   if (!o.journal.empty()) config.journal.path = o.journal;
   if (!o.estop_file.empty()) config.estop_file = o.estop_file;
   remote::SiteOptions site_options;
@@ -322,7 +333,6 @@ int run_daemon(Options o) {
   }
   remote::Supervisor supervisor(std::move(parts));
 
-  if (o.sim) protocol::use_loopback_if_unconfigured();
   remote_link::Config lc;
   lc.domain = o.domain;
   lc.link_loss_s = config.link_loss_timeout_s;

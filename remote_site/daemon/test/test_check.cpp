@@ -520,6 +520,46 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
   EXPECT_NE(why.find("identity 'remote' in " + (cfg.dir / "sec").string() + ":"), std::string::npos) << why;
 }
 
+// Issue 28, item 5: the DDS network is configuration; a missing interface or
+// a peer that does not resolve is named by check and by the daemon's start-up.
+TEST(CheckNetwork, AMissingInterfaceOrPeerIsNamedByCheckAndTheDaemon) {
+  ConfigDir cfg;
+  const ShellRun good = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --json --config " +
+                                  cfg.yaml() + " --journal " + (cfg.dir / "j.db").string() + " 2>/dev/null");
+  const auto report = nlohmann::json::parse(good.out, nullptr, false);
+  ASSERT_FALSE(report.is_discarded()) << good.out;
+  bool seen = false;
+  for (const auto& i : report.at("items"))
+    if (i.at("name") == "DDS network") {
+      seen = true;
+      EXPECT_EQ(i.at("result"), "PASS") << i.dump();
+      EXPECT_EQ(i.at("why"), "interface lo, peers 127.0.0.1, multicast off (" + cfg.yaml() + ": controller.link.network)");
+    }
+  EXPECT_TRUE(seen) << good.out;
+
+  cfg.replace("interface: lo ", "interface: nosuch0 ");
+  cfg.replace("peers: \\[127.0.0.1\\]", "peers: [127.0.0.1, no-such-host.invalid]");
+  const ShellRun bad = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --config " +
+                                 cfg.yaml() + " 2>/dev/null");
+  EXPECT_EQ(bad.status, 1) << bad.out;
+  EXPECT_NE(bad.out.find("FAIL  DDS network      " + cfg.yaml() +
+                         ": controller.link.network: interface 'nosuch0' does not exist (this machine has: lo"),
+            std::string::npos)
+      << bad.out;
+  EXPECT_NE(bad.out.find("; peer 'no-such-host.invalid' does not resolve ("), std::string::npos) << bad.out;
+
+  const std::string journal = (cfg.dir / "d.db").string();
+  const ShellRun daemon = run_shell("env -u CYCLONEDDS_URI timeout 60 " + kBin + "/foresight-remote --sim --config " +
+                                    cfg.yaml() + " --journal " + journal + " 2>&1");
+  EXPECT_EQ(daemon.status, 2) << daemon.out;
+  EXPECT_NE(daemon.out.find("foresight-remote: error: " + cfg.yaml() +
+                            ": controller.link.network: interface 'nosuch0' does not exist (this machine has: lo"),
+            std::string::npos)
+      << daemon.out;
+  EXPECT_EQ(daemon.out.find("configuring"), std::string::npos) << daemon.out;
+  EXPECT_FALSE(fs::exists(journal));
+}
+
 // ---- deployment files -----------------------------------------------------------------------------
 
 TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "foresight/hw/lst_tool.hpp"
+#include "foresight/protocol/network.hpp"
 
 namespace foresight::remote {
 
@@ -93,6 +94,10 @@ CheckItem check_memlock(bool required);
 CheckItem check_kernel();
 CheckItem check_clock();
 CheckItem check_journal_dir(const std::string& journal_path);
+/// The network of controller.link.network on this machine: FAIL naming a
+/// missing or down interface, a peer that does not resolve; SKIP when the
+/// environment's CYCLONEDDS_URI would win.
+CheckItem check_network(const protocol::NetworkSettings& n);
 /// `dir` empty: WARN when `insecure` (controller.link.insecure: true), SKIP
 /// with `sim`, else FAIL (the daemon would refuse to start).
 CheckItem check_security(const std::string& dir, const std::string& identity, bool sim = true, bool insecure = false);

@@ -8,6 +8,8 @@
 #include <cstddef>
 #include <string>
 
+#include "foresight/protocol/network.hpp"
+
 namespace foresight::remote {
 
 enum class LinkLossPolicy {
@@ -43,6 +45,9 @@ struct DaemonConfig {
   std::string security_dir;
   std::string security_identity = "remote";
   bool insecure = false;
+  /// `link.network`: the DDS interface, unicast peers and multicast (the
+  /// default: one machine, loopback). A user's CYCLONEDDS_URI wins.
+  protocol::NetworkSettings network;
   ReportRates reports;
   JournalSettings journal;
   std::string estop_file;                 ///< E-stop (category 0) while this file exists; "" = no such input
