@@ -127,47 +127,25 @@ Supervisor::~Supervisor() = default;
 
 // ---- link thread --------------------------------------------------------------------
 
-void Supervisor::submit(const remote_link::CommandEvent& event) {
-  {
-    std::lock_guard lock(inbox_mu_);
-    inbox_.emplace_back(event);
-  }
-  inbox_cv_.notify_one();
-}
+void Supervisor::submit(const remote_link::CommandEvent& event) { inbox_.push(event); }
 
-void Supervisor::upload(const remote_link::UploadEvent& event) {
-  {
-    std::lock_guard lock(inbox_mu_);
-    inbox_.emplace_back(event);
-  }
-  inbox_cv_.notify_one();
-}
+void Supervisor::upload(const remote_link::UploadEvent& event) { inbox_.push(event); }
 
-void Supervisor::link_event(const remote_link::LinkEvent& event) {
-  {
-    std::lock_guard lock(inbox_mu_);
-    inbox_.emplace_back(event);
-  }
-  inbox_cv_.notify_one();
-}
+void Supervisor::link_event(const remote_link::LinkEvent& event) { inbox_.push(event); }
 
 // ---- supervisor thread ------------------------------------------------------------
 
 void Supervisor::run(const std::atomic<bool>& quit) {
   while (!quit.load(std::memory_order_acquire)) {
     run_once();
-    std::unique_lock lock(inbox_mu_);
-    inbox_cv_.wait_for(lock, std::chrono::milliseconds(2), [this] { return !inbox_.empty(); });
+    inbox_.wait(std::chrono::milliseconds(2));
   }
 }
 
 void Supervisor::run_once() {
   poll_loop();
-  std::deque<Inbox> batch;
-  {
-    std::lock_guard lock(inbox_mu_);
-    batch.swap(inbox_);
-  }
+  const std::deque<Inbox::Item> batch = inbox_.take_all();
+  journal_inbox_drops();
   // An ABORT that stops the arm is sent to the loop before anything else of
   // the batch is handled (journal rows, acks, other commands behind it): the
   // stop never waits for what arrived just before it. The commands ahead of
@@ -182,6 +160,26 @@ void Supervisor::run_once() {
   check_upload_waits();
   check_inputs();
   publish_reports(false);
+}
+
+void Supervisor::journal_inbox_drops() {
+  inbox_dropped_ += inbox_.take_dropped();
+  const auto now = Clock::now();
+  if (inbox_dropped_ == 0 || now - inbox_drop_since_ < std::chrono::seconds(1)) return;
+  const double span_s = inbox_drop_since_ == Clock::time_point{}
+                            ? 0.0
+                            : std::chrono::duration<double>(now - inbox_drop_since_).count();
+  nlohmann::json d;
+  d["dropped"] = inbox_dropped_;
+  d["limit"] = inbox_.max_commands();
+  journal_event("command_inbox_full",
+                std::to_string(inbox_dropped_) + " commands dropped" + (span_s > 0 ? fmt(" in %.1f s", span_s) : "") +
+                    ": the supervisor's inbox held its limit of " + std::to_string(inbox_.max_commands()) +
+                    " commands (ABORTs always pass)",
+                d.dump());
+  spdlog::warn("{} commands dropped: the supervisor's inbox is full", inbox_dropped_);
+  inbox_dropped_ = 0;
+  inbox_drop_since_ = now;
 }
 
 void Supervisor::journal_event(const std::string& kind, const std::string& text, const std::string& detail) {

@@ -50,6 +50,7 @@
 #include "foresight/hw/lst_tool.hpp"
 #include "foresight/journal/journal.hpp"
 #include "foresight/remote/daemon_config.hpp"
+#include "foresight/remote/inbox.hpp"
 #include "foresight/remote/camera_worker.hpp"
 #include "foresight/remote/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
@@ -141,7 +142,6 @@ class Supervisor {
     /// by it, so another session's command with the same id cannot finish it).
     std::uint64_t loop_id = 0;
   };
-  using Inbox = std::variant<remote_link::CommandEvent, remote_link::UploadEvent, remote_link::LinkEvent>;
 
   void handle(const remote_link::CommandEvent& event);
   void handle(const remote_link::UploadEvent& event);
@@ -206,13 +206,15 @@ class Supervisor {
   std::int64_t to_wall_ns(std::int64_t mono_ns) const noexcept;
   protocol::StatusReport status_report() const;
   void journal_event(const std::string& kind, const std::string& text, const std::string& detail = {});
+  /// The inbox's dropped commands, journaled once a second at most.
+  void journal_inbox_drops();
 
   SupervisorParts p_;
   const RobotModel& model_;
 
-  std::mutex inbox_mu_;
-  std::condition_variable inbox_cv_;
-  std::deque<Inbox> inbox_;
+  remote::Inbox inbox_;
+  std::chrono::steady_clock::time_point inbox_drop_since_{};
+  std::uint64_t inbox_dropped_ = 0;  ///< since inbox_drop_since_, journaled once a second
 
   std::map<std::uint64_t, std::shared_ptr<const Trajectory>> uploads_;  ///< committed, by id
   std::map<std::uint64_t, TrajectoryHash> upload_hash_;
