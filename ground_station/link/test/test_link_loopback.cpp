@@ -335,7 +335,7 @@ TEST_F(LinkLoopback, EnvelopeAndHostileSamplesAreRejectedWithTheirCodes) {
 // first 100 commands (the per-participant burst, then 50 a second: REJECTED,
 // each with its reason) and drops the rest unanswered (RemoteLink's rate
 // limit), while the well-behaved ground, another participant, is served.
-// Issue 28: another participant opening 40 sessions (more than the 16 a
+// Issue 28: another participant opening 90 sessions (more than the 64 a
 // participant keeps) cannot evict a ground's session from the remote's
 // table: its sequence is remembered, and a command with an old sequence
 // number is still refused.
@@ -348,18 +348,18 @@ TEST_F(LinkLoopback, AnotherParticipantsSessionsCannotEvictAGroundsSequence) {
   }
   fp::Participant hostile(static_cast<dds_domainid_t>(domain_));
   RawCommander other(hostile);
-  for (std::uint64_t k = 0; k < 40; ++k) {
+  for (std::uint64_t k = 0; k < 90; ++k) {
     fp::CommandSequencer fresh(0xe71c7000 + k);
     auto c = fresh.next(foresight_msg_CMD_REQUEST);
     other.writer.write(c);
   }
-  // Its last session answered: all 40 were seen before the replay below.
+  // Its last session answered: all 90 were seen before the replay below.
   {
     fp::Sample<msg::CommandAck> a;
     bool seen = false;
     const auto deadline = Clock::now() + 10s;
     while (!seen && Clock::now() < deadline)
-      if (other.acks.wait_take(a, 100ms)) seen = a->session_id == 0xe71c7000 + 39 && fp::is_terminal(fp::from_wire(*a).state);
+      if (other.acks.wait_take(a, 100ms)) seen = a->session_id == 0xe71c7000 + 89 && fp::is_terminal(fp::from_wire(*a).state);
     ASSERT_TRUE(seen);
   }
   auto replay = raw.sequencer.next(foresight_msg_CMD_REQUEST);
@@ -369,6 +369,34 @@ TEST_F(LinkLoopback, AnotherParticipantsSessionsCannotEvictAGroundsSequence) {
   ASSERT_FALSE(acks.empty());
   EXPECT_EQ(acks.back().state, protocol::AckState::Rejected);
   EXPECT_EQ(acks.back().code, protocol::Reason::BadSequence) << acks.back().reason;
+}
+
+// A session pushed out by its own participant's newer ones (max_sessions,
+// 64) is retired too: its next command, or a replay, is refused, never taken
+// as the start of a fresh sequence.
+TEST_F(LinkLoopback, ASessionPushedOutByItsParticipantsNewerOnesStaysRefused) {
+  RawCommander raw(ground_->participant());
+  auto first = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  raw.writer.write(first);
+  ASSERT_EQ(raw.acks_of(first->command_id).back().state, protocol::AckState::Completed);
+  for (std::uint64_t k = 0; k < 64; ++k) {
+    fp::CommandSequencer fresh(0xa11ce000 + k);
+    raw.writer.write(fresh.next(foresight_msg_CMD_REQUEST));
+  }
+  {  // the last one answered: all 64 were seen
+    fp::Sample<msg::CommandAck> a;
+    bool seen = false;
+    const auto deadline = Clock::now() + 10s;
+    while (!seen && Clock::now() < deadline)
+      if (raw.acks.wait_take(a, 100ms)) seen = a->session_id == 0xa11ce000 + 63 && fp::is_terminal(fp::from_wire(*a).state);
+    ASSERT_TRUE(seen);
+  }
+  raw.writer.write(first);  // a verbatim replay of the pushed-out session
+  const auto acks = raw.acks_of(first->command_id);
+  ASSERT_FALSE(acks.empty());
+  EXPECT_EQ(acks.back().state, protocol::AckState::Rejected);
+  EXPECT_EQ(acks.back().code, protocol::Reason::BadSequence);
+  EXPECT_NE(acks.back().reason.find("session 0000000000005eed was forgotten"), std::string::npos) << acks.back().reason;
 }
 
 TEST_F(LinkLoopback, AFloodOfHostileCommandsIsRejectedAndTheLinkStaysUp) {
@@ -608,6 +636,41 @@ TEST_F(LinkLoopback, TheRemoteDetectsLinkLossAndRegain) {
     const auto s = ground_->status();
     return s && s->value.mode == protocol::ControllerMode::Idle && s->value.stop_reason.empty();
   }, 15s));
+}
+
+class LinkLoopbackIdleSessions : public LinkLoopback {
+ protected:
+  void SetUp() override { start(1.0, {"--session-idle-s", "1"}); }
+};
+
+// Issue 28: sessions expire by time, and forgetting one never lets a replay
+// of it pass: a session silent for session_idle_s is retired; its next
+// command and a verbatim replay of an old one are REJECTED BAD_SEQUENCE; a
+// new session is served.
+TEST_F(LinkLoopbackIdleSessions, AnIdleSessionIsRetiredAndItsReplaysStayRefused) {
+  RawCommander raw(ground_->participant());
+  auto first = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  raw.writer.write(first);
+  ASSERT_EQ(raw.acks_of(first->command_id).back().state, protocol::AckState::Completed);
+  // Not a wait for a condition: the silence itself is what is tested. The
+  // remote took `first` before its ack came back, so after this its session
+  // has been silent for more than session_idle_s (the link checks a
+  // session's age when its next command arrives).
+  std::this_thread::sleep_for(1500ms);
+  auto next = raw.sequencer.next(foresight_msg_CMD_REQUEST);
+  raw.writer.write(next);
+  auto acks = raw.acks_of(next->command_id);
+  ASSERT_FALSE(acks.empty());
+  EXPECT_EQ(acks.back().state, protocol::AckState::Rejected);
+  EXPECT_EQ(acks.back().code, protocol::Reason::BadSequence);
+  EXPECT_EQ(acks.back().reason, "session 0000000000005eed was forgotten (no command for 1 s, or more than 64 sessions "
+                                "of its writer): its commands are refused; a ground process starts a new session");
+  raw.writer.write(first);  // a verbatim replay
+  acks = raw.acks_of(first->command_id);
+  ASSERT_FALSE(acks.empty());
+  EXPECT_EQ(acks.back().code, protocol::Reason::BadSequence) << acks.back().reason;
+  // A new session is served.
+  EXPECT_TRUE(run(protocol::CommandKind::Request, protocol::Request{}).succeeded());
 }
 
 class LinkLoopbackIdleUploads : public LinkLoopback {

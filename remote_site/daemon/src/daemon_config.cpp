@@ -60,7 +60,8 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   }
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");
-    link.check_keys({"loss_timeout_s", "loss_policy", "security", "identity", "insecure", "network"});
+    link.check_keys({"loss_timeout_s", "loss_policy", "security", "identity", "insecure", "network", "session_idle_s"});
+    c.session_idle_s = link.get_or_in("session_idle_s", c.session_idle_s, 10, 7 * 86400, "s");
     if (link["network"]) c.network = protocol::read_network(link.map("network"));
     c.link_loss_timeout_s = link.get_or_in("loss_timeout_s", c.link_loss_timeout_s, 0.05, 3600, "s");
     const std::string policy = link.get_or<std::string>("loss_policy", "finish_and_hold");

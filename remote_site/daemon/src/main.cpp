@@ -337,6 +337,7 @@ int run_daemon(Options o) {
   lc.domain = o.domain;
   lc.link_loss_s = config.link_loss_timeout_s;
   lc.trajectory_limits = TrajectoryLimits::from_model(model);
+  lc.session_idle_s = config.session_idle_s;
   lc.security_dir = config.security_dir;
   lc.security_identity = config.security_identity;
   lc.ros2 = o.ros2;

@@ -124,4 +124,21 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
             "r.yaml:2: controller.journal.keep_files: not an integer: 'many'");
   EXPECT_EQ(error_of("controller:\n  estop_file: [a, b]\n"), "r.yaml:2: controller.estop_file: not a string (a list)");
   EXPECT_EQ(error_of("controller:\n  link: 3\n"), "r.yaml:2: controller.link: expected a map");
+  // Issue 28: the link's security, network and session settings.
+  EXPECT_EQ(error_of("controller:\n  link: {session_idle_s: 1}\n"),
+            "r.yaml:2: controller.link.session_idle_s: 1 is outside [10, 604800] s");
+  EXPECT_EQ(error_of("controller:\n  link: {insecure: yes please}\n"),
+            "r.yaml:2: controller.link.insecure: not true or false: 'yes please'");
+  EXPECT_EQ(error_of("controller:\n  link: {identity: ../remote}\n"),
+            "r.yaml:2: controller.link.identity: '../remote' is not an identity name (a folder under identities/)");
+  EXPECT_EQ(error_of("controller:\n  link:\n    network: {interface: lo, multicast: false, peers: []}\n"),
+            "r.yaml:3: controller.link.network.peers: is empty and multicast is off: nothing could be discovered");
+  const DaemonConfig c = parse_daemon_config(
+      "controller:\n  link:\n    security: sec\n    network: {interface: eth1, peers: [10.42.0.1, 10.42.0.2]}\n",
+      "/etc/foresight/remote.yaml");
+  EXPECT_EQ(c.security_dir, "/etc/foresight/sec");  // relative to the file
+  EXPECT_EQ(c.security_identity, "remote");
+  EXPECT_EQ(c.network.interface, "eth1");
+  EXPECT_EQ(c.network.peers, (std::vector<std::string>{"10.42.0.1", "10.42.0.2"}));
+  EXPECT_EQ(c.network.source, "/etc/foresight/remote.yaml: controller.link.network");
 }

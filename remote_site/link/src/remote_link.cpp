@@ -212,7 +212,24 @@ struct RemoteLink::Impl {
   struct Session {
     protocol::CommandChecker checker;
     std::uint64_t last_used = 0;
+    Clock::time_point last_seen{};
   };
+  using SessionKey = std::pair<std::uint64_t, protocol::ParticipantGuid>;
+  /// Sessions forgotten (expired or pushed out): their commands stay refused.
+  std::set<SessionKey> retired;
+  std::deque<SessionKey> retired_order;
+  static constexpr std::size_t kMaxRetired = 65536;
+  void retire(const SessionKey& key) {
+    if (!retired.insert(key).second) return;
+    retired_order.push_back(key);
+    if (retired_order.size() > kMaxRetired) {
+      retired.erase(retired_order.front());
+      retired_order.pop_front();
+    }
+  }
+  /// Every second: sessions idle for session_idle_s retired.
+  void expire_sessions(Clock::time_point now);
+  Clock::time_point next_session_check{};
   // Keyed by the session and the participant that wrote it: a participant
   // speaking in another's session (a forged session id) has a sequence of its
   // own, so it can neither advance nor break the real session's (the
@@ -293,6 +310,7 @@ void RemoteLink::Impl::run() noexcept {
       serve_commands();
       serve_chunks();
       expire_uploads();
+      expire_sessions(Clock::now());
     } catch (const std::exception& e) {
       // A DDS call failed (should not happen with valid entities): keep serving.
       spdlog::error("remote link: {}", e.what());
@@ -441,6 +459,26 @@ void RemoteLink::Impl::serve_commands() {
     // ground's (and so reset its sequence for a replay). The participants
     // themselves are bounded by the rate limit's table (kMaxBuckets).
     const auto session_key = std::make_pair(c.session_id, event.writer);
+    if (auto known = sessions.find(session_key);
+        known != sessions.end() &&
+        Clock::now() - known->second.last_seen > std::chrono::duration<double>(config.session_idle_s)) {
+      retire(session_key);  // idle too long: expired now, whether or not the sweep has run
+      sessions.erase(known);
+    }
+    if (retired.count(session_key) != 0) {
+      event.command = protocol::envelope_of(c, received);
+      event.code = protocol::Reason::BadSequence;
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "session %016llx was forgotten (no command for %.0f s, or more than %zu sessions of its writer): "
+                    "its commands are refused; a ground process starts a new session",
+                    static_cast<unsigned long long>(c.session_id), config.session_idle_s, config.max_sessions);
+      event.reason = buf;
+      n_rejected.fetch_add(1);
+      spdlog::warn("remote link: rejected {}", event.reason);
+      emit_command(event);
+      continue;
+    }
     auto it = sessions.find(session_key);
     if (it == sessions.end()) {
       auto oldest = sessions.end();
@@ -450,16 +488,22 @@ void RemoteLink::Impl::serve_commands() {
         if (oldest == sessions.end() || s->second.last_used < oldest->second.last_used) oldest = s;
         ++own;
       }
-      if (own >= std::max<std::size_t>(1, config.max_sessions)) sessions.erase(oldest);
+      if (own >= std::max<std::size_t>(1, config.max_sessions)) {
+        retire(oldest->first);
+        sessions.erase(oldest);
+      }
       if (sessions.size() >= kMaxBuckets * std::max<std::size_t>(1, config.max_sessions)) {
         // Every participant at its bound (only without a rate limit): the stalest overall.
-        sessions.erase(std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
+        const auto stalest = std::min_element(sessions.begin(), sessions.end(), [](const auto& a, const auto& b) {
           return a.second.last_used < b.second.last_used;
-        }));
+        });
+        retire(stalest->first);
+        sessions.erase(stalest);
       }
       it = sessions.emplace(session_key, Session{}).first;
     }
     it->second.last_used = ++session_clock;
+    it->second.last_seen = Clock::now();
     const auto verdict = it->second.checker.check(c, received, config.clock_offset_ns);
     if (!verdict.ok()) {
       event.command = protocol::envelope_of(c, received);
@@ -598,6 +642,22 @@ void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
     e.state = protocol::UploadState::Discarded;
     e.reason = gone.reason;
     emit_upload(e);
+  }
+}
+
+void RemoteLink::Impl::expire_sessions(Clock::time_point now) {
+  if (now < next_session_check) return;
+  next_session_check = now + std::chrono::seconds(1);
+  const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config.session_idle_s));
+  for (auto it = sessions.begin(); it != sessions.end();) {
+    if (now - it->second.last_seen > idle) {
+      spdlog::info("remote link: session {:016x} retired after {:.0f} s without a command", it->first.first,
+                   config.session_idle_s);
+      retire(it->first);
+      it = sessions.erase(it);
+    } else {
+      ++it;
+    }
   }
 }
 

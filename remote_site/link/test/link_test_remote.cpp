@@ -17,6 +17,7 @@
 //                         [--security DIR (scripts/make_dds_security.sh; identity "remote")]
 //                         [--ros2 on (also ROS 2 joint_states and wrench)]
 //                         [--telemetry-hz R (default 50; 0 = joint states as fast as possible)]
+//                         [--upload-idle-s S] [--session-idle-s S]
 // Exits on SIGTERM/SIGINT, when its parent dies, or after --lifetime-s.
 
 #include <signal.h>
@@ -181,6 +182,7 @@ int main(int argc, char** argv) {
   bool ros2 = false;
   double telemetry_hz = 50.0;
   double upload_idle_s = 60.0;
+  double session_idle_s = 3600.0;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--domain") domain = std::atoi(argv[i + 1]);
@@ -191,6 +193,7 @@ int main(int argc, char** argv) {
     else if (key == "--ros2") ros2 = std::string(argv[i + 1]) == "on";
     else if (key == "--telemetry-hz") telemetry_hz = std::atof(argv[i + 1]);
     else if (key == "--upload-idle-s") upload_idle_s = std::atof(argv[i + 1]);
+    else if (key == "--session-idle-s") session_idle_s = std::atof(argv[i + 1]);
     else {
       std::fprintf(stderr, "link_test_remote: unknown option %s\n", argv[i]);
       return 2;
@@ -216,6 +219,7 @@ int main(int argc, char** argv) {
     config.trajectory_limits = foresight::TrajectoryLimits::from_model(model);
     config.max_committed = max_committed;
     config.upload_idle_timeout_s = upload_idle_s;
+    config.session_idle_s = session_idle_s;
     config.security_dir = security_dir;
     config.ros2 = ros2;
     Stub stub;

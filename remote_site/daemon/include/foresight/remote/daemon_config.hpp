@@ -48,6 +48,9 @@ struct DaemonConfig {
   /// `link.network`: the DDS interface, unicast peers and multicast (the
   /// default: one machine, loopback). A user's CYCLONEDDS_URI wins.
   protocol::NetworkSettings network;
+  /// `link.session_idle_s`: a ground session without a command this long is
+  /// forgotten and its commands refused from then on (remote_link::Config).
+  double session_idle_s = 3600.0;
   ReportRates reports;
   JournalSettings journal;
   std::string estop_file;                 ///< E-stop (category 0) while this file exists; "" = no such input

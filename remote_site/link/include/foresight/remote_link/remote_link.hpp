@@ -49,7 +49,16 @@ struct Config {
   /// An upload still assembling whose last chunk is this old is rejected
   /// (INCOMPLETE_UPLOAD) and its data freed: a half upload holds no slot for ever.
   double upload_idle_timeout_s = 60.0;
-  std::size_t max_sessions = 16;           ///< sessions of one participant whose sequence is tracked (LRU)
+  /// Sessions of one writer (participant; with DDS Security the station, whose
+  /// every CLI process is a session) whose sequence is tracked; past it the
+  /// least recently used is forgotten (retired, below).
+  std::size_t max_sessions = 64;
+  /// A session without a command for this long is forgotten. A forgotten
+  /// session (expired, or pushed out by its participant's max_sessions) is
+  /// retired: any later command of it is REJECTED BAD_SEQUENCE, so forgetting
+  /// never lets a replay of its old commands pass (a ground process starts a
+  /// new session; the last 65,536 retired sessions are remembered).
+  double session_idle_s = 3600.0;
   /// Commands one participant may send: a token bucket per writer
   /// participant (command_burst deep, refilled at max_commands_per_s).
   /// Beyond it a command is dropped unanswered before anything else reads
