@@ -815,3 +815,33 @@ TEST_F(SecureRemote, TheStationKeepsControlAcrossItsCommandsAndAnotherStationWai
   for (const auto& st : stations) names.insert(st.substr(0, st.find(" (")));
   EXPECT_EQ(names, (std::set<std::string>{"station 'ground'", "station 'station-b'"}));
 }
+
+// Issue 28, item 4: an observer station watches and may stop the arm (ABORT,
+// on the one command topic its permissions grant), and nothing else.
+TEST_F(SecureRemote, AnObserverMayAbortTheArmButNotCommandIt) {
+  ASSERT_TRUE(run(CommandKind::TakeControl, protocol::NoPayload{}, 1.0).succeeded());
+  ASSERT_TRUE(run(CommandKind::Recover, protocol::NoPayload{}, 5.0).succeeded());
+  const std::uint64_t motion = start_slow_motion(0.5);
+  const std::string link =
+      "--domain " + std::to_string(domain_) + " --security " + dir_ + " --identity observer --connect-timeout 60";
+  test::CliRun r = test::run_foresight("abort --json " + link);
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const auto j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.out;
+  EXPECT_EQ(j["state"], "completed") << r.out;
+  const auto final_ack = ground_->wait_final(motion, std::chrono::seconds(20));
+  EXPECT_TRUE(final_ack.finished);
+  EXPECT_EQ(final_ack.state, protocol::AckState::Canceled) << final_ack.reason;
+
+  // Anything but ABORT is refused at the observer's own station: it has no command writer.
+  r = test::run_foresight("take-control " + link);
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("cannot send commands but ABORT"), std::string::npos) << r.err;
+
+  const nlohmann::json journal = journal_json();
+  bool named = false;
+  for (const auto& row : journal["commands"])
+    if (row["kind"] == "ABORT" && row["state"] == "RECEIVED" && row["detail"].contains("station"))
+      named = named || row["detail"]["station"].get<std::string>().rfind("station 'observer' (", 0) == 0;
+  EXPECT_TRUE(named) << "the observer's ABORT is journaled with its station";
+}

@@ -17,9 +17,10 @@
 #                                               status, pongs, heartbeats, rt/*)
 #                                    commander: publishes commands, trajectory
 #                                               chunks, pings, heartbeats
-#                                    observer:  publishes pings and heartbeats only
-#                                               (watches telemetry; cannot command
-#                                               or upload)
+#                                    observer:  publishes ABORTs (on foresight/abort),
+#                                               pings and heartbeats only (watches
+#                                               telemetry; may stop the arm; cannot
+#                                               command or upload)
 #                                  everyone subscribes to everything
 #   identities/NAME/cert.pem, key.pem, role
 #                                  remote (role remote), ground (commander) and
@@ -186,7 +187,7 @@ governance >"$out/governance.xml"
       commander)
         grant "$name" Foresight foresight/command foresight/trajectory/chunk foresight/ping foresight/heartbeat ;;
       *)
-        grant "$name" Foresight foresight/ping foresight/heartbeat ;;
+        grant "$name" Foresight foresight/abort foresight/ping foresight/heartbeat ;;
     esac
   done
   echo "$permissions_tail"

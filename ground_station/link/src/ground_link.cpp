@@ -54,6 +54,7 @@ struct GroundLink::Impl {
         participant(protocol::make_participant(config.domain, config.security_dir, config.security_identity)),
         commands(config.read_only ? nullptr : std::make_unique<Writer<msg::Command>>(participant)),
         chunks(config.read_only ? nullptr : std::make_unique<Writer<msg::TrajectoryChunk>>(participant)),
+        aborts(config.read_only ? std::make_unique<Writer<msg::Command>>(participant, protocol::topics::kAbort) : nullptr),
         heartbeat_out(participant),
         acks(participant),
         uploads(participant),
@@ -95,6 +96,7 @@ struct GroundLink::Impl {
   std::mutex send_mutex;  // sequencer + command writer
   protocol::CommandSequencer sequencer;
   std::unique_ptr<Writer<msg::Command>> commands;  // null when read-only
+  std::unique_ptr<Writer<msg::Command>> aborts;    // read-only only: topics::kAbort, ABORT and nothing else
   std::mutex chunk_mutex;
   std::unique_ptr<Writer<msg::TrajectoryChunk>> chunks;
   Writer<msg::Heartbeat> heartbeat_out;
@@ -341,6 +343,7 @@ bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   if (impl_->commands && !impl_->commands->wait_for_readers(1, timeout)) return false;
   if (impl_->chunks && !impl_->chunks->wait_for_readers(1, deadline - Clock::now())) return false;
+  if (impl_->aborts && !impl_->aborts->wait_for_readers(1, deadline - Clock::now())) return false;
   // The heartbeat topic matches on its own schedule (seen 17 s late on a
   // loaded host): until the remote's heartbeat reader has matched, it never
   // hears this station, so it could never see the link lost either. Two
@@ -353,7 +356,10 @@ bool GroundLink::wait_for_remote(std::chrono::nanoseconds timeout) {
 
 std::uint64_t GroundLink::send(protocol::CommandKind kind, const protocol::Payload& payload, double lifetime_s,
                                std::uint64_t after_command_id) {
-  if (!impl_->commands) throw std::logic_error("GroundLink: read-only (Config::read_only): cannot send commands");
+  Writer<msg::Command>* writer = impl_->commands.get();
+  if (writer == nullptr && kind == protocol::CommandKind::Abort) writer = impl_->aborts.get();
+  if (writer == nullptr)
+    throw std::logic_error("GroundLink: read-only (Config::read_only): cannot send commands but ABORT");
   const double lifetime = lifetime_s < 0.0 ? impl_->config.command_lifetime_s : lifetime_s;
   std::lock_guard send_lock(impl_->send_mutex);
   auto c = impl_->sequencer.next(static_cast<msg::CommandKind>(kind), lifetime);
@@ -364,7 +370,7 @@ std::uint64_t GroundLink::send(protocol::CommandKind kind, const protocol::Paylo
     std::lock_guard lock(impl_->mutex);
     impl_->sent_at[id] = Clock::now();
   }
-  impl_->commands->write(c);
+  writer->write(c);
   return id;
 }
 

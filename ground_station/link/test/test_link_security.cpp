@@ -20,6 +20,8 @@
 #include <thread>
 
 #include "foresight/ground_link/ground_link.hpp"
+#include "foresight/protocol/commands.hpp"
+#include "foresight/protocol/convert.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/security.hpp"
 
@@ -130,6 +132,24 @@ TEST_F(SecureLink, AnObserverReadsTelemetryButCannotCommand) {
   while (!watcher.joint_state() && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
   EXPECT_TRUE(watcher.joint_state().has_value());
   EXPECT_THROW(watcher.send(protocol::CommandKind::Recover), std::logic_error);
+  // The one command topic it may write carries ABORT only: anything else is REJECTED.
+  {
+    fp::Writer<msg::Command> aborts(observer, fp::topics::kAbort);
+    fp::Reader<msg::CommandAck> acks(observer);
+    ASSERT_TRUE(aborts.wait_for_readers(1, kConnectTimeout));
+    ASSERT_TRUE(acks.wait_for_writers(1, kConnectTimeout));
+    fp::CommandSequencer seq;
+    auto c = seq.next(foresight_msg_CMD_GOTO_JOINT);
+    fp::fill_payload(*c, protocol::CommandKind::GotoJoint, protocol::GotoJoint{std::vector<double>(7, 0.2), 0.5});
+    aborts.write(c);
+    fp::Sample<msg::CommandAck> a;
+    std::string reason;
+    const auto until = Clock::now() + 20s;
+    while (reason.empty() && Clock::now() < until)
+      if (acks.wait_take(a, 100ms) && a->command_id == c->command_id && a->state == foresight_msg_ACK_REJECTED)
+        reason = fp::from_wire(*a).reason;
+    EXPECT_EQ(reason, "command " + std::to_string(c->command_id) + ": foresight/abort carries only ABORT");
+  }
   for (const char* topic : {fp::topics::kCommand, fp::topics::kTrajectoryChunk}) {
     try {
       if (std::string(topic) == fp::topics::kCommand) {

@@ -33,7 +33,7 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 // WaitSet tokens.
-enum Token : dds_attach_t { kStop = 1, kCommand, kChunk, kPing, kHeartbeat };
+enum Token : dds_attach_t { kStop = 1, kCommand, kChunk, kPing, kHeartbeat, kAbortToken };
 
 /// Samples taken per reader per wake-up: bounds one pass of the loop so a
 /// flood on one topic cannot starve the heartbeat and the others.
@@ -72,6 +72,7 @@ struct RemoteLink::Impl {
         handlers(std::move(h)),
         participant(protocol::make_participant(config.domain, config.security_dir, config.security_identity)),
         commands(participant),
+        aborts(participant, protocol::topics::kAbort),
         chunks(participant),
         pings(participant),
         heartbeats(participant),
@@ -92,6 +93,7 @@ struct RemoteLink::Impl {
         boot_id(protocol::random_id()) {
     waitset.attach(stop_guard, kStop);
     waitset.attach(commands, kCommand);
+    waitset.attach(aborts, kAbortToken);
     waitset.attach(chunks, kChunk);
     waitset.attach(heartbeats, kHeartbeat);
     payload_limits.joints = config.trajectory_limits.joints;
@@ -170,6 +172,7 @@ struct RemoteLink::Impl {
 
   void run() noexcept;
   void serve_commands();
+  void serve_commands_of(Reader<msg::Command>& reader, bool abort_only);
   void serve_chunks();
   /// Half uploads idle for upload_idle_timeout_s: rejected, published, reported.
   void expire_uploads();
@@ -192,6 +195,7 @@ struct RemoteLink::Impl {
   protocol::PayloadLimits payload_limits;
   protocol::Participant participant;
   Reader<msg::Command> commands;
+  Reader<msg::Command> aborts;  // topics::kAbort: ABORT only (an observer's way to stop the arm)
   Reader<msg::TrajectoryChunk> chunks;
   Reader<msg::Ping> pings;
   Reader<msg::Heartbeat> heartbeats;
@@ -443,13 +447,29 @@ void RemoteLink::Impl::serve_pings() {
 }
 
 void RemoteLink::Impl::serve_commands() {
+  serve_commands_of(commands, false);
+  serve_commands_of(aborts, true);
+}
+
+void RemoteLink::Impl::serve_commands_of(Reader<msg::Command>& reader, bool abort_only) {
   dds_sample_info_t info{};
-  for (int i = 0; i < kTakeBatch && commands.take(command_in, &info); ++i) {
+  for (int i = 0; i < kTakeBatch && reader.take(command_in, &info); ++i) {
     n_commands.fetch_add(1);
     const msg::Command& c = *command_in;
     const std::int64_t received = protocol::now_ns();
     CommandEvent event;
-    event.writer = writer_of(commands.get(), info.publication_handle);
+    event.writer = writer_of(reader.get(), info.publication_handle);
+    if (abort_only && protocol::raw(c.payload._d) != foresight_msg_CMD_ABORT) {
+      if (!admit(event.writer, Clock::now())) continue;
+      event.command = protocol::envelope_of(c, received);
+      event.code = protocol::Reason::BadArgument;
+      event.reason = std::string("command ") + std::to_string(c.command_id) + ": " + protocol::topics::kAbort +
+                     " carries only ABORT";
+      n_rejected.fetch_add(1);
+      spdlog::warn("remote link: rejected {}", event.reason);
+      emit_command(event);
+      continue;
+    }
     const bool commanders_abort =
         protocol::raw(c.payload._d) == foresight_msg_CMD_ABORT && from_commander(event.writer);
     if (!commanders_abort && !admit(event.writer, Clock::now())) continue;  // over its rate: dropped, counted

@@ -9,6 +9,10 @@ namespace foresight::protocol::topics {
 inline constexpr const char* kCommand = "foresight/command";
 inline constexpr const char* kTrajectoryChunk = "foresight/trajectory/chunk";
 inline constexpr const char* kPing = "foresight/ping";
+/// ABORT only (Command samples of kind ABORT; anything else is REJECTED):
+/// with DDS Security an observer may write this topic and not kCommand, so it
+/// can stop the arm and do nothing else.
+inline constexpr const char* kAbort = "foresight/abort";
 
 // Remote -> ground
 inline constexpr const char* kCommandAck = "foresight/command/ack";

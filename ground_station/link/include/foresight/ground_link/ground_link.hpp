@@ -48,7 +48,9 @@ struct Config {
   std::string security_dir;
   std::string security_identity = "ground";
   /// Watch only: no command or chunk writer (a secure "observer" may not
-  /// create them); send(), execute() and upload() throw std::logic_error.
+  /// create them); send(), execute() and upload() throw std::logic_error,
+  /// except for ABORT, which goes on topics::kAbort (the one topic an
+  /// observer may write besides pings and heartbeats).
   bool read_only = false;
   /// The arm's joint count: a JointState of another length is dropped
   /// (0 = any length, as long as its sequences agree).
