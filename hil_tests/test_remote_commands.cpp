@@ -19,6 +19,7 @@
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/convert.hpp"
 #include "foresight/protocol/dds.hpp"
+#include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/test/cli.hpp"
 #include "hil_support.hpp"
@@ -28,6 +29,8 @@ using namespace std::chrono_literals;
 using protocol::AckState;
 using protocol::CommandKind;
 using protocol::Reason;
+namespace fp = foresight::protocol;
+namespace msg = foresight::protocol::msg;
 
 namespace {
 
@@ -724,7 +727,7 @@ class SecureRemote : public test::DaemonTest {
     const int rc = std::system(
         ("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir_ + " 0-230 station-b > /dev/null 2>&1").c_str());
     ASSERT_EQ(rc, 0) << "make_dds_security.sh failed";
-    remote_options_.extra_args = {"--security", dir_};
+    remote_options_.extra_args.insert(remote_options_.extra_args.end(), {"--security", dir_});
     ground_config_.security_dir = dir_;
     ground_config_.security_identity = "ground";
     DaemonTest::SetUp();
@@ -844,4 +847,71 @@ TEST_F(SecureRemote, AnObserverMayAbortTheArmButNotCommandIt) {
     if (row["kind"] == "ABORT" && row["state"] == "RECEIVED" && row["detail"].contains("station"))
       named = named || row["detail"]["station"].get<std::string>().rfind("station 'observer' (", 0) == 0;
   EXPECT_TRUE(named) << "the observer's ABORT is journaled with its station";
+}
+
+namespace {
+/// SecureRemote with the simulated drives' own record.
+class SecureRemoteRecorded : public SecureRemote {
+ protected:
+  void SetUp() override {
+    use_sim_faults();
+    SecureRemote::SetUp();
+  }
+};
+}  // namespace
+
+// Issue 28's attacks with DDS Security on: a station of the project's CA
+// forging the commander's session (read off its acks), ahead in sequence, is
+// its own writer: REJECTED NOT_IN_CONTROL naming both stations, nothing
+// moves on the drives' own record; a participant of another CA reaches
+// nothing at all (its command is never received).
+TEST_F(SecureRemoteRecorded, AForgingStationIsRefusedByNameAndAnOutsiderReachesNothing) {
+  take_and_recover();
+  const Eigen::VectorXd q0 = current_q();
+  ASSERT_TRUE(test::eventually([&] { return record().seq > 0; }, 10s)) << "no drive_record";
+  mark();
+  std::vector<double> far(q0.data(), q0.data() + 7);
+  far[0] += 0.3;
+  {
+    fp::Participant forger(static_cast<dds_domainid_t>(domain_), fp::security_qos(dir_, "station-b"));
+    fp::Writer<msg::Command> writer(forger);
+    fp::Reader<msg::CommandAck> acks(forger);
+    ASSERT_TRUE(writer.wait_for_readers(1, 30s));
+    ASSERT_TRUE(acks.wait_for_writers(1, 30s));
+    fp::CommandSequencer forged(ground_->session_id());
+    for (int i = 0; i < 500; ++i) (void)forged.next(foresight_msg_CMD_REQUEST);
+    auto f = forged.next(foresight_msg_CMD_GOTO_JOINT);
+    protocol::fill_payload(*f, CommandKind::GotoJoint, protocol::GotoJoint{far, 0.5});
+    writer.write(f);
+    std::string reason;
+    fp::Sample<msg::CommandAck> a;
+    for (const auto until = std::chrono::steady_clock::now() + 20s; reason.empty() && std::chrono::steady_clock::now() < until;)
+      if (acks.wait_take(a, 100ms) && a->command_id == f->command_id && a->state == foresight_msg_ACK_REJECTED)
+        reason = fp::from_wire(*a).reason;
+    char session[20];
+    std::snprintf(session, sizeof session, "%016llx", static_cast<unsigned long long>(ground_->session_id()));
+    const std::string ground_id = protocol::identity_of_certificate(dir_ + "/identities/ground/cert.pem").hex();
+    const std::string b_id = protocol::identity_of_certificate(dir_ + "/identities/station-b/cert.pem").hex();
+    EXPECT_EQ(reason, "session " + std::string(session) + " is in control from station 'ground' (" + ground_id +
+                          "); this command came from station 'station-b' (" + b_id + ")");
+  }
+  {
+    fp::Participant outsider(static_cast<dds_domainid_t>(domain_), fp::security_qos(dir_ + "/foreign", "intruder"));
+    fp::Writer<msg::Command> writer(outsider);
+    EXPECT_FALSE(writer.wait_for_readers(1, 4s)) << "the outsider's command writer matched the remote";
+    fp::CommandSequencer seq;
+    auto go = seq.next(foresight_msg_CMD_GOTO_JOINT);
+    protocol::fill_payload(*go, CommandKind::GotoJoint, protocol::GotoJoint{far, 0.5});
+    writer.write(go);
+    const std::uint64_t outsider_session = seq.session_id();
+    const nlohmann::json journal = journal_json();
+    for (const auto& row : journal["commands"])
+      EXPECT_NE(row["session_id"].get<std::uint64_t>(), outsider_session) << "the outsider's command was received";
+  }
+  const test::DriveRecord d = fresh_record();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_LT(d.span(j), 1e-3) << "joint " << j + 1 << " moved";
+  // The operator still commands.
+  std::vector<double> near(q0.data(), q0.data() + 7);
+  near[0] += 0.02;
+  EXPECT_TRUE(run(CommandKind::GotoJoint, protocol::GotoJoint{near, 0.5}, 10.0).succeeded());
 }
