@@ -143,6 +143,56 @@ TEST(LinkCli, AMissingInterfaceInGroundYamlIsNamed) {
   std::filesystem::remove_all(dir);
 }
 
+// Issue 28's bad input: an expired certificate and an identity whose
+// permissions do not grant what the daemon needs are named by check, by the
+// daemon's start-up and by the CLI, with a non-zero exit.
+TEST(LinkCli, ExpiredAndUngrantedIdentitiesAreNamedEverywhere) {
+  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "openssl is not installed";
+  const std::string dir = temp_path("_sec");
+  ASSERT_EQ(std::system(("bash " FORESIGHT_SOURCE_DIR "/scripts/make_dds_security.sh " + dir + " >/dev/null 2>&1").c_str()), 0);
+  // An identity signed by the CA whose certificate expired yesterday.
+  const std::string old = dir + "/identities/old";
+  std::filesystem::create_directories(old);
+  ASSERT_EQ(std::system(("openssl ecparam -name prime256v1 -genkey -noout -out " + old + "/key.pem 2>/dev/null && "
+                         "openssl req -new -key " + old + "/key.pem -subj /C=NL/O=Foresight/CN=old -out " + old +
+                         "/req.csr 2>/dev/null && openssl x509 -req -in " + old + "/req.csr -CA " + dir + "/ca.pem -CAkey " +
+                         dir + "/ca_key.pem -CAcreateserial -sha256 -days -1 -out " + old + "/cert.pem >/dev/null 2>&1")
+                            .c_str()),
+            0);
+  const std::string expired = "DDS Security: " + old + "/cert.pem: does not verify against " + dir +
+                              "/ca.pem: certificate has expired";
+  const std::string j = temp_path(".db");
+  auto check = foresight::test::run_program("foresight-remote", "check --sim --journal " + j + " --security " + dir + " --identity old");
+  EXPECT_EQ(check.status, 1);
+  EXPECT_NE(check.out.find("FAIL  DDS security     " + expired), std::string::npos) << check.out;
+  auto daemon = foresight::test::run_program("foresight-remote", "--sim --journal " + j + " --security " + dir + " --identity old");
+  EXPECT_EQ(daemon.status, 2);
+  EXPECT_NE(daemon.err.find("foresight-remote: error: --security: " + expired + "\n"), std::string::npos) << daemon.err;
+  auto cli = run_foresight("status --security " + dir + " --identity old --connect-timeout 0.5");
+  EXPECT_EQ(cli.status, 2);
+  EXPECT_EQ(cli.err, "foresight status: error: --security: " + expired + "\n");
+
+  // A valid identity whose grants are a commander's, not the remote's.
+  check = foresight::test::run_program("foresight-remote", "check --sim --journal " + j + " --security " + dir + " --identity ground");
+  EXPECT_EQ(check.status, 1);
+  EXPECT_NE(check.out.find("FAIL  DDS security     identity 'ground' in " + dir +
+                           ": its permissions (permissions.p7s) do not cover the daemon's link: create writer on "
+                           "foresight/command/ack: Not Allowed By Security"),
+            std::string::npos)
+      << check.out;
+  protocol::use_loopback_if_unconfigured();
+  const std::string d = std::to_string(protocol::unique_test_domain());
+  daemon = foresight::test::run_program("foresight-remote", "--sim --domain " + d + " --journal " + j + " --security " + dir +
+                                               " --identity ground");
+  EXPECT_EQ(daemon.status, 2);
+  EXPECT_NE(daemon.err.find("foresight-remote: error: " + dir + "/permissions.p7s: identity 'ground' is not granted "
+                            "what the daemon's link needs: create writer on foresight/command/ack: Not Allowed By "
+                            "Security\n"),
+            std::string::npos)
+      << daemon.err;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(LinkCli, SendRefusesATrajectoryTheRemoteWouldReject) {
   // Joint 1 jumps 1 rad in 10 ms: far over its velocity limit.
   const std::string traj = write_temp_file("t,q1,q2,q3,q4,q5,q6,q7\n0,0,0,0,-0.5,0,0,0\n0.01,1,0,0,-0.5,0,0,0\n");

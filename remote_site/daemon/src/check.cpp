@@ -33,7 +33,9 @@
 #include "foresight/hw/remote_config.hpp"
 #include "foresight/hw/video_switch.hpp"
 #include "foresight/journal/journal.hpp"
+#include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/security.hpp"
+#include "foresight/remote_link/remote_link.hpp"
 #include "foresight/remote/daemon_config.hpp"
 #include "foresight/remote/site.hpp"
 
@@ -400,9 +402,11 @@ CheckReport run_check(const CheckOptions& o) {
 
   const std::string urdf = o.urdf.empty() ? sibling(o.remote_yaml, "robot.urdf") : o.urdf;
   bool model_ok = false;
+  std::optional<TrajectoryLimits> limits;  // the link's, for the DDS security probe
   try {
     if (!fs::exists(urdf)) throw std::runtime_error("missing URDF: " + urdf + " does not exist");
     const RobotModel model = RobotModel::from_file(urdf);
+    limits = TrajectoryLimits::from_model(model);
     std::string mismatch;
     if (hw_config) {
       if (hw_config->drives.size() != static_cast<std::size_t>(model.dof()))
@@ -492,7 +496,28 @@ CheckReport run_check(const CheckOptions& o) {
     std::string dir = o.security_dir, identity = o.security_identity;
     if (dir.empty() && daemon_config) dir = daemon_config->security_dir;
     if (identity.empty()) identity = daemon_config ? daemon_config->security_identity : "remote";
-    add(check_security(dir, identity, o.sim, o.security_dir.empty() && daemon_config && daemon_config->insecure));
+    CheckItem sec = check_security(dir, identity, o.sim, o.security_dir.empty() && daemon_config && daemon_config->insecure);
+    if (!dir.empty() && sec.result != CheckResult::Fail && limits) {
+      // The grants, as the daemon will use them: its link's every reader and
+      // writer made with this identity (nothing started, nothing sent).
+      try {
+        if (daemon_config && std::getenv("CYCLONEDDS_URI") == nullptr) protocol::apply_network(daemon_config->network);
+        remote_link::Config lc;
+        lc.domain = protocol::domain_from_environment().value_or(0);
+        lc.security_dir = dir;
+        lc.security_identity = identity;
+        lc.trajectory_limits = *limits;
+        remote_link::Handlers none;
+        none.on_command = [](const remote_link::CommandEvent&) {};
+        remote_link::RemoteLink probe(lc, none);
+        sec.why += "; its grants cover every topic the daemon reads and writes";
+      } catch (const std::exception& e) {
+        sec = item("DDS security", CheckResult::Fail,
+                   "identity '" + identity + "' in " + dir + ": its permissions (permissions.p7s) do not cover the daemon's "
+                   "link: " + e.what());
+      }
+    }
+    add(sec);
   }
   return report;
 }

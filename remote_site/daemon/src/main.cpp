@@ -346,7 +346,16 @@ int run_daemon(Options o) {
   handlers.on_command = [&](const remote_link::CommandEvent& e) { supervisor.submit(e); };
   handlers.on_upload = [&](const remote_link::UploadEvent& e) { supervisor.upload(e); };
   handlers.on_link = [&](const remote_link::LinkEvent& e) { supervisor.link_event(e); };
-  remote_link::RemoteLink link(lc, handlers);
+  std::unique_ptr<remote_link::RemoteLink> link_holder;
+  try {
+    link_holder = std::make_unique<remote_link::RemoteLink>(lc, handlers);
+  } catch (const protocol::ProtocolError& e) {
+    if (config.security_dir.empty()) throw;
+    // The permissions do not grant what the link needs: say whose and where.
+    throw InputError(config.security_dir + "/permissions.p7s",
+                     "identity '" + config.security_identity + "' is not granted what the daemon's link needs: " + e.what());
+  }
+  remote_link::RemoteLink& link = *link_holder;
   link_ptr = &link;
   link.start();
 
