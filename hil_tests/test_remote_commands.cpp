@@ -809,6 +809,12 @@ TEST_F(SecureRemote, TheStationKeepsControlAcrossItsCommandsAndAnotherStationWai
   EXPECT_EQ(r.status, 1) << r.out << r.err;
   EXPECT_NE((r.out + r.err).find("station 'station-b' ("), std::string::npos) << r.out << r.err;
 
+  r = cli("status --json --identity station-b");
+  EXPECT_EQ(r.status, 0) << r.err;
+  const auto status = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(status.is_discarded()) << r.out;
+  EXPECT_EQ(status["link_security"], (nlohmann::json{{"dds_security", true}, {"identity", "station-b"}}));
+
   // Every RECEIVED row names its station.
   std::set<std::string> stations;
   const nlohmann::json journal = journal_json();

@@ -306,6 +306,10 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
   j["clock_offset_s"] = d.clock_offset_s;
   j["remote_alive"] = link.remote_alive();
   j["session_id"] = link.session_id();
+  // DDS Security admits no plain participant: a plain station that hears the
+  // remote means the remote runs its link open (--sim, or insecure: true).
+  j["link_security"] = link.secured() ? nlohmann::json{{"dds_security", true}, {"identity", link.identity()}}
+                                      : nlohmann::json{{"dds_security", false}, {"identity", ""}};
   nlohmann::json faults = nlohmann::json::array();
   if (const auto js = link.joint_state()) {
     j["joints_rad"] = js->value.q_rad;

@@ -37,6 +37,11 @@ int run(const Options& o) {
               1e3 * r["median"].get<double>(), 1e3 * r["p99"].get<double>(), 1e3 * r["max"].get<double>(),
               r["count"].get<std::size_t>(), 1e3 * j["clock_offset_s"].get<double>(),
               j["remote_alive"].get<bool>() ? "alive" : "SILENT");
+  if (j["link_security"]["dds_security"].get<bool>())
+    std::printf("link security: DDS Security as station '%s'\n", j["link_security"]["identity"].get<std::string>().c_str());
+  else
+    std::printf("link security: NONE: the link is open to every participant of the DDS domain (--sim, or "
+                "controller.link.insecure: true)\n");
   std::printf("controller: %s", j["state"].get<std::string>().c_str());
   if (j.contains("active_command_id") && j["active_command_id"].get<std::uint64_t>() != 0)
     std::printf(", running command %llu", static_cast<unsigned long long>(j["active_command_id"].get<std::uint64_t>()));

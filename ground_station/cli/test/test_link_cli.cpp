@@ -117,7 +117,10 @@ TEST(LinkCli, DaemonAndCliFindEachOtherWithoutAnyEnvironment) {
                                  .c_str());
   std::system(("kill $(cat " + log + ".pid) 2>/dev/null").c_str());
   EXPECT_EQ(WEXITSTATUS(st), 0) << foresight::test::read_file(err) << "\ndaemon:\n" << foresight::test::read_file(log);
-  EXPECT_NE(foresight::test::read_file(out).find("\"remote_alive\": true"), std::string::npos) << foresight::test::read_file(out);
+  const auto status = nlohmann::json::parse(foresight::test::read_file(out), nullptr, false);
+  ASSERT_FALSE(status.is_discarded()) << foresight::test::read_file(out);
+  EXPECT_TRUE(status["remote_alive"].get<bool>());
+  EXPECT_EQ(status["link_security"], (nlohmann::json{{"dds_security", false}, {"identity", ""}}));
   EXPECT_NE(foresight::test::read_file(log).find("DDS network: interface lo, peers 127.0.0.1, multicast off"),
             std::string::npos)
       << foresight::test::read_file(log);

@@ -518,6 +518,7 @@ const DelayMonitor& GroundLink::delay() const noexcept { return impl_->delay; }
 std::uint64_t GroundLink::session_id() const noexcept { return impl_->sequencer.session_id(); }
 const protocol::Participant& GroundLink::participant() const noexcept { return impl_->participant; }
 bool GroundLink::secured() const noexcept { return !impl_->config.security_dir.empty(); }
+std::string GroundLink::identity() const { return secured() ? impl_->config.security_identity : std::string(); }
 void GroundLink::pause_heartbeat() noexcept { impl_->heartbeat_paused.store(true); }
 void GroundLink::resume_heartbeat() noexcept { impl_->heartbeat_paused.store(false); }
 

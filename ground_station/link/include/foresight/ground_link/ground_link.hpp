@@ -186,6 +186,8 @@ class GroundLink {
   /// With DDS Security: this station is its identity (Config::security_identity),
   /// and the remote binds control to it, not to this process.
   bool secured() const noexcept;
+  /// The DDS Security identity ("" without security).
+  std::string identity() const;
 
   /// Stops our heartbeat (the remote then sees a link loss); tests and the
   /// link-loss drill. resume_heartbeat() starts it again.
