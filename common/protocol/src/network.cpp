@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 
 #include "foresight/protocol/error.hpp"
@@ -30,6 +31,17 @@ std::string NetworkSettings::describe() const {
   std::string p;
   for (const auto& h : peers) p += (p.empty() ? "" : ", ") + h;
   return "interface " + interface + ", peers " + (p.empty() ? "none" : p) + ", multicast " + (multicast ? "on" : "off");
+}
+
+LinkSecuritySettings read_link_security(const yaml::MapReader& link, const std::string& fallback_identity) {
+  LinkSecuritySettings out;
+  out.dir = link.get_or<std::string>("security", "");
+  if (!out.dir.empty() && std::filesystem::path(out.dir).is_relative())
+    out.dir = (std::filesystem::path(link.file()).parent_path() / out.dir).lexically_normal().string();
+  out.identity = link.get_or<std::string>("identity", fallback_identity);
+  if (out.identity.empty() || out.identity.find('/') != std::string::npos || out.identity.find("..") != std::string::npos)
+    link.fail_key("identity", "'" + out.identity + "' is not an identity name (a folder under identities/)");
+  return out;
 }
 
 NetworkSettings read_network(const yaml::MapReader& m) {

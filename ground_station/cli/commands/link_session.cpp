@@ -67,12 +67,9 @@ GroundLinkFile load_ground_link_file(const std::string& path) {
   if (!top["link"]) return f;
   const yaml::MapReader link = top.map("link");
   link.check_keys({"security", "identity", "network"});
-  f.security_dir = link.get_or<std::string>("security", "");
-  if (!f.security_dir.empty() && std::filesystem::path(f.security_dir).is_relative())
-    f.security_dir = (std::filesystem::path(path).parent_path() / f.security_dir).lexically_normal().string();
-  f.identity = link.get_or<std::string>("identity", f.identity);
-  if (f.identity.empty() || f.identity.find('/') != std::string::npos || f.identity.find("..") != std::string::npos)
-    link.fail_key("identity", "'" + f.identity + "' is not an identity name (a folder under identities/)");
+  const protocol::LinkSecuritySettings sec = protocol::read_link_security(link, f.identity);
+  f.security_dir = sec.dir;
+  f.identity = sec.identity;
   if (link["network"]) f.network = protocol::read_network(link.map("network"));
   return f;
 }

@@ -72,13 +72,9 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
     } else {
       link.fail_key("loss_policy", "'" + policy + "' is not a policy (expected finish_and_hold or stop)");
     }
-    c.security_dir = link.get_or<std::string>("security", "");
-    if (!c.security_dir.empty() && std::filesystem::path(c.security_dir).is_relative())
-      c.security_dir = (std::filesystem::path(source_name).parent_path() / c.security_dir).lexically_normal().string();
-    c.security_identity = link.get_or<std::string>("identity", c.security_identity);
-    if (c.security_identity.empty() || c.security_identity.find('/') != std::string::npos ||
-        c.security_identity.find("..") != std::string::npos)
-      link.fail_key("identity", "'" + c.security_identity + "' is not an identity name (a folder under identities/)");
+    const protocol::LinkSecuritySettings sec = protocol::read_link_security(link, c.security_identity);
+    c.security_dir = sec.dir;
+    c.security_identity = sec.identity;
     c.insecure = link.get_or<bool>("insecure", false);
     if (c.insecure && !c.security_dir.empty())
       link.fail_key("insecure", "contradicts link.security '" + link.get_or<std::string>("security", "") +

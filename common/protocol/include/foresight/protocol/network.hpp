@@ -1,5 +1,6 @@
 #pragma once
-// The DDS network as configuration: which interface the link uses, which
+// The link's settings both sides read from their YAML (`link:`): its DDS
+// Security folder and identity, and the DDS network as configuration: which interface the link uses, which
 // hosts it discovers by unicast, and whether it may use multicast. The
 // daemon reads it from remote.yaml (`controller.link.network`), the CLI from
 // ground.yaml (`link.network`); both turn it into Cyclone's configuration
@@ -26,6 +27,16 @@ struct NetworkSettings {
   /// "interface lo, peers 127.0.0.1, multicast off".
   std::string describe() const;
 };
+
+/// The DDS Security part of a `link:` map, the same on both sides:
+/// `security` (a folder, relative to the file; "" = none) and `identity`
+/// (a folder name under identities/, `fallback` when absent). InputError
+/// "<file>:<line>: <path>.identity: '../x' is not an identity name ...".
+struct LinkSecuritySettings {
+  std::string dir;
+  std::string identity;
+};
+LinkSecuritySettings read_link_security(const yaml::MapReader& link, const std::string& fallback_identity);
 
 /// Reads a `network:` map (keys interface, peers, multicast; each optional,
 /// the defaults above): InputError "<file>:<line>: <path>.<key>: ..." for an
