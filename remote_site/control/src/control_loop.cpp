@@ -153,6 +153,7 @@ LoopStats ControlLoop::stats() const noexcept {
   s.events_dropped = events_dropped_.load(std::memory_order_relaxed);
   s.telemetry_dropped = telemetry_dropped_.load(std::memory_order_relaxed);
   s.compute_us_max = compute_max_.load(std::memory_order_relaxed);
+  s.sync_after_wake_us_max = sync_after_wake_max_.load(std::memory_order_relaxed);
   s.wakeup_latency_us_max = latency_max_.load(std::memory_order_relaxed);
   const double n = s.cycles > 0 ? static_cast<double>(s.cycles) : 1.0;
   s.compute_us_mean = compute_sum_.load(std::memory_order_relaxed) / n;
@@ -232,6 +233,13 @@ void ControlLoop::perform(DriveRequest request) noexcept {
 
 void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
   const hw::CycleStatus status = drives_.cycle_read(fb_, ft_);
+  // SYNC right after the wake-up and the read, before the computation: the
+  // drives latch last cycle's targets at a steady time (CiA 301), however
+  // long this cycle's computation takes.
+  drives_.send_sync();
+  const double sync_us = static_cast<double>(now_ns() - stamp_ns) * 1e-3;
+  if (sync_us > sync_after_wake_max_.load(std::memory_order_relaxed))
+    sync_after_wake_max_.store(sync_us, std::memory_order_relaxed);
   fill_cycle_inputs(status, fb_, ft_, in_);
   in_.stamp_ns = stamp_ns;
   in_.estop = estop_.load(std::memory_order_acquire);

@@ -233,6 +233,7 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
     if (k == 5) commands->try_push(run);
     arm(true);
     const hw::CycleStatus s = drives.cycle_read(fb, ft);
+    drives.send_sync();  // as ControlLoop::cycle: the SYNC before the computation
     fill_cycle_inputs(s, fb, ft, in);
     MotionCommand c;
     while (commands->try_pop(c)) ctl.command(c);

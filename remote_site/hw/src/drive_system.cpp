@@ -608,6 +608,35 @@ void DriveSystem::push_event(const HwEvent& e) noexcept {
     ++pending_dropped_;
 }
 
+void DriveSystem::write_sync(std::size_t bi) noexcept {
+  CanBus& bus = *buses_[bi];
+  BusState& bs = bus_state_[bi];
+  can_frame sync{};
+  sync.can_id = kSync;
+  sync.can_dlc = 0;
+  if (config_.sync_counter_overflow > 0) {  // CiA 301 counter 1..overflow
+    bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter >= config_.sync_counter_overflow ? 1 : bs.sync_counter + 1);
+    sync.can_dlc = 1;
+    sync.data[0] = bs.sync_counter;
+  } else {
+    bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter + 1);  // echo matching without a counter on the wire
+  }
+  const CanIo sync_io = bus.write(sync);
+  if (sync_io != CanIo::Ok) {
+    if (!bs.tx_fail_reported)
+      push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(sync_io), kSync});
+    bs.tx_fail_reported = true;
+  } else {
+    bs.sync_sent = true;
+  }
+}
+
+void DriveSystem::send_sync() noexcept {
+  if (!configured_) return;
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) write_sync(bi);
+  sync_sent_this_cycle_ = true;
+}
+
 void DriveSystem::cycle_write(const JointTargets& targets) noexcept { cycle_write(targets, Clock::now()); }
 
 void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now) noexcept {
@@ -622,26 +651,10 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
     // SYNC first (CiA 301 synchronous PDOs): the nodes sample their TPDOs at
     // this SYNC and latch the RPDOs that follow at the next one, so the whole
     // synchronous window is left for the RPDOs and a late RPDO cannot split
-    // a cycle's targets across two SYNCs.
-    can_frame sync{};
-    sync.can_id = kSync;
-    sync.can_dlc = 0;
-    if (config_.sync_counter_overflow > 0) {  // CiA 301 counter 1..overflow
-      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter >= config_.sync_counter_overflow ? 1 : bs.sync_counter + 1);
-      sync.can_dlc = 1;
-      sync.data[0] = bs.sync_counter;
-    } else {
-      bs.sync_counter = static_cast<std::uint8_t>(bs.sync_counter + 1);  // echo matching without a counter on the wire
-    }
-    const CanIo sync_io = bus.write(sync);
-    const bool sync_ok = sync_io == CanIo::Ok;
-    if (!sync_ok) {
-      if (!bs.tx_fail_reported)
-        push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), 0, -1, static_cast<std::uint32_t>(sync_io), kSync});
-      bs.tx_fail_reported = true;
-    } else {
-      bs.sync_sent = true;
-    }
+    // a cycle's targets across two SYNCs. The control loop sends it earlier
+    // (send_sync), at its wake-up.
+    if (!sync_sent_this_cycle_) write_sync(bi);
+    const bool sync_ok = bs.sync_sent;
     bool all_sent = true;
     for (std::size_t j : bs.drives) {
       Drive& d = drives_[j];
@@ -676,6 +689,7 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
       (void)bus.write(make_frame(kHeartbeatBase + config_.master_node_id, {static_cast<std::uint8_t>(NmtState::Operational)}));
     if (sync_ok && all_sent) bs.tx_fail_reported = false;  // reported once per episode, not every cycle
   }
+  sync_sent_this_cycle_ = false;
   ++cycle_;
 }
 

@@ -71,6 +71,9 @@ struct SimRig {
   bool stepping = false;
   Clock::time_point sim_now{};
   std::chrono::nanoseconds next_jitter{0};  ///< added to the period after the next cycle only
+  /// The control loop's order: the SYNC right after the read (send_sync),
+  /// then the computation, then the RPDOs. Off: cycle_write sends both.
+  bool sync_at_wake = false;
 
   void bring_up_stepped() {
     drives->configure();
@@ -94,6 +97,7 @@ struct SimRig {
   CycleStatus cycle() {
     if (stepping) {
       const CycleStatus s = drives->cycle_read(fb, ft, sim_now);
+      if (sync_at_wake) drives->send_sync();
       drives->cycle_write(targets, sim_now);
       sim->process_at(sim_now);  // the nodes take the RPDOs and SYNC, and answer
       sim_now += period() + next_jitter;

@@ -529,3 +529,39 @@ TEST(CanSimulatorThread, ABacklogOnTwoBusesIsSteppedOneCycleAtATime) {
   s->process_at(std::chrono::steady_clock::now());
   EXPECT_EQ(seen, (std::vector<std::uint64_t>{1, 2, 3}));
 }
+
+// Issue 25, item 6: the control loop sends the SYNC right after its wake-up
+// and read, before its computation (send_sync), and the RPDOs after it. The
+// drives must see the same thing as with SYNC and RPDOs together: one SYNC a
+// cycle, the same frames, the same feedback cycle by cycle, nothing stale or
+// missing.
+TEST(HarshBus, TheSyncAtTheWakeUpChangesNothingTheDrivesSee) {
+  auto run = [](bool sync_at_wake, std::vector<double>* q_trace, std::uint64_t* frames) {
+    SimRig rig(production_config());
+    rig.bring_up_stepped();
+    rig.sync_at_wake = sync_at_wake;
+    const JointTargets q0 = rig.targets;
+    const std::uint64_t frames_before = rig.sim->frames_received();
+    int stops = 0;
+    for (int i = 0; i < 400; ++i) {
+      sine_targets(rig, q0, i);
+      const CycleStatus s = rig.cycle();
+      stops += s.stop_required ? 1 : 0;
+      for (std::size_t j = 0; j < 7; ++j) q_trace->push_back(rig.fb.joints[j].position_rad);
+    }
+    EXPECT_EQ(stops, 0) << (sync_at_wake ? "sync at wake" : "sync with the RPDOs");
+    *frames = rig.sim->frames_received() - frames_before;
+  };
+  std::vector<double> together, at_wake;
+  std::uint64_t frames_together = 0, frames_at_wake = 0;
+  run(false, &together, &frames_together);
+  run(true, &at_wake, &frames_at_wake);
+  EXPECT_EQ(frames_at_wake, frames_together) << "one SYNC a cycle either way";
+  ASSERT_EQ(at_wake.size(), together.size());
+  double worst = 0.0;
+  for (std::size_t k = 0; k < at_wake.size(); ++k) worst = std::max(worst, std::abs(at_wake[k] - together[k]));
+  EXPECT_LT(worst, 1e-9) << "the feedback differs cycle by cycle";
+  double moved = 0.0;
+  for (std::size_t k = 7; k < at_wake.size(); ++k) moved = std::max(moved, std::abs(at_wake[k] - at_wake[k % 7]));
+  EXPECT_GT(moved, 0.005) << "the sine was followed";
+}

@@ -1,4 +1,4 @@
-// The real-time cycle (cycle_read + cycle_write) must not touch the heap,
+// The real-time cycle (cycle_read + send_sync + cycle_write) must not touch the heap,
 // also when it reports faults. Counted through both operator new and malloc
 // (foresight/test/allocation_counter.hpp), on the test thread only (the
 // simulator thread allocates freely; it is not real-time code).
@@ -59,6 +59,7 @@ TEST(RtAlloc, CycleDoesNotAllocateEvenWhileReportingFaults) {
     rig.deadline += std::chrono::milliseconds(2);
     counter.resume();
     const CycleStatus s = rig.drives->cycle_read(rig.fb, rig.ft);
+    rig.drives->send_sync();  // the control loop's order: SYNC at the wake-up
     rig.drives->cycle_write(rig.targets);
     counter.pause();
     frames += s.frames_received;

@@ -84,6 +84,9 @@ struct LoopStats {
   std::uint64_t events_dropped = 0;    ///< event/stop rings full
   std::uint64_t telemetry_dropped = 0;
   double compute_us_max = 0.0;         ///< read + step + write
+  /// From the wake-up to the cycle's SYNC (the read alone; the computation
+  /// comes after it): what the drives see of the loop's timing.
+  double sync_after_wake_us_max = 0.0;
   double compute_us_mean = 0.0;
   double wakeup_latency_us_max = 0.0;  ///< wake-up time - deadline (jitter)
   double wakeup_latency_us_mean = 0.0;
@@ -168,6 +171,7 @@ class ControlLoop {
   // statistics (written by the loop thread only)
   std::atomic<std::uint64_t> cycles_{0}, overruns_{0}, events_dropped_{0}, telemetry_dropped_{0};
   std::atomic<double> compute_max_{0.0}, compute_sum_{0.0}, latency_max_{0.0}, latency_sum_{0.0};
+  std::atomic<double> sync_after_wake_max_{0.0};
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> compute_hist_{};
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> latency_hist_{};
   std::atomic<bool> realtime_{false};

@@ -219,7 +219,14 @@ class DriveSystem {
   void nmt_all(canopen::NmtCommand cmd);
 
   // ---- real-time cycle -------------------------------------------------------
-  /// Queue RPDOs (controlword + target) for all drives and a SYNC per bus.
+  /// The cycle's SYNC on every bus, sent by the control loop right after it
+  /// wakes and reads (before its computation), so the drives latch the last
+  /// targets and sample their TPDOs at a steady time whatever the
+  /// computation takes. The cycle_write that follows sends only the RPDOs.
+  /// Does nothing before configure() has succeeded.
+  void send_sync() noexcept;
+  /// Queue RPDOs (controlword + target) for all drives, after a SYNC per bus
+  /// unless send_sync() already sent this cycle's (the set-up loops).
   /// Does nothing before configure() has succeeded. After enable(), start
   /// from held_targets(): a target step beyond the following-error window is
   /// refused here (InvalidTarget, the previous target is kept) before it can
@@ -326,6 +333,8 @@ class DriveSystem {
   std::uint64_t cycle_ = 0;
   bool configured_ = false;
   bool enabled_ = false;
+  bool sync_sent_this_cycle_ = false;  ///< send_sync() ran since the last cycle_write
+  void write_sync(std::size_t bus) noexcept;
   std::atomic<bool> quick_stop_{false};
   std::atomic<bool> power_off_{false};
   std::atomic<int> tare_request_{0};
