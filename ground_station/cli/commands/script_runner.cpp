@@ -545,7 +545,7 @@ bool ScriptRunner::chains(const script::Command& c) const {
   }
 }
 
-std::optional<Eigen::VectorXd> ScriptRunner::algorithm_end(const script::Command& c) const {
+std::optional<Eigen::VectorXd> ScriptRunner::algorithm_end(const script::Command& c) {
   const std::string name = c.positional[0].text;
   double along_z = 0.0;
   if (name == "insert") along_z = c.number_or("depth_m", std::nan(""));
@@ -555,8 +555,7 @@ std::optional<Eigen::VectorXd> ScriptRunner::algorithm_end(const script::Command
   if (along_z == 0.0) return q_;  // latch, unlatch, loosen, tighten, tare: the arm holds
   // The remote's task frame is the tool tip's at the start: the tip moves
   // along its own z axis with its orientation kept (a straight line).
-  KinematicsWorkspace ws(model_);
-  const Pose tip = forward_kinematics(model_, ws, q_);
+  const Pose tip = forward_kinematics(model_, ws_, q_);
   Goal goal;
   goal.kind = SegmentKind::Linear;
   goal.base_T_tip = tip;

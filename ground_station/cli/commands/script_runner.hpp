@@ -79,7 +79,7 @@ class ScriptRunner : public script::CommandRunner {
   /// Where an INVOKE_ALGORITHM leaves the arm when it succeeds: insert moves the
   /// tool tip depth_m along its own z axis, pull_out distance_m back; the others
   /// do not move it. nullopt when that is not known (guarded_move).
-  std::optional<Eigen::VectorXd> algorithm_end(const script::Command& c) const;
+  std::optional<Eigen::VectorXd> algorithm_end(const script::Command& c);
   nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
                             bool completed = true);
   int child(const std::vector<std::string>& args, const std::string& stdout_path,

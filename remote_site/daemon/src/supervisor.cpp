@@ -54,6 +54,13 @@ std::int64_t wall_now_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
 }
 
+/// HASH_MISMATCH's reason: a RUN's hash against its committed upload's.
+std::string hash_mismatch(std::uint64_t trajectory_id, const TrajectoryHash& command_hash,
+                          const TrajectoryHash& committed_hash) {
+  return "trajectory " + std::to_string(trajectory_id) + ": the command's hash " + to_hex(command_hash) +
+         " differs from the committed upload's " + to_hex(committed_hash);
+}
+
 /// A session id as 16 hex digits.
 std::string hex16(std::uint64_t v) {
   char buf[20];
@@ -497,8 +504,7 @@ std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c
       }
       if (upload_hash_[p.trajectory_id] != p.content_hash) {
         *code = Reason::HashMismatch;
-        *reason = "trajectory " + std::to_string(p.trajectory_id) + ": the command's hash " + to_hex(p.content_hash) +
-                  " differs from the committed upload's " + to_hex(upload_hash_[p.trajectory_id]);
+        *reason = hash_mismatch(p.trajectory_id, p.content_hash, upload_hash_[p.trajectory_id]);
         return nullptr;
       }
       job->trajectory = it->second;
@@ -836,8 +842,7 @@ void Supervisor::resolve_upload_waits(std::uint64_t trajectory_id) {
     if (committed != uploads_.end()) {
       if (upload_hash_[trajectory_id] != run.content_hash) {
         code = Reason::HashMismatch;
-        why = "trajectory " + std::to_string(trajectory_id) + ": the command's hash " + to_hex(run.content_hash) +
-              " differs from the committed upload's " + to_hex(upload_hash_[trajectory_id]);
+        why = hash_mismatch(trajectory_id, run.content_hash, upload_hash_[trajectory_id]);
       } else {
         try {
           job.prepared = std::make_unique<control::PreparedTrajectory>(*committed->second, trajectory_id);
@@ -865,22 +870,25 @@ void Supervisor::resolve_upload_waits(std::uint64_t trajectory_id) {
 
 void Supervisor::check_upload_waits() {
   const auto now = Clock::now();
-  bool changed = false;
-  for (auto it = std::find_if(queue_.begin(), queue_.end(),
-                              [&](const auto& j) { return j->awaiting_upload != 0 && now >= j->upload_deadline; });
-       it != queue_.end();
-       it = std::find_if(queue_.begin(), queue_.end(),
-                         [&](const auto& j) { return j->awaiting_upload != 0 && now >= j->upload_deadline; })) {
-    std::unique_ptr<Job> job = std::move(*it);
-    queue_.erase(it);
+  // Taken out first, failed after: failing one cancels its chain, which
+  // erases from the queue.
+  std::vector<std::unique_ptr<Job>> late;
+  for (auto it = queue_.begin(); it != queue_.end();) {
+    if ((*it)->awaiting_upload != 0 && now >= (*it)->upload_deadline) {
+      late.push_back(std::move(*it));
+      it = queue_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  for (auto& job : late) {
     const auto& run = std::get<protocol::RunTrajectory>(job->command.payload);
     const std::string why = "upload " + std::to_string(run.trajectory_id) +
                             fmt(" did not commit within %.1f s of the RUN (upload_wait_s): nothing of it ran",
                                 run.upload_wait_s);
     fail_queued(std::move(job), Reason::IncompleteUpload, why);
-    changed = true;
   }
-  if (changed) start_next();
+  if (!late.empty()) start_next();
 }
 
 void Supervisor::cancel_queued(const std::string& why) {
