@@ -237,6 +237,36 @@ TEST_F(FaultCampaign, ADrivesHeartbeatLostMidMotionIsACategoryZeroStop) {
   drive_side_fault("drive_silent_4", {"heartbeat"});
 }
 
+// Issue 25, item 9: a safety input that is not a file. The cabinet's E-stop
+// circuit opens: every drive's safe torque off input cuts its torque and its
+// statusword says so (remote.yaml sto_status_bit); the master reads it over
+// CAN each cycle and stops category 0 naming it, as it does for the E-stop
+// file; RECOVER is refused while the circuit stays open.
+TEST_F(FaultCampaign, TheEStopCircuitAsTheDrivesReportItIsACategoryZeroStop) {
+  drive_side_fault("estop_circuit", {"E-stop: safe torque off reported by the drive of joint"});
+  fault_on("estop_circuit");
+  const auto st = wait_stop(protocol::StopCategory::Cat0);
+  EXPECT_NE(st.stop_reason.find("E-stop: safe torque off"), std::string::npos) << st.stop_reason;
+  // The drives' own record: none powered (polled every 20 ms: the record
+  // catches up), and none switched on by a RECOVER while the circuit is open.
+  EXPECT_TRUE(eventually([&] {
+    const DriveRecord d = record();
+    return d.powered.size() == 7 && std::none_of(d.powered.begin(), d.powered.end(), [](bool p) { return p; });
+  }, 10s)) << "a drive is powered while the E-stop circuit is open";
+  mark();
+  const auto rec = run(CommandKind::Recover, protocol::NoPayload{}, 5.0);
+  EXPECT_FALSE(rec.succeeded());
+  EXPECT_NE(rec.reason.find("E-stop: safe torque off reported by the drives"), std::string::npos) << rec.reason;
+  const DriveRecord after = fresh_record();
+  for (std::size_t j = 0; j < after.states_seen.size(); ++j) {
+    EXPECT_FALSE(after.was_in(j, 4)) << "joint " << j + 1 << " was enabled while the circuit was open";
+    EXPECT_FALSE(after.powered[j]) << "joint " << j + 1;
+  }
+  fault_off("estop_circuit");
+  recover_until_ready();
+  expect_motion_completes();
+}
+
 TEST_F(FaultCampaign, ABusLosingEveryFrameMidMotionIsACategoryZeroStop) {
   // The F/T sensor shares the bus: its heartbeat, lost during the outage,
   // is cleared by RECOVER once heard again (it used to stay lost: a stop

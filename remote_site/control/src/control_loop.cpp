@@ -83,6 +83,8 @@ void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& f
   in.ft_fault = ft.sensor_fault;
   in.ft_tare_in_progress = ft.tare_in_progress;
   in.hw_stop_required = status.stop_required;
+  in.safe_torque_off = status.safe_torque_off;
+  in.sto_joint = status.sto_joint;
   in.hw_drive_fault = status.stop_required;
   in.hw_fault = 0;
   in.hw_node = 0;

@@ -520,6 +520,15 @@ void Controller::compliant_offset_to_joints(const Pose& base_T_ref_tip, const Jo
 
 bool Controller::check_safety(const CycleInputs& in) noexcept {
   char buf[96];
+  // The E-stop circuit as the drives report it (safe torque off) comes
+  // first: the drives' own reaction (torque off, leaving Operation enabled)
+  // would otherwise be named as the cause.
+  if (in.safe_torque_off) {
+    std::snprintf(buf, sizeof buf, "E-stop: safe torque off reported by the drive of joint %d",
+                  static_cast<int>(in.sto_joint) + 1);
+    begin_stop(StopCause::EStop, config_.estop_category, in.sto_joint, 1.0, 0.0, buf);
+    return false;
+  }
   // Hardware first: the drives (or the F/T sensor) said stop.
   if (in.hw_stop_required) {
     std::snprintf(buf, sizeof buf, "hw: %s node %u joint %d code 0x%04x",
@@ -679,10 +688,12 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   }
 
   // No power-up while the E-stop is pressed.
-  if (in.estop && drive_request_pending_ && pending_request_ == DriveRequest::Enable && !drive_request_issued_) {
+  if ((in.estop || in.safe_torque_off) && drive_request_pending_ && pending_request_ == DriveRequest::Enable &&
+      !drive_request_issued_) {
     drive_request_pending_ = false;
     pending_request_ = DriveRequest::None;
-    emit(active_id_, active_cmd_, MotionEventKind::Rejected, Reason::Faulted, "E-stop pressed");
+    emit(active_id_, active_cmd_, MotionEventKind::Rejected, Reason::Faulted,
+         in.estop ? "E-stop pressed" : "E-stop: safe torque off reported by the drives");
     active_ = Active::None;
     active_id_ = 0;
   }

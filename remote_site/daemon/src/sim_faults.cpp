@@ -52,6 +52,9 @@ void SimFaultWatcher::run() {
       if (sim.can->ft_sensor()) sim.can->ft_sensor()->inject_sensor_fault(on);
     });
     level("oru_stuck", stuck_, [&](bool on) { sim.plant->set_oru_stuck(on); });
+    level("estop_circuit", sto_, [&](bool on) {
+      for (std::size_t j = 0; j < sim.can->drive_count(); ++j) sim.can->drive(j).set_safe_torque_off(on);
+    });
     level("video_silent", video_silent_, [&](bool on) {
       if (sim.video) sim.video->set_silent(on);
     });

@@ -972,6 +972,14 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   for (std::size_t j = 0; j < drives_.size(); ++j) joints.joints[j] = drives_[j].st;
 
   CycleStatus s;
+  if (config_.sto_status_bit >= 0) {
+    const auto bit = static_cast<std::uint16_t>(1u << config_.sto_status_bit);
+    for (std::size_t j = 0; j < drives_.size() && !s.safe_torque_off; ++j)
+      if (drives_[j].st.state_known && (drives_[j].st.statusword & bit) != 0) {
+        s.safe_torque_off = true;
+        s.sto_joint = static_cast<std::int8_t>(j);
+      }
+  }
   s.cycle = cycle_;
   s.active_faults = active;
   s.first_active = first_active;

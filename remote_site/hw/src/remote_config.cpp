@@ -50,7 +50,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   // The project's one YAML reader and its wording (yaml::parse, yaml::MapReader).
   const yaml::MapReader top(yaml::parse(yaml_text, source_name), source_name, "");
   top.check_keys({"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
-                  "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "bus_off_restart_limit",
+                  "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "sto_status_bit", "bus_off_restart_limit",
                   "velocity_tpdo_every", "buses",
                   "drives", "ft_sensor", "tool", "video_switch", "controller"});
 
@@ -71,6 +71,11 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   c.sdo_timeout_s = top.get_or_in("sdo_timeout_ms", 500.0, 1, 10000, "ms") * 1e-3;
   c.enable_timeout_s = top.get_or_in("enable_timeout_ms", 2000.0, 1, 60000, "ms") * 1e-3;
   c.tpdo_miss_limit = static_cast<int>(top.get_or_int_in("tpdo_miss_limit", 5, 1, 1000, "cycles"));
+  c.sto_status_bit = static_cast<int>(top.get_or_int_in("sto_status_bit", -1, -1, 15, "(a statusword bit)"));
+  if (c.sto_status_bit != -1 && c.sto_status_bit != 8 && c.sto_status_bit != 14 && c.sto_status_bit != 15)
+    top.fail_key("sto_status_bit", std::to_string(c.sto_status_bit) +
+                                       " is a bit CiA 402 defines itself: the drive's STO status is one of the "
+                                       "manufacturer-specific bits 8, 14 or 15 (or -1: not wired)");
   c.max_bus_load = top.get_or_in("max_bus_load", 0.70, 0.01, 1.0, "(fraction of the bit rate)");
   c.interpolation_exponent =
       static_cast<int>(top.get_or_int_in("interpolation_exponent", -4, -6, 0, "(0x60C2:02, 10^x s)"));

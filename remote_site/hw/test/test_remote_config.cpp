@@ -45,6 +45,7 @@ TEST(RemoteConfig, LoadsTheProjectFile) {
   // Known loads (SYNC with its 1-byte counter: 65 bits): arm_a 4 drives:
   // (65 + 4*(115+135)) * 500 + (4+1 master)*65/0.05 = 539000 bit/s
   EXPECT_EQ(c.sync_counter_overflow, 240);
+  EXPECT_EQ(c.sto_status_bit, 14);
   const auto loads = compute_bus_loads(c);
   ASSERT_EQ(loads.size(), 2u);
   EXPECT_EQ(loads[0].frames_per_cycle, 9);
@@ -159,6 +160,12 @@ TEST(RemoteConfig, ValuesTheHardwareCannotHoldNaNAndDuplicatesAreRefused) {
             "remote.yaml:2: interpolation_exponent: not an integer: '-4.5'");
   EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nsync_counter_overflow: 1\n")),
             "remote.yaml:2: sync_counter_overflow: 1 is not a counter overflow (CiA 301 0x1019: 2..240, or 0 for no counter)");
+  // Issue 25, item 9: the drives' STO status bit is one of CiA 402's manufacturer-specific bits.
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nsto_status_bit: 3\n")),
+            "remote.yaml:2: sto_status_bit: 3 is a bit CiA 402 defines itself: the drive's STO status is one of the "
+            "manufacturer-specific bits 8, 14 or 15 (or -1: not wired)");
+  EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nsto_status_bit: 16\n")),
+            "remote.yaml:2: sto_status_bit: 16 is outside [-1, 15] (a statusword bit)");
   EXPECT_EQ(error_of(base_yaml(drives, two_buses, "cycle_rate_hz: 500\nbus_off_restart_limit: 1e9\n")),
             "remote.yaml:2: bus_off_restart_limit: not an integer: '1e9'");
   EXPECT_EQ(error_of(base_yaml(drive("joint1", "a", 1, ", counts_per_rev: 131072, gear_ratio: 100, following_error_limit_rad: 2"))),
@@ -218,7 +225,7 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
   EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: {producer_ms: 10, consumer_ms: 50}\nbeat: 3\n"),
             "remote.yaml:3: beat: unknown key (expected one of: cycle_rate_hz, heartbeat, sdo_timeout_ms, "
             "enable_timeout_ms, tpdo_miss_limit, max_bus_load, interpolation_exponent, sync_counter_overflow, "
-            "bus_off_restart_limit, velocity_tpdo_every, buses, drives, ft_sensor, tool, video_switch, controller)");
+            "sto_status_bit, bus_off_restart_limit, velocity_tpdo_every, buses, drives, ft_sensor, tool, video_switch, controller)");
   EXPECT_EQ(error_of("cycle_rate_hz: 500\n"), "remote.yaml:1: top level: missing 'heartbeat' (producer_ms, consumer_ms)");
   EXPECT_EQ(error_of("- 1\n"), "remote.yaml:1: expected a map at the top level");
   // A section that is a scalar where a map belongs (yaml-cpp threw its own

@@ -113,6 +113,7 @@ std::unique_ptr<CanSimulator> CanSimulator::from_config(const hw::RemoteConfig& 
     p.name = d.joint;
     p.counts_per_rev = d.counts_per_rev;
     p.max_motor_speed_counts_s = 100.0 * d.counts_per_rev;  // 6000 rpm
+    p.sto_status_bit = config.sto_status_bit;
     sim->add_drive(static_cast<std::size_t>(config.bus_index(d.bus)), p);
     sim->drives_.back().has_scaling = true;
     sim->drives_.back().scaling = d;

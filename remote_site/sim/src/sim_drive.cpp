@@ -67,6 +67,10 @@ void SimDrive::inject_fault(std::uint16_t emcy_code) {
   injected_fault_ = true;
   injected_code_ = emcy_code;
 }
+void SimDrive::set_safe_torque_off(bool active) {
+  std::lock_guard lock(mu_);
+  sto_ = active;
+}
 void SimDrive::set_load_torque_nm(double t) {
   std::lock_guard lock(mu_);
   load_torque_nm_ = t;
@@ -471,6 +475,7 @@ void SimDrive::update_statusword() {
     if (std::abs(demand_ - x_) < 10.0) sw |= statusword::kTargetReached;
   }
   if (internal_limit_) sw |= statusword::kInternalLimit;
+  if (sto_ && p_.sto_status_bit >= 0) sw |= static_cast<std::uint16_t>(1u << p_.sto_status_bit);
   if (following_error_) sw |= statusword::kCspFollowingError;
   set(od::kStatusword, 0, sw);
   set(od::kModesDisplay, 0, get(od::kModesOfOperation, 0));
@@ -562,8 +567,15 @@ void SimDrive::on_sync(Clock::time_point now, FrameSink& out) {
     fault(injected_code_, out);
   }
   // 4. power state machine, then the new target: the demand the next period
-  // interpolates toward (with limit supervision).
+  // interpolates toward (with limit supervision). Safe torque off overrides
+  // the master: no torque, and nothing switches the power stage on.
   apply_command(static_cast<std::uint16_t>(get(od::kControlword, 0)), out);
+  if (sto_ && (state_ == PowerState::ReadyToSwitchOn || state_ == PowerState::SwitchedOn ||
+               state_ == PowerState::OperationEnabled || state_ == PowerState::QuickStopActive)) {
+    state_ = PowerState::SwitchOnDisabled;
+    v_ = 0.0;
+    ramp_v_ = 0.0;
+  }
   if (!homing_mode && state_ == PowerState::OperationEnabled) {
     const auto target = static_cast<double>(static_cast<std::int32_t>(get(od::kTargetPosition, 0)));
     const auto lo = static_cast<double>(static_cast<std::int32_t>(get(od::kSoftwareLimits, 1)));

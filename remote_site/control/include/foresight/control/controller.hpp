@@ -124,6 +124,10 @@ struct CycleInputs {
   std::int8_t hw_joint = -1;
   std::uint32_t hw_code = 0;
   bool estop = false;                  ///< E-stop input (true = pressed)
+  /// The E-stop as the drives report it: safe torque off active
+  /// (hw::CycleStatus::safe_torque_off), on the drive of `sto_joint`.
+  bool safe_torque_off = false;
+  std::int8_t sto_joint = -1;
   bool link_lost = false;              ///< link-loss input
   /// Control periods missed in a row before this cycle (ControlLoop) and the
   /// count that is a category 1 stop (0: never).

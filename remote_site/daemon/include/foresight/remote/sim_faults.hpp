@@ -14,6 +14,9 @@
 //   drive_silent_J  joint J's drive stops sending its heartbeat while it exists
 //   bus_loss_B      bus B (0-based, config order) loses every frame both ways
 //                   while it exists (CanSimulator::set_impairment, loss 1.0)
+//   estop_circuit   the cabinet's E-stop circuit is open while it exists: every
+//                   drive's safe torque off input is active (no torque; the
+//                   statusword carries remote.yaml's sto_status_bit)
 //
 // And one output, the simulated drives' own record (not the master's view of
 // them), for tests that check no motion happened that was not commanded:
@@ -59,7 +62,7 @@ class SimFaultWatcher {
   std::vector<bool> bus_loss_present_;
   std::vector<double> q_, lo_, hi_;
   std::uint64_t seq_ = 0, marks_ = 0;
-  bool jam_ = false, ft_fault_ = false, stuck_ = false, video_silent_ = false;
+  bool jam_ = false, ft_fault_ = false, stuck_ = false, video_silent_ = false, sto_ = false;
   std::atomic<bool> quit_{false};
   std::thread thread_;
 };

@@ -157,6 +157,10 @@ struct CycleStatus {
   /// bus order), so a stop that persists without a new event this cycle
   /// still names its cause. fault = None when active_faults == 0.
   HwEvent first_active{};
+  /// A drive's statusword carries RemoteConfig::sto_status_bit: its safe
+  /// torque off input is active (the cabinet's E-stop circuit is open).
+  bool safe_torque_off = false;
+  std::int8_t sto_joint = -1;  ///< the first joint reporting it (0-based)
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
 

@@ -87,6 +87,11 @@ struct RemoteConfig {
   double bus_off_restart_delay_s = 0.1;  ///< bus-off this long: the master requests a restart (netlink), at most
                                          ///< bus_off_restart_limit times per configure()
   int sync_counter_overflow = 0;      ///< 0x1019: SYNC carries a counter 1..this (CiA 301: 2..240), 0 = none
+  /// The cabinet's E-stop as the drives see it: the statusword bit a drive
+  /// sets while its safe torque off (STO) input is active (CiA 402 leaves
+  /// bits 8, 14 and 15 to the manufacturer); -1 = not wired. Any drive
+  /// reporting it is an E-stop, category 0, as the E-stop file is.
+  int sto_status_bit = -1;
   int interpolation_exponent = -4;    ///< 0x60C2:02, the unit of 0x60C2:01 (10^exp s); -3 where the drive requires ms
   double max_bus_load = 0.70;
   std::vector<BusConfig> buses;

@@ -45,6 +45,7 @@ struct SimDriveParams {
   std::uint32_t vendor_id = 0x00F0E5E7;     ///< 0x1018:01 (the identity a drive file expects)
   std::uint32_t product_code = 0x00000402;  ///< 0x1018:02
   std::uint32_t revision = 0x00010000;      ///< 0x1018:03
+  int sto_status_bit = 14;                  ///< statusword bit set while safe torque off is active
 };
 
 /// The drive's own record of its power stage: what it did, not what the
@@ -77,6 +78,11 @@ class SimDrive final : public SimNode {
   // ---- fault injection / plant inputs (any thread) ----------------------------------
   /// Go to Fault and send EMCY `code` (e.g. 0x2310 over-current) at the next tick.
   void inject_fault(std::uint16_t emcy_code);
+  /// The safe torque off input (the cabinet's E-stop circuit opened): while
+  /// active the power stage has no torque (the drive leaves Operation enabled
+  /// for Switch on disabled at the next SYNC and cannot be switched on) and
+  /// the statusword carries params.sto_status_bit. Any thread.
+  void set_safe_torque_off(bool active);
   /// External load torque at the motor shaft, N*m (shows in torque actual).
   void set_load_torque_nm(double motor_torque_nm);
   /// Move the shaft (as if pushed) to `counts`, velocity 0.
@@ -137,6 +143,7 @@ class SimDrive final : public SimNode {
   std::uint64_t power_off_sync_ = 0;
   Clock::time_point power_off_at_{};
   bool injected_fault_ = false;
+  bool sto_ = false;
   std::uint16_t injected_code_ = 0;
 };
 
