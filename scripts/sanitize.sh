@@ -169,7 +169,7 @@ run_asan() {  # all|ci
 # (listeners -> queues -> the daemon/ground threads), the journal writer thread
 # and its SPSC ring, the daemon (supervisor + loop + link).
 TSAN_BINARIES=(test_control_loop test_control test_journal test_spsc_ring test_link_loopback test_protocol_loopback test_daemon)
-TSAN_TESTS='^(ControlLoop|Journal|JournalCommand|SpscRing|LinkLoopback|LinkLoopbackRos2|LinkLoopbackTwoKept|ProtocolLoopback|Daemon)[A-Za-z]*\.'
+TSAN_TESTS='^(ControlLoop|Journal|JournalCommand|SpscRing|LinkLoopback|LinkLoopbackRos2|LinkLoopbackTwoKept|ProtocolLoopback|Daemon|Inbox)[A-Za-z]*\.'
 # Left out of the TSan run, and why (it runs in the normal build's ctest):
 #  * ControlLoop.InsertsThroughTheSimulatedDrivesAndSensor  the insertion's peak
 #    force depends on the loop thread keeping its 2 ms cycle against the
