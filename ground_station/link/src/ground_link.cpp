@@ -96,9 +96,9 @@ struct GroundLink::Impl {
   std::mutex send_mutex;  // sequencer + command writer
   protocol::CommandSequencer sequencer;
   std::unique_ptr<Writer<msg::Command>> commands;  // null when read-only
-  std::unique_ptr<Writer<msg::Command>> aborts;    // read-only only: topics::kAbort, ABORT and nothing else
   std::mutex chunk_mutex;
   std::unique_ptr<Writer<msg::TrajectoryChunk>> chunks;
+  std::unique_ptr<Writer<msg::Command>> aborts;    // read-only only: topics::kAbort, ABORT and nothing else
   Writer<msg::Heartbeat> heartbeat_out;
   Reader<msg::CommandAck> acks;
   Reader<msg::TrajectoryStatus> uploads;

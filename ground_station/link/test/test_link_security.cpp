@@ -191,7 +191,9 @@ TEST_F(SecureLink, AnAuthenticatedParticipantsGuidBeginsWithItsIdentity) {
   std::vector<std::string> names;
   for (const auto& [id, name] : known) {
     names.push_back(name);
-    if (name == "ground") EXPECT_EQ(id, ground);
+    if (name == "ground") {
+      EXPECT_EQ(id, ground);
+    }
   }
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"ground", "observer", "remote"}));
