@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "foresight/common/error.hpp"
 #include "foresight/protocol/error.hpp"
 
 namespace foresight::protocol {
@@ -129,6 +130,13 @@ std::vector<std::string> network_problems(const NetworkSettings& n) {
     freeaddrinfo(res);
   }
   return out;
+}
+
+bool use_network(const NetworkSettings& n) {
+  const char* existing = std::getenv("CYCLONEDDS_URI");
+  if (existing != nullptr && *existing != '\0') return false;
+  if (const auto problems = network_problems(n); !problems.empty()) throw InputError(n.source, problems.front());
+  return apply_network(n);
 }
 
 bool apply_network(const NetworkSettings& n) {

@@ -107,12 +107,7 @@ std::unique_ptr<ground_link::GroundLink> connect_remote(const LinkOptions& o) {
     std::string r;
     config.read_only = role >> r && r == "observer";
   }
-  // The DDS network, before the first participant (a CYCLONEDDS_URI wins).
-  if (env("CYCLONEDDS_URI").empty()) {
-    if (const auto problems = protocol::network_problems(file.network); !problems.empty())
-      throw InputError(file.network.source, problems.front());
-    protocol::apply_network(file.network);
-  }
+  protocol::use_network(file.network);  // before the first participant (a CYCLONEDDS_URI wins)
   return connect(config, o.connect_timeout_s);
 }
 

@@ -187,6 +187,14 @@ class RawCommander {
     }
     return out;
   }
+  /// Waits (at most 10 s) for a final ack of `session`'s on this commander's
+  /// reader: every command written before it was seen.
+  bool saw_final_of_session(std::uint64_t session) {
+    fp::Sample<msg::CommandAck> a;
+    for (const auto deadline = Clock::now() + 10s; Clock::now() < deadline;)
+      if (acks.wait_take(a, 100ms) && a->session_id == session && fp::is_terminal(fp::from_wire(*a).state)) return true;
+    return false;
+  }
   fp::CommandSequencer sequencer;
   fp::Writer<msg::Command> writer;
   fp::Reader<msg::CommandAck> acks;
@@ -354,14 +362,7 @@ TEST_F(LinkLoopback, AnotherParticipantsSessionsCannotEvictAGroundsSequence) {
     other.writer.write(c);
   }
   // Its last session answered: all 90 were seen before the replay below.
-  {
-    fp::Sample<msg::CommandAck> a;
-    bool seen = false;
-    const auto deadline = Clock::now() + 10s;
-    while (!seen && Clock::now() < deadline)
-      if (other.acks.wait_take(a, 100ms)) seen = a->session_id == 0xe71c7000 + 89 && fp::is_terminal(fp::from_wire(*a).state);
-    ASSERT_TRUE(seen);
-  }
+  ASSERT_TRUE(other.saw_final_of_session(0xe71c7000 + 89));
   auto replay = raw.sequencer.next(foresight_msg_CMD_REQUEST);
   replay->sequence_number = 2;  // an old sequence number of the ground's session
   raw.writer.write(replay);
@@ -383,14 +384,7 @@ TEST_F(LinkLoopback, ASessionPushedOutByItsParticipantsNewerOnesStaysRefused) {
     fp::CommandSequencer fresh(0xa11ce000 + k);
     raw.writer.write(fresh.next(foresight_msg_CMD_REQUEST));
   }
-  {  // the last one answered: all 64 were seen
-    fp::Sample<msg::CommandAck> a;
-    bool seen = false;
-    const auto deadline = Clock::now() + 10s;
-    while (!seen && Clock::now() < deadline)
-      if (raw.acks.wait_take(a, 100ms)) seen = a->session_id == 0xa11ce000 + 63 && fp::is_terminal(fp::from_wire(*a).state);
-    ASSERT_TRUE(seen);
-  }
+  ASSERT_TRUE(raw.saw_final_of_session(0xa11ce000 + 63));  // the last one answered: all 64 were seen
   raw.writer.write(first);  // a verbatim replay of the pushed-out session
   const auto acks = raw.acks_of(first->command_id);
   ASSERT_FALSE(acks.empty());

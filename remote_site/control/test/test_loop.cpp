@@ -177,11 +177,10 @@ TEST(ControlLoop, EnablesRunsATrajectoryHoldsAndStopsOnEStop) {
               st.realtime ? "yes" : "no");
   EXPECT_GT(st.cycles, 1000u);
   EXPECT_EQ(st.events_dropped, 0u);
-  // The SYNC leaves after the read, before the computation (issue 25, item 6):
-  // never later than the cycle's whole compute time.
+  // The SYNC's time after the wake-up is measured (issue 25, item 6; that it
+  // changes nothing the drives see: HarshBus.TheSyncAtTheWakeUpChangesNothingTheDrivesSee).
   std::printf("SYNC after the wake-up: at most %.1f us\n", st.sync_after_wake_us_max);
   EXPECT_GT(st.sync_after_wake_us_max, 0.0);
-  EXPECT_LE(st.sync_after_wake_us_max, st.compute_us_max + st.wakeup_latency_us_max);
 
   // Shutdown: Cat1 stop, drives disabled, thread ends.
   loop->stop();

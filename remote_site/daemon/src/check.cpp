@@ -501,7 +501,7 @@ CheckReport run_check(const CheckOptions& o) {
       // The grants, as the daemon will use them: its link's every reader and
       // writer made with this identity (nothing started, nothing sent).
       try {
-        if (daemon_config && std::getenv("CYCLONEDDS_URI") == nullptr) protocol::apply_network(daemon_config->network);
+        if (daemon_config) protocol::apply_network(daemon_config->network);  // its problems: the "DDS network" item
         remote_link::Config lc;
         lc.domain = protocol::domain_from_environment().value_or(0);
         lc.security_dir = dir;

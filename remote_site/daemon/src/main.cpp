@@ -193,14 +193,10 @@ int run_daemon(Options o) {
   // The DDS network (controller.link.network), before the first participant.
   // A user's own CYCLONEDDS_URI wins; otherwise a missing interface or a
   // peer that does not resolve is named here, before the hardware.
-  if (const char* uri = std::getenv("CYCLONEDDS_URI"); uri != nullptr && *uri != '\0') {
-    spdlog::info("DDS network: CYCLONEDDS_URI is set; it wins over controller.link.network");
-  } else {
-    if (const auto problems = protocol::network_problems(config.network); !problems.empty())
-      throw InputError(config.network.source, problems.front());
-    protocol::apply_network(config.network);
+  if (protocol::use_network(config.network))
     spdlog::info("DDS network: {}", config.network.describe());
-  }
+  else
+    spdlog::info("DDS network: CYCLONEDDS_URI is set; it wins over controller.link.network");
   if (!o.journal.empty()) config.journal.path = o.journal;
   if (!o.estop_file.empty()) config.estop_file = o.estop_file;
   remote::SiteOptions site_options;

@@ -233,6 +233,20 @@ struct RemoteLink::Impl {
   }
   /// Every second: sessions idle for session_idle_s retired.
   void expire_sessions(Clock::time_point now);
+  bool idle(const Session& s, Clock::time_point now) const {
+    return now - s.last_seen > std::chrono::duration<double>(config.session_idle_s);
+  }
+  /// A command the link refuses itself before any sequence check: its
+  /// envelope, the code and why, counted, logged and handed on (acked REJECTED).
+  void reject_here(CommandEvent& event, const msg::Command& c, std::int64_t received, protocol::Reason code,
+                   std::string reason) {
+    event.command = protocol::envelope_of(c, received);
+    event.code = code;
+    event.reason = std::move(reason);
+    n_rejected.fetch_add(1);
+    spdlog::warn("remote link: rejected {}", event.reason);
+    emit_command(event);
+  }
   Clock::time_point next_session_check{};
   // Keyed by the session and the participant that wrote it: a participant
   // speaking in another's session (a forged session id) has a sequence of its
@@ -461,13 +475,9 @@ void RemoteLink::Impl::serve_commands_of(Reader<msg::Command>& reader, bool abor
     event.writer = writer_of(reader.get(), info.publication_handle);
     if (abort_only && protocol::raw(c.payload._d) != foresight_msg_CMD_ABORT) {
       if (!admit(event.writer, Clock::now())) continue;
-      event.command = protocol::envelope_of(c, received);
-      event.code = protocol::Reason::BadArgument;
-      event.reason = std::string("command ") + std::to_string(c.command_id) + ": " + protocol::topics::kAbort +
-                     " carries only ABORT";
-      n_rejected.fetch_add(1);
-      spdlog::warn("remote link: rejected {}", event.reason);
-      emit_command(event);
+      reject_here(event, c, received, protocol::Reason::BadArgument,
+                  std::string("command ") + std::to_string(c.command_id) + ": " + protocol::topics::kAbort +
+                      " carries only ABORT");
       continue;
     }
     const bool commanders_abort =
@@ -479,24 +489,17 @@ void RemoteLink::Impl::serve_commands_of(Reader<msg::Command>& reader, bool abor
     // ground's (and so reset its sequence for a replay). The participants
     // themselves are bounded by the rate limit's table (kMaxBuckets).
     const auto session_key = std::make_pair(c.session_id, event.writer);
-    if (auto known = sessions.find(session_key);
-        known != sessions.end() &&
-        Clock::now() - known->second.last_seen > std::chrono::duration<double>(config.session_idle_s)) {
+    if (auto known = sessions.find(session_key); known != sessions.end() && idle(known->second, Clock::now())) {
       retire(session_key);  // idle too long: expired now, whether or not the sweep has run
       sessions.erase(known);
     }
     if (retired.count(session_key) != 0) {
-      event.command = protocol::envelope_of(c, received);
-      event.code = protocol::Reason::BadSequence;
       char buf[200];
       std::snprintf(buf, sizeof buf,
                     "session %016llx was forgotten (no command for %.0f s, or more than %zu sessions of its writer): "
                     "its commands are refused; a ground process starts a new session",
                     static_cast<unsigned long long>(c.session_id), config.session_idle_s, config.max_sessions);
-      event.reason = buf;
-      n_rejected.fetch_add(1);
-      spdlog::warn("remote link: rejected {}", event.reason);
-      emit_command(event);
+      reject_here(event, c, received, protocol::Reason::BadSequence, buf);
       continue;
     }
     auto it = sessions.find(session_key);
@@ -668,9 +671,8 @@ void RemoteLink::Impl::on_chunk(const msg::TrajectoryChunk& chunk) {
 void RemoteLink::Impl::expire_sessions(Clock::time_point now) {
   if (now < next_session_check) return;
   next_session_check = now + std::chrono::seconds(1);
-  const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config.session_idle_s));
   for (auto it = sessions.begin(); it != sessions.end();) {
-    if (now - it->second.last_seen > idle) {
+    if (idle(it->second, now)) {
       spdlog::info("remote link: session {:016x} retired after {:.0f} s without a command", it->first.first,
                    config.session_idle_s);
       retire(it->first);

@@ -59,4 +59,10 @@ std::vector<std::string> network_problems(const NetworkSettings& n);
 /// changes nothing). Call before the process's first participant.
 bool apply_network(const NetworkSettings& n);
 
+/// The daemon's and the CLI's start: as apply_network(), but first refuses
+/// settings this machine cannot use (InputError "<n.source>: <the first of
+/// network_problems>"). Returns false, checking nothing, when the user's own
+/// CYCLONEDDS_URI wins.
+bool use_network(const NetworkSettings& n);
+
 }  // namespace foresight::protocol
