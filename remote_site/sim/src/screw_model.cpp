@@ -72,12 +72,18 @@ double LstMechanism::turn(bool loosen, double angle_rad, double limit_nm, bool& 
       }
       broken_loose_ = true;
       state_.preload_nm = 0.0;
-      const double d = std::min(remaining, state_.engaged_turns * kTwoPi);
-      state_.engaged_turns = std::max(0.0, state_.engaged_turns - d / kTwoPi);
-      if (d >= remaining) return angle_rad;  // still engaged, or just freed
-      turned += d;
-      remaining -= d;
-      state_.engaged_turns = 0.0;
+      // The last turn of thread frees it exactly: engaged - (engaged * 2pi) / 2pi
+      // can leave ~1e-16 turns engaged (seen once in a loaded CI run, when
+      // the tool's last step ended on the thread's end: not free).
+      const double left = state_.engaged_turns * kTwoPi;
+      if (remaining <= left) {  // still engaged, or just freed
+        state_.engaged_turns -= remaining / kTwoPi;
+        if (state_.engaged_turns < 1e-9) state_.engaged_turns = 0.0;  // freed: no rounding residue
+        return angle_rad;
+      }
+      turned += left;
+      remaining -= left;
+      state_.engaged_turns = 0.0;  // freed
     }
     if (s.free_torque_nm > limit_nm) {
       limited = true;
