@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "foresight/session/config_path.hpp"
+
 namespace CLI {
 class App;
 class Option;
@@ -125,14 +127,8 @@ std::vector<CommandSpec>& command_registry();
 ///   static const bool registered = register_command({"calibrate", "...", setup});
 bool register_command(CommandSpec spec);
 
-/// Default path of a config file (robot.urdf, oru.yaml, scene.yaml, ...):
-/// $FORESIGHT_CONFIG_DIR/<file> when that variable is set, else the
-/// project's config/ folder this binary was built from. Use it for option
-/// defaults so commands work from any directory.
-inline std::string default_config(const std::string& file) {
-  const char* dir = std::getenv("FORESIGHT_CONFIG_DIR");
-  return std::string(dir != nullptr && *dir != '\0' ? dir : FORESIGHT_DEFAULT_CONFIG_DIR) + "/" + file;
-}
+/// Option defaults name config files through session::default_config.
+using session::default_config;
 
 /// --cameras, --camera, --image and --frame: the calibrated camera and the
 /// video frame the commands that draw over a video frame (overlay, preview,

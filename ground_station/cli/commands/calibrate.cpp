@@ -8,20 +8,15 @@
 // points on arm links with their joint angles). Exit: 0 ok, 2 bad input
 // (file, rows, too few or degenerate points), 1 the fit failed.
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
-#include <filesystem>
 #include <iostream>
-#include <set>
 
 #include "command.hpp"
-#include "foresight/calibration/calibrate.hpp"
-#include "foresight/calibration/robot_points.hpp"
-#include "foresight/common/atomic_file.hpp"
-#include "foresight/common/error.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
+#include "foresight/session/operations.hpp"
 #include "residual_plot_option.hpp"
 
 namespace foresight::cli {
@@ -30,46 +25,18 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 struct CalibrateArgs {
-  std::string points;
-  std::string camera;
-  std::string viewport = "646x486";
-  std::string robot = default_config("robot.urdf");
-  std::string out;
-  int max_iterations = 100;
-  double arm_link_sigma_m = 0.0;
+  session::CalibrateRequest request;
   bool json = false;
   ResidualPlotArgs plot;
 };
 
-std::string utc_now() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
-int run_calibrate(const CalibrateArgs& a) {
-  const Viewport vp = parse_viewport(a.viewport);
-  if (!a.out.empty()) check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
-  RobotLinkPoints robot(a.robot);
-  const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
-  const std::vector<Correspondence> pts = select_camera(all, a.camera);
-  if (pts.empty()) {
-    std::set<std::string> names;
-    for (const auto& c : all) names.insert(c.cam);
-    std::string list;
-    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
-    throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
-  }
-  if (a.max_iterations < 1) throw std::invalid_argument("--max-iterations must be at least 1");
-  check_in_viewport(pts, vp, a.points);
-  CalibrationOptions copt;
-  copt.max_iterations = a.max_iterations;
-  copt.arm_link_sigma_m = a.arm_link_sigma_m;
-  const CalibrationResult r = calibrate_camera(pts, vp, a.camera, copt);
-  write_residual_plot(a.plot, pts, r.residuals, {{a.camera, vp}}, r.rms_px);
+int run_calibrate(const CalibrateArgs& args) {
+  const session::CalibrateRequest& a = args.request;
+  const session::Calibrated c = session::calibrate_from_clicks(a);
+  const CalibrationResult& r = c.result;
+  const Viewport& vp = c.viewport;
+  write_residual_plot(args.plot, c.points, r.residuals, {{a.camera, vp}}, r.rms_px);
+  if (!a.out.empty()) session::add_camera(a.out, a.camera, c);
   const Eigen::Vector3d rpy_deg = r.rpy_rad() / kDeg;
   const Eigen::Vector3d pos = r.position_m();
   const double fovy_deg = r.camera.fovy_rad() / kDeg;
@@ -77,41 +44,8 @@ int run_calibrate(const CalibrateArgs& a) {
   const Eigen::Vector3d sigma_pos = r.sigma.segment<3>(3);
   const Eigen::Matrix<double, 7, 1> arm_sigma = r.arm_model_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 
-  if (!a.out.empty()) {
-    std::map<std::string, CameraRecord> cams;
-    if (std::filesystem::exists(a.out)) cams = load_cameras(a.out);
-    cams[a.camera] = CameraRecord{r.camera, r.info(utc_now())};
-    save_cameras(a.out, cams);
-  }
-
-  if (a.json) {
-    nlohmann::json residuals = nlohmann::json::array();
-    for (const auto& p : r.residuals)
-      residuals.push_back({{"n", p.n}, {"px", p.px}, {"du_px", p.r_px.x()}, {"dv_px", p.r_px.y()}, {"outlier", p.outlier},
-                           {"line", p.line}});
-    nlohmann::json j = {{"camera", a.camera},
-                        {"viewport", {vp.width_px, vp.height_px}},
-                        {"f_px", r.camera.f_px},
-                        {"fovy_deg", fovy_deg},
-                        {"position_m", vec_json(pos)},
-                        {"rpy_deg", vec_json(rpy_deg)},
-                        {"base_T_camera", pose_json(r.camera.base_T_camera)},
-                        {"rms_px", r.rms_px},
-                        {"max_px", r.max_px},
-                        {"linear_rms_px", r.linear_rms_px},
-                        {"linear_cross_product", r.linear_cross_product},
-                        {"residuals_px", residuals},
-                        {"outliers", r.outliers},
-                        {"sigma", {{"f_px", r.sigma[6]}, {"position_m", vec_json(sigma_pos)}, {"rpy_deg", vec_json(sigma_rpy_deg)}}},
-                        {"covariance", matrix_rows(r.covariance)},
-                        {"arm_model_sigma",
-                         {{"arm_link_sigma_m", a.arm_link_sigma_m},
-                          {"f_px", arm_sigma[6]},
-                          {"position_m", vec_json(Eigen::Vector3d(arm_sigma.segment<3>(3)))},
-                          {"rpy_deg", vec_json(Eigen::Vector3d(arm_sigma.head<3>() / kDeg))}}},
-                        {"iterations", r.iterations},
-                        {"n_points", r.n_points}};
-    if (!a.out.empty()) j["out"] = a.out;
+  if (args.json) {
+    const nlohmann::json j = session::calibrated_json(a, c);
     std::cout << j.dump(2) << "\n";
     return kExitOk;
   }
@@ -149,7 +83,8 @@ int run_calibrate(const CalibrateArgs& a) {
 }
 
 std::function<int()> setup(Command& sub) {
-  auto a = std::make_shared<CalibrateArgs>();
+  auto args = std::make_shared<CalibrateArgs>();
+  session::CalibrateRequest* a = &args->request;
   sub.add_option("points", a->points, "clicked points CSV (n,cam,x,y,z,u,v or n,cam,link,lx,ly,lz,q1..qN,u,v)")
       ->required();
   sub.add_option("--camera", a->camera, "camera name (the cam column)")->required();
@@ -163,9 +98,9 @@ std::function<int()> setup(Command& sub) {
       ->capture_default_str();
   sub.add_option("--max-iterations", a->max_iterations, "Levenberg-Marquardt iteration limit (the fit fails, exit 1, when it "
                  "has not converged by then)")->capture_default_str();
-  sub.add_flag("--json", a->json, "print one JSON object");
-  add_residual_plot_options(sub, a->plot);
-  return [a] { return run_calibrate(*a); };
+  sub.add_flag("--json", args->json, "print one JSON object");
+  add_residual_plot_options(sub, args->plot);
+  return [args] { return run_calibrate(*args); };
 }
 
 const bool registered = register_command({"calibrate", "calibrate a camera with the robot arm as the fixture", setup});

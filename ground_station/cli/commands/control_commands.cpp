@@ -10,9 +10,11 @@
 
 #include "command.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 bool register_control_command(const char* name, const char* help, protocol::CommandKind kind, bool hold_control) {

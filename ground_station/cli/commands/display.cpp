@@ -46,7 +46,7 @@
 #include <vector>
 
 #include "command.hpp"
-#include "format.hpp"
+#include "foresight/common/format.hpp"
 #include "foresight/align/health.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
@@ -61,11 +61,14 @@
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
 #include "foresight/render/video_frame.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/localization/pose_json.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 using Clock = std::chrono::steady_clock;

@@ -31,7 +31,9 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/localization/accuracy_study.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 

@@ -19,7 +19,9 @@
 #include "command.hpp"
 #include "foresight/align/alignment_study.hpp"
 #include "foresight/render/overlay_inputs.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 namespace {

@@ -13,9 +13,11 @@
 #include "foresight/common/scene.hpp"
 #include "foresight/localization/pose_json.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 struct Options {

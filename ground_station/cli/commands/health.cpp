@@ -26,16 +26,19 @@
 #include "command.hpp"
 #include "foresight/align/health.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 #include "foresight/common/error.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/video_frame.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 struct HealthArgs {

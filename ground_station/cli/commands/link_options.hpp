@@ -3,12 +3,12 @@
 // from commands/*.cpp that register a command).
 
 #include "command.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
 namespace foresight::cli {
 
 /// `json`: false when the command adds its own --json (e.g. with the render options).
-inline void add_link_options(Command& sub, LinkOptions& o, bool final_ack = true, bool json = true) {
+inline void add_link_options(Command& sub, session::LinkOptions& o, bool final_ack = true, bool json = true) {
   sub.add_option("--domain", o.domain, "DDS domain id (default: $FORESIGHT_DDS_DOMAIN, else 0)")
       ->check(check::Range(0, 232));
   sub.add_option("--security", o.security_dir,

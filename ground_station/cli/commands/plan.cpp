@@ -20,7 +20,8 @@
 #include "foresight/common/trajectory.hpp"
 #include "foresight/common/plan.hpp"
 #include "foresight/localization/pose_json.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 namespace {

@@ -19,7 +19,8 @@
 #include "foresight/localization/pose_json.hpp"
 #include "foresight/render/overlay_inputs.hpp"
 #include "foresight/render/video_frame.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 namespace {

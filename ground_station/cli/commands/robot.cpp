@@ -15,7 +15,9 @@
 #include "command.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/robot_model.hpp"
-#include "json_util.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/localization/pose_json.hpp"
 
 namespace foresight::cli {
 namespace {

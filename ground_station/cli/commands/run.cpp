@@ -19,10 +19,12 @@
 #include "foresight/script/executor.hpp"
 #include "foresight/script/script.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
-#include "script_runner.hpp"
+#include "foresight/session/link_session.hpp"
+#include "foresight/session/script_runner.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 std::atomic<bool> g_interrupt{false};
@@ -135,7 +137,6 @@ int run(Options& o) {
   s.preview = !o.no_preview;
   s.quiet = o.link.json;
   s.timeout_s = o.link.timeout_s;
-  s.self_exe = std::filesystem::read_symlink("/proc/self/exe").string();
   if (o.dry_run) {
     if (o.joints.empty() && o.joints_deg.empty()) throw std::invalid_argument("--dry-run needs --joints or --joints-deg");
     s.q_from = !o.joints.empty() ? parse_joints(o.joints, "--joints", model)

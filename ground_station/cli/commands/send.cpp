@@ -12,9 +12,11 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "link_options.hpp"
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
 namespace foresight::cli {
+
+using namespace foresight::session;  // the link session helpers
 namespace {
 
 struct Options {

@@ -101,6 +101,7 @@ PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& ar
   const double video_span_s = result.duration_s / o.speed;
   const int n_frames = static_cast<int>(std::floor(video_span_s * o.fps + 1e-9)) + 1;
   for (int k = 0; k < n_frames; ++k) {
+    if (o.interrupted && o.interrupted()) throw Interrupted();
     const double t = std::min(t0 + k * o.speed / o.fps, tr.time_s.back());
     writer.write(draw_at(t));
   }

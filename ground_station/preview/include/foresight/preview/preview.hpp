@@ -10,7 +10,9 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -44,6 +46,15 @@ struct PreviewOptions {
   int sheet_frames = 6;                       ///< key frames on the contact sheet (>= 2)
   int sheet_columns = 3;
   double sheet_scale = 0.5;                   ///< tile size relative to the viewport
+  /// Asked before every video frame; true stops the rendering (Interrupted).
+  std::function<bool()> interrupted;
+};
+
+/// The rendering was stopped by PreviewOptions::interrupted (the video is
+/// incomplete).
+class Interrupted : public std::runtime_error {
+ public:
+  Interrupted() : std::runtime_error("preview interrupted") {}
 };
 
 struct PreviewResult {

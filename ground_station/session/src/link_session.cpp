@@ -1,8 +1,8 @@
 // The link commands' shared helpers (link_session.hpp). Registers no command.
-#include "link_session.hpp"
+#include "foresight/session/link_session.hpp"
 
-#include "command.hpp"
-#include "format.hpp"
+#include "foresight/session/config_path.hpp"
+#include "foresight/common/format.hpp"
 #include "foresight/common/text_file.hpp"
 #include "foresight/common/yaml_util.hpp"
 #include "foresight/common/plan.hpp"
@@ -18,7 +18,7 @@
 #include <fstream>
 #include <thread>
 
-namespace foresight::cli {
+namespace foresight::session {
 
 namespace {
 
@@ -392,4 +392,4 @@ nlohmann::json status_json(const ground_link::GroundLink& link) {
   return j;
 }
 
-}  // namespace foresight::cli
+}  // namespace foresight::session

@@ -1,10 +1,10 @@
 #pragma once
-// Number formatting for the CLI's text output.
+// Number formatting for text meant for a person (the CLI's lines, reasons).
 
 #include <cstdio>
 #include <string>
 
-namespace foresight::cli {
+namespace foresight {
 
 /// `v` with `digits` digits after the point ("%.*f").
 inline std::string fixed(double v, int digits) {
@@ -13,4 +13,4 @@ inline std::string fixed(double v, int digits) {
   return buf;
 }
 
-}  // namespace foresight::cli
+}  // namespace foresight

@@ -20,7 +20,7 @@
 #include "foresight/protocol/network.hpp"
 #include "foresight/ground_link/ground_link.hpp"
 
-namespace foresight::cli {
+namespace foresight::session {
 
 /// The remote did not answer, an upload was not committed, or a command was
 /// rejected/failed/timed out (exit 1).
@@ -170,4 +170,4 @@ nlohmann::json status_json(const ground_link::GroundLink& link);
 /// 6 7 8", "" when it holds nothing (watch, display).
 std::string queue_text(const protocol::StatusReport& status);
 
-}  // namespace foresight::cli
+}  // namespace foresight::session

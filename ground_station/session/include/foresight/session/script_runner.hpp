@@ -1,10 +1,10 @@
 #pragma once
 // `foresight run`'s command runner: each task-script command (script.hpp)
 // carried out on the ground and, for the remote ones, over the link. CALIBRATE,
-// LOCALIZE and the preview rendering run this same executable as a child
-// (`foresight calibrate|localize|synth|preview`) so the run does exactly what
-// those commands do; planning is in-process (common plan_motion). Not
-// real-time code.
+// LOCALIZE and the preview rendering call the operations the commands
+// `foresight calibrate|localize|synth|preview` call (operations.hpp), in this
+// process, so the run does exactly what those commands do; planning is common
+// plan_motion. Not real-time code.
 
 #include <Eigen/Core>
 #include <chrono>
@@ -23,11 +23,10 @@
 #include "foresight/ground_link/ground_link.hpp"
 #include "foresight/script/executor.hpp"
 
-namespace foresight::cli {
+namespace foresight::session {
 
 struct RunSettings {
   std::string work_dir = ".";     ///< trajectories, previews, cameras.yaml, localize.json, run.jsonl
-  std::string self_exe;           ///< this executable (for the child commands)
   std::string robot, object, scene;
   std::string cameras;            ///< cameras.yaml (CALIBRATE writes work/cameras.yaml)
   std::string image;              ///< video frame for previews ("": synthesized by `foresight synth`)
@@ -82,8 +81,6 @@ class ScriptRunner : public script::CommandRunner {
   std::optional<Eigen::VectorXd> algorithm_end(const script::Command& c);
   nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
                             bool completed = true);
-  int child(const std::vector<std::string>& args, const std::string& stdout_path,
-            const std::function<bool()>& interrupted, std::string* error);
   std::string path(const std::string& name) const;
   void say(const std::string& line) const;
   void journal(const script::Command& c, const script::Outcome& o, nlohmann::json extra);
@@ -116,4 +113,4 @@ class ScriptRunner : public script::CommandRunner {
   std::uint64_t chain_tail_ = 0;  ///< the last command sent ahead (0: nothing outstanding)
 };
 
-}  // namespace foresight::cli
+}  // namespace foresight::session

@@ -1,11 +1,7 @@
 // `foresight run`'s command runner (script_runner.hpp). Registers no command.
-#include "script_runner.hpp"
+#include "foresight/session/script_runner.hpp"
 #include "foresight/common/json_text.hpp"
-
-#include <fcntl.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include "foresight/common/atomic_file.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -17,10 +13,11 @@
 #include "foresight/common/plan.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/localization/pose_json.hpp"
-#include "format.hpp"
-#include "link_session.hpp"
+#include "foresight/common/format.hpp"
+#include "foresight/session/link_session.hpp"
+#include "foresight/session/operations.hpp"
 
-namespace foresight::cli {
+namespace foresight::session {
 
 namespace {
 
@@ -130,46 +127,6 @@ void ScriptRunner::journal(const script::Command& c, const Outcome& o, nlohmann:
   journal_ << json_text(extra) << "\n" << std::flush;
 }
 
-int ScriptRunner::child(const std::vector<std::string>& args, const std::string& stdout_path,
-                        const std::function<bool()>& interrupted, std::string* error) {
-  const std::string log = path("child.log");
-  std::vector<char*> argv;
-  argv.push_back(const_cast<char*>(s_.self_exe.c_str()));
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const pid_t pid = fork();
-  if (pid < 0) {
-    *error = "fork failed";
-    return -1;
-  }
-  if (pid == 0) {
-    const int out = ::open(stdout_path.empty() ? "/dev/null" : stdout_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (out >= 0) ::dup2(out, 1);
-    if (err >= 0) ::dup2(err, 2);
-    ::execv(argv[0], argv.data());
-    ::_exit(127);
-  }
-  const auto deadline = Clock::now() + std::chrono::minutes(10);
-  int status = 0;
-  bool killed = false;
-  while (true) {
-    const pid_t w = ::waitpid(pid, &status, WNOHANG);
-    if (w == pid) break;
-    if (!killed && ((interrupted && interrupted()) || Clock::now() > deadline)) {
-      ::kill(pid, SIGTERM);
-      killed = true;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  std::ifstream in(log);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-  *error = killed ? "interrupted" : text;
-  if (killed) return -2;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
 nlohmann::json ScriptRunner::update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
                                         bool completed) {
   nlohmann::json j;
@@ -261,10 +218,17 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       const std::string points = c.text_or("points", path("arm_clicks.csv"));
       const std::string out = s_.cameras.empty() ? path("cameras.yaml") : s_.cameras;
       for (const auto& cam : cams) {
-        std::string err;
-        const int rc = child({"calibrate", points, "--camera", cam, "--out", out, "--robot", s_.robot}, "", interrupted, &err);
-        if (rc == -2) return {CommandState::Canceled, "calibration of " + cam + " interrupted", since(t0)};
-        if (rc != 0) return failed("calibrate " + cam + ": " + err, t0);
+        if (interrupted && interrupted()) return {CommandState::Canceled, "calibration of " + cam + " interrupted", since(t0)};
+        CalibrateRequest request;
+        request.points = points;
+        request.camera = cam;
+        request.out = out;
+        request.robot = s_.robot;
+        try {
+          add_camera(out, cam, calibrate_from_clicks(request));
+        } catch (const std::exception& e) {
+          return failed("calibrate " + cam + ": " + e.what(), t0);
+        }
         say("calibrated " + cam + " -> " + out);
       }
       s_.cameras = out;
@@ -274,15 +238,16 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       if (s_.cameras.empty()) return failed("no calibrated cameras: CALIBRATE first or give --cameras", t0);
       const std::string points = c.text_or("points", path("oru_clicks.csv"));
       const std::string out = path("localize.json");
-      std::vector<std::string> args = {"localize", points, "--cameras", s_.cameras, "--object", s_.object, "--json"};
-      if (c.has("views")) {
-        args.push_back("--views");
-        args.push_back(c.text_or("views", ""));
+      LocalizeRequest request;
+      request.points = points;
+      request.cameras = s_.cameras;
+      request.object = s_.object;
+      request.views = c.text_or("views", "");
+      try {
+        write_file_atomic(out, localized_json(localize_from_clicks(request)).dump(2) + "\n");
+      } catch (const std::exception& e) {
+        return failed(std::string("localize: ") + e.what(), t0);
       }
-      std::string err;
-      const int rc = child(args, out, interrupted, &err);
-      if (rc == -2) return {CommandState::Canceled, "localization interrupted", since(t0)};
-      if (rc != 0) return failed("localize: " + err, t0);
       base_T_object_ = read_object_pose_json(out);
       pose_source_ = out;
       const Eigen::Vector3d p = base_T_object_->translation();
@@ -341,25 +306,43 @@ Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std:
     const std::string camera = c.text_or("camera", video_camera_.empty() ? scene_.camera_order.front() : video_camera_);
     if (s_.cameras.empty()) return failed("no calibrated cameras for the preview: CALIBRATE first, --cameras, or --no-preview", t0);
     std::string image = s_.image;
-    std::string err;
     if (image.empty()) {  // the synthetic camera stands in for the live video
       image = path(std::string(stem) + "_video_" + camera + ".png");
-      const int rc = child({"synth", "--camera", camera, "--joints", joints_text(q_), "--out", image}, "", interrupted, &err);
-      if (rc == -2) return {CommandState::Canceled, "preview interrupted", since(t0)};
-      if (rc != 0) return failed("synth (the preview's video frame): " + err, t0);
+      SynthRequest frame;
+      frame.camera = camera;
+      frame.joints = joints_text(q_);
+      frame.out = image;
+      frame.scene = s_.scene;
+      frame.robot = s_.robot;
+      frame.object = s_.object;
+      try {
+        synth_frame(frame);
+      } catch (const std::exception& e) {
+        return failed(std::string("synth (the preview's video frame): ") + e.what(), t0);
+      }
     }
     const std::string video = path(std::string(stem) + "_preview.mp4");
     const std::string sheet = path(std::string(stem) + "_sheet.png");
-    std::vector<std::string> args = {"preview", csv, "--cameras", s_.cameras, "--camera", camera, "--image", image,
-                                     "--out", video, "--contact-sheet", sheet, "--speed", std::to_string(s_.preview_speed),
-                                     "--robot", s_.robot, "--object", s_.object, "--scale-image"};
-    if (pose_source_ != "" && std::filesystem::exists(pose_source_)) {
-      args.push_back("--object-pose");
-      args.push_back(pose_source_);
+    PreviewRequest request;
+    request.trajectory = csv;
+    request.cameras = s_.cameras;
+    request.camera = camera;
+    request.image = image;
+    request.out = video;
+    request.sheet = sheet;
+    request.speed = s_.preview_speed;
+    request.robot = s_.robot;
+    request.object = s_.object;
+    request.scale_image = true;
+    request.interrupted = interrupted;
+    if (pose_source_ != "" && std::filesystem::exists(pose_source_)) request.object_pose = pose_source_;
+    try {
+      preview_trajectory(request);
+    } catch (const preview::Interrupted&) {
+      return {CommandState::Canceled, "preview interrupted", since(t0)};
+    } catch (const std::exception& e) {
+      return failed(std::string("not sent: preview: ") + e.what(), t0);
     }
-    const int rc = child(args, "", interrupted, &err);
-    if (rc == -2) return {CommandState::Canceled, "preview interrupted", since(t0)};
-    if (rc != 0) return failed("not sent: preview: " + err, t0);
     say("preview " + video + ", contact sheet " + sheet);
     pending_journal_["preview"] = video;
     pending_journal_["contact_sheet"] = sheet;
@@ -622,4 +605,4 @@ void ScriptRunner::settle(const std::function<bool()>& interrupted,
   if (canceled) recover_before_next_ = true;
 }
 
-}  // namespace foresight::cli
+}  // namespace foresight::session

@@ -1,0 +1,438 @@
+// The ground's file-to-file operations (operations.hpp).
+#include "foresight/session/operations.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "foresight/align/arm_links_file.hpp"
+#include "foresight/calibration/robot_points.hpp"
+#include "foresight/common/atomic_file.hpp"
+#include "foresight/common/error.hpp"
+#include "foresight/common/format.hpp"
+#include "foresight/common/input_limits.hpp"
+#include "foresight/common/json_text.hpp"
+#include "foresight/common/number_list.hpp"
+#include "foresight/common/scene.hpp"
+#include "foresight/localization/accuracy_study.hpp"
+#include "foresight/localization/pose_json.hpp"
+#include "foresight/render/overlay_inputs.hpp"
+#include "foresight/render/scene_geometry.hpp"
+#include "foresight/render/synthetic_camera.hpp"
+#include "foresight/render/video_frame.hpp"
+
+namespace foresight::session {
+
+namespace {
+
+std::string utc_now() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+/// The information (J^T J, pixels; body rotation, position, f) of a camera's
+/// calibration from what cameras.yaml keeps: covariance C in (roll, pitch,
+/// yaw, x, y, z, f) = s^2 (J_rpy^T J_rpy)^-1, with s^2 = rms^2 m / (2 m - 7)
+/// over the m inliers; J_rpy = J_body W(rpy).
+Eigen::Matrix<double, 7, 7> calibration_information(const std::string& file, const std::string& name,
+                                                    const CameraRecord& rec) {
+  if (!rec.calibration) throw std::invalid_argument(file + ": camera '" + name + "' has no calibration covariance (--camera-uncertainty)");
+  const CameraCalibrationInfo& c = *rec.calibration;
+  const int m = c.n_points - static_cast<int>(c.outliers.size());
+  if (m < 4 || !(c.rms_px > 0.0))
+    throw std::invalid_argument(file + ": camera '" + name + "' calibration has no usable rms_px/n_points (--camera-uncertainty)");
+  const double s2 = c.rms_px * c.rms_px * m / std::max(2 * m - 7, 1);
+  const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(c.covariance);
+  if (ldlt.info() != Eigen::Success || !(c.covariance.diagonal().array() > 0.0).all())
+    throw std::invalid_argument(file + ": camera '" + name + "' covariance is not positive definite");
+  const Eigen::Matrix<double, 7, 7> H_rpy = s2 * ldlt.solve(Eigen::Matrix<double, 7, 7>::Identity());
+  Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
+  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(rec.camera.base_T_camera.linear())).inverse();
+  return T.transpose() * H_rpy * T;
+}
+
+std::vector<std::string> split_views(const std::string& text) {
+  std::vector<std::string> out;
+  for (const std::string_view v : split_commas(text)) {
+    if (v.empty()) throw std::invalid_argument("--views: empty view name in '" + text + "'");
+    out.emplace_back(v);
+  }
+  return out;
+}
+
+/// The text of an output file, written atomically at the end (write_file_atomic).
+std::ostringstream open_out(const std::string& path) {
+  check_output_path(path);  // before any work
+  std::ostringstream f;
+  f.precision(15);
+  return f;
+}
+
+}  // namespace
+
+SynthClicks synth_clicks(const SynthClicksRequest& a) {
+  if (!(a.noise_px >= 0.0 && a.noise_px <= limits::kMaxPixelNoise_px))
+    throw std::invalid_argument("--noise-px must be a number in [0, " +
+                                std::to_string(static_cast<int>(limits::kMaxPixelNoise_px)) + "] px");
+  if (a.per_pose < 1) throw std::invalid_argument("--per-pose must be at least 1");
+  const Scene scene = Scene::from_file(a.scene);
+  const RobotModel robot = RobotModel::from_file(a.robot);
+  const ObjectModel object = ObjectModel::from_file(a.object);
+  const StudySetup setup = make_study_setup(scene, object, {});
+  const std::vector<ArmCalibrationPose> poses = arm_calibration_poses(robot);
+
+  std::mt19937 rng(a.seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  auto click = [&](const Camera& c, const Eigen::Vector3d& p_base) {
+    return Eigen::Vector2d(c.project(p_base) + a.noise_px * Eigen::Vector2d(noise(rng), noise(rng)));
+  };
+
+  SynthClicks out;
+  std::ostringstream cal, obj;
+  if (!a.calibration_out.empty()) {
+    cal = open_out(a.calibration_out);
+    cal << "n,cam,link,lx,ly,lz";
+    for (int j = 1; j <= robot.dof(); ++j) cal << ",q" << j;
+    cal << ",u,v\n";
+  }
+  if (!a.object_out.empty()) {
+    obj = open_out(a.object_out);
+    obj << "n,cam,x,y,z,u,v\n";
+  }
+  int n_cal = 0, n_obj = 0;
+  for (const StudyView& v : setup.views) {
+    int cal_here = 0, obj_here = 0;
+    for (const ArmCalibrationPose& pose : poses)
+      for (const ArmFeature& f : visible_features(v.truth, pose, a.per_pose)) {
+        const Eigen::Vector2d uv = click(v.truth, f.p_base);
+        ++cal_here;
+        if (a.calibration_out.empty()) continue;
+        cal << ++n_cal << ',' << v.truth.name << ',' << robot.links()[f.link].name << ',' << f.p_link.x() << ','
+            << f.p_link.y() << ',' << f.p_link.z();
+        for (int j = 0; j < robot.dof(); ++j) cal << ',' << pose.q[j];
+        cal << ',' << uv.x() << ',' << uv.y() << '\n';
+      }
+    for (const Eigen::Vector3d& p : v.object_points) {
+      const Eigen::Vector2d uv = click(v.truth, setup.base_T_object * p);
+      ++obj_here;
+      if (!a.object_out.empty())
+        obj << ++n_obj << ',' << v.truth.name << ',' << p.x() << ',' << p.y() << ',' << p.z() << ',' << uv.x() << ','
+            << uv.y() << '\n';
+    }
+    out.views.push_back({v.truth.name, cal_here, obj_here});
+  }
+  if (!a.calibration_out.empty()) write_file_atomic(a.calibration_out, cal.str());
+  if (!a.object_out.empty()) write_file_atomic(a.object_out, obj.str());
+  if (!a.joints_out.empty()) {
+    std::ostringstream j = open_out(a.joints_out);
+    for (int i = 0; i < robot.dof(); ++i) j << (i ? "," : "") << poses.front().q[i];
+    j << '\n';
+    write_file_atomic(a.joints_out, j.str());
+  }
+  for (const auto& p : poses) out.arm_poses.push_back(p.q);
+  out.true_base_T_object = setup.base_T_object;
+  return out;
+}
+
+Calibrated calibrate_from_clicks(const CalibrateRequest& a) {
+  Calibrated out;
+  out.viewport = parse_viewport(a.viewport);
+  if (!a.out.empty()) check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
+  RobotLinkPoints robot(a.robot);
+  const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
+  out.points = select_camera(all, a.camera);
+  if (out.points.empty()) {
+    std::set<std::string> names;
+    for (const auto& c : all) names.insert(c.cam);
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
+  }
+  if (a.max_iterations < 1) throw std::invalid_argument("--max-iterations must be at least 1");
+  check_in_viewport(out.points, out.viewport, a.points);
+  CalibrationOptions copt;
+  copt.max_iterations = a.max_iterations;
+  copt.arm_link_sigma_m = a.arm_link_sigma_m;
+  out.result = calibrate_camera(out.points, out.viewport, a.camera, copt);
+  return out;
+}
+
+nlohmann::json calibrated_json(const CalibrateRequest& a, const Calibrated& c) {
+  constexpr double kDeg = M_PI / 180.0;
+  const CalibrationResult& r = c.result;
+  const Eigen::Matrix<double, 7, 1> arm_sigma = r.arm_model_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  nlohmann::json residuals = nlohmann::json::array();
+  for (const auto& p : r.residuals)
+    residuals.push_back({{"n", p.n}, {"px", p.px}, {"du_px", p.r_px.x()}, {"dv_px", p.r_px.y()}, {"outlier", p.outlier},
+                         {"line", p.line}});
+  nlohmann::json j = {{"camera", a.camera},
+                      {"viewport", {c.viewport.width_px, c.viewport.height_px}},
+                      {"f_px", r.camera.f_px},
+                      {"fovy_deg", r.camera.fovy_rad() / kDeg},
+                      {"position_m", vec_json(r.position_m())},
+                      {"rpy_deg", vec_json(r.rpy_rad() / kDeg)},
+                      {"base_T_camera", pose_json(r.camera.base_T_camera)},
+                      {"rms_px", r.rms_px},
+                      {"max_px", r.max_px},
+                      {"linear_rms_px", r.linear_rms_px},
+                      {"linear_cross_product", r.linear_cross_product},
+                      {"residuals_px", residuals},
+                      {"outliers", r.outliers},
+                      {"sigma",
+                       {{"f_px", r.sigma[6]},
+                        {"position_m", vec_json(r.sigma.segment<3>(3))},
+                        {"rpy_deg", vec_json(r.sigma.head<3>() / kDeg)}}},
+                      {"covariance", matrix_rows(r.covariance)},
+                      {"arm_model_sigma",
+                       {{"arm_link_sigma_m", a.arm_link_sigma_m},
+                        {"f_px", arm_sigma[6]},
+                        {"position_m", vec_json(Eigen::Vector3d(arm_sigma.segment<3>(3)))},
+                        {"rpy_deg", vec_json(Eigen::Vector3d(arm_sigma.head<3>() / kDeg))}}},
+                      {"iterations", r.iterations},
+                      {"n_points", r.n_points}};
+  if (!a.out.empty()) j["out"] = a.out;
+  return j;
+}
+
+void add_camera(const std::string& cameras_yaml, const std::string& camera, const Calibrated& c) {
+  std::map<std::string, CameraRecord> cams;
+  if (std::filesystem::exists(cameras_yaml)) cams = load_cameras(cameras_yaml);
+  cams[camera] = CameraRecord{c.result.camera, c.result.info(utc_now())};
+  save_cameras(cameras_yaml, cams);
+}
+
+Localized localize_from_clicks(const LocalizeRequest& a) {
+  Localized out{ObjectModel::from_file(a.object), {}, {}, {}, 0.0, {}};
+  const auto records = load_cameras(a.cameras);
+  for (const auto& [name, rec] : records) out.cameras[name] = rec.camera;
+  out.points = read_correspondences_csv(a.points);
+  const std::vector<Correspondence>& pts = out.points;
+  for (const auto& [name, camera] : out.cameras) check_in_viewport(select_camera(pts, name), camera.viewport, a.points);
+  LocalizationOptions opt;
+  if (!a.views.empty()) opt.views = split_views(a.views);
+  const auto in_use = [&](const std::string& name) {
+    return std::any_of(pts.begin(), pts.end(), [&](const Correspondence& c) { return c.cam == name; }) &&
+           (opt.views.empty() || std::find(opt.views.begin(), opt.views.end(), name) != opt.views.end());
+  };
+  if (a.camera_uncertainty)
+    for (const auto& [name, rec] : records)
+      if (in_use(name)) opt.camera_information[name] = calibration_information(a.cameras, name, rec);
+  // The cameras held as calibrated are not exact, and cameras calibrated on
+  // one arm share its link errors (cameras.yaml's arm_link_sensitivity):
+  // both enter the pose's covariance; the pose is the same.
+  std::string arm_first;
+  for (const auto& [name, rec] : records) {
+    if (!in_use(name) || !rec.calibration) continue;
+    const CameraCalibrationInfo& c = *rec.calibration;
+    const Eigen::Matrix3d R = rec.camera.base_T_camera.linear();
+    Eigen::Matrix<double, 7, 7> arm_rpy = Eigen::Matrix<double, 7, 7>::Zero();
+    if (c.arm_link_sensitivity.size() > 0) {
+      if (!arm_first.empty() && c.arm_link_sigma_m != opt.arm_link_sigma_m)
+        throw std::invalid_argument(a.cameras + ": cameras '" + arm_first + "' and '" + name +
+                                    "' were calibrated with different arm link sigmas (" + fixed(opt.arm_link_sigma_m * 1e3, 2) +
+                                    " and " + fixed(c.arm_link_sigma_m * 1e3, 2) + " mm)");
+      if (arm_first.empty()) arm_first = name;
+      opt.arm_link_sigma_m = c.arm_link_sigma_m;
+      arm_rpy = c.arm_link_sigma_m * c.arm_link_sigma_m * c.arm_link_sensitivity * c.arm_link_sensitivity.transpose();
+      Eigen::MatrixXd K = c.arm_link_sensitivity;  // rpy rates -> body increments
+      K.topRows<3>() = rpy_rate_matrix(rpy_from_rotation(R)) * c.arm_link_sensitivity.topRows<3>();
+      opt.camera_link_sensitivity[name] = K;
+    }
+    if (opt.camera_information.count(name) || c.covariance.isZero(0.0)) continue;
+    // The calibration's own (noise) part, kept positive semi-definite against
+    // the file's rounding.
+    const Eigen::Matrix<double, 7, 7> body = camera_covariance_body_from_rpy(c.covariance - arm_rpy, R);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 7, 7>> eig(0.5 * (body + body.transpose()));
+    opt.camera_covariance[name] =
+        eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+    out.held_cameras.push_back(name);
+  }
+  out.arm_link_sigma_m = opt.arm_link_sigma_m;
+  out.result = localize_object(pts, out.cameras, opt);
+  return out;
+}
+
+nlohmann::json localized_json(const Localized& l) {
+  const LocalizationResult& r = l.result;
+  nlohmann::json tags = nlohmann::json::object();
+  for (const auto& [name, oru_T_tag] : l.object.tags) tags[name] = pose_json(r.base_T_object * oru_T_tag);
+  nlohmann::json residuals = nlohmann::json::array();
+  nlohmann::json outlier_details = nlohmann::json::array();
+  for (const auto& p : r.residuals) {
+    residuals.push_back({{"n", p.n}, {"cam", p.cam}, {"px", p.px}, {"outlier", p.outlier}, {"line", p.line}});
+    if (p.outlier) outlier_details.push_back({{"n", p.n}, {"cam", p.cam}, {"px", p.px}, {"line", p.line}});
+  }
+  constexpr double kDeg = M_PI / 180.0;
+  nlohmann::json j = {{"object", l.object.name},
+                      {"position_m", vec_json(r.position_m())},
+                      {"rpy_deg", vec_json(r.rpy_rad() / kDeg)},
+                      {"sigma", {{"position_m", vec_json(r.sigma_position_m)}, {"rpy_deg", vec_json(r.sigma_rpy_rad / kDeg)}}},
+                      {"covariance", matrix_rows(r.covariance)},
+                      {"rms_px", r.rms_px},
+                      {"max_px", r.max_px},
+                      {"linear_rms_px", r.linear_rms_px},
+                      {"iterations", r.iterations},
+                      {"n_points", r.n_points},
+                      {"residuals_px", residuals},
+                      {"outliers", r.outliers},
+                      {"outlier_details", outlier_details},
+                      {"views", r.views},
+                      {"camera_uncertainty", r.camera_uncertainty},
+                      {"held_camera_uncertainty", l.held_cameras},
+                      {"arm_link_sigma_m", l.arm_link_sigma_m},
+                      {"tags", tags}};
+  j.update(object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
+  return j;
+}
+
+Synthesized synth_frame(const SynthRequest& a) {
+  using namespace foresight::render;
+  Synthesized out;
+  out.backend = parse_gl_backend(a.gl);
+  if (!(a.noise_dn >= 0.0) || !(a.blur_px >= 0.0)) throw std::invalid_argument("--noise-dn and --blur-px must be >= 0");
+  if (!a.joints.empty() && !a.joints_deg.empty()) throw std::invalid_argument("give only one of --joints, --joints-deg");
+  const Scene scene = Scene::from_file(a.scene);
+  out.camera = scene_camera(scene, a.camera, a.scene);
+  const RobotModel nominal = RobotModel::from_file(a.robot);
+  const RobotModel model =
+      a.arm_links.empty() ? nominal : nominal.with_link_lengths_changed(align::load_arm_links(a.arm_links, nominal).delta_m);
+  const ObjectModel object = ObjectModel::from_file(a.object);
+  out.q = !a.joints.empty()       ? parse_joints(a.joints, "--joints", model)
+          : !a.joints_deg.empty() ? parse_joints(a.joints_deg, "--joints-deg", model, true)
+                                  : model.mid_configuration();
+  if (!a.write_cameras.empty()) {
+    std::map<std::string, CameraRecord> cams;
+    for (const auto& name : scene.camera_order) cams[name].camera = scene_camera(scene, name, a.scene);
+    save_cameras(a.write_cameras, cams);
+  }
+  auto context = GlContext::create(out.backend);
+  SyntheticOptions o;
+  o.noise_sigma_dn = a.noise_dn;
+  o.blur_sigma_px = a.blur_px;
+  o.seed = a.seed;
+  SyntheticCamera synth(*context, model, object, scene, out.camera.viewport, o);
+  const SyntheticFrame f = synth.render(out.camera, out.q);
+  write_image(a.out, f.image_bgr);
+  if (!a.arm_mask.empty()) write_image(a.arm_mask, f.arm_mask);
+  out.arm_pixels = cv::countNonZero(f.arm_mask);
+  out.object_pixels = cv::countNonZero(f.object_mask);
+  return out;
+}
+
+Overlaid overlay_frame(const OverlayRequest& a) {
+  using namespace foresight::render;
+  const auto t_start = std::chrono::steady_clock::now();
+  Overlaid out;
+  out.mode = parse_render_mode(a.mode);
+  out.backend = parse_gl_backend(a.gl);
+  if (!(a.alpha >= 0.0 && a.alpha <= 1.0)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  if (a.joints.empty() == a.joints_deg.empty())
+    throw std::invalid_argument("give the arm's joint angles with exactly one of --joints (rad) or --joints-deg");
+  out.camera = load_camera(a.cameras, a.camera);
+  const Camera& camera = out.camera;
+  const RobotModel model = RobotModel::from_file(a.robot);
+  out.q = a.joints.empty() ? parse_joints(a.joints_deg, "--joints-deg", model, true)
+                           : parse_joints(a.joints, "--joints", model);
+  std::optional<ObjectModel> object;
+  if (!a.object_pose.empty()) {
+    out.base_T_object = read_object_pose_json(a.object_pose);
+    object = ObjectModel::from_file(a.object);
+  } else if (a.tags) {
+    throw std::invalid_argument("--tags needs --object-pose (the tags are frames of the object)");
+  }
+  out.object_drawn = object.has_value();
+  auto context = GlContext::create(out.backend);
+  Renderer renderer(*context, camera.viewport);
+  cv::Mat video = fit_to_viewport(read_video_frame(a.image, a.frame), a.image, camera, a.scale_image);
+  ArmGeometry arm(renderer, model);
+  DrawList list;
+  arm.append(out.q, list);
+  if (object) {
+    list.bodies.push_back({add_object_body(renderer, *object), out.base_T_object, kObjectWireRgba, std::nullopt});
+    if (a.tags)
+      for (const auto& [name, oru_T_tag] : object->tags) append_triad(list, out.base_T_object * oru_T_tag, 0.08);
+  }
+  RenderSettings settings;
+  settings.mode = out.mode;
+  cv::Mat layer;
+  const auto t_render = std::chrono::steady_clock::now();
+  out.triangles = renderer.render(camera, list, settings, layer);
+  out.opacity = mode_opacity(out.mode, a.alpha);
+  composite(layer, out.opacity, video);
+  out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_render).count();
+  write_image(a.out, video);
+  out.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
+  out.tip_px = camera.project(arm.tip_pose(out.q).translation());
+  return out;
+}
+
+Previewed preview_trajectory(const PreviewRequest& a) {
+  using namespace foresight::render;
+  const auto t_start = std::chrono::steady_clock::now();
+  Previewed out;
+  preview::PreviewOptions& o = out.options;
+  o.mode = parse_render_mode(a.mode);
+  o.speed = a.speed;
+  o.fps = a.fps;
+  o.ghost_alpha = a.alpha;
+  o.tool_path = !a.no_path;
+  o.interrupted = a.interrupted;
+  if (!(a.speed > 0.0) || !std::isfinite(a.speed)) throw std::invalid_argument("--speed must be a positive number");
+  if (!(a.fps > 0.0)) throw std::invalid_argument("--fps must be a positive number");
+  if (!(a.fps <= 1000.0)) throw std::invalid_argument("--fps must be at most 1000");
+  if (!(a.alpha >= 0.0 && a.alpha <= 1.0)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  out.backend = parse_gl_backend(a.gl);
+  const Trajectory tr = read_trajectory_csv(a.trajectory);
+  out.samples = tr.samples();
+  out.joints = tr.joints();
+  out.camera = load_camera(a.cameras, a.camera);
+  const RobotModel model = RobotModel::from_file(a.robot);
+  if (tr.joints() != model.dof())
+    throw InputError(a.trajectory, "trajectory has " + std::to_string(tr.joints()) + " joints but the arm has " +
+                                       std::to_string(model.dof()));
+  if (a.tags && a.object_pose.empty())
+    throw std::invalid_argument("--tags needs --object-pose (the tags are frames of the object)");
+  out.violations = validate(tr, TrajectoryLimits::from_model(model), &out.violations_total);
+  for (const auto& v : out.violations)
+    if (v.rule == Violation::Rule::NonFinite || v.rule == Violation::Rule::TimeNotIncreasing ||
+        v.rule == Violation::Rule::TooFewSamples)
+      throw InputError(a.trajectory, v.message + ": cannot be previewed");
+  // The frame count must fit before anything renders (--speed 1e-9 overflowed it).
+  const std::optional<int> frames = limits::sample_count(tr.duration_s() / a.speed, a.fps);
+  if (!frames || *frames > limits::kMaxVideoFrames)
+    throw std::invalid_argument("--speed " + std::to_string(a.speed) + " and --fps " + std::to_string(a.fps) +
+                                " give more than " + std::to_string(limits::kMaxVideoFrames) + " video frames for " +
+                                std::to_string(tr.duration_s()) + " s of trajectory");
+
+  auto context = GlContext::create(out.backend);
+  Renderer renderer(*context, out.camera.viewport);
+  const cv::Mat video = fit_to_viewport(read_video_frame(a.image, a.frame), a.image, out.camera, a.scale_image);
+  ArmGeometry arm(renderer, model);
+  preview::OverlayExtras extras;
+  if (!a.object_pose.empty()) {
+    const ObjectModel object = ObjectModel::from_file(a.object);
+    extras.base_T_object = read_object_pose_json(a.object_pose);
+    extras.object_body = add_object_body(renderer, object);
+    if (a.tags)
+      for (const auto& [name, oru_T_tag] : object.tags) extras.base_T_tags.push_back(extras.base_T_object * oru_T_tag);
+  }
+  out.result = preview::render_preview(renderer, arm, out.camera, video, tr, extras, o, a.out, a.sheet);
+  out.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return out;
+}
+
+}  // namespace foresight::session
