@@ -1,4 +1,4 @@
-#include "foresight/remote/algorithm_params.hpp"
+#include "foresight/daemon/algorithm_params.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -7,7 +7,7 @@
 
 #include "foresight/control/algorithms.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 namespace {
 
@@ -126,4 +126,4 @@ std::string fmt_timeout(double timeout_s) {
   return buf;
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,6 +1,6 @@
-#include "foresight/remote/camera_worker.hpp"
+#include "foresight/daemon/camera_worker.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 CameraWorker::CameraWorker(hw::VideoSwitchConfig config) : video_(std::move(config)) {
   thread_ = std::thread([this] { run(); });
@@ -85,4 +85,4 @@ CameraResult CameraWorker::execute(const CameraJob& job) {
   return r;
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,4 +1,4 @@
-#include "foresight/remote/check.hpp"
+#include "foresight/daemon/check.hpp"
 #include "foresight/common/json_text.hpp"
 
 #include <nlohmann/json.hpp>
@@ -36,10 +36,10 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/security.hpp"
 #include "foresight/remote_link/remote_link.hpp"
-#include "foresight/remote/daemon_config.hpp"
-#include "foresight/remote/site.hpp"
+#include "foresight/daemon/daemon_config.hpp"
+#include "foresight/daemon/site.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -531,4 +531,4 @@ int run_check_command(const CheckOptions& options, bool json_out, std::ostream& 
   return report.fit() ? 0 : 1;
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,4 +1,4 @@
-#include "foresight/remote/daemon_config.hpp"
+#include "foresight/daemon/daemon_config.hpp"
 
 #include <cmath>
 #include <filesystem>
@@ -6,9 +6,9 @@
 #include "foresight/common/text_file.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/common/yaml_util.hpp"
-#include "foresight/remote/algorithm_params.hpp"
+#include "foresight/daemon/algorithm_params.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 const char* to_string(LinkLossPolicy policy) noexcept {
   switch (policy) {
@@ -105,4 +105,4 @@ DaemonConfig load_daemon_config(const std::string& remote_yaml_path) {
                              remote_yaml_path);
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,6 +1,6 @@
-#include "foresight/remote/inbox.hpp"
+#include "foresight/daemon/inbox.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 bool Inbox::push(Item item) {
   {
@@ -38,4 +38,4 @@ std::uint64_t Inbox::take_dropped() {
   return n;
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

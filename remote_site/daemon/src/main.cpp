@@ -40,15 +40,15 @@
 #include "foresight/control/control_loop.hpp"
 #include "foresight/journal/journal.hpp"
 #include "foresight/journal/reader.hpp"
-#include "foresight/remote/check.hpp"
+#include "foresight/daemon/check.hpp"
 #include "foresight/protocol/error.hpp"
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/security.hpp"
-#include "foresight/remote/daemon_config.hpp"
-#include "foresight/remote/site.hpp"
-#include "foresight/remote/sim_faults.hpp"
-#include "foresight/remote/supervisor.hpp"
-#include "foresight/remote/tool_worker.hpp"
+#include "foresight/daemon/daemon_config.hpp"
+#include "foresight/daemon/site.hpp"
+#include "foresight/daemon/sim_faults.hpp"
+#include "foresight/daemon/supervisor.hpp"
+#include "foresight/daemon/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
 #include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/plant.hpp"
@@ -161,7 +161,7 @@ int run_daemon(Options o) {
   using namespace foresight;
   if (o.domain < 0) o.domain = protocol::domain_from_environment().value_or(0);  // InputError: exit 2
   // ---- configuration (exit 2 on any error) -----------------------------------------
-  remote::DaemonConfig config = remote::load_daemon_config(o.config);
+  daemon::DaemonConfig config = daemon::load_daemon_config(o.config);
   // The DDS Security files read and checked before any hardware is touched: a
   // damaged certificate, key or signed document is named here (Cyclone would
   // say only "create participant: Error", after the drives were configured).
@@ -199,16 +199,16 @@ int run_daemon(Options o) {
     spdlog::info("DDS network: CYCLONEDDS_URI is set; it wins over controller.link.network");
   if (!o.journal.empty()) config.journal.path = o.journal;
   if (!o.estop_file.empty()) config.estop_file = o.estop_file;
-  remote::SiteOptions site_options;
+  daemon::SiteOptions site_options;
   site_options.remote_yaml = o.config;
   site_options.sim = o.sim;
   site_options.sim_rt_priority = std::max(1, o.rt_priority - 1);
   if (!o.sim_faults.empty() && !o.sim)
     throw foresight::InputError("--sim-faults", "fault injection needs --sim (a real cabinet breaks by itself)");
-  remote::Site site = remote::build_site(site_options);
+  daemon::Site site = daemon::build_site(site_options);
   const RobotModel& model = *site.model;
-  std::unique_ptr<remote::SimFaultWatcher> faults;
-  if (!o.sim_faults.empty()) faults = std::make_unique<remote::SimFaultWatcher>(site, o.sim_faults);
+  std::unique_ptr<daemon::SimFaultWatcher> faults;
+  if (!o.sim_faults.empty()) faults = std::make_unique<daemon::SimFaultWatcher>(site, o.sim_faults);
 
   journal::JournalOptions jo;
   jo.path = config.journal.path;
@@ -242,7 +242,7 @@ int run_daemon(Options o) {
   cc.rate_limit_acceleration_fraction = config.rate_limit_acceleration_fraction;
   cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
   cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
-  cc.link_loss = config.link_loss_policy == remote::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
+  cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;
   if (site.simulated && site.simulated->plant) {
     // The simulated tool's mass properties (from the URDF); on a cabinet they
@@ -283,12 +283,12 @@ int run_daemon(Options o) {
     journal.record_event(row);
   }
 
-  remote::ToolWorker tool(site.tool_config, config.tool_poll_hz);
-  std::unique_ptr<remote::CameraWorker> camera;
-  if (!site.camera_names.empty()) camera = std::make_unique<remote::CameraWorker>(site.video_config);
+  daemon::ToolWorker tool(site.tool_config, config.tool_poll_hz);
+  std::unique_ptr<daemon::CameraWorker> camera;
+  if (!site.camera_names.empty()) camera = std::make_unique<daemon::CameraWorker>(site.video_config);
 
   remote_link::RemoteLink* link_ptr = nullptr;
-  remote::SupervisorParts parts;
+  daemon::SupervisorParts parts;
   parts.model = &model;
   parts.config = config;
   if (!config.security_dir.empty()) parts.identities = protocol::known_identities(config.security_dir);
@@ -327,7 +327,7 @@ int run_daemon(Options o) {
       return json_text(j);
     };
   }
-  remote::Supervisor supervisor(std::move(parts));
+  daemon::Supervisor supervisor(std::move(parts));
 
   remote_link::Config lc;
   lc.domain = o.domain;
@@ -445,7 +445,7 @@ int main(int argc, char** argv) {
   jcmd->add_option("--since", q.since, "only rows at or after T (ns since the epoch, or ISO-8601 UTC)");
   jcmd->add_flag("--json", q.json, "one JSON object");
 
-  foresight::remote::CheckOptions check;
+  foresight::daemon::CheckOptions check;
   check.remote_yaml = default_config();
   bool check_json = false;
   CLI::App* ccmd = app.add_subcommand("check", "fitness before first motion: config, URDF, bus budget, CAN, tool, "
@@ -474,7 +474,7 @@ int main(int argc, char** argv) {
     return rc == 0 ? 0 : 2;
   }
   if (jcmd->parsed()) return foresight::journal::run_journal_command(q, std::cout, std::cerr);
-  if (ccmd->parsed()) return foresight::remote::run_check_command(check, check_json, std::cout);
+  if (ccmd->parsed()) return foresight::daemon::run_check_command(check, check_json, std::cout);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;

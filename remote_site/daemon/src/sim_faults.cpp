@@ -1,4 +1,4 @@
-#include "foresight/remote/sim_faults.hpp"
+#include "foresight/daemon/sim_faults.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -14,7 +14,7 @@
 #include "foresight/sim/plant.hpp"
 #include "foresight/sim/video_switch_server.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 namespace fs = std::filesystem;
 
@@ -134,4 +134,4 @@ void SimFaultWatcher::write_record() {
   fs::rename(tmp, fs::path(dir_) / "drive_record", ec);
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,4 +1,4 @@
-#include "foresight/remote/site.hpp"
+#include "foresight/daemon/site.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -12,7 +12,7 @@
 #include "foresight/sim/plant.hpp"
 #include "foresight/sim/video_switch_server.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 SimulatedSite::SimulatedSite() = default;
 SimulatedSite::~SimulatedSite() {
@@ -126,4 +126,4 @@ Site build_site(SiteOptions options) {
   return site;
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

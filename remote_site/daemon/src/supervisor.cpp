@@ -1,4 +1,4 @@
-#include "foresight/remote/supervisor.hpp"
+#include "foresight/daemon/supervisor.hpp"
 #include "foresight/common/json_text.hpp"
 
 #include <nlohmann/json.hpp>
@@ -18,9 +18,9 @@
 static_assert(static_cast<int>(foresight::hw::canopen::PowerState::OperationEnabled) == 4 &&
               static_cast<int>(foresight::hw::canopen::PowerState::QuickStopActive) == 5 &&
               static_cast<int>(foresight::hw::canopen::PowerState::Fault) == 7);
-#include "foresight/remote/algorithm_params.hpp"
+#include "foresight/daemon/algorithm_params.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 using protocol::AckState;
 using protocol::CommandKind;
@@ -1481,4 +1481,4 @@ void Supervisor::shutdown(const std::string& why) {
   publish_reports(true);
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -1,4 +1,4 @@
-#include "foresight/remote/tool_worker.hpp"
+#include "foresight/daemon/tool_worker.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -8,9 +8,9 @@
 #include <cstdio>
 
 #include "foresight/protocol/codec.hpp"
-#include "foresight/remote/algorithm_params.hpp"
+#include "foresight/daemon/algorithm_params.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 using protocol::Reason;
 using Clock = std::chrono::steady_clock;
@@ -268,4 +268,4 @@ ToolStepResult ToolWorker::execute(const ToolStep& step) {
   }
 }
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "foresight/remote/algorithm_params.hpp"
+#include "foresight/daemon/algorithm_params.hpp"
 
 using namespace foresight;
 
@@ -20,7 +20,7 @@ std::string parse(const std::string& name, std::vector<protocol::NamedValue> par
   invoke.params = std::move(params);
   invoke.timeout_s = timeout_s;
   control::AlgorithmParams out;
-  return remote::parse_algorithm(invoke, out);
+  return daemon::parse_algorithm(invoke, out);
 }
 
 struct Range {

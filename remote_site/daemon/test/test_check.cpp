@@ -24,15 +24,15 @@
 #include <vector>
 
 #include "foresight/protocol/loopback.hpp"
-#include "foresight/remote/check.hpp"
+#include "foresight/daemon/check.hpp"
 #include "foresight/test/cli.hpp"
 #include "foresight/test/remote_process.hpp"
 
 namespace fs = std::filesystem;
-using foresight::remote::CheckItem;
-using foresight::remote::CheckOptions;
-using foresight::remote::CheckReport;
-using foresight::remote::CheckResult;
+using foresight::daemon::CheckItem;
+using foresight::daemon::CheckOptions;
+using foresight::daemon::CheckReport;
+using foresight::daemon::CheckResult;
 
 namespace {
 
@@ -109,7 +109,7 @@ bool kernel_has_can() {
 // ---- CAN ----------------------------------------------------------------------------------
 
 TEST(CheckCan, AssessesTheLinkFromIpJson) {
-  using foresight::remote::assess_can_link;
+  using foresight::daemon::assess_can_link;
   const auto link = [](const std::string& flags, const std::string& state, int bitrate, int restart_ms) {
     return R"([{"ifname":"can0","flags":[)" + flags + R"(],"txqlen":1000,"link_type":"can",)" +
            R"("linkinfo":{"info_kind":"can","info_data":{"state":")" + state + R"(","restart_ms":)" +
@@ -150,7 +150,7 @@ TEST(CheckCan, NoCanInterfaceSaysSo) {
   CheckOptions o;
   o.remote_yaml = cfg.yaml();
   o.tool_timeout_s = 0.1;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   EXPECT_FALSE(r.fit());
   for (const char* name : {"CAN arm_a (can0)", "CAN arm_b (can1)"}) {
     const CheckItem& i = must_find(r, name);
@@ -173,7 +173,7 @@ TEST(CheckCan, MockBusesAreNotACabinet) {
   CheckOptions o;
   o.remote_yaml = kConfig + "/remote.yaml";  // the repository's config: mock buses
   o.tool_timeout_s = 0.1;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   const CheckItem& i = must_find(r, "CAN arm_a (mock)");
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_NE(i.why.find("has interface 'mock': a real cabinet needs a SocketCAN interface"), std::string::npos) << i.why;
@@ -186,7 +186,7 @@ TEST(CheckConfig, MissingUrdfIsNamed) {
   CheckOptions o;
   o.remote_yaml = cfg.yaml();
   o.sim = true;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   EXPECT_FALSE(r.fit());
   const CheckItem& i = must_find(r, "robot model");
   EXPECT_EQ(i.result, CheckResult::Fail);
@@ -200,7 +200,7 @@ TEST(CheckConfig, BadKeyNamesFileAndLine) {
   CheckOptions o;
   o.remote_yaml = cfg.yaml();
   o.sim = true;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   EXPECT_FALSE(r.fit());
   const CheckItem& i = must_find(r, "config");
   EXPECT_EQ(i.result, CheckResult::Fail);
@@ -225,7 +225,7 @@ TEST(CheckConfig, TheVideoSwitchSectionIsCheckedAsTheDaemonChecksIt) {
   CheckOptions o;
   o.remote_yaml = cfg.yaml();
   o.sim = true;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   EXPECT_FALSE(r.fit());
   const CheckItem& i = must_find(r, "config");
   EXPECT_EQ(i.result, CheckResult::Fail);
@@ -238,7 +238,7 @@ TEST(CheckConfig, TheVideoSwitchSectionIsCheckedAsTheDaemonChecksIt) {
 
   ConfigDir good;
   o.remote_yaml = good.yaml();
-  const CheckReport good_report = foresight::remote::run_check(o);
+  const CheckReport good_report = foresight::daemon::run_check(o);
   const CheckItem& ok = must_find(good_report, "config");
   EXPECT_EQ(ok.result, CheckResult::Pass) << ok.why;
   EXPECT_NE(ok.why.find("video switch 127.0.0.1:1503 (4 cameras); start-up up to "), std::string::npos) << ok.why;
@@ -250,7 +250,7 @@ TEST(CheckConfig, DriveJointMismatch) {
   CheckOptions o;
   o.remote_yaml = cfg.yaml();
   o.sim = true;
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   const CheckItem& i = must_find(r, "robot model");
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_NE(i.why.find("drive 2 is for joint 'joint9', the robot's joint 2 is 'joint2'"), std::string::npos) << i.why;
@@ -260,7 +260,7 @@ TEST(CheckConfig, DriveJointMismatch) {
 // writing nothing: a folder that is not there, a file that is not a journal, a
 // newer schema fail as the daemon would fail on them.
 TEST(CheckConfig, JournalFolderMustExist) {
-  using foresight::remote::check_journal_dir;
+  using foresight::daemon::check_journal_dir;
   CheckItem i = check_journal_dir("/nonexistent_foresight_dir/j.db");
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_EQ(i.why, "/nonexistent_foresight_dir/j.db: cannot create the journal: its folder /nonexistent_foresight_dir "
@@ -303,7 +303,7 @@ TEST(CheckTool, UnreachableEndpointFails) {
   foresight::hw::LstToolConfig c;
   c.host = "127.0.0.1";
   c.port = port;
-  const CheckItem i = foresight::remote::check_tool(c, 0.2);
+  const CheckItem i = foresight::daemon::check_tool(c, 0.2);
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_EQ(i.why.rfind("the LST at tcp 127.0.0.1:" + std::to_string(port) + " unit 1 does not answer: ", 0), 0u)
       << i.why;
@@ -316,7 +316,7 @@ TEST(CheckSim, SimulatedSitePasses) {
   o.remote_yaml = kConfig + "/remote.yaml";
   o.sim = true;
   o.journal_path = "/tmp/foresight-check-journal.db";
-  const CheckReport r = foresight::remote::run_check(o);
+  const CheckReport r = foresight::daemon::run_check(o);
   EXPECT_TRUE(r.fit()) << r.text();
   EXPECT_EQ(r.count(CheckResult::Fail), 0);
   const CheckItem& can = must_find(r, "CAN (simulated)");
@@ -365,7 +365,7 @@ TEST(CheckCli, BytesThatAreNotUtf8StillGiveJson) {
 // ---- DDS security ---------------------------------------------------------------------------------
 
 TEST(CheckSecurity, SkippedMissingValidForeign) {
-  using foresight::remote::check_security;
+  using foresight::daemon::check_security;
   EXPECT_EQ(check_security("", "remote").result, CheckResult::Skip);
 
   const std::string none = foresight::test::temp_path("_nosec");
@@ -403,7 +403,7 @@ TEST(CheckSecurity, SkippedMissingValidForeign) {
 // them (issue 26: check passed a damaged governance), and the daemon names the
 // damaged file before it touches the drives instead of "create participant: Error".
 TEST(CheckSecurity, SignedDocumentsAndDamagedFilesAreNamedByCheckAndTheDaemon) {
-  using foresight::remote::check_security;
+  using foresight::daemon::check_security;
   if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
   const std::string dir = foresight::test::temp_path("_secdocs");
   const ShellRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);

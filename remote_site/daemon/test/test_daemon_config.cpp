@@ -3,10 +3,10 @@
 #include <gtest/gtest.h>
 
 #include "foresight/common/error.hpp"
-#include "foresight/remote/daemon_config.hpp"
+#include "foresight/daemon/daemon_config.hpp"
 
 using namespace foresight;
-using namespace foresight::remote;
+using namespace foresight::daemon;
 
 namespace {
 

@@ -5,9 +5,9 @@
 
 #include <thread>
 
-#include "foresight/remote/inbox.hpp"
+#include "foresight/daemon/inbox.hpp"
 
-using foresight::remote::Inbox;
+using foresight::daemon::Inbox;
 namespace protocol = foresight::protocol;
 namespace rl = foresight::remote_link;
 

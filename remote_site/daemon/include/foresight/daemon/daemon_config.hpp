@@ -10,7 +10,7 @@
 
 #include "foresight/protocol/network.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 enum class LinkLossPolicy {
   FinishAndHold,  ///< a committed motion runs to its end, then the arm holds
@@ -80,4 +80,4 @@ struct DaemonConfig {
 DaemonConfig load_daemon_config(const std::string& remote_yaml_path);
 DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string& source_name);
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -49,13 +49,13 @@
 #include "foresight/control/trajectory_executor.hpp"
 #include "foresight/hw/lst_tool.hpp"
 #include "foresight/journal/journal.hpp"
-#include "foresight/remote/daemon_config.hpp"
-#include "foresight/remote/inbox.hpp"
-#include "foresight/remote/camera_worker.hpp"
-#include "foresight/remote/tool_worker.hpp"
+#include "foresight/daemon/daemon_config.hpp"
+#include "foresight/daemon/inbox.hpp"
+#include "foresight/daemon/camera_worker.hpp"
+#include "foresight/daemon/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 /// Where acks and reports go (the DDS link in the daemon; a recorder in tests).
 struct Outbox {
@@ -212,7 +212,7 @@ class Supervisor {
   SupervisorParts p_;
   const RobotModel& model_;
 
-  remote::Inbox inbox_;
+  daemon::Inbox inbox_;
   std::chrono::steady_clock::time_point inbox_drop_since_{};
   std::uint64_t inbox_dropped_ = 0;  ///< since inbox_drop_since_, journaled once a second
 
@@ -278,4 +278,4 @@ class Supervisor {
   Clock::time_point next_joints_{}, next_wrench_{}, next_tool_{}, next_status_{}, next_input_check_{};
 };
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -18,7 +18,7 @@
 
 #include "foresight/remote_link/remote_link.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 class Inbox {
  public:
@@ -46,4 +46,4 @@ class Inbox {
   std::uint64_t dropped_ = 0;
 };
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -18,7 +18,7 @@
 #include "foresight/control/command.hpp"
 #include "foresight/hw/video_switch.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 struct CameraJob {
   std::uint64_t command_id = 0;
@@ -67,4 +67,4 @@ class CameraWorker {
   std::thread thread_;
 };
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

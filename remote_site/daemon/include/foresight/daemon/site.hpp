@@ -31,7 +31,7 @@ class Plant;
 class VideoSwitchServer;
 }  // namespace foresight::sim
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 struct SiteOptions {
   std::string remote_yaml;  ///< config/remote.yaml
@@ -81,4 +81,4 @@ std::string sibling(const std::string& path, const std::string& name);
 /// starts the simulated site.
 Site build_site(SiteOptions options);
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

@@ -39,7 +39,7 @@
 #include "foresight/hw/lst_tool.hpp"
 #include "foresight/protocol/network.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 enum class CheckResult { Pass, Warn, Fail, Skip };
 const char* to_string(CheckResult r) noexcept;  ///< "PASS", "WARN", "FAIL", "SKIP"
@@ -106,4 +106,4 @@ CheckItem check_security(const std::string& dir, const std::string& identity, bo
 /// on `out`; returns 0 when fit, 1 when not.
 int run_check_command(const CheckOptions& options, bool json, std::ostream& out);
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

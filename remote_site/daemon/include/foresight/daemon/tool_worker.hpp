@@ -36,7 +36,7 @@
 #include "foresight/control/command.hpp"
 #include "foresight/hw/lst_tool.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 enum class ToolStepKind : std::uint8_t { Latch, Unlatch, Loosen, Tighten };
 const char* to_string(ToolStepKind kind) noexcept;
@@ -114,4 +114,4 @@ class ToolWorker {
   std::thread thread_;
 };
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

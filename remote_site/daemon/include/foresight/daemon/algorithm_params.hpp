@@ -11,7 +11,7 @@
 #include "foresight/control/command.hpp"
 #include "foresight/control/rt_types.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 /// "" when `invoke` names an RT algorithm with valid parameters (each in its
 /// range, then checked as the controller will check them), else the reason:
@@ -25,4 +25,4 @@ inline constexpr double kMaxAlgorithmTimeoutS = 600.0;
 /// ": timeout_s <v> out of range [0, 600] s (0: the default)", for a refusal.
 std::string fmt_timeout(double timeout_s);
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

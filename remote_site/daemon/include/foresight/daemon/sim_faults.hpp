@@ -40,9 +40,9 @@
 #include <thread>
 #include <vector>
 
-#include "foresight/remote/site.hpp"
+#include "foresight/daemon/site.hpp"
 
-namespace foresight::remote {
+namespace foresight::daemon {
 
 class SimFaultWatcher {
  public:
@@ -67,4 +67,4 @@ class SimFaultWatcher {
   std::thread thread_;
 };
 
-}  // namespace foresight::remote
+}  // namespace foresight::daemon

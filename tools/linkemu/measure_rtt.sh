@@ -7,7 +7,7 @@
 # JSON line per scenario and the emulator's statistics. About 3 minutes.
 # Numbers are in docs/linkemu.md.
 #
-#   hil_tests/linkemu/measure_rtt.sh [COUNT]      (default 100 pings, 200 ms apart)
+#   tools/linkemu/measure_rtt.sh [COUNT]      (default 100 pings, 200 ms apart)
 #
 # Environment: FORESIGHT_BIN_DIR (default build/bin). Exit 77 where network
 # namespaces are not permitted.
