@@ -5,8 +5,9 @@
 // Each TEST runs in its own process with its own domain and its own peer.
 
 #include <gtest/gtest.h>
+
+#include "foresight/test/child_process.hpp"
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -19,7 +20,6 @@
 #include "foresight/protocol/dds.hpp"
 #include "foresight/protocol/loopback.hpp"
 
-extern char** environ;
 
 namespace fp = foresight::protocol;
 namespace msg = foresight::protocol::msg;
@@ -35,27 +35,23 @@ class FastDdsInterop : public ::testing::Test {
   void SetUp() override {
     fp::use_loopback_if_unconfigured();
     domain_ = fp::unique_test_domain();
-    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/foresight_fastdds_peer";
-    const std::string d = std::to_string(domain_);
-    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--lifetime-s", "110", nullptr};
-    ASSERT_EQ(posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ), 0);
+    foresight::test::ChildProcess::Options o;
+    o.stop_grace_s = 5.0;
+    peer_ = std::make_unique<foresight::test::ChildProcess>(
+        std::vector<std::string>{std::string(FORESIGHT_BIN_DIR) + "/foresight_fastdds_peer", "--domain",
+                                 std::to_string(domain_), "--lifetime-s", "110"},
+        o);
     participant_ = std::make_unique<fp::Participant>(domain_);
   }
   void TearDown() override {
     participant_.reset();
-    if (pid_ <= 0) return;
-    int status = 0;
-    EXPECT_EQ(waitpid(pid_, &status, WNOHANG), 0) << "the Fast DDS peer exited early";
-    kill(pid_, SIGTERM);
-    const auto deadline = Clock::now() + 5s;
-    while (Clock::now() < deadline && waitpid(pid_, &status, WNOHANG) == 0) std::this_thread::sleep_for(5ms);
-    if (waitpid(pid_, &status, WNOHANG) == 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, &status, 0);
+    if (peer_) {
+      EXPECT_TRUE(peer_->running()) << "the Fast DDS peer exited early";
     }
+    peer_.reset();
   }
   dds_domainid_t domain_ = 0;
-  pid_t pid_ = -1;
+  std::unique_ptr<foresight::test::ChildProcess> peer_;
   std::unique_ptr<fp::Participant> participant_;
 };
 

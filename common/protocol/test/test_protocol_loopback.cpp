@@ -12,8 +12,9 @@
 
 #include <dds/ddsi/ddsi_cdrstream.h>
 #include <gtest/gtest.h>
+
+#include "foresight/test/child_process.hpp"
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,7 +33,6 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
 
-extern char** environ;
 
 namespace fp = foresight::protocol;
 namespace msg = foresight::protocol::msg;
@@ -47,47 +47,21 @@ constexpr auto kReplyTimeout = 10s;
 /// The peer process; killed (SIGTERM, then SIGKILL) on destruction.
 class PeerProcess {
  public:
-  explicit PeerProcess(dds_domainid_t domain) {
-    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/foresight_protocol_peer";
-    const std::string domain_arg = std::to_string(domain);
-    const char* argv[] = {path.c_str(), "--domain", domain_arg.c_str(), "--lifetime-s", "110", nullptr};
-    const int rc = posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ);
-    if (rc != 0) throw std::runtime_error("cannot start " + path + ": " + std::strerror(rc));
-  }
-  ~PeerProcess() { stop(); }
-  PeerProcess(const PeerProcess&) = delete;
-  PeerProcess& operator=(const PeerProcess&) = delete;
-
+  explicit PeerProcess(dds_domainid_t domain)
+      : process_({std::string(FORESIGHT_BIN_DIR) + "/foresight_protocol_peer", "--domain", std::to_string(domain),
+                  "--lifetime-s", "110"},
+                 options()) {}
   /// True while the peer runs (it exits early only on a failure of its own).
-  bool running() {
-    if (pid_ <= 0) return false;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      return false;
-    }
-    return true;
-  }
-
-  void stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    const auto deadline = Clock::now() + 3s;
-    int status = 0;
-    while (Clock::now() < deadline) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
-        return;
-      }
-      std::this_thread::sleep_for(5ms);
-    }
-    kill(pid_, SIGKILL);
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-  }
+  bool running() { return process_.running(); }
+  void stop() { process_.stop(SIGTERM, 3.0); }
 
  private:
-  pid_t pid_ = -1;
+  static foresight::test::ChildProcess::Options options() {
+    foresight::test::ChildProcess::Options o;
+    o.stop_grace_s = 3.0;
+    return o;
+  }
+  foresight::test::ChildProcess process_;
 };
 
 std::string echo_topic(const char* topic) { return std::string(topic) + "/echo"; }

@@ -27,20 +27,8 @@ namespace {
 /// `foresight <args>` under `ulimit -f <kib>` (a disk that is full past that
 /// size; SIGXFSZ ignored so the write fails with EFBIG instead of killing).
 CliRun run_with_file_limit(const std::string& args, int kib) {
-  const std::string err_path = temp_path(".err");
-  const std::string cmd = "bash -c \"trap '' XFSZ; ulimit -f " + std::to_string(kib) + "; exec " +
-                          std::string(FORESIGHT_BIN_DIR) + "/foresight " + args + "\" 2>" + err_path;
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  r.err = read_file(err_path);
-  std::remove(err_path.c_str());
-  return r;
+  return foresight::test::run_shell("bash -c \"trap '' XFSZ; ulimit -f " + std::to_string(kib) + "; exec " +
+                                    std::string(FORESIGHT_BIN_DIR) + "/foresight " + args + "\"");
 }
 
 bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }

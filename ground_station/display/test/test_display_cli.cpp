@@ -9,6 +9,9 @@
 //    in synthetic frames, writes a CSV from which `calibrate` recovers the true
 //    camera (and `calibrate --plot` draws its residual picture).
 #include <gtest/gtest.h>
+
+#include "foresight/test/child_process.hpp"
+#include "foresight/test/eventually.hpp"
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -55,12 +58,7 @@ bool exists(const std::string& p) {
 /// Polls `done` every 50 ms until it holds or `timeout_s` passed.
 template <class F>
 bool wait_until(F done, double timeout_s) {
-  const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-  while (Clock::now() < deadline) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return done();
+  return foresight::test::eventually(std::move(done), timeout_s, std::chrono::milliseconds(50));
 }
 
 double iou(const cv::Mat& a, const cv::Mat& b) {
@@ -384,46 +382,27 @@ class Xvfb {
     static unsigned started = 0;  // servers this process started: each on a number not used before
     const int number = 100 + static_cast<int>((static_cast<unsigned>(getpid()) * 7u + started++ * 131u) % 3000u);
     const std::string display = ":" + std::to_string(number);
-    pid_ = fork();
-    if (pid_ == 0) {
-      if (freopen("/dev/null", "w", stderr) == nullptr) _exit(126);
-      // -noreset: by default an X server resets when its last client
-      // leaves, and a client connecting during the reset is refused ("could
-      // not connect to display", which CI saw when one click command quit
-      // and the next started).
-      execl("/usr/bin/Xvfb", "Xvfb", display.c_str(), "-screen", "0", "1400x600x24", "-nolisten", "tcp", "-noreset",
-            nullptr);
-      _exit(127);
-    }
+    // -noreset: by default an X server resets when its last client leaves,
+    // and a client connecting during the reset is refused ("could not
+    // connect to display", which CI saw when one click command quit and the
+    // next started).
+    foresight::test::ChildProcess::Options o;
+    o.stderr_path = "/dev/null";
+    server_ = std::make_unique<foresight::test::ChildProcess>(
+        std::vector<std::string>{"/usr/bin/Xvfb", display, "-screen", "0", "1400x600x24", "-nolisten", "tcp",
+                                 "-noreset"},
+        o);
     // Ready means a client gets in: probe with one (bounded); a server that
     // exited (its number taken) or never lets a client in is given up.
     const std::string probe = "DISPLAY=" + display + " xdotool getdisplaygeometry >/dev/null 2>&1";
-    int st = 0;
-    const bool ready = wait_until(
-        [&] {
-          if (pid_ > 0 && waitpid(pid_, &st, WNOHANG) == pid_) {
-            pid_ = -1;
-            return true;  // exited: stop waiting
-          }
-          return std::system(probe.c_str()) == 0;
-        },
-        30.0);
-    if (ready && pid_ > 0)
+    const bool ready = wait_until([&] { return !server_->running() || std::system(probe.c_str()) == 0; }, 30.0);
+    if (ready && server_->running())
       display_ = display;
     else
       stop();
   }
-  void stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    int st = 0;
-    if (!wait_until([&] { return waitpid(pid_, &st, WNOHANG) == pid_; }, 10.0)) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, &st, 0);
-    }
-    pid_ = -1;
-  }
-  pid_t pid_ = -1;
+  void stop() { server_.reset(); }
+  std::unique_ptr<foresight::test::ChildProcess> server_;
   std::string display_;
 };
 

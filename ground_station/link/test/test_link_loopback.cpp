@@ -13,8 +13,10 @@
 // bounded polls of a condition, never fixed sleeps.
 
 #include <gtest/gtest.h>
+
+#include "foresight/test/child_process.hpp"
+#include "foresight/test/eventually.hpp"
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -34,7 +36,6 @@
 #include "foresight/protocol/convert.hpp"
 #include "foresight/test/sanitizer.hpp"
 
-extern char** environ;
 
 namespace gl = foresight::ground_link;
 namespace protocol = foresight::protocol;
@@ -52,50 +53,27 @@ constexpr auto kAckTimeout = 15s;
 /// link_test_remote in its own process; SIGTERM (then SIGKILL) on destruction.
 class RemoteProcess {
  public:
-  RemoteProcess(dds_domainid_t domain, double link_loss_s, const std::vector<std::string>& extra = {}) {
-    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/link_test_remote";
-    std::vector<std::string> args = {path, "--domain", std::to_string(domain), "--link-loss-s",
-                                     std::to_string(link_loss_s), "--lifetime-s", "110"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, path.c_str(), nullptr, nullptr, argv.data(), environ);
-    if (rc != 0) throw std::runtime_error("cannot start " + path + ": " + std::strerror(rc));
-  }
-  ~RemoteProcess() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    int status = 0;
-    const auto deadline = Clock::now() + 5s;
-    while (Clock::now() < deadline) {
-      if (waitpid(pid_, &status, WNOHANG) == pid_) return;
-      std::this_thread::sleep_for(5ms);
-    }
-    kill(pid_, SIGKILL);
-    waitpid(pid_, &status, 0);
-  }
-  bool running() {
-    int status = 0;
-    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
-  }
-  RemoteProcess(const RemoteProcess&) = delete;
-  RemoteProcess& operator=(const RemoteProcess&) = delete;
+  RemoteProcess(dds_domainid_t domain, double link_loss_s, const std::vector<std::string>& extra = {})
+      : process_(args(domain, link_loss_s, extra), options()) {}
+  bool running() { return process_.running(); }
 
  private:
-  pid_t pid_ = -1;
+  static std::vector<std::string> args(dds_domainid_t domain, double link_loss_s, const std::vector<std::string>& extra) {
+    std::vector<std::string> a = {std::string(FORESIGHT_BIN_DIR) + "/link_test_remote", "--domain",
+                                  std::to_string(domain), "--link-loss-s", std::to_string(link_loss_s),
+                                  "--lifetime-s", "110"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  }
+  static foresight::test::ChildProcess::Options options() {
+    foresight::test::ChildProcess::Options o;
+    o.stop_grace_s = 5.0;
+    return o;
+  }
+  foresight::test::ChildProcess process_;
 };
 
-/// Polls `condition` until it holds or `timeout` passes.
-template <class F>
-bool eventually(F condition, std::chrono::nanoseconds timeout) {
-  const auto deadline = Clock::now() + timeout;
-  while (Clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return condition();
-}
+using foresight::test::eventually;
 
 std::vector<AckState> states(const gl::CommandResult& r) {
   std::vector<AckState> s;

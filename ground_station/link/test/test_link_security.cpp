@@ -7,8 +7,9 @@
 // security plugins.
 
 #include <gtest/gtest.h>
+
+#include "foresight/test/child_process.hpp"
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -25,7 +26,6 @@
 #include "foresight/protocol/loopback.hpp"
 #include "foresight/protocol/security.hpp"
 
-extern char** environ;
 
 namespace gl = foresight::ground_link;
 namespace protocol = foresight::protocol;
@@ -58,30 +58,24 @@ class SecureLink : public ::testing::Test {
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
     fp::use_loopback_if_unconfigured();
     domain_ = fp::unique_test_domain();
-    const std::string path = std::string(FORESIGHT_BIN_DIR) + "/link_test_remote";
-    const std::string d = std::to_string(domain_);
-    const char* argv[] = {path.c_str(), "--domain", d.c_str(), "--security", dir_.c_str(), "--lifetime-s", "110",
-                          nullptr};
-    ASSERT_EQ(posix_spawn(&pid_, path.c_str(), nullptr, nullptr, const_cast<char* const*>(argv), environ), 0);
+    foresight::test::ChildProcess::Options o;
+    o.stop_grace_s = 5.0;
+    remote_ = std::make_unique<foresight::test::ChildProcess>(
+        std::vector<std::string>{std::string(FORESIGHT_BIN_DIR) + "/link_test_remote", "--domain",
+                                 std::to_string(domain_), "--security", dir_, "--lifetime-s", "110"},
+        o);
   }
   void TearDown() override {
-    if (pid_ > 0) {
-      int status = 0;
-      EXPECT_EQ(waitpid(pid_, &status, WNOHANG), 0) << "the remote exited early (see its stderr)";
-      kill(pid_, SIGTERM);
-      const auto deadline = Clock::now() + 5s;
-      while (Clock::now() < deadline && waitpid(pid_, &status, WNOHANG) == 0) std::this_thread::sleep_for(5ms);
-      if (waitpid(pid_, &status, WNOHANG) == 0) {
-        kill(pid_, SIGKILL);
-        waitpid(pid_, &status, 0);
-      }
+    if (remote_) {
+      EXPECT_TRUE(remote_->running()) << "the remote exited early (see its stderr)";
     }
+    remote_.reset();
     if (!dir_.empty()) fs::remove_all(dir_);
   }
 
   std::string dir_;
   dds_domainid_t domain_ = 0;
-  pid_t pid_ = -1;
+  std::unique_ptr<foresight::test::ChildProcess> remote_;
 };
 
 }  // namespace

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "foresight/test/eventually.hpp"
+
 #include <chrono>
 #include <thread>
 
@@ -19,15 +21,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-/// Poll `pred` every millisecond until it holds or `seconds` pass.
+/// Polls `pred` every millisecond until it holds or `seconds` pass.
 template <class Pred>
 bool eventually(Pred pred, double seconds) {
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-  while (Clock::now() < deadline) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return pred();
+  return foresight::test::eventually(std::move(pred), seconds, std::chrono::milliseconds(1));
 }
 
 /// config/remote.yaml with generous timeouts: the loop runs SCHED_FIFO where

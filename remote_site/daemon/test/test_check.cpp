@@ -79,22 +79,9 @@ const CheckItem& must_find(const CheckReport& r, const std::string& name) {
   return *i;
 }
 
-struct ShellRun {
-  int status = -1;
-  std::string out;
-};
-
 /// Runs `cmd` through the shell; stderr joins stdout unless `cmd` redirects it.
-ShellRun run_shell(const std::string& cmd) {
-  ShellRun r;
-  FILE* p = ::popen((cmd.find("2>") == std::string::npos ? cmd + " 2>&1" : cmd).c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = ::pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
+foresight::test::CliRun run_shell(const std::string& cmd) {
+  return foresight::test::run_shell(cmd.find("2>") == std::string::npos ? cmd + " 2>&1" : cmd);
 }
 
 bool kernel_has_can() {
@@ -231,7 +218,7 @@ TEST(CheckConfig, TheVideoSwitchSectionIsCheckedAsTheDaemonChecksIt) {
   EXPECT_EQ(i.result, CheckResult::Fail);
   EXPECT_NE(i.why.find(cfg.yaml() + ":"), std::string::npos) << i.why;
   EXPECT_NE(i.why.find("video_switch.port"), std::string::npos) << i.why;
-  const ShellRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + (cfg.dir / "j.db").string() +
+  const foresight::test::CliRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + (cfg.dir / "j.db").string() +
                                     " --config " + cfg.yaml() + " 2>&1");
   EXPECT_EQ(daemon.status, 2) << daemon.out;
   EXPECT_NE(daemon.out.find(i.why), std::string::npos) << daemon.out << "\n" << i.why;
@@ -335,7 +322,7 @@ TEST(CheckSim, SimulatedSitePasses) {
 }
 
 TEST(CheckCli, SimPassesAndRealConfigFailsWithReasons) {
-  ShellRun ok = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + kConfig +
+  foresight::test::CliRun ok = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + kConfig +
                      "/remote.yaml --sim --json --journal /tmp/foresight-check-journal.db 2>/dev/null");
   ASSERT_EQ(ok.status, 0) << ok.out;
   const auto j = nlohmann::json::parse(ok.out);
@@ -345,7 +332,7 @@ TEST(CheckCli, SimPassesAndRealConfigFailsWithReasons) {
 
   ConfigDir cfg;
   cfg.real_buses();
-  ShellRun bad = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>/dev/null");
+  foresight::test::CliRun bad = run_shell("timeout 120 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>/dev/null");
   EXPECT_EQ(bad.status, 1) << bad.out;
   EXPECT_NE(bad.out.find("FAIL  CAN arm_a (can0)"), std::string::npos) << bad.out;
   EXPECT_NE(bad.out.find("FAIL  tool"), std::string::npos) << bad.out;
@@ -355,7 +342,7 @@ TEST(CheckCli, SimPassesAndRealConfigFailsWithReasons) {
 // A name that is not UTF-8 (a byte 0xff in the configuration's path) is
 // printed as U+FFFD in the JSON, not an abort in the JSON writer (exit 134).
 TEST(CheckCli, BytesThatAreNotUtf8StillGiveJson) {
-  ShellRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --sim --json --config \"$(printf '/nonexistent/r\\377x.yaml')\" 2>/dev/null");
+  foresight::test::CliRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --sim --json --config \"$(printf '/nonexistent/r\\377x.yaml')\" 2>/dev/null");
   EXPECT_EQ(r.status, 1) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_FALSE(j.at("fit").get<bool>());
@@ -375,7 +362,7 @@ TEST(CheckSecurity, SkippedMissingValidForeign) {
 
   if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
   const std::string dir = foresight::test::temp_path("_sec");
-  const ShellRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
+  const foresight::test::CliRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
   ASSERT_EQ(made.status, 0) << made.out;
   i = check_security(dir, "remote");
   EXPECT_EQ(i.result, CheckResult::Pass) << i.why;
@@ -406,7 +393,7 @@ TEST(CheckSecurity, SignedDocumentsAndDamagedFilesAreNamedByCheckAndTheDaemon) {
   using foresight::daemon::check_security;
   if (run_shell("command -v openssl").status != 0) GTEST_SKIP() << "openssl is not installed";
   const std::string dir = foresight::test::temp_path("_secdocs");
-  const ShellRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
+  const foresight::test::CliRun made = run_shell("bash " + kSource + "/scripts/make_dds_security.sh " + dir);
   ASSERT_EQ(made.status, 0) << made.out;
   ASSERT_EQ(check_security(dir, "remote").result, CheckResult::Pass);
   EXPECT_NE(check_security(dir, "remote").why.find("governance and permissions signed by the CA"), std::string::npos);
@@ -443,7 +430,7 @@ TEST(CheckSecurity, SignedDocumentsAndDamagedFilesAreNamedByCheckAndTheDaemon) {
             std::string::npos) << i.why;
 
   // The daemon: exit 2 at start-up naming the file; nothing was configured.
-  const ShellRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + dir +
+  const foresight::test::CliRun daemon = run_shell("timeout 60 " + kBin + "/foresight-remote --sim --journal " + dir +
                                     "/j.db --security " + dir + " 2>&1");
   EXPECT_EQ(daemon.status, 2) << daemon.out;
   EXPECT_NE(daemon.out.find("foresight-remote: error: --security: DDS Security: " + dir +
@@ -461,7 +448,7 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
   ConfigDir cfg;
   cfg.real_buses();
   const std::string journal = (cfg.dir / "j.db").string();
-  const ShellRun open = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() + " --journal " +
+  const foresight::test::CliRun open = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() + " --journal " +
                                   journal + " --domain 7 2>&1");
   EXPECT_EQ(open.status, 2) << open.out;
   EXPECT_NE(open.out.find("foresight-remote: error: " + cfg.yaml() +
@@ -475,7 +462,7 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
   EXPECT_FALSE(fs::exists(journal));
 
   auto security_item = [&](const std::string& yaml) {
-    const ShellRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --json --config " + yaml +
+    const foresight::test::CliRun r = run_shell("timeout 120 " + kBin + "/foresight-remote check --json --config " + yaml +
                                  " 2>/dev/null");
     const auto report = nlohmann::json::parse(r.out);
     for (const auto& i : report.at("items"))
@@ -490,7 +477,7 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
 
   // Said in so many words: the daemon goes on (to the missing CAN interface here) with a warning; check warns.
   cfg.replace("    identity: remote\n", "    identity: remote\n    insecure: true\n");
-  const ShellRun insecure = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() +
+  const foresight::test::CliRun insecure = run_shell("timeout 60 " + kBin + "/foresight-remote --config " + cfg.yaml() +
                                       " --journal " + journal + " --domain 7 2>&1");
   EXPECT_NE(insecure.status, 0);
   EXPECT_EQ(insecure.out.find("controller.link.security is not set"), std::string::npos) << insecure.out;
@@ -505,7 +492,7 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
 
   // Both at once contradict each other: check and the daemon refuse the configuration.
   cfg.replace("security: \"\"", "security: sec");
-  const ShellRun both = run_shell("timeout 60 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>&1");
+  const foresight::test::CliRun both = run_shell("timeout 60 " + kBin + "/foresight-remote check --config " + cfg.yaml() + " 2>&1");
   EXPECT_EQ(both.status, 1) << both.out;
   EXPECT_NE(both.out.find(": controller.link.insecure: contradicts link.security 'sec': say one or the other"),
             std::string::npos)
@@ -524,7 +511,7 @@ TEST(CheckSecurity, OffTheSimulatorAnOpenLinkIsRefusedUnlessSaidInsecure) {
 // a peer that does not resolve is named by check and by the daemon's start-up.
 TEST(CheckNetwork, AMissingInterfaceOrPeerIsNamedByCheckAndTheDaemon) {
   ConfigDir cfg;
-  const ShellRun good = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --json --config " +
+  const foresight::test::CliRun good = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --json --config " +
                                   cfg.yaml() + " --journal " + (cfg.dir / "j.db").string() + " 2>/dev/null");
   const auto report = nlohmann::json::parse(good.out, nullptr, false);
   ASSERT_FALSE(report.is_discarded()) << good.out;
@@ -539,7 +526,7 @@ TEST(CheckNetwork, AMissingInterfaceOrPeerIsNamedByCheckAndTheDaemon) {
 
   cfg.replace("interface: lo ", "interface: nosuch0 ");
   cfg.replace("peers: \\[127.0.0.1\\]", "peers: [127.0.0.1, no-such-host.invalid]");
-  const ShellRun bad = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --config " +
+  const foresight::test::CliRun bad = run_shell("env -u CYCLONEDDS_URI timeout 120 " + kBin + "/foresight-remote check --sim --config " +
                                  cfg.yaml() + " 2>/dev/null");
   EXPECT_EQ(bad.status, 1) << bad.out;
   EXPECT_NE(bad.out.find("FAIL  DDS network      " + cfg.yaml() +
@@ -549,7 +536,7 @@ TEST(CheckNetwork, AMissingInterfaceOrPeerIsNamedByCheckAndTheDaemon) {
   EXPECT_NE(bad.out.find("; peer 'no-such-host.invalid' does not resolve ("), std::string::npos) << bad.out;
 
   const std::string journal = (cfg.dir / "d.db").string();
-  const ShellRun daemon = run_shell("env -u CYCLONEDDS_URI timeout 60 " + kBin + "/foresight-remote --sim --config " +
+  const foresight::test::CliRun daemon = run_shell("env -u CYCLONEDDS_URI timeout 60 " + kBin + "/foresight-remote --sim --config " +
                                     cfg.yaml() + " --journal " + journal + " 2>&1");
   EXPECT_EQ(daemon.status, 2) << daemon.out;
   EXPECT_NE(daemon.out.find("foresight-remote: error: " + cfg.yaml() +
@@ -575,7 +562,7 @@ TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {
   fs::create_directories(dir);
   text = std::regex_replace(text, std::regex("/usr/bin/foresight-remote"), kBin + "/foresight-remote");
   std::ofstream(dir / "foresight-remote.service") << text;
-  const ShellRun v = run_shell("systemd-analyze verify " + (dir / "foresight-remote.service").string());
+  const foresight::test::CliRun v = run_shell("systemd-analyze verify " + (dir / "foresight-remote.service").string());
   EXPECT_EQ(v.status, 0) << v.out;
   EXPECT_EQ(v.out.find("foresight-remote.service:"), std::string::npos) << v.out;  // no complaint about our unit
 
@@ -585,7 +572,7 @@ TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {
   can = std::regex_replace(can, std::regex("/usr/lib/foresight/can-setup.sh"),
                            kSource + "/remote_site/deploy/can/can-setup.sh");
   std::ofstream(dir / "foresight-can.service") << can;
-  const ShellRun c = run_shell("systemd-analyze verify " + (dir / "foresight-can.service").string());
+  const foresight::test::CliRun c = run_shell("systemd-analyze verify " + (dir / "foresight-can.service").string());
   EXPECT_EQ(c.status, 0) << c.out;
   EXPECT_EQ(c.out.find("foresight-can.service:"), std::string::npos) << c.out;
   std::error_code ec;
@@ -593,13 +580,13 @@ TEST(Deploy, UnitPassesSystemdAnalyzeVerify) {
 }
 
 TEST(Deploy, CanSetupDryRun) {
-  const ShellRun r = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run can0 can1");
+  const foresight::test::CliRun r = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run can0 can1");
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("ip link set can0 down"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ip link set can0 type can bitrate 1000000 restart-ms 100"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ip link set can0 txqueuelen 1000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("ip link set can1 up"), std::string::npos) << r.out;
-  const ShellRun bad = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run --bitrate 7 can0");
+  const foresight::test::CliRun bad = run_shell("bash " + kSource + "/remote_site/deploy/can/can-setup.sh --dry-run --bitrate 7 can0");
   EXPECT_EQ(bad.status, 2);
   EXPECT_NE(bad.out.find("bit rate 7 is not one of"), std::string::npos) << bad.out;
 }
@@ -610,7 +597,7 @@ TEST(Deploy, PackagesHoldWhatTheyShould) {
     if (!fs::exists(kBin + "/" + b)) GTEST_SKIP() << kBin << "/" << b << " is not built (build every target first)";
   if (run_shell("command -v cpack && command -v dpkg-deb && command -v dpkg-shlibdeps").status != 0)
     GTEST_SKIP() << "cpack, dpkg-deb or dpkg-shlibdeps missing";
-  const ShellRun r = run_shell("timeout 170 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
+  const foresight::test::CliRun r = run_shell("timeout 170 bash " + kSource + "/remote_site/deploy/test_packages.sh " + build);
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("packages: ok"), std::string::npos) << r.out;
 }
@@ -675,7 +662,7 @@ TEST(Deploy, DaemonNotifiesReadyWatchdogStopping) {
 TEST(Deploy, RestartAfterCrashComesUpHolding) {
   const std::string journal = foresight::test::temp_path(".db");
   const auto read_journal = [&] {
-    const ShellRun j = run_shell(kBin + "/foresight-remote journal --json --db " + journal + " 2>/dev/null");
+    const foresight::test::CliRun j = run_shell(kBin + "/foresight-remote journal --json --db " + journal + " 2>/dev/null");
     return j.status == 0 ? nlohmann::json::parse(j.out) : nlohmann::json::object();
   };
   foresight::test::RemoteProcess::Options o;

@@ -43,14 +43,12 @@ inline std::string read_file(const std::string& path) {
   return ss.str();
 }
 
-/// Runs the built executable `program` (foresight, foresight-remote) with
-/// `args` (through the shell) under a 300 s limit.
-inline CliRun run_program(const std::string& program, const std::string& args) {
+/// Runs the shell command `cmd` to its end: its exit status, stdout, and
+/// stderr (what `cmd` does not redirect itself).
+inline CliRun run_shell(const std::string& cmd) {
   const std::string err_path = temp_path(".err");
-  const std::string cmd =
-      "timeout 300 " + std::string(FORESIGHT_BIN_DIR) + "/" + program + " " + args + " 2>" + err_path;
   CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
+  FILE* p = popen(("{ " + cmd + "\n} 2>" + err_path).c_str(), "r");
   if (p == nullptr) return r;
   char buf[4096];
   std::size_t n;
@@ -60,6 +58,12 @@ inline CliRun run_program(const std::string& program, const std::string& args) {
   r.err = read_file(err_path);
   std::remove(err_path.c_str());
   return r;
+}
+
+/// Runs the built executable `program` (foresight, foresight-remote) with
+/// `args` (through the shell) under a 300 s limit.
+inline CliRun run_program(const std::string& program, const std::string& args) {
+  return run_shell("timeout 300 " + std::string(FORESIGHT_BIN_DIR) + "/" + program + " " + args);
 }
 
 /// Runs `foresight <args>` (args go through the shell) with a 300 s limit.
