@@ -339,6 +339,8 @@ struct ModelAligner::Impl {
     }
   };
 
+  class Alignment;  // one call of align()
+
   static Eigen::Vector4d label_rgba(int label) {
     return {(label & 0xFF) / 255.0, ((label >> 8) & 0xFF) / 255.0, 0.0, 1.0};
   }
@@ -635,146 +637,191 @@ double link_prior_weight_impl(const std::vector<Sample>& samples, const Eval& e,
 
 }  // namespace
 
-AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::optional<Pose>& base_T_object_start,
-                                const AlignOptions& o) {
-  auto& I = *impl_;
-  I.next_cluster = 0;  // the clusters are this call's
-  const auto t0 = std::chrono::steady_clock::now();
-  if (views.empty()) throw std::invalid_argument("align: no views");
-  const bool refine_camera = o.refine != Refine::Object;
-  const bool refine_object = o.refine != Refine::Camera;
-  if (refine_object && !base_T_object_start)
-    throw std::invalid_argument("refining the object needs its start pose (--object-pose)");
-  if (refine_object && !I.object) throw std::invalid_argument("refining the object needs the object model");
-  const int V = static_cast<int>(views.size());
-  std::vector<std::vector<Impl::FrameData>> data(V);
-  const Impl::FramesLease lease{I, data};
-  for (int v = 0; v < V; ++v) {
-    if (views[v].frames.empty()) throw std::invalid_argument("camera '" + views[v].camera.name + "' has no frames");
-    if (!(views[v].camera.viewport == I.vp))
-      throw std::invalid_argument("camera '" + views[v].camera.name + "' has another viewport than the aligner's");
-    const auto& cc = views[v].camera_covariance;
-    if (!cc.allFinite() || (cc.diagonal().array() < 0.0).any() || !cc.isApprox(cc.transpose(), 1e-9))
-      throw std::invalid_argument("camera '" + views[v].camera.name +
-                                  "': its covariance is not a finite symmetric matrix with a non-negative diagonal");
-    for (const auto& fr : views[v].frames) data[v].push_back(I.prepare(fr));
+// One call of align(): the parameters it refines (the cameras' R, c, f; the
+// object's R, t; the arm's link lengths), the frames' data, and its steps:
+// the samples, their residuals, the robust Gauss-Newton of each level, the
+// covariance, the verdict. ModelAligner::align runs them in order.
+class ModelAligner::Impl::Alignment {
+ public:
+  Alignment(Impl& impl, const std::vector<AlignView>& views, const std::optional<Pose>& start, const AlignOptions& o)
+      : I_(impl),
+        views_(views),
+        start_(start),
+        o_(o),
+        refine_camera_(o.refine != Refine::Object),
+        refine_object_(o.refine != Refine::Camera),
+        V_(static_cast<int>(views.size())),
+        data_(views.size()),
+        lease_{impl, data_} {
+    if (refine_object_ && !start_) throw std::invalid_argument("refining the object needs its start pose (--object-pose)");
+    if (refine_object_ && !I_.object) throw std::invalid_argument("refining the object needs the object model");
+    for (int v = 0; v < V_; ++v) {
+      if (views_[v].frames.empty()) throw std::invalid_argument("camera '" + views_[v].camera.name + "' has no frames");
+      if (!(views_[v].camera.viewport == I_.vp))
+        throw std::invalid_argument("camera '" + views_[v].camera.name + "' has another viewport than the aligner's");
+      const auto& cc = views_[v].camera_covariance;
+      if (!cc.allFinite() || (cc.diagonal().array() < 0.0).any() || !cc.isApprox(cc.transpose(), 1e-9))
+        throw std::invalid_argument("camera '" + views_[v].camera.name +
+                                    "': its covariance is not a finite symmetric matrix with a non-negative diagonal");
+      for (const auto& fr : views_[v].frames) data_[v].push_back(I_.prepare(fr));
+    }
+    for (int v = 0; v < V_; ++v) {
+      cam_R_.push_back(views_[v].camera.base_T_camera.linear());
+      cam_c_.push_back(views_[v].camera.base_T_camera.translation());
+      cam_f_.push_back(views_[v].camera.f_px);
+    }
+    obj_R_ = start_ ? Eigen::Matrix3d(start_->linear()) : Eigen::Matrix3d::Identity();
+    obj_t_ = start_ ? Eigen::Vector3d(start_->translation()) : Eigen::Vector3d::Zero();
+    init_links();
+    P_ = (refine_camera_ ? 7 * V_ : 0) + (refine_object_ ? 6 : 0) + NL_;
+    obj_col_ = refine_camera_ ? 7 * V_ : 0;
+    link_col_ = P_ - NL_;
+    for (int v = 0; v < V_; ++v) res_.cameras.push_back(views_[v].camera);
+    res_.base_T_object = start_;
+    res_.camera_change.assign(V_, Eigen::Matrix<double, 7, 1>::Zero());
   }
 
-  // Parameters: per view camera (R, c, f), the object (R, t).
-  std::vector<Eigen::Matrix3d> cam_R(V);
-  std::vector<Eigen::Vector3d> cam_c(V);
-  std::vector<double> cam_f(V);
-  for (int v = 0; v < V; ++v) {
-    cam_R[v] = views[v].camera.base_T_camera.linear();
-    cam_c[v] = views[v].camera.base_T_camera.translation();
-    cam_f[v] = views[v].camera.f_px;
+  AlignResult run(std::chrono::steady_clock::time_point t0) {
+    t0_ = t0;
+    // Start: visibility (the samples serve the first level too) and score.
+    std::vector<int> per_view;
+    collect(samples_, &per_view, 0);
+    for (int v = 0; v < V_; ++v)
+      if (per_view[v] == 0) {
+        res_.status = AlignStatus::NotInView;
+        res_.reason = std::string("the ") + (refine_camera_ ? "arm" : "object") + " model is not in view of camera '" +
+                      views_[v].camera.name + "': none of its edges projects visibly into the image";
+        return finish();
+      }
+    res_.start_score_px = score_of(samples_);
+    for (int li = 0; li < static_cast<int>(kLevels.size()); ++li) {
+      if (li > 0) collect(samples_, nullptr, li);
+      if (static_cast<int>(samples_.size()) < o_.min_visible_samples) {
+        res_.status = AlignStatus::Refused;
+        res_.reason = "too few model edges in view: " + std::to_string(samples_.size()) + " samples (need " +
+                      std::to_string(o_.min_visible_samples) + ")";
+        res_.visible_samples = static_cast<int>(samples_.size());
+        return finish();
+      }
+      for (int it = 0; it < o_.iterations_per_level; ++it)
+        if (!gauss_newton_step(li)) break;
+    }
+    // Final residuals at the finest level, then the covariance.
+    evaluate(samples_, static_cast<int>(kLevels.size()) - 1, kLevels.back(), e_, true);
+    covariance();
+    debug_image();
+    summarize();
+    verdict();
+    return finish();
   }
-  Eigen::Matrix3d obj_R = base_T_object_start ? Eigen::Matrix3d(base_T_object_start->linear()) : Eigen::Matrix3d::Identity();
-  Eigen::Vector3d obj_t = base_T_object_start ? Eigen::Vector3d(base_T_object_start->translation()) : Eigen::Vector3d::Zero();
-  auto camera_of = [&](int v) {
-    Camera c = views[v].camera;
-    c.base_T_camera = make_pose(cam_R[v], cam_c[v]);
-    c.f_px = cam_f[v];
-    return c;
-  };
-  auto object_pose = [&]() -> std::optional<Pose> {
-    if (!base_T_object_start) return std::nullopt;
-    return make_pose(obj_R, obj_t);
-  };
-  const bool want_arm = refine_camera;
-  const bool want_object = refine_object;
 
-  // The arm model's link-length corrections: given (rendered and sampled
-  // with) and/or refined with the cameras under a prior (a bundle adjustment
-  // over cameras + arm; the link offsets are observable over several poses).
-  const int nseg = I.arm.segment_count();
-  if (!o.arm_link_delta_m.empty() && static_cast<int>(o.arm_link_delta_m.size()) != nseg)
-    throw std::invalid_argument("arm link corrections: " + std::to_string(o.arm_link_delta_m.size()) +
-                                " values for " + std::to_string(nseg) + " chain segments");
-  if (!(o.arm_link_prior_m >= 0.0) || !std::isfinite(o.arm_link_prior_m))
-    throw std::invalid_argument("arm link prior must be a non-negative number");
-  const std::vector<double> link_start = o.arm_link_delta_m.empty() ? std::vector<double>(nseg, 0.0) : o.arm_link_delta_m;
-  std::vector<double> link_delta = link_start;
-  std::vector<int> link_segs;
-  if (refine_camera && o.arm_link_prior_m > 0.0) link_segs = I.arm.offset_segments();
-  const int NL = static_cast<int>(link_segs.size());
-  if (NL > kMaxLinks) throw std::invalid_argument("arm link refinement: more than 16 link offsets");
-  constexpr double kLinkStep_m = 1e-3;  // FK is linear in the offsets at fixed q: the difference is exact
-  // dposes[v][k][j][link]: the link poses with link length j stepped.
-  std::vector<std::vector<std::vector<std::vector<Pose>>>> dposes(V);
-  auto update_arm = [&]() {
-    const RobotModel m = I.arm.with_link_lengths_changed(link_delta);
+ private:
+  // --- the model's state ------------------------------------------------------
+
+  /// The arm model's link-length corrections: given (rendered and sampled
+  /// with) and/or refined with the cameras under a prior (a bundle
+  /// adjustment over cameras + arm; the link offsets are observable over
+  /// several poses).
+  void init_links() {
+    nseg_ = I_.arm.segment_count();
+    if (!o_.arm_link_delta_m.empty() && static_cast<int>(o_.arm_link_delta_m.size()) != nseg_)
+      throw std::invalid_argument("arm link corrections: " + std::to_string(o_.arm_link_delta_m.size()) +
+                                  " values for " + std::to_string(nseg_) + " chain segments");
+    if (!(o_.arm_link_prior_m >= 0.0) || !std::isfinite(o_.arm_link_prior_m))
+      throw std::invalid_argument("arm link prior must be a non-negative number");
+    link_start_ = o_.arm_link_delta_m.empty() ? std::vector<double>(nseg_, 0.0) : o_.arm_link_delta_m;
+    link_delta_ = link_start_;
+    if (refine_camera_ && o_.arm_link_prior_m > 0.0) link_segs_ = I_.arm.offset_segments();
+    NL_ = static_cast<int>(link_segs_.size());
+    if (NL_ > kMaxLinks) throw std::invalid_argument("arm link refinement: more than 16 link offsets");
+    dposes_.resize(V_);
+    if (!o_.arm_link_delta_m.empty() || NL_ > 0) update_arm();
+  }
+
+  /// The link poses of every frame with the current link lengths, and with
+  /// each refined length stepped (dposes_[v][k][j][link]).
+  void update_arm() {
+    const RobotModel m = I_.arm.with_link_lengths_changed(link_delta_);
     KinematicsWorkspace mws(m);
     std::vector<RobotModel> stepped;
-    for (int j = 0; j < NL; ++j) {
-      std::vector<double> d = link_delta;
-      d[link_segs[j]] += kLinkStep_m;
-      stepped.push_back(I.arm.with_link_lengths_changed(d));
+    for (int j = 0; j < NL_; ++j) {
+      std::vector<double> d = link_delta_;
+      d[link_segs_[j]] += kLinkStep_m;
+      stepped.push_back(I_.arm.with_link_lengths_changed(d));
     }
-    const int nl = static_cast<int>(I.arm.links().size());
-    for (int v = 0; v < V; ++v) {
-      dposes[v].resize(data[v].size());
-      for (std::size_t k = 0; k < data[v].size(); ++k) {
-        auto& f = data[v][k];
+    const int nl = static_cast<int>(I_.arm.links().size());
+    for (int v = 0; v < V_; ++v) {
+      dposes_[v].resize(data_[v].size());
+      for (std::size_t k = 0; k < data_[v].size(); ++k) {
+        auto& f = data_[v][k];
         for (int l = 0; l < nl; ++l) f.link_poses[l] = forward_kinematics(m, mws, f.q, l);
-        dposes[v][k].assign(NL, std::vector<Pose>(nl));
-        for (int j = 0; j < NL; ++j) {
+        dposes_[v][k].assign(NL_, std::vector<Pose>(nl));
+        for (int j = 0; j < NL_; ++j) {
           KinematicsWorkspace sws(stepped[j]);
-          for (int l = 0; l < nl; ++l) dposes[v][k][j][l] = forward_kinematics(stepped[j], sws, f.q, l);
+          for (int l = 0; l < nl; ++l) dposes_[v][k][j][l] = forward_kinematics(stepped[j], sws, f.q, l);
         }
       }
     }
-  };
-  if (!o.arm_link_delta_m.empty() || NL > 0) update_arm();
+  }
 
-  const int P = (refine_camera ? 7 * V : 0) + (refine_object ? 6 : 0) + NL;
-  const int obj_col = refine_camera ? 7 * V : 0;
-  const int link_col = P - NL;
+  Camera camera_of(int v) const {
+    Camera c = views_[v].camera;
+    c.base_T_camera = make_pose(cam_R_[v], cam_c_[v]);
+    c.f_px = cam_f_[v];
+    return c;
+  }
 
-  // Samples at level `level` (-1: the score's); at the fine levels with
-  // their predicted edge bias (Impl::predict_bias).
-  auto collect = [&](std::vector<Sample>& samples, std::vector<int>* per_view, int level) {
+  std::optional<Pose> object_pose() const {
+    if (!start_) return std::nullopt;
+    return make_pose(obj_R_, obj_t_);
+  }
+
+  // --- samples and residuals ---------------------------------------------------
+
+  /// Samples at level `level` (-1: the score's); at the finest level with
+  /// their predicted edge bias (Impl::predict_bias).
+  void collect(std::vector<Sample>& samples, std::vector<int>* per_view, int level) {
     samples.clear();
-    if (per_view) per_view->assign(V, 0);
+    if (per_view) per_view->assign(V_, 0);
     const auto obj = object_pose();
-    for (int v = 0; v < V; ++v) {
+    for (int v = 0; v < V_; ++v) {
       const Camera cam = camera_of(v);
-      for (int k = 0; k < static_cast<int>(data[v].size()); ++k) {
+      for (int k = 0; k < static_cast<int>(data_[v].size()); ++k) {
         const std::size_t before = samples.size();
-        I.sample(cam, data[v][k], obj, v, k, want_arm, want_object, o, samples);
+        I_.sample(cam, data_[v][k], obj, v, k, refine_camera_, refine_object_, o_, samples);
         // The bias is predicted at the finest level only: it is 0.1-0.3 px,
         // below what the coarser levels resolve, and each prediction is a
         // 4x-MSAA render (about half of an alignment's time when done at
         // the two fine levels).
-        if (level + 1 == static_cast<int>(kLevels.size()) && o.predict_edge_bias) {
+        if (level + 1 == static_cast<int>(kLevels.size()) && o_.predict_edge_bias) {
           const Level& L = kLevels[level];
-          I.predict_bias(cam, data[v][k], obj, L.blur_px, L.search_px,
-                         o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px), o, samples, before);
+          I_.predict_bias(cam, data_[v][k], obj, L.blur_px, L.search_px,
+                          o_.gradient_threshold * 0.7 / std::max(0.7, L.blur_px), o_, samples, before);
         }
         if (per_view) (*per_view)[v] += static_cast<int>(samples.size() - before);
       }
     }
-  };
+  }
 
-  // Residuals (and Jacobian rows) of the samples at the current parameters.
-  auto evaluate = [&](const std::vector<Sample>& samples, int level_index, const Level& L, Eval& e, bool jac) {
+  /// Residuals (and Jacobian rows) of the samples at the current parameters.
+  void evaluate(const std::vector<Sample>& samples, int level_index, const Level& L, Eval& e, bool jac) {
     e.r.assign(samples.size(), 0.0);
     e.matched.assign(samples.size(), 0);
     e.n.assign(samples.size(), Eigen::Vector2d::Zero());
     if (jac) e.J.assign(samples.size(), Eigen::Matrix<double, 1, 13>::Zero());
-    if (jac && NL > 0) e.Jl.assign(samples.size(), Eigen::Matrix<double, 1, kMaxLinks>::Zero());
-    const double thr = o.gradient_threshold * 0.7 / std::max(0.7, L.blur_px);
+    if (jac && NL_ > 0) e.Jl.assign(samples.size(), Eigen::Matrix<double, 1, kMaxLinks>::Zero());
+    const double thr = o_.gradient_threshold * 0.7 / std::max(0.7, L.blur_px);
     std::vector<Camera> cams;
-    for (int v = 0; v < V; ++v) cams.push_back(camera_of(v));
+    for (int v = 0; v < V_; ++v) cams.push_back(camera_of(v));
     for (std::size_t i = 0; i < samples.size(); ++i) {
       const Sample& s = samples[i];
       const Camera& cam = cams[s.view];
       Eigen::Vector3d p, dir;
       if (s.on_object) {
-        p = obj_R * s.p_local + obj_t;
-        dir = obj_R * s.dir_local;
+        p = obj_R_ * s.p_local + obj_t_;
+        dir = obj_R_ * s.dir_local;
       } else {
-        const Pose& T = data[s.view][s.frame].link_poses[s.link];
+        const Pose& T = data_[s.view][s.frame].link_poses[s.link];
         p = T * s.p_link;
         dir = T.linear() * s.dir_link;
       }
@@ -785,7 +832,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
       d2.normalize();
       const Eigen::Vector2d n(-d2.y(), d2.x());
       double t = 0.0;
-      const Gradient& g = I.gradient(data[s.view][s.frame], level_index, L.blur_px);
+      const Gradient& g = I_.gradient(data_[s.view][s.frame], level_index, L.blur_px);
       if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t, L.blur_px <= 1.0)) continue;
       e.r[i] = t - s.bias_px;
       e.matched[i] = 1;
@@ -794,406 +841,453 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
         // The camera's columns also when it is held (its covariance is
         // propagated into the object's below).
         e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
-        if (refine_object && s.on_object)
-          e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, obj_R, s.p_local);
-        if (NL > 0 && !s.on_object) {
+        if (refine_object_ && s.on_object)
+          e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, obj_R_, s.p_local);
+        if (NL_ > 0 && !s.on_object) {
           const Eigen::RowVector3d nd = n.transpose() * pr.d_point;
-          for (int j = 0; j < NL; ++j)
-            e.Jl[i][j] = nd.dot(dposes[s.view][s.frame][j][s.link] * s.p_link - p) / kLinkStep_m;
+          for (int j = 0; j < NL_; ++j)
+            e.Jl[i][j] = nd.dot(dposes_[s.view][s.frame][j][s.link] * s.p_link - p) / kLinkStep_m;
         }
       }
     }
-  };
+  }
 
-  auto score_of = [&](const std::vector<Sample>& samples, int* matched1) {
+  /// The truncated edge distance (misses count as the cap) of `samples`.
+  double score_of(const std::vector<Sample>& samples) {
     Eval e;
     evaluate(samples, -1, kScoreLevel, e, false);
     double s2 = 0.0;
-    int m1 = 0;
     for (std::size_t i = 0; i < samples.size(); ++i) {
-      const double d = e.matched[i] ? std::min(std::abs(e.r[i]), o.score_cap_px) : o.score_cap_px;
+      const double d = e.matched[i] ? std::min(std::abs(e.r[i]), o_.score_cap_px) : o_.score_cap_px;
       s2 += d * d;
-      if (e.matched[i] && std::abs(e.r[i]) < 1.0) ++m1;
     }
-    if (matched1) *matched1 = m1;
-    return samples.empty() ? o.score_cap_px : std::sqrt(s2 / samples.size());
-  };
+    return samples.empty() ? o_.score_cap_px : std::sqrt(s2 / samples.size());
+  }
 
-  auto link_prior_weight = [&](const std::vector<Sample>& samples, const Eval& ev, double c, double s2, int) {
-    return link_prior_weight_impl(samples, ev, c, s2, o.arm_link_prior_m);
-  };
+  // --- the robust least squares ------------------------------------------------
 
-  AlignResult res;
-  for (int v = 0; v < V; ++v) res.cameras.push_back(views[v].camera);
-  res.base_T_object = base_T_object_start;
-  res.camera_change.assign(V, Eigen::Matrix<double, 7, 1>::Zero());
-  auto finish = [&](AlignResult& r) -> AlignResult& {
-    r.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    return r;
-  };
-
-  // Start: visibility (the samples serve the first level too) and score.
-  std::vector<Sample> samples;
-  // A sample's Tukey weight at scale c (0: unmatched or beyond c) and its
-  // row of the Jacobian over all refined parameters: the same in the
-  // Gauss-Newton steps, the step limit and the covariance.
-  auto tukey_weight = [](const Eval& ev, std::size_t i, double c) {
+  /// A sample's Tukey weight at scale c (0: unmatched or beyond c): the same
+  /// in the Gauss-Newton steps, the step limit and the covariance.
+  static double tukey_weight(const Eval& ev, std::size_t i, double c) {
     if (!ev.matched[i]) return 0.0;
     const double u = ev.r[i] / c;
     return std::abs(u) >= 1.0 ? 0.0 : (1 - u * u) * (1 - u * u);
-  };
-  auto jacobian_row = [&](const Eval& ev, std::size_t i, Eigen::VectorXd& row) {
+  }
+
+  /// A sample's row of the Jacobian over all refined parameters.
+  void jacobian_row(const Eval& ev, std::size_t i, Eigen::VectorXd& row) const {
     row.setZero();
-    if (refine_camera) row.segment<7>(7 * samples[i].view) = ev.J[i].leftCols<7>().transpose();
-    if (refine_object) row.segment<6>(obj_col) = ev.J[i].rightCols<6>().transpose();
-    if (NL > 0) row.segment(link_col, NL) = ev.Jl[i].head(NL).transpose();
-  };
-
-  {
-    std::vector<int> per_view;
-    collect(samples, &per_view, 0);
-    for (int v = 0; v < V; ++v)
-      if (per_view[v] == 0) {
-        res.status = AlignStatus::NotInView;
-        res.reason = std::string("the ") + (want_arm ? "arm" : "object") + " model is not in view of camera '" +
-                     views[v].camera.name + "': none of its edges projects visibly into the image";
-        return finish(res);
-      }
-  }
-  res.start_score_px = score_of(samples, nullptr);
-
-  Eigen::MatrixXd H_last, sandwich;
-  double s2_last = 0.0;
-  Eval e;
-  for (int li = 0; li < static_cast<int>(kLevels.size()); ++li) {
-    const Level& L = kLevels[li];
-    if (li > 0) collect(samples, nullptr, li);
-    if (static_cast<int>(samples.size()) < o.min_visible_samples) {
-      res.status = AlignStatus::Refused;
-      res.reason = "too few model edges in view: " + std::to_string(samples.size()) + " samples (need " +
-                   std::to_string(o.min_visible_samples) + ")";
-      res.visible_samples = static_cast<int>(samples.size());
-      return finish(res);
-    }
-    for (int it = 0; it < o.iterations_per_level; ++it) {
-      evaluate(samples, li, L, e, true);
-      std::vector<double> absr;
-      for (std::size_t i = 0; i < samples.size(); ++i)
-        if (e.matched[i]) absr.push_back(std::abs(e.r[i]));
-      if (absr.size() < 10) break;
-      std::nth_element(absr.begin(), absr.begin() + absr.size() / 2, absr.end());
-      const double sigma = std::max(1.4826 * absr[absr.size() / 2], 0.1);
-      const double c = std::clamp(4.685 * sigma, 0.5, L.search_px);
-      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(P);
-      double wsum = 0.0, wr2 = 0.0;
-      Eigen::VectorXd row(P);
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        const double w = tukey_weight(e, i, c);
-        if (w <= 0.0) continue;
-        jacobian_row(e, i, row);
-        H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
-        g += w * e.r[i] * row;
-        wsum += w;
-        wr2 += w * e.r[i] * e.r[i];
-      }
-      H = H.selfadjointView<Eigen::Lower>();
-      s2_last = wr2 / std::max(1.0, wsum - P);
-      if (NL > 0) {
-        // The prior on the link lengths, in the data's units: the data's
-        // information is H / (s^2 n / G) (G model edges: independent
-        // errors per edge, not per sample), the prior's 1 / sd^2.
-        const double lambda = link_prior_weight(samples, e, c, s2_last, P);
-        for (int j = 0; j < NL; ++j) {
-          H(link_col + j, link_col + j) += lambda;
-          g[link_col + j] -= lambda * (link_delta[link_segs[j]] - link_start[link_segs[j]]);
-        }
-      }
-      H_last = H;
-      Eigen::MatrixXd A = H;
-      for (int k = 0; k < P; ++k) A(k, k) += 1e-3 * H(k, k) + 1e-12;
-      Eigen::VectorXd delta = A.ldlt().solve(g);
-      if (!delta.allFinite()) break;
-      // Limit the step to the search range (predicted pixel motion).
-      double max_move = 0.0;
-      for (std::size_t i = 0; i < samples.size(); i += 7) {
-        jacobian_row(e, i, row);
-        max_move = std::max(max_move, std::abs(row.dot(delta)));
-      }
-      if (max_move > L.search_px) delta *= L.search_px / max_move;
-      if (refine_camera)
-        for (int v = 0; v < V; ++v) {
-          const Eigen::Matrix<double, 7, 1> d = delta.segment<7>(7 * v);
-          cam_R[v] = cam_R[v] * exp_so3(d.head<3>());
-          cam_c[v] += d.segment<3>(3);
-          cam_f[v] += d[6];
-          res.camera_change[v] += d;
-        }
-      if (refine_object) {
-        const Eigen::Matrix<double, 6, 1> d = delta.segment<6>(obj_col);
-        obj_R = obj_R * exp_so3(d.head<3>());
-        obj_t += d.tail<3>();
-        res.object_change += d;
-      }
-      if (NL > 0) {
-        for (int j = 0; j < NL; ++j) link_delta[link_segs[j]] += delta[link_col + j];
-        update_arm();
-      }
-      ++res.iterations;
-      if (max_move < (li + 1 == static_cast<int>(kLevels.size()) ? 0.005 : 0.05)) break;
-    }
+    if (refine_camera_) row.segment<7>(7 * samples_[i].view) = ev.J[i].leftCols<7>().transpose();
+    if (refine_object_) row.segment<6>(obj_col_) = ev.J[i].rightCols<6>().transpose();
+    if (NL_ > 0) row.segment(link_col_, NL_) = ev.Jl[i].head(NL_).transpose();
   }
 
-  // Final residuals at the finest level, and the covariance: a sandwich
-  // estimator H^-1 B H^-1 with B summed over model edges (clusters), since
-  // the samples of one edge share their localisation error (appearance,
-  // blur, the edge's own noise); s^2 H^-1 alone was 3-5x optimistic.
-  evaluate(samples, static_cast<int>(kLevels.size()) - 1, kLevels.back(), e, true);
-  {
+  /// Tukey's scale from the matched residuals' MAD, within [0.5, search_px];
+  /// nullopt with fewer than 10 matched.
+  std::optional<double> tukey_scale(double search_px) const {
     std::vector<double> absr;
-    for (std::size_t i = 0; i < samples.size(); ++i)
-      if (e.matched[i]) absr.push_back(std::abs(e.r[i]));
-    if (absr.size() >= 10 && H_last.size() > 0) {
-      std::nth_element(absr.begin(), absr.begin() + absr.size() / 2, absr.end());
-      const double sigma = std::max(1.4826 * absr[absr.size() / 2], 0.1);
-      const double c = std::clamp(4.685 * sigma, 0.5, kLevels.back().search_px);
-      Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P, P);
-      std::map<int, Eigen::VectorXd> score;
-      Eigen::VectorXd row(P);
-      int n = 0;
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        const double w = tukey_weight(e, i, c);
-        if (w <= 0.0) continue;
-        jacobian_row(e, i, row);
-        H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
-        auto it = score.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first;
-        it->second += w * e.r[i] * row;
-        ++n;
-      }
-      H = H.selfadjointView<Eigen::Lower>();
-      double prior_lambda = 0.0;
-      if (NL > 0) {
-        double wr2p = 0.0, wsump = 0.0;
-        for (std::size_t i = 0; i < samples.size(); ++i) {
-          const double w = tukey_weight(e, i, c);
-          if (w <= 0.0) continue;
-          wr2p += w * e.r[i] * e.r[i];
-          wsump += w;
-        }
-        prior_lambda = link_prior_weight(samples, e, c, wr2p / std::max(1.0, wsump - P), P);
-        for (int j = 0; j < NL; ++j) H(link_col + j, link_col + j) += prior_lambda;
-      }
-      Eigen::MatrixXd B = Eigen::MatrixXd::Zero(P, P);
-      // The prior's score: lambda x (a link error of sd prior): a link no
-      // edge sees keeps its prior sd.
-      for (int j = 0; j < NL; ++j)
-        B(link_col + j, link_col + j) += prior_lambda * prior_lambda * o.arm_link_prior_m * o.arm_link_prior_m;
-      for (const auto& [k, g] : score) B.selfadjointView<Eigen::Lower>().rankUpdate(g);
-      B = B.selfadjointView<Eigen::Lower>();
-      const double G = static_cast<double>(score.size());
-      const double correction = G > 1 ? G / (G - 1) * (n - 1.0) / std::max(1.0, n - 1.0 - P) : 1.0;
-      const Eigen::MatrixXd Hinv = H.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
-      sandwich = correction * Hinv * B * Hinv;
-      sandwich = 0.5 * (sandwich + sandwich.transpose());
-      // The second estimator: s^2 H^-1 with the samples counted as the
-      // number of model edges (the effective number of independent
-      // samples, n / G). The reported covariance is the larger of the two
-      // (by trace): the sandwich misses a bias shared by most edges.
-      double wr2 = 0.0, wsum = 0.0;
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        const double w = tukey_weight(e, i, c);
-        if (w <= 0.0) continue;
-        wr2 += w * e.r[i] * e.r[i];
-        wsum += w;
-      }
-      const double s2 = wr2 / std::max(1.0, wsum - P);
-      const Eigen::MatrixXd effective = s2 * (n / std::max(1.0, G - P > 1 ? G : 1.0)) * Hinv;
-      if (effective.trace() > sandwich.trace()) sandwich = effective;
-      // An offset shared by every silhouette (the image's edges all a little
-      // out of or into the model: appearance the prediction does not carry,
-      // the lighting, the blur) looks like a change of scale (f, depth) and
-      // leaves no trace in the residuals; its sd o.edge_offset_sd_px enters
-      // as the parameters' response to it: (H^-1 a)(H^-1 a)^T sd^2, a the
-      // score of a 1 px outward shift. Likewise a shift of the whole image
-      // (u and v: the pixel grid's phase, a digitizer's line timing).
-      if (o.edge_offset_sd_px > 0.0) {
-        Eigen::VectorXd a = Eigen::VectorXd::Zero(P), au = Eigen::VectorXd::Zero(P), av = Eigen::VectorXd::Zero(P);
-        for (std::size_t i = 0; i < samples.size(); ++i) {
-          const double w = tukey_weight(e, i, c);
-          if (w <= 0.0) continue;
-          jacobian_row(e, i, row);
-          a += w * samples[i].outward * row;
-          au += w * e.n[i].x() * row;
-          av += w * e.n[i].y() * row;
-        }
-        for (const Eigen::VectorXd* s : {&a, &au, &av}) {
-          const Eigen::VectorXd d = Hinv * *s;
-          sandwich += o.edge_offset_sd_px * o.edge_offset_sd_px * d * d.transpose();
-        }
-      }
-      // Each model edge's own offset (o.edge_model_sd_px, independent
-      // between edges): the model's and the appearance's error along one
-      // edge, which the fit absorbs where few edges decide a parameter (the
-      // ORU from one view: ~10 edges for 6 parameters) and the sandwich then
-      // cannot see. An offset b on edge e moves the parameters by H^-1 a_e b,
-      // a_e the edge's summed weighted Jacobian rows.
-      if (o.edge_model_sd_px > 0.0) {
-        std::map<int, Eigen::VectorXd> per_edge;
-        for (std::size_t i = 0; i < samples.size(); ++i) {
-          const double w = tukey_weight(e, i, c);
-          if (w <= 0.0) continue;
-          jacobian_row(e, i, row);
-          per_edge.try_emplace(samples[i].cluster, Eigen::VectorXd::Zero(P)).first->second += w * row;
-        }
-        for (const auto& [k, a_e] : per_edge) {
-          const Eigen::VectorXd d = Hinv * a_e;
-          sandwich += o.edge_model_sd_px * o.edge_model_sd_px * d * d.transpose();
-        }
-      }
-      // The held cameras' own uncertainty (AlignView::camera_covariance):
-      // a camera error dc moves the object by -H^-1 H_oc dc, H_oc the
-      // cross-information of the object's and that camera's columns.
-      if (!refine_camera) {
-        std::vector<Eigen::MatrixXd> H_oc(V, Eigen::MatrixXd::Zero(P, 7));
-        for (std::size_t i = 0; i < samples.size(); ++i) {
-          const double w = tukey_weight(e, i, c);
-          if (w <= 0.0 || views[samples[i].view].camera_covariance.isZero(0.0)) continue;
-          jacobian_row(e, i, row);
-          H_oc[samples[i].view].noalias() += w * row * e.J[i].leftCols<7>();
-        }
-        for (int v = 0; v < V; ++v) {
-          if (views[v].camera_covariance.isZero(0.0)) continue;
-          const Eigen::MatrixXd K = Hinv * H_oc[v];
-          sandwich += K * views[v].camera_covariance * K.transpose();
-        }
+    for (std::size_t i = 0; i < samples_.size(); ++i)
+      if (e_.matched[i]) absr.push_back(std::abs(e_.r[i]));
+    if (absr.size() < 10) return std::nullopt;
+    std::nth_element(absr.begin(), absr.begin() + absr.size() / 2, absr.end());
+    const double sigma = std::max(1.4826 * absr[absr.size() / 2], 0.1);
+    return std::clamp(4.685 * sigma, 0.5, search_px);
+  }
+
+  /// sum w r^2 / (sum w - P) over the weighted samples.
+  double weighted_variance(double c) const {
+    double wr2 = 0.0, wsum = 0.0;
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0) continue;
+      wr2 += w * e_.r[i] * e_.r[i];
+      wsum += w;
+    }
+    return wr2 / std::max(1.0, wsum - P_);
+  }
+
+  /// The prior on the link lengths, in the data's units: the data's
+  /// information is H / (s^2 n / G) (G model edges: independent errors per
+  /// edge, not per sample), the prior's 1 / sd^2.
+  double link_prior_weight(double c, double s2) const {
+    return link_prior_weight_impl(samples_, e_, c, s2, o_.arm_link_prior_m);
+  }
+
+  /// One robust Gauss-Newton step at level li; false when the level is done
+  /// (converged, too few matches, or no finite step).
+  bool gauss_newton_step(int li) {
+    const Level& L = kLevels[li];
+    evaluate(samples_, li, L, e_, true);
+    const std::optional<double> scale = tukey_scale(L.search_px);
+    if (!scale) return false;
+    const double c = *scale;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P_, P_);
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(P_);
+    Eigen::VectorXd row(P_);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0) continue;
+      jacobian_row(e_, i, row);
+      H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
+      g += w * e_.r[i] * row;
+    }
+    H = H.selfadjointView<Eigen::Lower>();
+    s2_last_ = weighted_variance(c);
+    if (NL_ > 0) {
+      const double lambda = link_prior_weight(c, s2_last_);
+      for (int j = 0; j < NL_; ++j) {
+        H(link_col_ + j, link_col_ + j) += lambda;
+        g[link_col_ + j] -= lambda * (link_delta_[link_segs_[j]] - link_start_[link_segs_[j]]);
       }
     }
+    H_last_ = H;
+    Eigen::MatrixXd A = H;
+    for (int k = 0; k < P_; ++k) A(k, k) += 1e-3 * H(k, k) + 1e-12;
+    Eigen::VectorXd delta = A.ldlt().solve(g);
+    if (!delta.allFinite()) return false;
+    // Limit the step to the search range (predicted pixel motion).
+    double max_move = 0.0;
+    for (std::size_t i = 0; i < samples_.size(); i += 7) {
+      jacobian_row(e_, i, row);
+      max_move = std::max(max_move, std::abs(row.dot(delta)));
+    }
+    if (max_move > L.search_px) delta *= L.search_px / max_move;
+    apply(delta);
+    ++res_.iterations;
+    return max_move >= (li + 1 == static_cast<int>(kLevels.size()) ? 0.005 : 0.05);
   }
-  // Diagnostic (docs/estimation.md): FORESIGHT_ALIGN_DEBUG=PATH writes the
-  // first view's first frame at 2x with every final sample at its projection
-  // (green: matched within 1 px, yellow: matched further, red: no edge found)
-  // and prints their mean signed residual (a shading bias shows there).
-  if (const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG")) {
+
+  void apply(const Eigen::VectorXd& delta) {
+    if (refine_camera_)
+      for (int v = 0; v < V_; ++v) {
+        const Eigen::Matrix<double, 7, 1> d = delta.segment<7>(7 * v);
+        cam_R_[v] = cam_R_[v] * exp_so3(d.head<3>());
+        cam_c_[v] += d.segment<3>(3);
+        cam_f_[v] += d[6];
+        res_.camera_change[v] += d;
+      }
+    if (refine_object_) {
+      const Eigen::Matrix<double, 6, 1> d = delta.segment<6>(obj_col_);
+      obj_R_ = obj_R_ * exp_so3(d.head<3>());
+      obj_t_ += d.tail<3>();
+      res_.object_change += d;
+    }
+    if (NL_ > 0) {
+      for (int j = 0; j < NL_; ++j) link_delta_[link_segs_[j]] += delta[link_col_ + j];
+      update_arm();
+    }
+  }
+
+  // --- the covariance ----------------------------------------------------------
+
+  /// The covariance at the final residuals: a sandwich estimator H^-1 B H^-1
+  /// with B summed over model edges (clusters), since the samples of one edge
+  /// share their localisation error (appearance, blur, the edge's own noise);
+  /// s^2 H^-1 alone was 3-5x optimistic. Then the errors no residual shows.
+  void covariance() {
+    const std::optional<double> scale = tukey_scale(kLevels.back().search_px);
+    if (!scale || H_last_.size() == 0) return;
+    const double c = *scale;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(P_, P_);
+    std::map<int, Eigen::VectorXd> score;
+    Eigen::VectorXd row(P_);
+    int n = 0;
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0) continue;
+      jacobian_row(e_, i, row);
+      H.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
+      auto it = score.try_emplace(samples_[i].cluster, Eigen::VectorXd::Zero(P_)).first;
+      it->second += w * e_.r[i] * row;
+      ++n;
+    }
+    H = H.selfadjointView<Eigen::Lower>();
+    double prior_lambda = 0.0;
+    if (NL_ > 0) {
+      prior_lambda = link_prior_weight(c, weighted_variance(c));
+      for (int j = 0; j < NL_; ++j) H(link_col_ + j, link_col_ + j) += prior_lambda;
+    }
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(P_, P_);
+    // The prior's score: lambda x (a link error of sd prior): a link no
+    // edge sees keeps its prior sd.
+    for (int j = 0; j < NL_; ++j)
+      B(link_col_ + j, link_col_ + j) += prior_lambda * prior_lambda * o_.arm_link_prior_m * o_.arm_link_prior_m;
+    for (const auto& [k, g] : score) B.selfadjointView<Eigen::Lower>().rankUpdate(g);
+    B = B.selfadjointView<Eigen::Lower>();
+    const double G = static_cast<double>(score.size());
+    const double correction = G > 1 ? G / (G - 1) * (n - 1.0) / std::max(1.0, n - 1.0 - P_) : 1.0;
+    const Eigen::MatrixXd Hinv = H.ldlt().solve(Eigen::MatrixXd::Identity(P_, P_));
+    sandwich_ = correction * Hinv * B * Hinv;
+    sandwich_ = 0.5 * (sandwich_ + sandwich_.transpose());
+    // The second estimator: s^2 H^-1 with the samples counted as the
+    // number of model edges (the effective number of independent samples,
+    // n / G). The reported covariance is the larger of the two (by trace):
+    // the sandwich misses a bias shared by most edges.
+    const double s2 = weighted_variance(c);
+    const Eigen::MatrixXd effective = s2 * (n / std::max(1.0, G - P_ > 1 ? G : 1.0)) * Hinv;
+    if (effective.trace() > sandwich_.trace()) sandwich_ = effective;
+    add_shared_offsets(c, Hinv);
+    add_edge_offsets(c, Hinv);
+    if (!refine_camera_) add_held_cameras(c, Hinv);
+  }
+
+  /// An offset shared by every silhouette (the image's edges all a little
+  /// out of or into the model: appearance the prediction does not carry,
+  /// the lighting, the blur) looks like a change of scale (f, depth) and
+  /// leaves no trace in the residuals; its sd o.edge_offset_sd_px enters as
+  /// the parameters' response to it: (H^-1 a)(H^-1 a)^T sd^2, a the score of
+  /// a 1 px outward shift. Likewise a shift of the whole image (u and v: the
+  /// pixel grid's phase, a digitizer's line timing).
+  void add_shared_offsets(double c, const Eigen::MatrixXd& Hinv) {
+    if (!(o_.edge_offset_sd_px > 0.0)) return;
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(P_), au = Eigen::VectorXd::Zero(P_), av = Eigen::VectorXd::Zero(P_);
+    Eigen::VectorXd row(P_);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0) continue;
+      jacobian_row(e_, i, row);
+      a += w * samples_[i].outward * row;
+      au += w * e_.n[i].x() * row;
+      av += w * e_.n[i].y() * row;
+    }
+    for (const Eigen::VectorXd* s : {&a, &au, &av}) {
+      const Eigen::VectorXd d = Hinv * *s;
+      sandwich_ += o_.edge_offset_sd_px * o_.edge_offset_sd_px * d * d.transpose();
+    }
+  }
+
+  /// Each model edge's own offset (o.edge_model_sd_px, independent between
+  /// edges): the model's and the appearance's error along one edge, which
+  /// the fit absorbs where few edges decide a parameter (the ORU from one
+  /// view: ~10 edges for 6 parameters) and the sandwich then cannot see. An
+  /// offset b on edge e moves the parameters by H^-1 a_e b, a_e the edge's
+  /// summed weighted Jacobian rows.
+  void add_edge_offsets(double c, const Eigen::MatrixXd& Hinv) {
+    if (!(o_.edge_model_sd_px > 0.0)) return;
+    std::map<int, Eigen::VectorXd> per_edge;
+    Eigen::VectorXd row(P_);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0) continue;
+      jacobian_row(e_, i, row);
+      per_edge.try_emplace(samples_[i].cluster, Eigen::VectorXd::Zero(P_)).first->second += w * row;
+    }
+    for (const auto& [k, a_e] : per_edge) {
+      const Eigen::VectorXd d = Hinv * a_e;
+      sandwich_ += o_.edge_model_sd_px * o_.edge_model_sd_px * d * d.transpose();
+    }
+  }
+
+  /// The held cameras' own uncertainty (AlignView::camera_covariance): a
+  /// camera error dc moves the object by -H^-1 H_oc dc, H_oc the
+  /// cross-information of the object's and that camera's columns.
+  void add_held_cameras(double c, const Eigen::MatrixXd& Hinv) {
+    std::vector<Eigen::MatrixXd> H_oc(V_, Eigen::MatrixXd::Zero(P_, 7));
+    Eigen::VectorXd row(P_);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const double w = tukey_weight(e_, i, c);
+      if (w <= 0.0 || views_[samples_[i].view].camera_covariance.isZero(0.0)) continue;
+      jacobian_row(e_, i, row);
+      H_oc[samples_[i].view].noalias() += w * row * e_.J[i].leftCols<7>();
+    }
+    for (int v = 0; v < V_; ++v) {
+      if (views_[v].camera_covariance.isZero(0.0)) continue;
+      const Eigen::MatrixXd K = Hinv * H_oc[v];
+      sandwich_ += K * views_[v].camera_covariance * K.transpose();
+    }
+  }
+
+  // --- the result --------------------------------------------------------------
+
+  /// Diagnostic (docs/estimation.md): FORESIGHT_ALIGN_DEBUG=PATH writes the
+  /// first view's first frame at 2x with every final sample at its
+  /// projection (green: matched within 1 px, yellow: matched further, red:
+  /// no edge found) and prints their mean signed residual (a shading bias
+  /// shows there).
+  void debug_image() const {
+    const char* dbg = std::getenv("FORESIGHT_ALIGN_DEBUG");
+    if (dbg == nullptr) return;
     cv::Mat img;
-    cv::cvtColor(views[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
+    cv::cvtColor(views_[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
     cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
     cv::resize(img, img, cv::Size(), 2.0, 2.0, cv::INTER_NEAREST);
     const Camera cam = camera_of(0);
-    double sum = 0; int n = 0;
-    for (std::size_t i = 0; i < samples.size(); ++i) {
-      if (samples[i].view != 0 || samples[i].frame != 0) continue;
-      const Eigen::Vector3d p = samples[i].on_object ? Eigen::Vector3d(obj_R * samples[i].p_local + obj_t) : samples[i].p_local;
+    double sum = 0;
+    int n = 0;
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      if (samples_[i].view != 0 || samples_[i].frame != 0) continue;
+      const Eigen::Vector3d p =
+          samples_[i].on_object ? Eigen::Vector3d(obj_R_ * samples_[i].p_local + obj_t_) : samples_[i].p_local;
       const Eigen::Vector2d uv = cam.project(p) * 2.0;
-      const cv::Scalar col = !e.matched[i] ? cv::Scalar(0, 0, 255) : std::abs(e.r[i]) < 1.0 ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 255, 255);
+      const cv::Scalar col = !e_.matched[i]              ? cv::Scalar(0, 0, 255)
+                             : std::abs(e_.r[i]) < 1.0 ? cv::Scalar(0, 255, 0)
+                                                        : cv::Scalar(0, 255, 255);
       cv::circle(img, cv::Point2d(uv.x(), uv.y()), 2, col, -1);
-      if (e.matched[i]) { sum += e.r[i]; ++n; }
+      if (e_.matched[i]) {
+        sum += e_.r[i];
+        ++n;
+      }
     }
     std::fprintf(stderr, "debug: mean residual %.3f px over %d\n", n ? sum / n : 0.0, n);
     cv::imwrite(dbg, img);
   }
-  double r2 = 0.0;
-  int n_in = 0;
-  for (std::size_t i = 0; i < samples.size(); ++i)
-    if (e.matched[i] && std::abs(e.r[i]) < 1.0) {
-      r2 += e.r[i] * e.r[i];
-      ++n_in;
-    }
-  res.residual_rms_px = n_in ? std::sqrt(r2 / n_in) : 0.0;
-  {
+
+  /// The final residual, score, samples and covariance into the result.
+  void summarize() {
+    double r2 = 0.0;
+    int n_in = 0;
+    for (std::size_t i = 0; i < samples_.size(); ++i)
+      if (e_.matched[i] && std::abs(e_.r[i]) < 1.0) {
+        r2 += e_.r[i] * e_.r[i];
+        ++n_in;
+      }
+    res_.residual_rms_px = n_in ? std::sqrt(r2 / n_in) : 0.0;
     std::vector<Sample> final_samples;
     collect(final_samples, nullptr, -1);
-    res.final_score_px = score_of(final_samples, nullptr);
-    res.visible_samples = static_cast<int>(final_samples.size());
-  }
-  res.matched_samples = n_in;
-  if (sandwich.size() > 0) {
-    res.covariance = sandwich;
-  } else if (H_last.size() > 0) {
-    Eigen::MatrixXd Hinv = H_last.ldlt().solve(Eigen::MatrixXd::Identity(P, P));
-    res.covariance = s2_last * Hinv;
-  }
-
-  const double matched_fraction = samples.empty() ? 0.0 : static_cast<double>(n_in) / samples.size();
-  // How far the model moved in the images from the start: beyond the
-  // coarsest search range no edge evidence vouches for the result (seen: a
-  // single wide view pulling the ORU 0.3 m onto the panel's edges).
-  double moved_px = 0.0;
-  {
-    const Pose start_obj = base_T_object_start ? *base_T_object_start : Pose::Identity();
-    const auto end_obj = object_pose();
-    for (const auto& s : samples) {
-      const Camera end_cam = camera_of(s.view);
-      const Camera& start_cam = views[s.view].camera;
-      const Eigen::Vector3d p_end = s.on_object ? Eigen::Vector3d(*end_obj * s.p_local)
-                                                : Eigen::Vector3d(data[s.view][s.frame].link_poses[s.link] * s.p_link);
-      const Eigen::Vector3d p_start = s.on_object ? Eigen::Vector3d(start_obj * s.p_local) : p_end;
-      if (start_cam.to_camera(p_start).z() <= kNear_m || end_cam.to_camera(p_end).z() <= kNear_m) continue;
-      moved_px = std::max(moved_px, (end_cam.project(p_end) - start_cam.project(p_start)).norm());
+    res_.final_score_px = score_of(final_samples);
+    res_.visible_samples = static_cast<int>(final_samples.size());
+    res_.matched_samples = n_in;
+    if (sandwich_.size() > 0) {
+      res_.covariance = sandwich_;
+    } else if (H_last_.size() > 0) {
+      res_.covariance = s2_last_ * H_last_.ldlt().solve(Eigen::MatrixXd::Identity(P_, P_));
     }
   }
-  // The object's move against the start's own uncertainty (the clicks'):
-  // a disagreement beyond both covariances means the edges or the clicks
-  // are wrong, and nothing here says which.
-  double turned_deg = 0.0;
-  if (refine_object && o.object_start_covariance && base_T_object_start && res.covariance.rows() == P) {
-    const Eigen::AngleAxisd turn(base_T_object_start->linear().transpose() * obj_R);
-    turned_deg = turn.angle() * 180.0 / M_PI;
+
+  /// How far the model moved in the images from the start: beyond the
+  /// coarsest search range no edge evidence vouches for the result (seen: a
+  /// single wide view pulling the ORU 0.3 m onto the panel's edges).
+  double moved_px() const {
+    double moved = 0.0;
+    const Pose start_obj = start_ ? *start_ : Pose::Identity();
+    const auto end_obj = object_pose();
+    for (const auto& s : samples_) {
+      const Camera end_cam = camera_of(s.view);
+      const Camera& start_cam = views_[s.view].camera;
+      const Eigen::Vector3d p_end = s.on_object ? Eigen::Vector3d(*end_obj * s.p_local)
+                                                : Eigen::Vector3d(data_[s.view][s.frame].link_poses[s.link] * s.p_link);
+      const Eigen::Vector3d p_start = s.on_object ? Eigen::Vector3d(start_obj * s.p_local) : p_end;
+      if (start_cam.to_camera(p_start).z() <= kNear_m || end_cam.to_camera(p_end).z() <= kNear_m) continue;
+      moved = std::max(moved, (end_cam.project(p_end) - start_cam.project(p_start)).norm());
+    }
+    return moved;
+  }
+
+  /// The object's move against the start's own uncertainty (the clicks'): a
+  /// disagreement beyond both covariances means the edges or the clicks are
+  /// wrong, and nothing here says which. Returns the turn (deg).
+  double start_disagreement() {
+    if (!(refine_object_ && o_.object_start_covariance && start_ && res_.covariance.rows() == P_)) return 0.0;
+    const Eigen::AngleAxisd turn(start_->linear().transpose() * obj_R_);
     Eigen::Matrix<double, 6, 1> moved;
-    moved << turn.angle() * turn.axis(), obj_t - base_T_object_start->translation();
+    moved << turn.angle() * turn.axis(), obj_t_ - start_->translation();
     // The start's rpy covariance in body rotation increments (the object's parameters here).
     Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
-    T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(base_T_object_start->linear()));
+    T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(start_->linear()));
     const Eigen::Matrix<double, 6, 6> C =
-        T * *o.object_start_covariance * T.transpose() + res.covariance.block<6, 6>(obj_col, obj_col);
+        T * *o_.object_start_covariance * T.transpose() + res_.covariance.block<6, 6>(obj_col_, obj_col_);
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(C);
     if (ldlt.info() == Eigen::Success && ldlt.isPositive())
-      res.start_disagreement_sigma = std::sqrt(std::max(0.0, moved.dot(ldlt.solve(moved))));
+      res_.start_disagreement_sigma = std::sqrt(std::max(0.0, moved.dot(ldlt.solve(moved))));
     const Eigen::LDLT<Eigen::Matrix3d> ldlt_p(C.bottomRightCorner<3, 3>());
     if (ldlt_p.info() == Eigen::Success && ldlt_p.isPositive())
-      res.start_position_disagreement_sigma = std::sqrt(std::max(0.0, moved.tail<3>().dot(ldlt_p.solve(moved.tail<3>()))));
+      res_.start_position_disagreement_sigma =
+          std::sqrt(std::max(0.0, moved.tail<3>().dot(ldlt_p.solve(moved.tail<3>()))));
+    return turn.angle() * 180.0 / M_PI;
   }
-  char buf[320];
-  // The disagreement first: it is the one that names a physical conflict
-  // (seen: a single view's ORU 0.17 m off the clicks, also 29% matched).
-  if (res.start_disagreement_sigma > o.max_start_disagreement_sigma) {
-    std::snprintf(buf, sizeof buf,
-                  "the object moved %.0f mm and turned %.1f deg from its start pose, %.1f sigma of the start's and the "
-                  "alignment's pose uncertainty together (limit %.1f): the edges disagree with the start (the clicks)",
-                  1e3 * (obj_t - base_T_object_start->translation()).norm(), turned_deg, res.start_disagreement_sigma,
-                  o.max_start_disagreement_sigma);
-    res.status = AlignStatus::Refused;
-    res.reason = buf;
-  } else if (res.final_score_px > res.start_score_px + 0.02) {
-    std::snprintf(buf, sizeof buf, "the edge distance got worse: %.2f px at the start, %.2f px after alignment",
-                  res.start_score_px, res.final_score_px);
-    res.status = AlignStatus::Refused;
-    res.reason = buf;
-  } else if (matched_fraction < o.min_matched_fraction) {
-    std::snprintf(buf, sizeof buf,
-                  "only %.0f%% of the %zu visible model edge samples lie within 1 px of an image edge (need %.0f%%)",
-                  100.0 * matched_fraction, samples.size(), 100.0 * o.min_matched_fraction);
-    res.status = AlignStatus::Refused;
-    res.reason = buf;
-  } else if (moved_px > kLevels.front().search_px) {
-    std::snprintf(buf, sizeof buf,
-                  "the model moved %.0f px from the start, beyond the %.0f px search range that edges can vouch for",
-                  moved_px, kLevels.front().search_px);
-    res.status = AlignStatus::Refused;
-    res.reason = buf;
-  } else {
-    res.status = AlignStatus::Aligned;
+
+  /// Aligned or refused (the first reason that applies), and what goes back.
+  void verdict() {
+    const double matched_fraction =
+        samples_.empty() ? 0.0 : static_cast<double>(res_.matched_samples) / samples_.size();
+    const double moved = moved_px();
+    const double turned_deg = start_disagreement();
+    char buf[320];
+    // The disagreement first: it is the one that names a physical conflict
+    // (seen: a single view's ORU 0.17 m off the clicks, also 29% matched).
+    if (res_.start_disagreement_sigma > o_.max_start_disagreement_sigma) {
+      std::snprintf(buf, sizeof buf,
+                    "the object moved %.0f mm and turned %.1f deg from its start pose, %.1f sigma of the start's and the "
+                    "alignment's pose uncertainty together (limit %.1f): the edges disagree with the start (the clicks)",
+                    1e3 * (obj_t_ - start_->translation()).norm(), turned_deg, res_.start_disagreement_sigma,
+                    o_.max_start_disagreement_sigma);
+      res_.status = AlignStatus::Refused;
+      res_.reason = buf;
+    } else if (res_.final_score_px > res_.start_score_px + 0.02) {
+      std::snprintf(buf, sizeof buf, "the edge distance got worse: %.2f px at the start, %.2f px after alignment",
+                    res_.start_score_px, res_.final_score_px);
+      res_.status = AlignStatus::Refused;
+      res_.reason = buf;
+    } else if (matched_fraction < o_.min_matched_fraction) {
+      std::snprintf(buf, sizeof buf,
+                    "only %.0f%% of the %zu visible model edge samples lie within 1 px of an image edge (need %.0f%%)",
+                    100.0 * matched_fraction, samples_.size(), 100.0 * o_.min_matched_fraction);
+      res_.status = AlignStatus::Refused;
+      res_.reason = buf;
+    } else if (moved > kLevels.front().search_px) {
+      std::snprintf(buf, sizeof buf,
+                    "the model moved %.0f px from the start, beyond the %.0f px search range that edges can vouch for",
+                    moved, kLevels.front().search_px);
+      res_.status = AlignStatus::Refused;
+      res_.reason = buf;
+    } else {
+      res_.status = AlignStatus::Aligned;
+    }
+    if (res_.status == AlignStatus::Aligned) {
+      for (int v = 0; v < V_; ++v) res_.cameras[v] = camera_of(v);
+      if (refine_object_) res_.base_T_object = object_pose();
+    }
+    res_.arm_link_delta_m = res_.status == AlignStatus::Aligned ? link_delta_ : link_start_;
+    if (NL_ > 0) {
+      res_.arm_link_sigma_m.assign(nseg_, 0.0);
+      if (res_.covariance.rows() == P_)
+        for (int j = 0; j < NL_; ++j)
+          res_.arm_link_sigma_m[link_segs_[j]] = std::sqrt(res_.covariance(link_col_ + j, link_col_ + j));
+    }
   }
-  if (res.status == AlignStatus::Aligned) {
-    for (int v = 0; v < V; ++v) res.cameras[v] = camera_of(v);
-    if (refine_object) res.base_T_object = object_pose();
+
+  AlignResult finish() {
+    res_.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0_).count();
+    return std::move(res_);
   }
-  res.arm_link_delta_m = res.status == AlignStatus::Aligned ? link_delta : link_start;
-  if (NL > 0) {
-    res.arm_link_sigma_m.assign(nseg, 0.0);
-    if (res.covariance.rows() == P)
-      for (int j = 0; j < NL; ++j) res.arm_link_sigma_m[link_segs[j]] = std::sqrt(res.covariance(link_col + j, link_col + j));
-  }
-  return finish(res);
+
+  static constexpr double kLinkStep_m = 1e-3;  // FK is linear in the offsets at fixed q: the difference is exact
+
+  Impl& I_;
+  const std::vector<AlignView>& views_;
+  const std::optional<Pose>& start_;
+  const AlignOptions& o_;
+  const bool refine_camera_, refine_object_;
+  const int V_;
+  std::vector<std::vector<FrameData>> data_;
+  const FramesLease lease_;  // after data_: returns its buffers first
+  // The parameters: per view the camera (R, c, f), the object (R, t).
+  std::vector<Eigen::Matrix3d> cam_R_;
+  std::vector<Eigen::Vector3d> cam_c_;
+  std::vector<double> cam_f_;
+  Eigen::Matrix3d obj_R_;
+  Eigen::Vector3d obj_t_;
+  // The arm's link lengths: the segments, the start, the current corrections.
+  int nseg_ = 0, NL_ = 0;
+  std::vector<double> link_start_, link_delta_;
+  std::vector<int> link_segs_;
+  std::vector<std::vector<std::vector<std::vector<Pose>>>> dposes_;
+  int P_ = 0, obj_col_ = 0, link_col_ = 0;  // columns: cameras 7 V, object 6, links NL
+  std::vector<Sample> samples_;
+  Eval e_;
+  Eigen::MatrixXd H_last_, sandwich_;
+  double s2_last_ = 0.0;
+  AlignResult res_;
+  std::chrono::steady_clock::time_point t0_;
+};
+
+AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::optional<Pose>& base_T_object_start,
+                                const AlignOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (views.empty()) throw std::invalid_argument("align: no views");
+  impl_->next_cluster = 0;  // the clusters are this call's
+  Impl::Alignment alignment(*impl_, views, base_T_object_start, o);
+  return alignment.run(t0);
 }
 
 ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFrame& frame,

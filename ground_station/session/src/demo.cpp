@@ -222,6 +222,87 @@ int ground_stage(const DemoOptions& o, const std::string& out, const std::functi
   return rc;
 }
 
+/// The link the demo runs over: the emulator's namespaces (its pid and
+/// their names), or loopback (emulator -1) with the reason in `text`.
+struct EmulatedLink {
+  std::string text;
+  pid_t emulator = -1;
+  std::string ground_ns, remote_ns;
+};
+
+EmulatedLink start_link(const DemoOptions& o, const std::string& emu_exe, const std::string& out,
+                        const std::function<bool()>& interrupted) {
+  EmulatedLink link;
+  if (o.fast || o.rtt_s <= 0) {
+    link.text = "loopback (--fast: no emulated delay)";
+  } else if (!fs::exists(emu_exe)) {
+    link.text = "loopback: no " + emu_exe + " (no emulated delay)";
+  } else {
+    const int half_ms = static_cast<int>(std::lround(o.rtt_s * 500.0));
+    link.emulator = spawn({emu_exe, "--delay-ms", std::to_string(half_ms), "--exit-with-parent"}, out + "/linkemu.out",
+                out + "/linkemu.log");
+    int code = -1;
+    std::string ready;
+    if (wait_for_line(out + "/linkemu.out", "\"event\":\"ready\"", link.emulator, 30.0, &code, &ready, interrupted)) {
+      const json j = json::parse(ready);
+      link.ground_ns = j["ground_netns"].get<std::string>();
+      link.remote_ns = j["remote_netns"].get<std::string>();
+      link.text = "link emulator, " + fmt("%.2f", o.rtt_s) + " s round trip (" + link.ground_ns + " <-> " + link.remote_ns + ")";
+    } else {
+      std::string why = read_log(out + "/linkemu.log");
+      while (!why.empty() && why.back() == '\n') why.pop_back();
+      if (code == -1) stop_child(link.emulator, 10.0);
+      link.emulator = -1;
+      link.text = "loopback: the link emulator cannot run here (exit " + std::to_string(code) + ": " + why +
+                  "), so NO emulated delay";
+    }
+  }
+  return link;
+}
+
+/// The report's parts made after the daemon stopped: the simulator's final
+/// truth, the remote's timing of the script (its journal) and the timeline,
+/// the compared run, the contact sheets, the delay plot.
+void complete_report(json& report, const DemoOptions& o, const json& compare, const std::string& remote_exe,
+                     const std::string& db, const std::string& out) {
+  const json truth = last_sim_truth(remote_exe, db, out);
+  if (report.contains("session_id")) {
+    const json journal = json::parse(read_log(out + "/remote_journal.json"), nullptr, false);
+    if (!journal.is_discarded()) {
+      const double rtt = num(report["rtt_s"], "median");
+      report["timing"] = remote_timing(journal, report["session_id"].get<std::uint64_t>(), script_command_ids(out),
+                                       rtt, report.value("chain", false));
+      try {
+        draw_timeline(report["timing"], out + "/timeline.png");
+        report["timing"]["timeline"] = "timeline.png";
+      } catch (const std::exception& e) {
+        report["timing"]["timeline_error"] = e.what();
+      }
+    }
+  }
+  if (compare.is_object()) {  // another run's timing (e.g. without --chain), side by side in report.md
+    report["timing_compare"] = compare["timing"];
+    report["timing_compare"].erase("steps");
+    report["timing_compare"]["report"] = o.compare;
+  }
+  report["domain"] = o.domain;
+  report["final_sim_truth"] = truth;
+  report["final_alignment_error_m"] =
+      truth.is_object() && truth.contains("alignment_error_m") ? truth["alignment_error_m"] : json(nullptr);
+  if (!report.contains("rtt_s")) report["rtt_s"] = {{"median", nullptr}, {"p99", nullptr}};
+  if (!report.contains("steps")) report["steps"] = json::array();
+  const auto sheets = contact_sheets(out);
+  for (auto& s : report["steps"])
+    if (auto it = sheets.find(s["line"].get<int>()); it != sheets.end()) s["contact_sheet"] = it->second;
+  if (fs::exists(out + "/delay.csv")) {
+    try {
+      report["delay_plot"] = draw_delay_plot(out + "/delay.csv", out + "/delay.png");
+    } catch (const std::exception& e) {
+      report["delay_plot"] = {{"error", e.what()}};
+    }
+  }
+}
+
 }  // namespace
 
 int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
@@ -253,34 +334,11 @@ int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
   const std::string db = out + "/remote_journal.db";
   fs::remove(db);
 
-  // The link: the emulator's namespaces, or loopback.
-  std::string link_text;
-  pid_t emu = -1;
-  std::string ground_ns, remote_ns;
-  if (o.fast || o.rtt_s <= 0) {
-    link_text = "loopback (--fast: no emulated delay)";
-  } else if (!fs::exists(emu_exe)) {
-    link_text = "loopback: no " + emu_exe + " (no emulated delay)";
-  } else {
-    const int half_ms = static_cast<int>(std::lround(o.rtt_s * 500.0));
-    emu = spawn({emu_exe, "--delay-ms", std::to_string(half_ms), "--exit-with-parent"}, out + "/linkemu.out",
-                out + "/linkemu.log");
-    int code = -1;
-    std::string ready;
-    if (wait_for_line(out + "/linkemu.out", "\"event\":\"ready\"", emu, 30.0, &code, &ready, interrupted)) {
-      const json j = json::parse(ready);
-      ground_ns = j["ground_netns"].get<std::string>();
-      remote_ns = j["remote_netns"].get<std::string>();
-      link_text = "link emulator, " + fmt("%.2f", o.rtt_s) + " s round trip (" + ground_ns + " <-> " + remote_ns + ")";
-    } else {
-      std::string why = read_log(out + "/linkemu.log");
-      while (!why.empty() && why.back() == '\n') why.pop_back();
-      if (code == -1) stop_child(emu, 10.0);
-      emu = -1;
-      link_text = "loopback: the link emulator cannot run here (exit " + std::to_string(code) + ": " + why +
-                  "), so NO emulated delay";
-    }
-  }
+  const EmulatedLink link = start_link(o, emu_exe, out, interrupted);
+  const std::string& link_text = link.text;
+  const pid_t emu = link.emulator;
+  const std::string& ground_ns = link.ground_ns;
+  const std::string& remote_ns = link.remote_ns;
   // Loopback: Cyclone on `lo` with unicast discovery (no multicast here); the
   // daemon and the ground's children inherit it. A user's CYCLONEDDS_URI wins.
   if (emu <= 0) protocol::use_loopback_if_unconfigured();
@@ -323,44 +381,9 @@ int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
   say("foresight-remote stopped (exit " + std::to_string(remote_rc) + ")");
   if (emu > 0) stop_child(emu, 15.0);
 
-  const json truth = last_sim_truth(remote_exe, db, out);
-  if (report.contains("session_id")) {
-    const json journal = json::parse(read_log(out + "/remote_journal.json"), nullptr, false);
-    if (!journal.is_discarded()) {
-      const double rtt = num(report["rtt_s"], "median");
-      report["timing"] = remote_timing(journal, report["session_id"].get<std::uint64_t>(), script_command_ids(out),
-                                       rtt, report.value("chain", false));
-      try {
-        draw_timeline(report["timing"], out + "/timeline.png");
-        report["timing"]["timeline"] = "timeline.png";
-      } catch (const std::exception& e) {
-        report["timing"]["timeline_error"] = e.what();
-      }
-    }
-  }
-  if (compare.is_object()) {  // another run's timing (e.g. without --chain), side by side in report.md
-    report["timing_compare"] = compare["timing"];
-    report["timing_compare"].erase("steps");
-    report["timing_compare"]["report"] = o.compare;
-  }
+  complete_report(report, o, compare, remote_exe, db, out);
   report["link"] = link_text;
-  report["domain"] = o.domain;
   report["remote_exit"] = remote_rc;
-  report["final_sim_truth"] = truth;
-  report["final_alignment_error_m"] =
-      truth.is_object() && truth.contains("alignment_error_m") ? truth["alignment_error_m"] : json(nullptr);
-  if (!report.contains("rtt_s")) report["rtt_s"] = {{"median", nullptr}, {"p99", nullptr}};
-  if (!report.contains("steps")) report["steps"] = json::array();
-  const auto sheets = contact_sheets(out);
-  for (auto& s : report["steps"])
-    if (auto it = sheets.find(s["line"].get<int>()); it != sheets.end()) s["contact_sheet"] = it->second;
-  if (fs::exists(out + "/delay.csv")) {
-    try {
-      report["delay_plot"] = draw_delay_plot(out + "/delay.csv", out + "/delay.png");
-    } catch (const std::exception& e) {
-      report["delay_plot"] = {{"error", e.what()}};
-    }
-  }
   report["total_seconds"] = since(t0);
   if (interrupted()) {
     rc = kExitFailure;
