@@ -9,6 +9,7 @@
 #include <cmath>
 #include <ctime>
 #include <filesystem>
+#include <iostream>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <random>
@@ -16,6 +17,7 @@
 #include <sstream>
 
 #include "foresight/align/arm_links_file.hpp"
+#include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/robot_points.hpp"
 #include "foresight/common/atomic_file.hpp"
 #include "foresight/common/error.hpp"
@@ -378,6 +380,174 @@ Overlaid overlay_frame(const OverlayRequest& a) {
   out.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();
   out.tip_px = camera.project(arm.tip_pose(out.q).translation());
   return out;
+}
+
+AlignedViews align_views(const AlignRequest& a) {
+  using namespace foresight::render;
+  using namespace foresight::align;
+  AlignedViews out;
+  AlignOptions& options = out.options;
+  const GlBackend backend = parse_gl_backend(a.gl);
+  options.refine = parse_refine(a.refine);
+  if (a.joints.empty() == a.joints_deg.empty())
+    throw std::invalid_argument("give the arm's joint angles with exactly one of --joints (rad) or --joints-deg");
+  const auto& joint_texts = a.joints.empty() ? a.joints_deg : a.joints;
+  const std::string joint_option = a.joints.empty() ? "--joints-deg" : "--joints";
+  if (a.camera.size() > 1 && a.camera.size() != a.image.size())
+    throw std::invalid_argument("with several --camera give one --image per --camera (" +
+                                std::to_string(a.camera.size()) + " cameras, " + std::to_string(a.image.size()) +
+                                " images)");
+  if (!(a.arm_prior_mm >= 0.0) || !std::isfinite(a.arm_prior_mm))
+    throw std::invalid_argument("--arm-prior-mm must be a non-negative number");
+  if (a.arm_prior_mm > 0.0 && options.refine == Refine::Object)
+    throw std::invalid_argument("--arm-prior-mm refines the arm with the cameras: use --refine camera or both");
+  if (!a.arm_out.empty() && a.arm_prior_mm == 0.0)
+    throw std::invalid_argument("--arm-out writes the refined arm: give --arm-prior-mm");
+  if (joint_texts.size() != 1 && joint_texts.size() != a.image.size())
+    throw std::invalid_argument("give " + joint_option + " once or once per --image (" +
+                                std::to_string(joint_texts.size()) + " given for " + std::to_string(a.image.size()) +
+                                " images)");
+  if (options.refine != Refine::Camera && a.object_pose.empty())
+    throw std::invalid_argument("--refine " + a.refine + " needs --object-pose (the start pose of the object)");
+  if (!a.object_out.empty() && options.refine == Refine::Camera)
+    throw std::invalid_argument("--object-out needs --refine object or both");
+  if (!a.out.empty() && options.refine == Refine::Object)
+    throw std::invalid_argument("--out writes refined cameras: use --refine camera or both");
+  for (const std::string* path : {&a.out, &a.object_out, &a.arm_out})
+    if (!path->empty()) check_output_path(*path);
+
+  std::map<std::string, CameraRecord> records = load_cameras(a.cameras);
+  std::vector<AlignView> views;
+  std::vector<int> view_of_image;  // per --image (several cameras): its view
+  for (const auto& name : a.camera) {
+    if (!records.count(name)) {
+      std::string known;
+      for (const auto& [n, r] : records) known += (known.empty() ? "" : ", ") + n;
+      throw InputError(a.cameras, "no camera '" + name + "' (known: " + known + ")");
+    }
+    const auto seen = std::find_if(views.begin(), views.end(), [&](const AlignView& v) { return v.camera.name == name; });
+    view_of_image.push_back(static_cast<int>(seen - views.begin()));
+    if (seen != views.end()) continue;  // another frame of that camera
+    const CameraRecord& rec = records.at(name);
+    AlignView view{rec.camera, {}};
+    // The calibration's uncertainty: with --refine object the camera is held
+    // but not exact, and its error enters the object's covariance.
+    if (rec.calibration)
+      view.camera_covariance = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
+    views.push_back(std::move(view));
+  }
+  const RobotModel model = RobotModel::from_file(a.robot);
+  if (!a.arm_links.empty()) options.arm_link_delta_m = load_arm_links(a.arm_links, model).delta_m;
+  options.arm_link_prior_m = a.arm_prior_mm * 1e-3;
+  std::optional<ObjectModel> object;
+  std::optional<Pose> base_T_object;
+  if (!a.object_pose.empty()) {
+    // The click solution's uncertainty (`localize --json` writes it beside
+    // the pose): with it the aligner refuses an ORU that moved or turned
+    // further from the clicks than both uncertainties allow.
+    const ObjectPoseFile pose = read_object_pose_file(a.object_pose);
+    base_T_object = pose.base_T_object;
+    object = ObjectModel::from_file(a.object);
+    if (pose.covariance) options.object_start_covariance = *pose.covariance;
+  }
+  for (std::size_t i = 0; i < a.image.size(); ++i) {
+    AlignView& view = views[a.camera.size() == 1 ? 0 : view_of_image[i]];
+    const std::string& jt = joint_texts[joint_texts.size() == 1 ? 0 : i];
+    const Eigen::VectorXd q = parse_joints(jt, joint_option, model, !a.joints_deg.empty());
+    const cv::Mat img = fit_to_viewport(read_video_frame(a.image[i], a.frame), a.image[i], view.camera, a.scale_image);
+    view.frames.push_back({img, q});
+  }
+  for (const auto& v : views)
+    if (!(v.camera.viewport == views[0].camera.viewport))
+      throw std::invalid_argument("cameras '" + views[0].camera.name + "' and '" + v.camera.name +
+                                  "' have different viewports");
+
+  auto context = GlContext::create(backend);
+  ModelAligner aligner(*context, model, object ? &*object : nullptr, views[0].camera.viewport);
+  out.result = aligner.align(views, base_T_object, options);
+  const AlignResult& r = out.result;
+  out.offset_segments = model.offset_segments();
+  if (r.status == AlignStatus::NotInView) throw InputError(a.image.front(), r.reason);
+
+  out.cameras_refined = options.refine != Refine::Camera ? options.refine == Refine::Both : true;
+  const bool cam_refined = out.cameras_refined;
+
+  if (r.status == AlignStatus::Aligned) {
+    if (!a.out.empty() && cam_refined) {
+      std::map<std::string, CameraRecord> out_records =
+          std::filesystem::exists(a.out) ? load_cameras(a.out) : std::map<std::string, CameraRecord>{};
+      if (a.out == a.cameras) out_records = records;
+      for (std::size_t v = 0; v < r.cameras.size(); ++v) {
+        CameraCalibrationInfo info;
+        // cameras.yaml keeps roll/pitch/yaw; the aligner's rotation is a
+        // body increment (calibrate writes the same convention).
+        info.covariance = camera_covariance_rpy_from_body(r.covariance.block<7, 7>(7 * v, 7 * v),
+                                                          r.cameras[v].base_T_camera.linear());
+        info.rms_px = r.residual_rms_px;
+        info.max_px = 1.0;  // inliers are within 1 px by definition
+        info.n_points = r.matched_samples;
+        info.date = utc_now();
+        out_records[r.cameras[v].name] = CameraRecord{r.cameras[v], info};
+      }
+      save_cameras(a.out, out_records);
+    }
+    if (!a.arm_out.empty() && !r.arm_link_sigma_m.empty())
+      save_arm_links(a.arm_out, {r.arm_link_delta_m, r.arm_link_sigma_m}, a.robot, utc_now());
+    if (!a.object_out.empty() && r.base_T_object) {
+      nlohmann::json j = object_pose_json(*r.base_T_object);
+      j["source"] = "foresight align";
+      write_file_atomic(a.object_out, j.dump(2) + "\n");
+    }
+  }
+  return out;
+}
+
+nlohmann::json aligned_json(const AlignRequest& a, const AlignedViews& aligned) {
+  using namespace foresight::align;
+  const AlignResult& r = aligned.result;
+  const AlignOptions& options = aligned.options;
+  const bool cam_refined = aligned.cameras_refined;
+  auto sigma = [&](int k) { return r.covariance.size() > 0 ? std::sqrt(std::max(0.0, r.covariance(k, k))) : 0.0; };
+  nlohmann::json cams = nlohmann::json::array();
+  for (std::size_t v = 0; v < r.cameras.size(); ++v) {
+    const auto& d = r.camera_change[v];
+    nlohmann::json c = {{"name", r.cameras[v].name},
+                        {"f_px", r.cameras[v].f_px},
+                        {"base_T_camera", pose_json(r.cameras[v].base_T_camera)},
+                        {"change",
+                         {{"rotation_deg", vec_json(d.head<3>() * 180.0 / M_PI)},
+                          {"position_m", vec_json(d.segment<3>(3))},
+                          {"f_px", d[6]}}}};
+    if (cam_refined) {
+      std::vector<double> s;
+      for (int k = 0; k < 7; ++k) s.push_back(sigma(7 * static_cast<int>(v) + k));
+      c["sigma"] = s;  // rad x3, m x3, px
+    }
+    cams.push_back(c);
+  }
+  nlohmann::json j = {{"status", to_string(r.status)},
+                      {"reason", r.reason},
+                      {"refine", to_string(options.refine)},
+                      {"cameras", cams},
+                      {"start_score_px", r.start_score_px},
+                      {"final_score_px", r.final_score_px},
+                      {"residual_rms_px", r.residual_rms_px},
+                      {"visible_samples", r.visible_samples},
+                      {"matched_samples", r.matched_samples},
+                      {"iterations", r.iterations},
+                      {"start_disagreement_sigma", r.start_disagreement_sigma},
+                      {"start_position_disagreement_sigma", r.start_position_disagreement_sigma},
+                      {"time_ms", r.time_ms},
+                      {"covariance", matrix_rows(r.covariance)}};
+  if (r.base_T_object) {
+    j["base_T_object"] = pose_json(*r.base_T_object);
+    j["object_change"] = {{"rotation_deg", vec_json(r.object_change.head<3>() * 180.0 / M_PI)},
+                          {"position_m", vec_json(r.object_change.tail<3>())}};
+  }
+  if (!r.arm_link_delta_m.empty()) j["arm_link_delta_m"] = r.arm_link_delta_m;
+  if (!r.arm_link_sigma_m.empty()) j["arm_link_sigma_m"] = r.arm_link_sigma_m;
+  if (r.status == AlignStatus::Aligned && !a.out.empty()) j["out"] = a.out;
+  return j;
 }
 
 Previewed preview_trajectory(const PreviewRequest& a) {

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/correspondence.hpp"
 #include "foresight/camera/camera.hpp"
@@ -169,6 +170,39 @@ struct Overlaid {
 /// The arm (and the localized object) through the calibrated camera over the
 /// video frame, written to `out`.
 Overlaid overlay_frame(const OverlayRequest& request);
+
+// --- align (model-to-image) -------------------------------------------------
+
+struct AlignRequest {
+  std::string cameras;                        ///< cameras.yaml
+  std::vector<std::string> camera, image;     ///< one camera for every image, or one --camera per --image
+  std::vector<std::string> joints, joints_deg;  ///< once, or once per image (exactly one of the two)
+  std::string object_pose;                    ///< the object's start pose (localize JSON)
+  std::string refine = "camera";              ///< camera | object | both
+  std::string out, object_out;                ///< refined cameras.yaml; refined object pose JSON
+  std::string arm_links, arm_out;             ///< link-length corrections in; the refined ones out
+  double arm_prior_mm = 0.0;                  ///< > 0: the arm's link lengths refined with this prior sd
+  std::string gl = "osmesa";
+  std::string robot = default_config("robot.urdf");
+  std::string object = default_config("oru.yaml");
+  int frame = 0;
+  bool scale_image = false;
+};
+
+struct AlignedViews {
+  align::AlignOptions options;
+  align::AlignResult result;
+  bool cameras_refined = false;
+  std::vector<int> offset_segments;  ///< the arm's chain segments with a link offset
+};
+
+/// The model's visible edges aligned to the images' edges; when aligned, the
+/// outputs asked for are written (nothing is when refused). Bad input
+/// (options, files, the model not in view of a camera): InputError /
+/// std::invalid_argument before anything is written.
+AlignedViews align_views(const AlignRequest& request);
+/// `foresight align --json`'s object.
+nlohmann::json aligned_json(const AlignRequest& request, const AlignedViews& aligned);
 
 // --- preview ---------------------------------------------------------------
 
