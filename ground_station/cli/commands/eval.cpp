@@ -31,6 +31,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/localization/accuracy_study.hpp"
+#include "foresight/session/operations.hpp"
 #include "foresight/common/json_text.hpp"
 #include "foresight/common/number_list.hpp"
 #include "foresight/localization/pose_json.hpp"
@@ -44,59 +45,15 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 struct EvalArgs {
-  int trials = 1000;
-  double noise_px = 1.0;
-  unsigned seed = 1;
-  int seeds = 1;
-  double arm_error_mm = 0.0;
-  std::string scene = default_config("scene.yaml");
-  std::string object = default_config("oru.yaml");
-  std::string robot = default_config("robot.urdf");
+  session::LocalizationStudyRequest request;
   bool json = false;
 };
-
-nlohmann::json stats_json(const ErrorStats& s) {
-  return {{"n", s.n},
-          {"mean_cm", vec_json(s.mean.head<3>() * 100.0)},
-          {"mean_deg", vec_json(s.mean.tail<3>() / kDeg)},
-          {"sd_cm", vec_json(s.sd.head<3>() * 100.0)},
-          {"sd_deg", vec_json(s.sd.tail<3>() / kDeg)},
-          {"alignment95_cm", s.alignment95_m * 100.0},
-          {"depth95_cm", s.depth95_m * 100.0},
-          {"position_rmse_m", s.position_rmse_m},
-          {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg}};
-}
-
-/// Per view combination, the spread over seeds of the RMSEs and of their ratio to the bound.
-nlohmann::json spread_json(const std::vector<StudyResult>& runs) {
-  nlohmann::json out = nlohmann::json::array();
-  for (std::size_t ci = 0; ci < runs.front().combos.size(); ++ci) {
-    std::vector<double> p, r, jp, jr;
-    for (const auto& run : runs) {
-      const ComboStats& c = run.combos[ci];
-      p.push_back(c.ours.position_rmse_m * 1e3);
-      r.push_back(c.ours.rotation_rmse_rad / kDeg);
-      jp.push_back(c.ours_joint.position_rmse_m * 1e3);
-      jr.push_back(c.ours_joint.rotation_rmse_rad / kDeg);
-    }
-    const ComboStats& c0 = runs.front().combos[ci];
-    auto js = [](const Spread& s) { return nlohmann::json{{"mean", s.mean}, {"sd", s.sd}}; };
-    out.push_back({{"views", c0.label},
-                   {"position_rmse_mm", js(spread_of(p))},
-                   {"rotation_rmse_deg", js(spread_of(r))},
-                   {"joint_position_rmse_mm", js(spread_of(jp))},
-                   {"joint_rotation_rmse_deg", js(spread_of(jr))},
-                   {"crlb_position_mm", c0.crlb_position_m * 1e3},
-                   {"crlb_rotation_deg", c0.crlb_rotation_rad / kDeg}});
-  }
-  return out;
-}
 
 void print_spread(const std::vector<StudyResult>& runs, const char* title) {
   std::printf("\n%s: RMSE over %zu seeds x %d trials, mean +- sd over the seeds (ratio to the bound)\n", title,
               runs.size(), runs.front().trials);
   std::printf("%-9s %26s %26s %16s\n", "views", "two-step mm / deg", "joint mm / deg", "CRLB mm / deg");
-  for (const auto& j : spread_json(runs)) {
+  for (const auto& j : session::localization_spread_json(runs)) {
     const double b = j["crlb_position_mm"].get<double>();
     char two[64], joint[64];
     std::snprintf(two, sizeof two, "%.2f+-%.2f (%.2fx) / %.3f", j["position_rmse_mm"]["mean"].get<double>(),
@@ -110,143 +67,17 @@ void print_spread(const std::vector<StudyResult>& runs, const char* title) {
   }
 }
 
-int run_eval(const EvalArgs& a) {
-  if (a.trials < 1) throw std::invalid_argument("--trials must be at least 1");
-  if (a.seeds < 1) throw std::invalid_argument("--seeds must be at least 1");
-  if (!(a.arm_error_mm >= 0.0) || !std::isfinite(a.arm_error_mm))
-    throw std::invalid_argument("--arm-error-mm must be a non-negative number");
-  if (!(a.noise_px > 0.0 && a.noise_px <= limits::kMaxPixelNoise_px))
-    throw std::invalid_argument("--noise-px must be a number in (0, " +
-                                std::to_string(static_cast<int>(limits::kMaxPixelNoise_px)) + "] px");
-  if (a.trials > 1000000) throw std::invalid_argument("--trials must be at most 1000000");
-  if (a.seeds > 1000) throw std::invalid_argument("--seeds must be at most 1000");
-  if (!(a.arm_error_mm <= 1000.0)) throw std::invalid_argument("--arm-error-mm must be at most 1000");
-  const Scene scene = Scene::from_file(a.scene);
-  const ObjectModel object = ObjectModel::from_file(a.object);
-  const RobotModel robot = RobotModel::from_file(a.robot);
-  StudySetup setup = make_study_setup(scene, object, {});
-  choose_calibration_points(setup, arm_calibration_poses(robot));
-
-  StudyOptions opt;
-  opt.trials = a.trials;
-  opt.noise_px = a.noise_px;
-  opt.seed = a.seed;
-  opt.robot = &robot;
+void print_tables(const session::LocalizationStudyRequest& a, const session::LocalizationStudy& study) {
+  const std::vector<StudyResult>& runs = study.runs;
+  const std::vector<StudyResult>& arm_runs = study.arm_runs;
   const bool arm_error = a.arm_error_mm > 0.0;
-  const int studies = a.seeds * (arm_error ? 2 : 1);
-  int study = 0;
-  int last_shown = -1;
-  opt.progress = [&](int done_in_study, int total_in_study) {
-    const int done = study * total_in_study + done_in_study, total = studies * total_in_study;
-    const int pct = 100 * done / total;
-    if (pct == last_shown) return;
-    last_shown = pct;
-    const int width = 40, filled = width * done / total;
-    std::fprintf(stderr, "\r[%s%s] %3d%%  trial %d/%d", std::string(filled, '#').c_str(),
-                 std::string(width - filled, ' ').c_str(), pct, done, total);
-    if (done == total) std::fprintf(stderr, "\n");
-    std::fflush(stderr);
-  };
-  const auto t0 = std::chrono::steady_clock::now();
-  std::vector<StudyResult> runs, arm_runs;
-  for (int k = 0; k < a.seeds; ++k, ++study) {
-    StudyOptions o = opt;
-    o.seed = a.seed + static_cast<unsigned>(k);
-    runs.push_back(run_accuracy_study(setup, o));
-  }
-  if (arm_error)
-    for (int k = 0; k < a.seeds; ++k, ++study) {
-      StudyOptions o = opt;
-      o.seed = a.seed + static_cast<unsigned>(k);
-      o.arm_link_error_m = a.arm_error_mm * 1e-3;
-      arm_runs.push_back(run_accuracy_study(setup, o));
-    }
-  for (const auto* set : {&runs, &arm_runs})
-    for (const StudyResult& run : *set)
-      if (run.calibration_failures >= run.trials)  // tables of zeros would look like perfect accuracy
-        throw ComputationError("every one of the " + std::to_string(run.trials) +
-                               " trials failed its calibration: no accuracy to report; is --noise-px " +
-                               std::to_string(a.noise_px) + " too large?");
   const StudyResult& r = runs.front();
-  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double elapsed_s = study.elapsed_s;
   const ComboStats& all = r.combos.back();
   const double pos_ratio = all.ours.position_rmse_m / all.crlb_position_m;
   const double rot_ratio = all.ours.rotation_rmse_rad / all.crlb_rotation_rad;
   const double jpos_ratio = all.ours_joint.position_rmse_m / all.crlb_position_m;
   const double jrot_ratio = all.ours_joint.rotation_rmse_rad / all.crlb_rotation_rad;
-
-  if (a.json) {
-    nlohmann::json views = nlohmann::json::array();
-    for (std::size_t v = 0; v < r.view_names.size(); ++v)
-      views.push_back({{"index", v + 1},
-                       {"name", r.view_names[v]},
-                       {"calibration_points", r.calibration_points[v]},
-                       {"object_points", r.object_points[v]},
-                       {"calibration_rms_px", r.calibration_rms_px[v]}});
-    nlohmann::json combos = nlohmann::json::array();
-    for (const auto& c : r.combos) {
-      const nlohmann::json crlb = {{"sd_cm", vec_json(c.crlb_sd.head<3>() * 100.0)},
-                                   {"sd_deg", vec_json(c.crlb_sd.tail<3>() / kDeg)},
-                                   {"alignment95_cm", c.crlb_alignment95_m * 100.0},
-                                   {"depth95_cm", c.crlb_depth95_m * 100.0},
-                                   {"position_m", c.crlb_position_m},
-                                   {"rotation_deg", c.crlb_rotation_rad / kDeg}};
-      combos.push_back({{"views", c.label},
-                        {"failures", c.failures},
-                        {"ours", stats_json(c.ours)},
-                        {"ours_joint", stats_json(c.ours_joint)},
-                        {"joint_failures", c.joint_failures},
-                        {"crlb", crlb},
-                        {"crlb_known_cameras",
-                         {{"sd_cm", vec_json(c.crlb_known_cameras_sd.head<3>() * 100.0)},
-                          {"sd_deg", vec_json(c.crlb_known_cameras_sd.tail<3>() / kDeg)},
-                          {"position_m", c.crlb_known_cameras_sd.head<3>().norm()},
-                          {"rotation_deg", c.crlb_known_cameras_sd.tail<3>().norm() / kDeg}}},
-                        {"pnp_sqpnp", stats_json(c.pnp_sqpnp)},
-                        {"pnp_iterative", stats_json(c.pnp_iterative)},
-                        {"triangulation", stats_json(c.triangulation)}});
-    }
-    nlohmann::json j = {{"study", "localization"},
-                              {"trials", r.trials},
-                              {"noise_px", r.noise_px},
-                              {"seed", a.seed},
-                              {"seeds", a.seeds},
-                              {"arm_model_error", "none: the calibration uses the exact arm model"},
-                              {"calibration_failures", r.calibration_failures},
-                              {"elapsed_s", elapsed_s},
-                              {"frame", "oru (z along the hole axis)"},
-                              {"views", views},
-                              {"combos", combos},
-                              {"four_view",
-                               {{"position_rmse_m", all.ours.position_rmse_m},
-                                {"crlb_position_m", all.crlb_position_m},
-                                {"position_ratio", pos_ratio},
-                                {"rotation_rmse_deg", all.ours.rotation_rmse_rad / kDeg},
-                                {"crlb_rotation_deg", all.crlb_rotation_rad / kDeg},
-                                {"rotation_ratio", rot_ratio},
-                                {"within_10_percent", pos_ratio <= 1.1 && rot_ratio <= 1.1},
-                                {"joint_position_rmse_m", all.ours_joint.position_rmse_m},
-                                {"joint_position_ratio", jpos_ratio},
-                                {"joint_rotation_rmse_deg", all.ours_joint.rotation_rmse_rad / kDeg},
-                                {"joint_rotation_ratio", jrot_ratio},
-                                {"joint_within_10_percent", jpos_ratio <= 1.1 && jrot_ratio <= 1.1}}}};
-    j["over_seeds"] = spread_json(runs);
-    if (arm_error) {
-      const ComboStats& w = arm_runs.front().combos.back();
-      j["with_arm_model_error"] = {{"link_length_sd_mm", a.arm_error_mm},
-                                   {"calibration_failures", arm_runs.front().calibration_failures},
-                                   {"four_view",
-                                    {{"position_rmse_m", w.ours.position_rmse_m},
-                                     {"rotation_rmse_deg", w.ours.rotation_rmse_rad / kDeg},
-                                     {"joint_position_rmse_m", w.ours_joint.position_rmse_m},
-                                     {"joint_rotation_rmse_deg", w.ours_joint.rotation_rmse_rad / kDeg},
-                                     {"alignment95_cm", w.ours.alignment95_m * 100.0},
-                                     {"depth95_cm", w.ours.depth95_m * 100.0}}},
-                                   {"over_seeds", spread_json(arm_runs)}};
-    }
-    std::cout << j.dump(2) << "\n";
-    return kExitOk;
-  }
 
   std::printf("Localization accuracy: %d trials, %.2f px click noise, errors in the ORU frame (z along the hole axis)\n",
               r.trials, r.noise_px);
@@ -321,11 +152,34 @@ int run_eval(const EvalArgs& a) {
                 a.seed, w.ours.position_rmse_m * 1e3, w.crlb_position_m * 1e3, w.ours.alignment95_m * 100,
                 w.ours.depth95_m * 100);
   }
+}
+
+int run_eval(const EvalArgs& args) {
+  const session::LocalizationStudyRequest& a = args.request;
+  int last_shown = -1;
+  const auto progress = [&](int done, int total) {  // a progress bar on stderr
+    const int pct = 100 * done / total;
+    if (pct == last_shown) return;
+    last_shown = pct;
+    const int width = 40, filled = width * done / total;
+    std::fprintf(stderr, "\r[%s%s] %3d%%  trial %d/%d", std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), pct, done, total);
+    if (done == total) std::fprintf(stderr, "\n");
+    std::fflush(stderr);
+  };
+  const session::LocalizationStudy study = session::study_localization(a, progress);
+  if (args.json) {
+    std::cout << session::localization_study_json(a, study).dump(2) << "\n";
+    return kExitOk;
+  }
+  print_tables(a, study);
   return kExitOk;
 }
 
+
 std::function<int()> setup(Command& sub) {
-  auto a = std::make_shared<EvalArgs>();
+  auto args = std::make_shared<EvalArgs>();
+  session::LocalizationStudyRequest* a = &args->request;
   sub.require_subcommand(1);
   Command* loc = sub.add_subcommand("localization", "Monte Carlo localization accuracy (the paper's Tables 1-3)");
   loc->add_option("--trials", a->trials, "Monte Carlo trials")->capture_default_str();
@@ -339,10 +193,10 @@ std::function<int()> setup(Command& sub) {
   loc->add_option("--scene", a->scene, "scene (cameras, ORU pose)")->capture_default_str();
   loc->add_option("--object", a->object, "object model")->capture_default_str();
   loc->add_option("--robot", a->robot, "robot URDF (the calibration fixture)")->capture_default_str();
-  loc->add_flag("--json", a->json, "print one JSON object");
+  loc->add_flag("--json", args->json, "print one JSON object");
   auto alignment = setup_eval_alignment(sub);
-  return [a, loc, alignment] {
-    if (loc->parsed()) return run_eval(*a);
+  return [args, loc, alignment] {
+    if (loc->parsed()) return run_eval(*args);
     if (const int rc = alignment(); rc >= 0) return rc;
     throw std::invalid_argument("eval: choose a study (localization, alignment)");
   };

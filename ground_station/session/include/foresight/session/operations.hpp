@@ -22,6 +22,7 @@
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/pose.hpp"
 #include "foresight/common/trajectory.hpp"
+#include "foresight/localization/accuracy_study.hpp"
 #include "foresight/localization/localize.hpp"
 #include "foresight/preview/preview.hpp"
 #include "foresight/render/gl_context.hpp"
@@ -59,6 +60,37 @@ struct SynthClicks {
 /// camera over the calibration poses, the ORU's model points; each output
 /// written atomically (all paths checked before any work).
 SynthClicks synth_clicks(const SynthClicksRequest& request);
+
+// --- eval localization (the paper's Tables 1-3) ------------------------------
+
+struct LocalizationStudyRequest {
+  int trials = 1000;
+  double noise_px = 1.0;
+  unsigned seed = 1;
+  int seeds = 1;                      ///< the study repeated with seeds seed..seed+seeds-1
+  double arm_error_mm = 0.0;          ///< > 0: also with every link length off by this sd
+  std::string scene = default_config("scene.yaml");
+  std::string object = default_config("oru.yaml");
+  std::string robot = default_config("robot.urdf");
+};
+
+struct LocalizationStudy {
+  std::vector<StudyResult> runs;      ///< per seed, the exact arm model
+  std::vector<StudyResult> arm_runs;  ///< per seed, with the arm-model error (empty without it)
+  double elapsed_s = 0.0;
+};
+
+/// Monte Carlo over the synthetic four-camera scene: calibration from noisy
+/// arm clicks, then localization with every combination of views, beside the
+/// Cramer-Rao bound and the peers. `progress(done, total)` over all the
+/// studies. ComputationError when every trial's calibration failed.
+LocalizationStudy study_localization(const LocalizationStudyRequest& request,
+                                     const std::function<void(int done, int total)>& progress = {});
+/// Per view combination, the spread over the seeds of the RMSEs (mean, sd)
+/// beside the bound (the --json "over_seeds").
+nlohmann::json localization_spread_json(const std::vector<StudyResult>& runs);
+/// `foresight eval localization --json`'s object.
+nlohmann::json localization_study_json(const LocalizationStudyRequest& request, const LocalizationStudy& study);
 
 // --- calibrate -------------------------------------------------------------
 
