@@ -210,186 +210,199 @@ std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::m
   return obs;
 }
 
-}  // namespace
-
-Eigen::Vector3d LocalizationResult::rpy_rad() const { return rpy_from_rotation(base_T_object.linear()); }
-
-Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
-                            double rank_tolerance) {
-  std::vector<std::string> used;
-  const std::vector<Obs> obs = resolve(points, cameras, {}, used);
-  check_geometry(obs);
-  return linear_pose(obs, rank_tolerance);
-}
-
-LocalizationResult localize_object(const std::vector<Correspondence>& points,
-                                   const std::map<std::string, Camera>& cameras, const LocalizationOptions& opt) {
-  LocalizationResult res;
-  if (!(opt.arm_link_sigma_m >= 0.0) || !std::isfinite(opt.arm_link_sigma_m))
-    throw EstimationInputError("arm link sigma must be a non-negative number of metres, got " +
-                               std::to_string(opt.arm_link_sigma_m));
-  Eigen::Index links = 0;
-  for (const auto& [name, K] : opt.camera_link_sensitivity) {
-    if (K.rows() != 7 || K.cols() == 0 || !K.allFinite())
-      throw EstimationInputError("camera '" + name + "': the link sensitivity must be 7 rows of finite numbers, one column per link (" +
-                                 std::to_string(K.rows()) + " x " + std::to_string(K.cols()) + " given)");
-    if (links > 0 && K.cols() != links)
-      throw EstimationInputError("camera '" + name + "': the link sensitivity has " + std::to_string(K.cols()) +
-                                 " links, another camera's " + std::to_string(links));
-    links = K.cols();
+/// One call of localize_object: the clicks resolved to their cameras, the
+/// pose being fitted, and the steps (the fit with outlier flagging, the
+/// optional joint refinement with the cameras, the residuals, the
+/// covariance with the held cameras' and the arm model's terms).
+class Localizer {
+ public:
+  Localizer(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+            const LocalizationOptions& opt, LocalizationResult& res)
+      : cameras_(cameras), opt_(opt), res_(res) {
+    check_options();
+    var_links_ = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
+    arm_term_ = var_links_ > 0.0 && links_ > 0;
+    obs_ = resolve(points, cameras, opt.views, res.views);
+    check_geometry(obs_);
+    n_ = static_cast<int>(obs_.size());
+    res.n_points = n_;
+    lm_.max_iterations = opt.max_iterations;
   }
-  for (const auto& [name, C] : opt.camera_covariance) {
-    const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(C);
-    if (!C.allFinite() || !C.isApprox(C.transpose(), 1e-9) || ldlt.info() != Eigen::Success ||
-        (ldlt.vectorD().array() < -1e-12 * std::max(1.0, C.diagonal().maxCoeff())).any())
-      throw EstimationInputError("camera '" + name + "': the covariance must be a finite, symmetric, positive semi-definite 7x7 matrix");
-  }
-  const double var_links = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
-  const bool arm_term = var_links > 0.0 && links > 0;
-  auto sensitivity_of = [&](const std::string& cam) -> const Eigen::MatrixXd* {
-    const auto it = opt.camera_link_sensitivity.find(cam);
-    return it == opt.camera_link_sensitivity.end() ? nullptr : &it->second;
-  };
-  // The pose's response to the link lengths (body rotation, position; 6 x
-  // links), arm_D, and the held cameras' uncertainty carried to the pose,
-  // held_body: the fit's linear response -H^-1 J^T de/dx to a change x,
-  // where a held camera moves its points' pixels (d_camera, times K for the
-  // links) and a jointly refined camera moves its prior's centre.
-  Eigen::MatrixXd arm_D;
-  Eigen::Matrix<double, 6, 6> held_body = Eigen::Matrix<double, 6, 6>::Zero();
-  // The links' expected share of the final residuals' sum of squares,
-  // var_links ||(I - J H^-1 J^T) de/dlinks||^2: what the fit could not take
-  // (two cameras that disagree); taken out of the pixel noise's estimate, or
-  // the arm would be counted twice (measured: a joint fit's yaw sd 2.4x the
-  // spread).
-  double arm_in_residuals = 0.0;
-  const std::vector<Obs> obs = resolve(points, cameras, opt.views, res.views);
-  check_geometry(obs);
-  const int n = static_cast<int>(obs.size());
-  res.n_points = n;
 
+  void run() {
+    fit_with_outliers();
+    refine_jointly();
+    if (!state_.R.allFinite() || !state_.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+    res_.base_T_object = Pose::Identity();
+    res_.base_T_object.linear() = state_.R;
+    res_.base_T_object.translation() = state_.t;
+    res_.iterations = iterations_;
+    residuals();
+    covariance();
+  }
+
+ private:
   struct State {
     Eigen::Matrix3d R;
     Eigen::Vector3d t;
   };
-  State state{};
-  std::vector<int> idx;
-  int iterations = 0;
-  auto evaluate = [&](const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) {
-    for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
-      const Obs& o = obs[idx[k]];
+
+  void check_options() {
+    if (!(opt_.arm_link_sigma_m >= 0.0) || !std::isfinite(opt_.arm_link_sigma_m))
+      throw EstimationInputError("arm link sigma must be a non-negative number of metres, got " +
+                                 std::to_string(opt_.arm_link_sigma_m));
+    for (const auto& [name, K] : opt_.camera_link_sensitivity) {
+      if (K.rows() != 7 || K.cols() == 0 || !K.allFinite())
+        throw EstimationInputError("camera '" + name + "': the link sensitivity must be 7 rows of finite numbers, one column per link (" +
+                                   std::to_string(K.rows()) + " x " + std::to_string(K.cols()) + " given)");
+      if (links_ > 0 && K.cols() != links_)
+        throw EstimationInputError("camera '" + name + "': the link sensitivity has " + std::to_string(K.cols()) +
+                                   " links, another camera's " + std::to_string(links_));
+      links_ = K.cols();
+    }
+    for (const auto& [name, C] : opt_.camera_covariance) {
+      const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(C);
+      if (!C.allFinite() || !C.isApprox(C.transpose(), 1e-9) || ldlt.info() != Eigen::Success ||
+          (ldlt.vectorD().array() < -1e-12 * std::max(1.0, C.diagonal().maxCoeff())).any())
+        throw EstimationInputError("camera '" + name + "': the covariance must be a finite, symmetric, positive semi-definite 7x7 matrix");
+    }
+  }
+
+  const Eigen::MatrixXd* sensitivity_of(const std::string& cam) const {
+    const auto it = opt_.camera_link_sensitivity.find(cam);
+    return it == opt_.camera_link_sensitivity.end() ? nullptr : &it->second;
+  }
+
+  void evaluate(const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) const {
+    for (int k = 0; k < static_cast<int>(idx_.size()); ++k) {
+      const Obs& o = obs_[idx_[k]];
       const Projection pr = project_with_jacobians(*o.cam, s.R * o.c->p_m + s.t);
       e.segment<2>(2 * k) = pr.uv_px - o.c->uv_px;
       if (J) J->block<2, 6>(2 * k, 0) = object_pose_jacobian(pr, s.R, o.c->p_m);  // body rotation, translation
     }
-  };
-  auto retract = [](const State& s, const Eigen::Matrix<double, 6, 1>& d) {
-    return State{s.R * exp_so3(d.head<3>()), s.t + d.tail<3>()};
-  };
-  // Size of the parameters in the units of a step (rad, m): for the relative step test.
-  auto state_norm = [](const State& s) { return std::sqrt(3.0 + s.t.squaredNorm()); };
-  estimation::LmOptions lm;
-  lm.max_iterations = opt.max_iterations;
-  estimation::LmReport last_fit;
-  auto require_converged = [&](const char* stage) {
-    if (!last_fit.converged)
-      throw EstimationError(std::string("the ") + stage + " did not converge after " +
-                            std::to_string(last_fit.iterations) + " iterations (" + estimation::to_string(last_fit.stop) +
-                            ")");
-  };
-  auto residual_norms = [&](const State& s) {
-    std::vector<double> r(static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3d pc = obs[i].cam->to_camera(s.R * obs[i].c->p_m + s.t);
-      r[i] = (obs[i].cam->project_camera(pc) - obs[i].c->uv_px).norm();
+  }
+
+  std::vector<double> residual_norms(const State& s) const {
+    std::vector<double> r(static_cast<std::size_t>(n_));
+    for (int i = 0; i < n_; ++i) {
+      const Eigen::Vector3d pc = obs_[i].cam->to_camera(s.R * obs_[i].c->p_m + s.t);
+      r[i] = (obs_[i].cam->project_camera(pc) - obs_[i].c->uv_px).norm();
     }
     return r;
-  };
-  bool have_state = false;
-  Pose linear_all = Pose::Identity();
-  auto fit = [&](const std::vector<bool>& inlier) {
-    idx.clear();
-    for (int i = 0; i < n; ++i)
-      if (inlier[i]) idx.push_back(i);
-    if (!have_state) {
-      linear_all = linear_pose(obs, opt.rank_tolerance);
-      state = {linear_all.linear(), linear_all.translation()};
-      have_state = true;
-    }
-    last_fit = estimation::levenberg_marquardt<6>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
-                                              lm);
-    iterations = last_fit.iterations;
-    return residual_norms(state);
-  };
-  std::vector<double> r;
-  const std::vector<bool> inlier = estimation::flag_outliers(n, 6, opt.outliers, fit, r);
-  require_converged("nonlinear localization");
-  if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
-  idx.clear();
-  for (int i = 0; i < n; ++i)
-    if (inlier[i]) idx.push_back(i);
-  const int m = static_cast<int>(idx.size());
+  }
 
-  // Optional joint refinement: the pose and every camera that comes with its
-  // calibration information, the cameras held to their calibration by a
-  // prior (a Gaussian with information J^T J in pixel units). Asymptotically
-  // the joint maximum likelihood of calibration and localization clicks.
-  auto camera_responses = [&](const Eigen::MatrixXd& J, const Eigen::MatrixXd& H, const Eigen::Matrix3d& R,
-                              const Eigen::Vector3d& t, const std::vector<std::string>& refined_names) {
+  void require_converged(const char* stage) const {
+    if (!last_fit_.converged)
+      throw EstimationError(std::string("the ") + stage + " did not converge after " +
+                            std::to_string(last_fit_.iterations) + " iterations (" +
+                            estimation::to_string(last_fit_.stop) + ")");
+  }
+
+  /// The pose from the linear solution by Levenberg-Marquardt, the outliers
+  /// flagged and left out (idx_: the inliers, m_ of them).
+  void fit_with_outliers() {
+    const auto retract = [](const State& s, const Eigen::Matrix<double, 6, 1>& d) {
+      return State{s.R * exp_so3(d.head<3>()), s.t + d.tail<3>()};
+    };
+    // Size of the parameters in the units of a step (rad, m): for the relative step test.
+    const auto state_norm = [](const State& s) { return std::sqrt(3.0 + s.t.squaredNorm()); };
+    const auto eval = [this](const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) {
+      evaluate(s, e, J);
+    };
+    bool have_state = false;
+    const auto fit = [&](const std::vector<bool>& inlier) {
+      idx_.clear();
+      for (int i = 0; i < n_; ++i)
+        if (inlier[i]) idx_.push_back(i);
+      if (!have_state) {
+        linear_all_ = linear_pose(obs_, opt_.rank_tolerance);
+        state_ = {linear_all_.linear(), linear_all_.translation()};
+        have_state = true;
+      }
+      last_fit_ = estimation::levenberg_marquardt<6>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
+                                                     state_norm, lm_);
+      iterations_ = last_fit_.iterations;
+      return residual_norms(state_);
+    };
+    std::vector<double> r;
+    inlier_ = estimation::flag_outliers(n_, 6, opt_.outliers, fit, r);
+    require_converged("nonlinear localization");
+    if (!state_.R.allFinite() || !state_.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+    idx_.clear();
+    for (int i = 0; i < n_; ++i)
+      if (inlier_[i]) idx_.push_back(i);
+    m_ = static_cast<int>(idx_.size());
+  }
+
+  /// The pose's response to the link lengths (body rotation, position; 6 x
+  /// links), arm_D_, and the held cameras' uncertainty carried to the pose,
+  /// held_body_: the fit's linear response -H^-1 J^T de/dx to a change x,
+  /// where a held camera moves its points' pixels (d_camera, times K for the
+  /// links) and a jointly refined camera moves its prior's centre. Also the
+  /// links' expected share of the final residuals' sum of squares,
+  /// var_links ||(I - J H^-1 J^T) de/dlinks||^2: what the fit could not take
+  /// (two cameras that disagree); taken out of the pixel noise's estimate,
+  /// or the arm would be counted twice (measured: a joint fit's yaw sd 2.4x
+  /// the spread).
+  void camera_responses(const Eigen::MatrixXd& J, const Eigen::MatrixXd& H, const Eigen::Matrix3d& R,
+                        const Eigen::Vector3d& t, const std::vector<std::string>& refined_names) {
     const auto is_refined = [&](const std::string& cam) {
       return std::find(refined_names.begin(), refined_names.end(), cam) != refined_names.end();
     };
-    Eigen::MatrixXd dedl = Eigen::MatrixXd::Zero(J.rows(), arm_term ? links : 0);
+    Eigen::MatrixXd dedl = Eigen::MatrixXd::Zero(J.rows(), arm_term_ ? links_ : 0);
     std::map<std::string, Eigen::MatrixXd> dedc;  // per held camera with a covariance
-    for (int k = 0; k < m; ++k) {
-      const Obs& o = obs[idx[k]];
+    for (int k = 0; k < m_; ++k) {
+      const Obs& o = obs_[idx_[k]];
       if (is_refined(o.c->cam)) continue;
-      const Eigen::MatrixXd* K = arm_term ? sensitivity_of(o.c->cam) : nullptr;
-      const auto cov = opt.camera_covariance.find(o.c->cam);
-      if (!K && cov == opt.camera_covariance.end()) continue;
+      const Eigen::MatrixXd* K = arm_term_ ? sensitivity_of(o.c->cam) : nullptr;
+      const auto cov = opt_.camera_covariance.find(o.c->cam);
+      if (!K && cov == opt_.camera_covariance.end()) continue;
       const Eigen::Matrix<double, 2, 7> d_camera = project_with_jacobians(*o.cam, R * o.c->p_m + t).d_camera;
       if (K) dedl.middleRows<2>(2 * k) = d_camera * *K;
-      if (cov != opt.camera_covariance.end()) {
+      if (cov != opt_.camera_covariance.end()) {
         Eigen::MatrixXd& d = dedc[o.c->cam];
         if (d.size() == 0) d = Eigen::MatrixXd::Zero(J.rows(), 7);
         d.middleRows<2>(2 * k) = d_camera;
       }
     }
-    if (arm_term)
+    if (arm_term_)
       for (std::size_t j = 0; j < refined_names.size(); ++j)  // the prior's centre moves: d e / d centre = -(d e / d camera)
         if (const Eigen::MatrixXd* K = sensitivity_of(refined_names[j])) {
-          const Eigen::Index row = 2 * m + 7 * static_cast<Eigen::Index>(j), col = 6 + 7 * static_cast<Eigen::Index>(j);
+          const Eigen::Index row = 2 * m_ + 7 * static_cast<Eigen::Index>(j), col = 6 + 7 * static_cast<Eigen::Index>(j);
           dedl.middleRows<7>(row) = -J.block<7, 7>(row, col) * *K;
         }
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-    if (arm_term) {
+    if (arm_term_) {
       const Eigen::MatrixXd D = -ldlt.solve(J.transpose() * dedl);
-      arm_in_residuals = var_links * (dedl + J * D).squaredNorm();
-      arm_D = D.topRows(6);
+      arm_in_residuals_ = var_links_ * (dedl + J * D).squaredNorm();
+      arm_D_ = D.topRows(6);
     }
     for (const auto& [name, d] : dedc) {
       const Eigen::MatrixXd A = -ldlt.solve(J.transpose() * d).topRows(6);
-      held_body += A * opt.camera_covariance.at(name) * A.transpose();
+      held_body_ += A * opt_.camera_covariance.at(name) * A.transpose();
     }
-  };
-  std::vector<std::string> joint_names;
-  for (const auto& v : res.views)
-    if (opt.camera_information.count(v)) joint_names.push_back(v);
-  const int kj = static_cast<int>(joint_names.size());
-  std::map<std::string, Camera> refined;
-  Eigen::MatrixXd joint_H;
-  double joint_ss = 0.0;
-  if (kj > 0) {
+  }
+
+  /// Optional joint refinement: the pose and every camera that comes with
+  /// its calibration information, the cameras held to their calibration by
+  /// a prior (a Gaussian with information J^T J in pixel units).
+  /// Asymptotically the joint maximum likelihood of calibration and
+  /// localization clicks.
+  void refine_jointly() {
+    for (const auto& v : res_.views)
+      if (opt_.camera_information.count(v)) joint_names_.push_back(v);
+    const int kj = static_cast<int>(joint_names_.size());
+    if (kj == 0) return;
     std::map<std::string, int> slot;
     std::vector<Eigen::Matrix<double, 7, 7>> Lt(kj);
     std::vector<Camera> cams0;
     for (int j = 0; j < kj; ++j) {
-      slot[joint_names[j]] = j;
-      cams0.push_back(cameras.at(joint_names[j]));
-      const Eigen::Matrix<double, 7, 7>& info = opt.camera_information.at(joint_names[j]);
+      slot[joint_names_[j]] = j;
+      cams0.push_back(cameras_.at(joint_names_[j]));
+      const Eigen::Matrix<double, 7, 7>& info = opt_.camera_information.at(joint_names_[j]);
       const Eigen::LLT<Eigen::Matrix<double, 7, 7>> llt(info);
       if (llt.info() != Eigen::Success || !info.allFinite())
-        throw EstimationInputError("camera '" + joint_names[j] + "': calibration information is not positive definite");
+        throw EstimationInputError("camera '" + joint_names_[j] + "': calibration information is not positive definite");
       Lt[j] = llt.matrixL().transpose();
     }
     struct JointState {
@@ -397,12 +410,13 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       Eigen::Vector3d t;
       std::vector<Camera> cams;
     };
-    JointState js{state.R, state.t, cams0};
+    JointState js{state_.R, state_.t, cams0};
+    const int m = m_;
     const int np = 6 + 7 * kj, nr = 2 * m + 7 * kj;
     auto jevaluate = [&](const JointState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>* J) {
       if (J) J->setZero();
       for (int k = 0; k < m; ++k) {
-        const Obs& o = obs[idx[k]];
+        const Obs& o = obs_[idx_[k]];
         const auto it = slot.find(o.c->cam);
         const Camera& cam = it == slot.end() ? *o.cam : s.cams[it->second];
         const Projection pr = project_with_jacobians(cam, s.R * o.c->p_m + s.t);
@@ -440,88 +454,132 @@ LocalizationResult localize_object(const std::vector<Correspondence>& points,
       for (int j = 0; j < kj; ++j) ss += s.cams[j].base_T_camera.translation().squaredNorm() + s.cams[j].f_px * s.cams[j].f_px;
       return std::sqrt(ss);
     };
-    last_fit = estimation::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm, np);
+    last_fit_ = estimation::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm_, np);
     require_converged("joint refinement (pose and cameras)");
-    iterations += last_fit.iterations;
-    state.R = js.R;
-    state.t = js.t;
-    for (int j = 0; j < kj; ++j) refined[joint_names[j]] = js.cams[j];
+    iterations_ += last_fit_.iterations;
+    state_.R = js.R;
+    state_.t = js.t;
+    for (int j = 0; j < kj; ++j) refined_[joint_names_[j]] = js.cams[j];
     Eigen::VectorXd e(nr);
     Eigen::MatrixXd J(nr, np);
     jevaluate(js, e, &J);
-    joint_H = J.transpose() * J;
-    joint_ss = e.squaredNorm();
-    camera_responses(J, joint_H, js.R, js.t, joint_names);
-    res.camera_uncertainty = true;
-    res.refined_cameras = refined;
+    joint_H_ = J.transpose() * J;
+    joint_ss_ = e.squaredNorm();
+    camera_responses(J, joint_H_, js.R, js.t, joint_names_);
+    res_.camera_uncertainty = true;
+    res_.refined_cameras = refined_;
   }
-  auto camera_of = [&](const Obs& o) -> const Camera& {
-    const auto it = refined.find(o.c->cam);
-    return it == refined.end() ? *o.cam : it->second;
-  };
 
-  if (!state.R.allFinite() || !state.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
-  res.base_T_object = Pose::Identity();
-  res.base_T_object.linear() = state.R;
-  res.base_T_object.translation() = state.t;
-  res.iterations = iterations;
+  const Camera& camera_of(const Obs& o) const {
+    const auto it = refined_.find(o.c->cam);
+    return it == refined_.end() ? *o.cam : it->second;
+  }
 
-  std::string behind;
-  double ss = 0.0;
-  std::vector<Obs> in_obs;
-  for (int i = 0; i < n; ++i) {
-    const Obs& o = obs[i];
-    const Camera& cam = camera_of(o);
-    const Eigen::Vector3d pc = cam.to_camera(res.base_T_object * o.c->p_m);
-    PointResidual pr;
-    pr.n = o.c->n;
-    pr.cam = o.c->cam;
-    pr.line = o.c->line;
-    pr.r_px = o.c->uv_px - cam.project_camera(pc);
-    pr.px = pr.r_px.norm();
-    pr.outlier = !inlier[i];
-    if (pr.outlier) {
-      res.outliers.push_back(o.c->n);
-    } else {
-      if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(*o.c);
-      ss += pr.px * pr.px;
-      res.max_px = std::max(res.max_px, pr.px);
-      in_obs.push_back(o);
+  /// Every point's residual at the fitted pose (outliers marked), the rms
+  /// over the inliers, the linear stage's rms over them.
+  void residuals() {
+    std::string behind;
+    double ss = 0.0;
+    std::vector<Obs> in_obs;
+    for (int i = 0; i < n_; ++i) {
+      const Obs& o = obs_[i];
+      const Camera& cam = camera_of(o);
+      const Eigen::Vector3d pc = cam.to_camera(res_.base_T_object * o.c->p_m);
+      PointResidual pr;
+      pr.n = o.c->n;
+      pr.cam = o.c->cam;
+      pr.line = o.c->line;
+      pr.r_px = o.c->uv_px - cam.project_camera(pc);
+      pr.px = pr.r_px.norm();
+      pr.outlier = !inlier_[i];
+      if (pr.outlier) {
+        res_.outliers.push_back(o.c->n);
+      } else {
+        if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(*o.c);
+        ss += pr.px * pr.px;
+        res_.max_px = std::max(res_.max_px, pr.px);
+        in_obs.push_back(o);
+      }
+      res_.residuals.push_back(pr);
     }
-    res.residuals.push_back(pr);
+    if (!behind.empty()) throw EstimationInputError("points behind their camera at the fitted pose: " + behind);
+    res_.rms_px = std::sqrt(ss / m_);
+    res_.linear_rms_px =
+        score(res_.outliers.empty() ? linear_all_ : linear_pose(in_obs, opt_.rank_tolerance), in_obs).second;
   }
-  if (!behind.empty()) throw EstimationInputError("points behind their camera at the fitted pose: " + behind);
-  res.rms_px = std::sqrt(ss / m);
-  res.linear_rms_px = score(res.outliers.empty() ? linear_all : linear_pose(in_obs, opt.rank_tolerance), in_obs).second;
 
-  // Covariance of (rpy, position): s^2 H^-1 (its pose block in the joint
-  // case), the body rotation increments mapped to rpy rates.
-  Eigen::Matrix<double, 6, 6> C_body;
-  if (kj > 0) {
-    const double s2 = std::max(0.0, joint_ss - arm_in_residuals) / std::max(2 * m - 6, 1);
-    C_body = s2 * joint_H.inverse().topLeftCorner<6, 6>();
-  } else {
-    Eigen::VectorXd e(2 * m);
-    Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m, 6);
-    evaluate(state, e, &J);
-    const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
-    camera_responses(J, H, state.R, state.t, {});
-    const double s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals) / std::max(2 * m - 6, 1);
-    C_body = s2 * H.inverse();
+  /// Covariance of (rpy, position): s^2 H^-1 (its pose block in the joint
+  /// case), the body rotation increments mapped to rpy rates; the held
+  /// cameras' and the arm model's terms added.
+  void covariance() {
+    Eigen::Matrix<double, 6, 6> C_body;
+    if (!joint_names_.empty()) {
+      const double s2 = std::max(0.0, joint_ss_ - arm_in_residuals_) / std::max(2 * m_ - 6, 1);
+      C_body = s2 * joint_H_.inverse().topLeftCorner<6, 6>();
+    } else {
+      Eigen::VectorXd e(2 * m_);
+      Eigen::Matrix<double, Eigen::Dynamic, 6> J(2 * m_, 6);
+      evaluate(state_, e, &J);
+      const Eigen::Matrix<double, 6, 6> H = J.transpose() * J;
+      camera_responses(J, H, state_.R, state_.t, {});
+      const double s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals_) / std::max(2 * m_ - 6, 1);
+      C_body = s2 * H.inverse();
+    }
+    Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
+    G.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(state_.R)).inverse();
+    C_body += held_body_;
+    res_.held_cameras_covariance = G * held_body_ * G.transpose();
+    if (arm_term_) {
+      const Eigen::Matrix<double, 6, 6> arm_body = var_links_ * arm_D_ * arm_D_.transpose();
+      C_body += arm_body;
+      res_.arm_model_covariance = G * arm_body * G.transpose();
+    }
+    res_.covariance = G * C_body * G.transpose();
+    const Eigen::Matrix<double, 6, 1> sd = res_.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    res_.sigma_rpy_rad = sd.head<3>();
+    res_.sigma_position_m = sd.tail<3>();
   }
-  Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
-  G.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(state.R)).inverse();
-  C_body += held_body;
-  res.held_cameras_covariance = G * held_body * G.transpose();
-  if (arm_term) {
-    const Eigen::Matrix<double, 6, 6> arm_body = var_links * arm_D * arm_D.transpose();
-    C_body += arm_body;
-    res.arm_model_covariance = G * arm_body * G.transpose();
-  }
-  res.covariance = G * C_body * G.transpose();
-  const Eigen::Matrix<double, 6, 1> sd = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-  res.sigma_rpy_rad = sd.head<3>();
-  res.sigma_position_m = sd.tail<3>();
+
+  const std::map<std::string, Camera>& cameras_;
+  const LocalizationOptions& opt_;
+  LocalizationResult& res_;
+  Eigen::Index links_ = 0;
+  double var_links_ = 0.0;
+  bool arm_term_ = false;
+  std::vector<Obs> obs_;
+  int n_ = 0, m_ = 0;
+  std::vector<int> idx_;          ///< the points in the fit (the inliers once flagged)
+  std::vector<bool> inlier_;
+  State state_{};
+  int iterations_ = 0;
+  estimation::LmOptions lm_;
+  estimation::LmReport last_fit_;
+  Pose linear_all_ = Pose::Identity();
+  Eigen::MatrixXd arm_D_;
+  Eigen::Matrix<double, 6, 6> held_body_ = Eigen::Matrix<double, 6, 6>::Zero();
+  double arm_in_residuals_ = 0.0;
+  std::vector<std::string> joint_names_;
+  std::map<std::string, Camera> refined_;
+  Eigen::MatrixXd joint_H_;
+  double joint_ss_ = 0.0;
+};
+
+}  // namespace
+
+Eigen::Vector3d LocalizationResult::rpy_rad() const { return rpy_from_rotation(base_T_object.linear()); }
+
+Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+                            double rank_tolerance) {
+  std::vector<std::string> used;
+  const std::vector<Obs> obs = resolve(points, cameras, {}, used);
+  check_geometry(obs);
+  return linear_pose(obs, rank_tolerance);
+}
+
+LocalizationResult localize_object(const std::vector<Correspondence>& points,
+                                   const std::map<std::string, Camera>& cameras, const LocalizationOptions& opt) {
+  LocalizationResult res;
+  Localizer(points, cameras, opt, res).run();
   return res;
 }
 
