@@ -460,167 +460,178 @@ void Supervisor::dispatch(const protocol::Command& c) {
 std::unique_ptr<Supervisor::Job> Supervisor::make_job(const protocol::Command& c, Reason* code, std::string* reason) {
   auto job = std::make_unique<Job>();
   job->command = c;
-  const std::size_t dof = static_cast<std::size_t>(model_.dof());
+  bool made = false;
   switch (c.kind) {
-    case CommandKind::Trajectory: {
-      const auto& p = std::get<protocol::RunTrajectory>(c.payload);
-      if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) ||
-          p.start_tolerance_rad > kMaxStartToleranceRad) {
-        *code = Reason::BadArgument;
-        *reason = fmt("start_tolerance_rad %g out of range [0, ", p.start_tolerance_rad) +
-                  fmt("%g] rad: a larger start offset would jump the arm; plan an approach segment (a GOTO_JOINT to "
-                      "the first sample)", kMaxStartToleranceRad);
-        return nullptr;
-      }
-      if (!(p.upload_wait_s >= 0.0) || !(p.upload_wait_s <= p_.config.max_upload_wait_s)) {
-        *code = Reason::BadArgument;
-        *reason = fmt("upload_wait_s %g out of range [0, %g] s (controller.max_upload_wait_s)", p.upload_wait_s,
-                      p_.config.max_upload_wait_s);
-        return nullptr;
-      }
-      job->kind = JobKind::Trajectory;
-      job->compliant = p.compliant;
-      job->start_tolerance_rad = p.start_tolerance_rad;
-      const auto it = uploads_.find(p.trajectory_id);
-      if (it == uploads_.end()) {
-        const auto refused = upload_refused_.find(p.trajectory_id);
-        if (refused != upload_refused_.end()) {
-          *code = Reason::IncompleteUpload;
-          *reason = "upload " + std::to_string(p.trajectory_id) + " was refused: " + refused->second;
-          return nullptr;
-        }
-        if (p.upload_wait_s == 0.0) {
-          *code = Reason::UnknownTrajectory;
-          *reason = "no committed upload with id " + std::to_string(p.trajectory_id) +
-                    " (a RUN with upload_wait_s > 0 may overtake its upload)";
-          return nullptr;
-        }
-        // RUN overtook its upload (issue 29): held until the whole upload
-        // committed with this hash, or failed at the deadline.
-        job->awaiting_upload = p.trajectory_id;
-        job->upload_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                  std::chrono::duration<double>(p.upload_wait_s));
-        return job;
-      }
-      if (upload_hash_[p.trajectory_id] != p.content_hash) {
-        *code = Reason::HashMismatch;
-        *reason = hash_mismatch(p.trajectory_id, p.content_hash, upload_hash_[p.trajectory_id]);
-        return nullptr;
-      }
-      job->trajectory = it->second;
-      try {
-        job->prepared = std::make_unique<control::PreparedTrajectory>(*it->second, p.trajectory_id);
-      } catch (const std::exception& e) {
-        *code = Reason::ValidationFailed;
-        *reason = e.what();
-        return nullptr;
-      }
-      return job;
-    }
-    case CommandKind::GotoJoint: {
-      const auto& p = std::get<protocol::GotoJoint>(c.payload);
-      if (p.q_rad.size() != dof) {
-        *code = Reason::JointCount;
-        *reason = std::to_string(p.q_rad.size()) + " joint values for a " + std::to_string(dof) + "-joint arm";
-        return nullptr;
-      }
-      for (std::size_t j = 0; j < dof; ++j) {
-        const auto& lim = model_.limits()[j];
-        if (!std::isfinite(p.q_rad[j]) || p.q_rad[j] < lim.lower_rad || p.q_rad[j] > lim.upper_rad) {
-          *code = Reason::BadArgument;
-          *reason = "joint " + std::to_string(j + 1) + fmt(": %.4f rad outside its limits", p.q_rad[j]) +
-                    fmt(" [%.4f, %.4f]", lim.lower_rad, lim.upper_rad);
-          return nullptr;
-        }
-      }
-      if (!(p.speed_fraction > 0.0 && p.speed_fraction <= 1.0)) {
-        *code = Reason::BadArgument;
-        *reason = fmt("speed_fraction %g out of range (0, 1]", p.speed_fraction);
-        return nullptr;
-      }
+    case CommandKind::Trajectory:
+      made = make_trajectory_job(std::get<protocol::RunTrajectory>(c.payload), *job, code, reason);
+      break;
+    case CommandKind::GotoJoint:
+    case CommandKind::GotoCart:
+      made = check_goto(c, code, reason);
       job->kind = JobKind::Goto;
-      return job;
-    }
-    case CommandKind::GotoCart: {
-      const auto& p = std::get<protocol::GotoCart>(c.payload);
-      const std::string tip = model_.links()[static_cast<std::size_t>(model_.tip_index())].name;
-      if (p.frame != tip) {
-        *code = Reason::BadArgument;
-        *reason = "unknown frame '" + p.frame + "' (GOTO_CART moves the tool tip '" + tip + "')";
-        return nullptr;
-      }
-      if (!(p.speed_fraction > 0.0 && p.speed_fraction <= 1.0)) {
-        *code = Reason::BadArgument;
-        *reason = fmt("speed_fraction %g out of range (0, 1]", p.speed_fraction);
-        return nullptr;
-      }
-      if (!p.base_T_frame.matrix().allFinite()) {
-        *code = Reason::BadArgument;
-        *reason = "the target pose is not finite";
-        return nullptr;
-      }
-      job->kind = JobKind::Goto;
-      return job;
-    }
-    case CommandKind::InvokeAlgorithm: {
-      const auto& p = std::get<protocol::InvokeAlgorithm>(c.payload);
-      if (const auto step = tool_step_from_name(p.name)) {
-        if (p_.tool == nullptr) {
-          *code = Reason::ToolFault;
-          *reason = p.name + ": no tool configured";
-          return nullptr;
-        }
-        const std::string why = parse_tool_step(p, *step, p_.tool->config(), job->tool_step);
-        if (!why.empty()) {
-          *code = Reason::BadArgument;
-          *reason = why;
-          return nullptr;
-        }
-        job->tool_step.command_id = c.command_id;
-        job->kind = JobKind::ToolStep;
-        return job;
-      }
-      if (p.name == "tare") {
-        // Zero the F/T sensor with the arm still (after picking up the ORU:
-        // its weight is then no contact force). Parameter: samples (1..10000).
-        for (const auto& nv : p.params) {
-          if (nv.name != "samples") {
-            *code = Reason::BadArgument;
-            *reason = "tare: unknown parameter '" + nv.name + "' (expected one of: samples)";
-            return nullptr;
-          }
-          if (!(nv.value >= 1.0 && nv.value <= 10000.0) || nv.value != std::floor(nv.value)) {
-            *code = Reason::BadArgument;
-            *reason = fmt("tare: samples %g must be an integer in 1..10000", nv.value);
-            return nullptr;
-          }
-          job->tare_samples = static_cast<int>(nv.value);
-        }
-        job->kind = JobKind::Tare;
-        return job;
-      }
-      const std::string why = parse_algorithm(p, job->algorithm);
-      if (!why.empty()) {
-        *code = job->algorithm.kind == control::AlgorithmKind::None ? Reason::UnknownAlgorithm : Reason::BadArgument;
-        *reason = job->algorithm.kind == control::AlgorithmKind::None
-                      ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten, tare)"
-                      : why;
-        return nullptr;
-      }
-      job->kind = JobKind::Algorithm;
-      return job;
-    }
+      break;
+    case CommandKind::InvokeAlgorithm:
+      made = make_invoke_job(std::get<protocol::InvokeAlgorithm>(c.payload), *job, code, reason);
+      break;
     case CommandKind::Recover:
       job->kind = JobKind::Recover;
-      return job;
+      made = true;
+      break;
     case CommandKind::Request:  // chained: the report once the chain got here
       job->kind = JobKind::Report;
-      return job;
+      made = true;
+      break;
     default:
       *code = Reason::Internal;
       *reason = std::string("no handler for ") + control::to_string(c.kind);
-      return nullptr;
+      break;
   }
+  return made ? std::move(job) : nullptr;
+}
+
+bool Supervisor::make_trajectory_job(const protocol::RunTrajectory& p, Job& job, Reason* code, std::string* reason) {
+  if (!(p.start_tolerance_rad >= 0.0) || !std::isfinite(p.start_tolerance_rad) ||
+      p.start_tolerance_rad > kMaxStartToleranceRad) {
+    *code = Reason::BadArgument;
+    *reason = fmt("start_tolerance_rad %g out of range [0, ", p.start_tolerance_rad) +
+              fmt("%g] rad: a larger start offset would jump the arm; plan an approach segment (a GOTO_JOINT to "
+                  "the first sample)", kMaxStartToleranceRad);
+    return false;
+  }
+  if (!(p.upload_wait_s >= 0.0) || !(p.upload_wait_s <= p_.config.max_upload_wait_s)) {
+    *code = Reason::BadArgument;
+    *reason = fmt("upload_wait_s %g out of range [0, %g] s (controller.max_upload_wait_s)", p.upload_wait_s,
+                  p_.config.max_upload_wait_s);
+    return false;
+  }
+  job.kind = JobKind::Trajectory;
+  job.compliant = p.compliant;
+  job.start_tolerance_rad = p.start_tolerance_rad;
+  const auto it = uploads_.find(p.trajectory_id);
+  if (it == uploads_.end()) {
+    const auto refused = upload_refused_.find(p.trajectory_id);
+    if (refused != upload_refused_.end()) {
+      *code = Reason::IncompleteUpload;
+      *reason = "upload " + std::to_string(p.trajectory_id) + " was refused: " + refused->second;
+      return false;
+    }
+    if (p.upload_wait_s == 0.0) {
+      *code = Reason::UnknownTrajectory;
+      *reason = "no committed upload with id " + std::to_string(p.trajectory_id) +
+                " (a RUN with upload_wait_s > 0 may overtake its upload)";
+      return false;
+    }
+    // RUN overtook its upload (issue 29): held until the whole upload
+    // committed with this hash, or failed at the deadline.
+    job.awaiting_upload = p.trajectory_id;
+    job.upload_deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(p.upload_wait_s));
+    return true;
+  }
+  if (upload_hash_[p.trajectory_id] != p.content_hash) {
+    *code = Reason::HashMismatch;
+    *reason = hash_mismatch(p.trajectory_id, p.content_hash, upload_hash_[p.trajectory_id]);
+    return false;
+  }
+  job.trajectory = it->second;
+  try {
+    job.prepared = std::make_unique<control::PreparedTrajectory>(*it->second, p.trajectory_id);
+  } catch (const std::exception& e) {
+    *code = Reason::ValidationFailed;
+    *reason = e.what();
+    return false;
+  }
+  return true;
+}
+
+bool Supervisor::check_goto(const protocol::Command& c, Reason* code, std::string* reason) const {
+  const double speed_fraction = c.kind == CommandKind::GotoJoint ? std::get<protocol::GotoJoint>(c.payload).speed_fraction
+                                                                 : std::get<protocol::GotoCart>(c.payload).speed_fraction;
+  if (c.kind == CommandKind::GotoJoint) {
+    const auto& p = std::get<protocol::GotoJoint>(c.payload);
+    const std::size_t dof = static_cast<std::size_t>(model_.dof());
+    if (p.q_rad.size() != dof) {
+      *code = Reason::JointCount;
+      *reason = std::to_string(p.q_rad.size()) + " joint values for a " + std::to_string(dof) + "-joint arm";
+      return false;
+    }
+    for (std::size_t j = 0; j < dof; ++j) {
+      const auto& lim = model_.limits()[j];
+      if (!std::isfinite(p.q_rad[j]) || p.q_rad[j] < lim.lower_rad || p.q_rad[j] > lim.upper_rad) {
+        *code = Reason::BadArgument;
+        *reason = "joint " + std::to_string(j + 1) + fmt(": %.4f rad outside its limits", p.q_rad[j]) +
+                  fmt(" [%.4f, %.4f]", lim.lower_rad, lim.upper_rad);
+        return false;
+      }
+    }
+  } else {
+    const auto& p = std::get<protocol::GotoCart>(c.payload);
+    const std::string tip = model_.links()[static_cast<std::size_t>(model_.tip_index())].name;
+    if (p.frame != tip) {
+      *code = Reason::BadArgument;
+      *reason = "unknown frame '" + p.frame + "' (GOTO_CART moves the tool tip '" + tip + "')";
+      return false;
+    }
+  }
+  if (!(speed_fraction > 0.0 && speed_fraction <= 1.0)) {
+    *code = Reason::BadArgument;
+    *reason = fmt("speed_fraction %g out of range (0, 1]", speed_fraction);
+    return false;
+  }
+  if (c.kind == CommandKind::GotoCart && !std::get<protocol::GotoCart>(c.payload).base_T_frame.matrix().allFinite()) {
+    *code = Reason::BadArgument;
+    *reason = "the target pose is not finite";
+    return false;
+  }
+  return true;
+}
+
+bool Supervisor::make_invoke_job(const protocol::InvokeAlgorithm& p, Job& job, Reason* code, std::string* reason) {
+  if (const auto step = tool_step_from_name(p.name)) {
+    if (p_.tool == nullptr) {
+      *code = Reason::ToolFault;
+      *reason = p.name + ": no tool configured";
+      return false;
+    }
+    const std::string why = parse_tool_step(p, *step, p_.tool->config(), job.tool_step);
+    if (!why.empty()) {
+      *code = Reason::BadArgument;
+      *reason = why;
+      return false;
+    }
+    job.tool_step.command_id = job.command.command_id;
+    job.kind = JobKind::ToolStep;
+    return true;
+  }
+  if (p.name == "tare") {
+    // Zero the F/T sensor with the arm still (after picking up the ORU:
+    // its weight is then no contact force). Parameter: samples (1..10000).
+    for (const auto& nv : p.params) {
+      if (nv.name != "samples") {
+        *code = Reason::BadArgument;
+        *reason = "tare: unknown parameter '" + nv.name + "' (expected one of: samples)";
+        return false;
+      }
+      if (!(nv.value >= 1.0 && nv.value <= 10000.0) || nv.value != std::floor(nv.value)) {
+        *code = Reason::BadArgument;
+        *reason = fmt("tare: samples %g must be an integer in 1..10000", nv.value);
+        return false;
+      }
+      job.tare_samples = static_cast<int>(nv.value);
+    }
+    job.kind = JobKind::Tare;
+    return true;
+  }
+  const std::string why = parse_algorithm(p, job.algorithm);
+  if (!why.empty()) {
+    *code = job.algorithm.kind == control::AlgorithmKind::None ? Reason::UnknownAlgorithm : Reason::BadArgument;
+    *reason = job.algorithm.kind == control::AlgorithmKind::None
+                  ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten, tare)"
+                  : why;
+    return false;
+  }
+  job.kind = JobKind::Algorithm;
+  return true;
 }
 
 bool Supervisor::plan_goto(Job& job, Reason* code, std::string* reason) {

@@ -157,7 +157,12 @@ class Supervisor {
   std::string check_commander(const protocol::Command& command, protocol::Reason* code) const;
   std::string check_can_move(protocol::Reason* code) const;
 
+  // The job factory: a command's checks and its job; nullptr (false), with
+  // the code and the reason, when refused.
   std::unique_ptr<Job> make_job(const protocol::Command& command, protocol::Reason* code, std::string* reason);
+  bool make_trajectory_job(const protocol::RunTrajectory& run, Job& job, protocol::Reason* code, std::string* reason);
+  bool check_goto(const protocol::Command& command, protocol::Reason* code, std::string* reason) const;
+  bool make_invoke_job(const protocol::InvokeAlgorithm& invoke, Job& job, protocol::Reason* code, std::string* reason);
   bool plan_goto(Job& job, protocol::Reason* code, std::string* reason);
   void enqueue(std::unique_ptr<Job> job, const std::string& note = {});
   void start_next();
