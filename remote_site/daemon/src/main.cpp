@@ -157,15 +157,15 @@ struct Options {
   int max_missed_cycles = -1;      ///< periods missed in a row that stop the arm; -1: 3, off on --sim
 };
 
-int run_daemon(Options o) {
-  using namespace foresight;
-  if (o.domain < 0) o.domain = protocol::domain_from_environment().value_or(0);  // InputError: exit 2
-  // ---- configuration (exit 2 on any error) -----------------------------------------
-  daemon::DaemonConfig config = daemon::load_daemon_config(o.config);
-  // The DDS Security files read and checked before any hardware is touched: a
-  // damaged certificate, key or signed document is named here (Cyclone would
-  // say only "create participant: Error", after the drives were configured).
-  // --security / --identity override controller.link.security / identity.
+using namespace foresight;
+
+/// --security / --identity over controller.link.security / identity; the
+/// DDS Security files read and checked before any hardware is touched (a
+/// damaged certificate, key or signed document is named here: Cyclone would
+/// say only "create participant: Error", after the drives were configured);
+/// off the simulator an open link is refused unless the configuration says
+/// so. InputError (exit 2).
+void settle_link_security(const Options& o, daemon::DaemonConfig& config) {
   const bool security_flag = !o.security_dir.empty();
   if (security_flag) config.security_dir = o.security_dir;
   if (!o.security_identity.empty()) config.security_identity = o.security_identity;
@@ -190,6 +190,145 @@ int run_daemon(Options o) {
     spdlog::warn("controller.link.insecure: true: the DDS link runs without DDS Security (any participant of domain "
                  "{} can reach it)", o.domain);
   }
+}
+
+/// The controller's configuration from remote.yaml and the site.
+control::ControllerConfig controller_config(const daemon::DaemonConfig& config, const daemon::Site& site) {
+  control::ControllerConfig cc;
+  cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
+  cc.start_tolerance_rad = config.start_tolerance_rad;
+  cc.rate_limit_acceleration_fraction = config.rate_limit_acceleration_fraction;
+  cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
+  cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
+  cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
+                                                                         : control::LinkLossPolicy::FinishThenHold;
+  if (site.simulated && site.simulated->plant) {
+    // The simulated tool's mass properties (from the URDF); on a cabinet they
+    // come from the tool's own calibration in the URDF the same way.
+    const auto& plant = *site.simulated->plant;
+    cc.tool.mass_kg = plant.tool_mass_kg();
+    for (int i = 0; i < 3; ++i) cc.tool.com_sensor_m[static_cast<std::size_t>(i)] = plant.tool_com_sensor_m()[i];
+    cc.tool.sensor_T_tip = plant.sensor_T_tip();
+  }
+  return cc;
+}
+
+/// The loop's scheduling and its real-time rules.
+control::LoopOptions loop_options_for(const Options& o) {
+  control::LoopOptions loop_options;
+  loop_options.cpu = o.loop_cpu;
+  loop_options.rt_priority = o.rt_priority;
+  // Real time is enforced off the simulator: the drives are not enabled
+  // without SCHED_FIFO and mlockall (unless --allow-non-rt), and 3 periods
+  // missed in a row stop the arm (category 1). The simulator on a shared
+  // test machine keeps neither unless asked (--max-missed-cycles).
+  loop_options.require_realtime = !o.sim && !o.allow_non_rt;
+  loop_options.max_missed_cycles = o.max_missed_cycles >= 0 ? o.max_missed_cycles : o.sim ? 0 : 3;
+  return loop_options;
+}
+
+/// The loop's grant of real time and its rules, logged and journaled.
+void journal_loop_start(const Options& o, const control::ControlLoop& loop, const control::LoopOptions& loop_options,
+                        journal::Journal& journal) {
+  const control::LoopStats st = loop.stats();
+  journal::EventRow row;
+  row.kind = "loop_start";
+  row.text = std::string("control loop: SCHED_FIFO ") + (st.realtime ? "granted" : "refused") + ", mlockall " +
+             (st.memory_locked ? "granted" : "refused") + "; " +
+             (loop_options.require_realtime ? "real time required to enable the drives"
+              : o.sim                       ? "simulated drives: real time not required"
+                                            : "--allow-non-rt: the drives may be enabled without real time") +
+             "; " +
+             (loop_options.max_missed_cycles > 0
+                  ? std::to_string(loop_options.max_missed_cycles) + " missed periods in a row stop the arm"
+                  : std::string("missed periods do not stop the arm"));
+  if (o.allow_non_rt && !o.sim && !(st.realtime && st.memory_locked))
+    spdlog::warn("--allow-non-rt: the drives may be enabled although the control loop is not real time");
+  spdlog::info("{}", row.text);
+  journal.record_event(row);
+}
+
+/// The simulator's truth for the journal (the demo's final alignment).
+std::function<std::string()> sim_truth_of(const daemon::Site& site) {
+  if (!(site.simulated && site.simulated->plant)) return {};
+  const sim::Plant* plant = site.simulated->plant.get();
+  return [plant] {
+    const sim::PlantTruth t = plant->truth();
+    nlohmann::json j;
+    j["oru_state"] = sim::to_string(t.state);
+    j["gripped"] = t.gripped;
+    const Eigen::Vector3d p = t.base_T_oru.translation();
+    j["base_T_oru_xyz_m"] = {p.x(), p.y(), p.z()};
+    const Eigen::Vector3d tip = t.base_T_tip.translation();
+    j["base_T_tip_xyz_m"] = {tip.x(), tip.y(), tip.z()};
+    j["tip_depth_m"] = t.tip_depth_m;
+    j["oru_slot_depth_m"] = t.oru_slot_depth_m;
+    j["alignment_error_m"] = t.alignment_error_m;
+    j["alignment_error_deg"] = t.alignment_error_rad * 180.0 / M_PI;
+    return json_text(j);
+  };
+}
+
+/// The link's configuration.
+remote_link::Config link_config(const Options& o, const daemon::DaemonConfig& config, const RobotModel& model) {
+  remote_link::Config lc;
+  lc.domain = o.domain;
+  lc.link_loss_s = config.link_loss_timeout_s;
+  lc.trajectory_limits = TrajectoryLimits::from_model(model);
+  lc.session_idle_s = config.session_idle_s;
+  lc.security_dir = config.security_dir;
+  lc.security_identity = config.security_identity;
+  lc.ros2 = o.ros2;
+  lc.ros2_joint_names = model.joint_names();
+  return lc;
+}
+
+/// The start, as the journal keeps it.
+void journal_start(const Options& o, const daemon::DaemonConfig& config, journal::Journal& journal) {
+  journal::EventRow start;
+  start.kind = "start";
+  start.text = std::string("foresight-remote started") + (o.sim ? " (--sim)" : "") + ", config " + o.config +
+               ", DDS domain " + std::to_string(o.domain) +
+               (!config.security_dir.empty() ? ", DDS Security as '" + config.security_identity + "' (" +
+                                                   config.security_dir + ")"
+                : config.insecure ? ", WITHOUT DDS Security (controller.link.insecure: true)"
+                                  : ", without DDS Security (--sim)");
+  journal.record_event(start);
+}
+
+/// The loop's timing over the whole run, for the engineer (and the README).
+void report_loop_stats(const control::ControlLoop& loop, journal::Journal& journal) {
+  const control::LoopStats st = loop.stats();
+  using LS = control::LoopStats;
+  nlohmann::json j;
+  j["cycles"] = st.cycles;
+  j["overruns"] = st.overruns;
+  j["realtime"] = st.realtime;
+  j["compute_us"] = {{"mean", st.compute_us_mean},
+                     {"p99", LS::percentile_us(st.compute_hist, 0.99)},
+                     {"max", st.compute_us_max}};
+  j["wakeup_latency_us"] = {{"mean", st.wakeup_latency_us_mean},
+                            {"p99", LS::percentile_us(st.latency_hist, 0.99)},
+                            {"p999", LS::percentile_us(st.latency_hist, 0.999)},
+                            {"max", st.wakeup_latency_us_max}};
+  spdlog::info("control loop: {}", json_text(j));
+  journal::EventRow row;
+  row.kind = "loop_stats";
+  row.text = std::to_string(st.cycles) + " cycles, " + std::to_string(st.overruns) + " overruns";
+  row.detail = json_text(j);
+  try {
+    journal.record_event(row);
+  } catch (const std::exception& e) {
+    spdlog::error("journal: {}", e.what());
+  }
+}
+
+int run_daemon(Options o) {
+  using namespace foresight;
+  if (o.domain < 0) o.domain = protocol::domain_from_environment().value_or(0);  // InputError: exit 2
+  // ---- configuration (exit 2 on any error) -----------------------------------------
+  daemon::DaemonConfig config = daemon::load_daemon_config(o.config);
+  settle_link_security(o, config);
   // The DDS network (controller.link.network), before the first participant.
   // A user's own CYCLONEDDS_URI wins; otherwise a missing interface or a
   // peer that does not resolve is named here, before the hardware.
@@ -236,52 +375,12 @@ int run_daemon(Options o) {
                    "scheduling, not the drives)");
   }
 
-  control::ControllerConfig cc;
-  cc.cycle_rate_hz = site.hw_config.cycle_rate_hz;
-  cc.start_tolerance_rad = config.start_tolerance_rad;
-  cc.rate_limit_acceleration_fraction = config.rate_limit_acceleration_fraction;
-  cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
-  cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
-  cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
-                                                                         : control::LinkLossPolicy::FinishThenHold;
-  if (site.simulated && site.simulated->plant) {
-    // The simulated tool's mass properties (from the URDF); on a cabinet they
-    // come from the tool's own calibration in the URDF the same way.
-    const auto& plant = *site.simulated->plant;
-    cc.tool.mass_kg = plant.tool_mass_kg();
-    for (int i = 0; i < 3; ++i) cc.tool.com_sensor_m[static_cast<std::size_t>(i)] = plant.tool_com_sensor_m()[i];
-    cc.tool.sensor_T_tip = plant.sensor_T_tip();
-  }
-  control::LoopOptions loop_options;
-  loop_options.cpu = o.loop_cpu;
-  loop_options.rt_priority = o.rt_priority;
-  // Real time is enforced off the simulator: the drives are not enabled
-  // without SCHED_FIFO and mlockall (unless --allow-non-rt), and 3 periods
-  // missed in a row stop the arm (category 1). The simulator on a shared
-  // test machine keeps neither unless asked (--max-missed-cycles).
-  loop_options.require_realtime = !o.sim && !o.allow_non_rt;
-  loop_options.max_missed_cycles = o.max_missed_cycles >= 0 ? o.max_missed_cycles : o.sim ? 0 : 3;
+  const control::ControllerConfig cc = controller_config(config, site);
+  const control::LoopOptions loop_options = loop_options_for(o);
   control::ControlLoop loop(*site.drives, model, cc, loop_options);
   loop.start();
   for (const auto& w : loop.warnings()) spdlog::warn("control loop: {}", w);
-  {
-    const control::LoopStats st = loop.stats();
-    journal::EventRow row;
-    row.kind = "loop_start";
-    row.text = std::string("control loop: SCHED_FIFO ") + (st.realtime ? "granted" : "refused") + ", mlockall " +
-               (st.memory_locked ? "granted" : "refused") + "; " +
-               (loop_options.require_realtime ? "real time required to enable the drives"
-                : o.sim                       ? "simulated drives: real time not required"
-                                              : "--allow-non-rt: the drives may be enabled without real time") +
-               "; " +
-               (loop_options.max_missed_cycles > 0
-                    ? std::to_string(loop_options.max_missed_cycles) + " missed periods in a row stop the arm"
-                    : std::string("missed periods do not stop the arm"));
-    if (o.allow_non_rt && !o.sim && !(st.realtime && st.memory_locked))
-      spdlog::warn("--allow-non-rt: the drives may be enabled although the control loop is not real time");
-    spdlog::info("{}", row.text);
-    journal.record_event(row);
-  }
+  journal_loop_start(o, loop, loop_options, journal);
 
   daemon::ToolWorker tool(site.tool_config, config.tool_poll_hz);
   std::unique_ptr<daemon::CameraWorker> camera;
@@ -309,35 +408,10 @@ int run_daemon(Options o) {
   };
   parts.outbox.republish_uploads = [&] { if (link_ptr) link_ptr->republish_uploads(); };
   parts.outbox.commander = [&](const protocol::ParticipantGuid& g) { if (link_ptr) link_ptr->set_commander(g); };
-  if (site.simulated && site.simulated->plant) {
-    const sim::Plant* plant = site.simulated->plant.get();
-    parts.sim_truth = [plant] {
-      const sim::PlantTruth t = plant->truth();
-      nlohmann::json j;
-      j["oru_state"] = sim::to_string(t.state);
-      j["gripped"] = t.gripped;
-      const Eigen::Vector3d p = t.base_T_oru.translation();
-      j["base_T_oru_xyz_m"] = {p.x(), p.y(), p.z()};
-      const Eigen::Vector3d tip = t.base_T_tip.translation();
-      j["base_T_tip_xyz_m"] = {tip.x(), tip.y(), tip.z()};
-      j["tip_depth_m"] = t.tip_depth_m;
-      j["oru_slot_depth_m"] = t.oru_slot_depth_m;
-      j["alignment_error_m"] = t.alignment_error_m;
-      j["alignment_error_deg"] = t.alignment_error_rad * 180.0 / M_PI;
-      return json_text(j);
-    };
-  }
+  parts.sim_truth = sim_truth_of(site);
   daemon::Supervisor supervisor(std::move(parts));
 
-  remote_link::Config lc;
-  lc.domain = o.domain;
-  lc.link_loss_s = config.link_loss_timeout_s;
-  lc.trajectory_limits = TrajectoryLimits::from_model(model);
-  lc.session_idle_s = config.session_idle_s;
-  lc.security_dir = config.security_dir;
-  lc.security_identity = config.security_identity;
-  lc.ros2 = o.ros2;
-  lc.ros2_joint_names = model.joint_names();
+  const remote_link::Config lc = link_config(o, config, model);
   remote_link::Handlers handlers;
   handlers.on_command = [&](const remote_link::CommandEvent& e) { supervisor.submit(e); };
   handlers.on_upload = [&](const remote_link::UploadEvent& e) { supervisor.upload(e); };
@@ -355,17 +429,7 @@ int run_daemon(Options o) {
   link_ptr = &link;
   link.start();
 
-  {
-    journal::EventRow start;
-    start.kind = "start";
-    start.text = std::string("foresight-remote started") + (o.sim ? " (--sim)" : "") + ", config " + o.config +
-                 ", DDS domain " + std::to_string(o.domain) +
-                 (!config.security_dir.empty() ? ", DDS Security as '" + config.security_identity + "' (" +
-                                                     config.security_dir + ")"
-                  : config.insecure ? ", WITHOUT DDS Security (controller.link.insecure: true)"
-                                    : ", without DDS Security (--sim)");
-    journal.record_event(start);
-  }
+  journal_start(o, config, journal);
   spdlog::info("foresight-remote ready: DDS domain {}, journal {}, drives disabled until RECOVER", o.domain,
                journal.path());
   std::cout << "foresight-remote: ready" << std::endl;  // tests and scripts wait for this line
@@ -381,32 +445,7 @@ int run_daemon(Options o) {
   const std::string why = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "stop requested";
   spdlog::info("{}: controlled stop (category 1), drives off", why);
   supervisor.shutdown(why);
-  {
-    // The loop's timing over the whole run, for the engineer (and the README).
-    const control::LoopStats st = loop.stats();
-    using LS = control::LoopStats;
-    nlohmann::json j;
-    j["cycles"] = st.cycles;
-    j["overruns"] = st.overruns;
-    j["realtime"] = st.realtime;
-    j["compute_us"] = {{"mean", st.compute_us_mean},
-                       {"p99", LS::percentile_us(st.compute_hist, 0.99)},
-                       {"max", st.compute_us_max}};
-    j["wakeup_latency_us"] = {{"mean", st.wakeup_latency_us_mean},
-                              {"p99", LS::percentile_us(st.latency_hist, 0.99)},
-                              {"p999", LS::percentile_us(st.latency_hist, 0.999)},
-                              {"max", st.wakeup_latency_us_max}};
-    spdlog::info("control loop: {}", json_text(j));
-    journal::EventRow row;
-    row.kind = "loop_stats";
-    row.text = std::to_string(st.cycles) + " cycles, " + std::to_string(st.overruns) + " overruns";
-    row.detail = json_text(j);
-    try {
-      journal.record_event(row);
-    } catch (const std::exception& e) {
-      spdlog::error("journal: {}", e.what());
-    }
-  }
+  report_loop_stats(loop, journal);
   link_ptr = nullptr;
   link.stop();
   if (!journal.flush()) spdlog::warn("journal: telemetry not flushed within the timeout");
