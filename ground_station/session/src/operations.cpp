@@ -16,6 +16,7 @@
 #include <set>
 #include <sstream>
 
+#include "foresight/align/alignment_study.hpp"
 #include "foresight/align/arm_links_file.hpp"
 #include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/robot_points.hpp"
@@ -96,6 +97,16 @@ nlohmann::json stats_json(const ErrorStats& s) {
           {"depth95_cm", s.depth95_m * 100.0},
           {"position_rmse_m", s.position_rmse_m},
           {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg}};
+}
+
+nlohmann::json alignment_summary_json(const ErrorStats& s) {
+  return {{"n", s.n},
+          {"position_rmse_m", s.position_rmse_m},
+          {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg},
+          {"alignment95_m", s.alignment95_m},
+          {"depth95_m", s.depth95_m},
+          {"mean_m", vec_json(s.mean.head<3>())},
+          {"sd_m", vec_json(s.sd.head<3>())}};
 }
 
 }  // namespace
@@ -259,6 +270,122 @@ nlohmann::json localization_study_json(const LocalizationStudyRequest& a, const 
                                    {"depth95_cm", w.ours.depth95_m * 100.0}}},
                                  {"over_seeds", localization_spread_json(arm_runs)}};
   }
+  return j;
+}
+
+AlignmentStudySummary study_alignment(const AlignmentStudyRequest& a,
+                                      const std::function<void(int done, int total)>& progress) {
+  if (a.trials < 1) throw std::invalid_argument("--trials must be at least 1");
+  if (!(a.noise_px > 0.0) || !std::isfinite(a.noise_px)) throw std::invalid_argument("--noise-px must be a positive number");
+  if (!(a.arm_error_mm >= 0.0) || !std::isfinite(a.arm_error_mm))
+    throw std::invalid_argument("--arm-error-mm must be a non-negative number");
+  if (!(a.arm_prior_mm >= 0.0) || !std::isfinite(a.arm_prior_mm))
+    throw std::invalid_argument("--arm-prior-mm must be a non-negative number");
+  if (!(a.sensor_noise_dn >= 0.0) || !std::isfinite(a.sensor_noise_dn))
+    throw std::invalid_argument("--sensor-noise-dn must be a non-negative number");
+  if (!(a.blur_px >= 0.0) || !std::isfinite(a.blur_px)) throw std::invalid_argument("--blur-px must be a non-negative number");
+  const render::GlBackend backend = render::parse_gl_backend(a.gl);
+  const Scene scene = Scene::from_file(a.scene);
+  const ObjectModel object = ObjectModel::from_file(a.object);
+  const RobotModel robot = RobotModel::from_file(a.robot);
+  auto context = render::GlContext::create(backend);
+
+  align::AlignmentStudyOptions o;
+  o.trials = a.trials;
+  o.noise_px = a.noise_px;
+  o.seed = a.seed;
+  o.arm_link_error_m = a.arm_error_mm * 1e-3;
+  o.arm_link_prior_m = a.arm_prior_mm * 1e-3;
+  o.sensor_noise_dn = a.sensor_noise_dn;
+  o.blur_px = a.blur_px;
+  o.progress = progress;
+  AlignmentStudySummary out;
+  out.result = align::run_alignment_study(*context, robot, object, scene, o);
+  const align::AlignmentStudyResult& r = out.result;
+  const align::AlignmentComboStats& all = r.combos.back();
+  double single_clicks_depth = 0.0, single_aligned_depth = 0.0, single_cam_only_depth = 0.0;
+  int singles = 0;
+  for (const auto& c : r.combos)
+    if (c.views.size() == 1) {
+      single_clicks_depth += c.clicks.depth95_m;
+      single_aligned_depth += c.aligned.depth95_m;
+      single_cam_only_depth += c.aligned_cameras_only.depth95_m;
+      ++singles;
+    }
+  single_clicks_depth /= std::max(1, singles);
+  single_aligned_depth /= std::max(1, singles);
+  single_cam_only_depth /= std::max(1, singles);
+  out.single_clicks_depth_m = single_clicks_depth;
+  out.single_aligned_depth_m = single_aligned_depth;
+  out.single_cameras_only_depth_m = single_cam_only_depth;
+  out.four_view_ratio = all.aligned.alignment95_m > 0 ? all.clicks.alignment95_m / all.aligned.alignment95_m : 0.0;
+  out.single_view_depth_ratio = single_aligned_depth > 0 ? single_clicks_depth / single_aligned_depth : 0.0;
+  out.four_view_ratio_held_cameras = all.aligned_held_cameras.alignment95_m > 0
+                                         ? all.clicks.alignment95_m / all.aligned_held_cameras.alignment95_m
+                                         : 0.0;
+  out.four_view_ratio_cameras_only = all.aligned_cameras_only.alignment95_m > 0
+                                         ? all.clicks.alignment95_m / all.aligned_cameras_only.alignment95_m
+                                         : 0.0;
+  out.single_view_depth_ratio_cameras_only =
+      single_cam_only_depth > 0 ? single_clicks_depth / single_cam_only_depth : 0.0;
+  return out;
+}
+
+
+nlohmann::json alignment_study_json(const AlignmentStudyRequest& a, const AlignmentStudySummary& s) {
+  const align::AlignmentStudyResult& r = s.result;
+  nlohmann::json views = nlohmann::json::array();
+  for (std::size_t v = 0; v < r.view_names.size(); ++v)
+    views.push_back({{"index", v + 1},
+                     {"name", r.view_names[v]},
+                     {"frames", r.frames[v]},
+                     {"camera_clicks_px", r.camera_clicks_px[v]},
+                     {"camera_aligned_px", r.camera_aligned_px[v]},
+                     {"camera_bundle_px", r.camera_bundle_px[v]},
+                     {"camera_refused", r.camera_refused[v]}});
+  nlohmann::json combos = nlohmann::json::array();
+  for (const auto& c : r.combos)
+    combos.push_back({{"views", c.label},
+                      {"clicks", alignment_summary_json(c.clicks)},
+                      {"aligned", alignment_summary_json(c.aligned)},
+                      {"aligned_held_cameras", alignment_summary_json(c.aligned_held_cameras)},
+                      {"aligned_cameras_only", alignment_summary_json(c.aligned_cameras_only)},
+                      {"clicks_failures", c.clicks_failures},
+                      {"aligned_refused", c.aligned_refused},
+                      {"aligned_refused_disagreement", c.aligned_refused_disagreement},
+                      {"aligned_cameras_only_refused", c.aligned_cameras_only_refused},
+                      {"aligned_held_cameras_refused", c.aligned_held_cameras_refused},
+                      {"aligned_accepted", c.aligned_accepted},
+                      {"aligned_within_3_sigma", c.aligned_within_3_sigma},
+                      {"aligned_mahalanobis2_mean", c.aligned_mahalanobis2_mean}});
+  nlohmann::json links = nlohmann::json::array();
+  for (std::size_t j = 0; j < r.link_segments.size(); ++j)
+    links.push_back({{"segment", r.link_segments[j]},
+                     {"true_rms_m", r.link_true_rms_m[j]},
+                     {"estimate_error_rms_m", r.link_estimate_error_rms_m[j]},
+                     {"sigma_mean_m", r.link_sigma_mean_m[j]}});
+  nlohmann::json j = {{"study", "alignment"},
+                            {"trials", r.trials},
+                            {"noise_px", r.noise_px},
+                            {"seed", a.seed},
+                            {"arm_error_mm", a.arm_error_mm},
+                            {"sensor_noise_dn", a.sensor_noise_dn},
+                            {"blur_px", a.blur_px},
+                            {"calibration_failures", r.calibration_failures},
+                            {"elapsed_s", r.elapsed_s},
+                            {"frame", "oru (z along the hole axis)"},
+                            {"views", views},
+                            {"combinations", combos},
+                            {"arm_prior_mm", a.arm_prior_mm},
+                            {"bundle_refused", r.bundle_refused},
+                            {"arm_links", links},
+                            {"arm_link_true_rms_m", r.link_true_rms_all_m},
+                            {"arm_link_estimate_error_rms_m", r.link_estimate_error_rms_all_m},
+                            {"four_view_alignment95_ratio", s.four_view_ratio},
+                            {"single_view_depth95_ratio", s.single_view_depth_ratio},
+                            {"four_view_alignment95_ratio_held_cameras", s.four_view_ratio_held_cameras},
+                            {"four_view_alignment95_ratio_cameras_only", s.four_view_ratio_cameras_only},
+                            {"single_view_depth95_ratio_cameras_only", s.single_view_depth_ratio_cameras_only}};
   return j;
 }
 

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/align/alignment_study.hpp"
 #include "foresight/align/model_aligner.hpp"
 #include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/correspondence.hpp"
@@ -91,6 +92,36 @@ LocalizationStudy study_localization(const LocalizationStudyRequest& request,
 nlohmann::json localization_spread_json(const std::vector<StudyResult>& runs);
 /// `foresight eval localization --json`'s object.
 nlohmann::json localization_study_json(const LocalizationStudyRequest& request, const LocalizationStudy& study);
+
+// --- eval alignment (clicks alone vs clicks + alignment) ---------------------
+
+struct AlignmentStudyRequest {
+  int trials = 20;
+  double noise_px = 1.0;
+  unsigned seed = 1;
+  double arm_error_mm = 2.0;          ///< the rendered true arm's link-length error (sd)
+  double arm_prior_mm = 2.0;          ///< the links refined with the cameras under this prior (0: nominal arm)
+  double sensor_noise_dn = 2.0;
+  double blur_px = 0.6;
+  std::string gl = "osmesa";
+  std::string scene = default_config("scene.yaml");
+  std::string object = default_config("oru.yaml");
+  std::string robot = default_config("robot.urdf");
+};
+
+/// The study and the figures its summary gives (the single views' mean
+/// 95% depth, the ratios of clicks to alignment).
+struct AlignmentStudySummary {
+  align::AlignmentStudyResult result;
+  double single_clicks_depth_m = 0.0, single_aligned_depth_m = 0.0, single_cameras_only_depth_m = 0.0;
+  double four_view_ratio = 0.0, single_view_depth_ratio = 0.0;
+  double four_view_ratio_held_cameras = 0.0, four_view_ratio_cameras_only = 0.0, single_view_depth_ratio_cameras_only = 0.0;
+};
+
+AlignmentStudySummary study_alignment(const AlignmentStudyRequest& request,
+                                      const std::function<void(int done, int total)>& progress = {});
+/// `foresight eval alignment --json`'s object.
+nlohmann::json alignment_study_json(const AlignmentStudyRequest& request, const AlignmentStudySummary& summary);
 
 // --- calibrate -------------------------------------------------------------
 
