@@ -223,6 +223,211 @@ CameraCalibrationInfo CalibrationResult::info(const std::string& date_utc) const
   return i;
 }
 
+namespace {
+
+/// One call of calibrate_camera: the fit with outlier flagging (from the
+/// linear solution), the residuals over the inliers, the covariance with the
+/// arm model's term.
+class CameraFit {
+ public:
+  CameraFit(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+            const CalibrationOptions& opt, CalibrationResult& res)
+      : pts_(pts),
+        vp_(vp),
+        name_(name),
+        who_("camera '" + name + "': "),
+        opt_(opt),
+        res_(res),
+        n_(static_cast<int>(pts.size())),
+        pp_(vp.width_px / 2.0, vp.height_px / 2.0) {
+    res.n_points = n_;
+  }
+
+  void run() {
+    fit_with_outliers();
+    // The final camera and its statistics over the inliers.
+    res_.camera.name = name_;
+    res_.camera.viewport = vp_;
+    res_.camera.f_px = state_.f;
+    res_.camera.base_T_camera = Pose::Identity();
+    res_.camera.base_T_camera.linear() = state_.R;
+    res_.camera.base_T_camera.translation() = state_.c;
+    res_.iterations = iterations_;
+    if (!(state_.f > 0.0) || !std::isfinite(state_.f) || !state_.R.allFinite() || !state_.c.allFinite())
+      throw EstimationError(who_ + "the nonlinear fit did not converge to a valid camera");
+    residuals();
+    covariance();
+  }
+
+ private:
+  void evaluate(const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) const {
+    for (int k = 0; k < static_cast<int>(idx_.size()); ++k) {
+      const Correspondence& c = pts_[idx_[k]];
+      const Projection pr = project_with_jacobians(s.R, s.c, s.f, pp_, c.p_m);
+      e.segment<2>(2 * k) = pr.uv_px - c.uv_px;
+      if (J) J->block<2, 7>(2 * k, 0) = pr.d_camera;  // body rotation, position, f_px
+    }
+  }
+
+  std::vector<double> residual_norms(const CamState& s) const {
+    std::vector<double> r(static_cast<std::size_t>(n_));
+    const Eigen::Matrix3d Rt = s.R.transpose();
+    for (int i = 0; i < n_; ++i) {
+      const Eigen::Vector3d pc = Rt * (pts_[i].p_m - s.c);
+      r[i] = (pp_ + s.f * pc.head<2>() / pc.z() - pts_[i].uv_px).norm();
+    }
+    return r;
+  }
+
+  /// Levenberg-Marquardt from the linear solution (of every point), the
+  /// outliers flagged and left out.
+  void fit_with_outliers() {
+    const auto retract = [](const CamState& s, const Eigen::Matrix<double, 7, 1>& d) {
+      return CamState{s.R * exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
+    };
+    // Size of the parameters in the units of a step (rad, m, px): for the relative step test.
+    const auto state_norm = [](const CamState& s) { return std::sqrt(3.0 + s.c.squaredNorm() + s.f * s.f); };
+    const auto eval = [this](const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) {
+      evaluate(s, e, J);
+    };
+    bool have_state = false;
+    estimation::LmReport last_fit;
+    const auto fit = [&](const std::vector<bool>& inlier) {
+      std::vector<Correspondence> sub;
+      idx_.clear();
+      for (int i = 0; i < n_; ++i)
+        if (inlier[i]) {
+          idx_.push_back(i);
+          sub.push_back(pts_[i]);
+        }
+      if (!have_state) {  // first fit: start from the linear solution
+        Camera lin = calibrate_camera_linear(sub, vp_, name_, opt_.rank_tolerance, &res_.linear_cross_product);
+        linear_all_ = lin;
+        state_ = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
+        have_state = true;
+      }
+      estimation::LmOptions lm;
+      lm.max_iterations = opt_.max_iterations;
+      last_fit = estimation::levenberg_marquardt<7>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
+                                                    state_norm, lm);
+      iterations_ = last_fit.iterations;
+      return residual_norms(state_);
+    };
+    std::vector<double> r;
+    inlier_ = estimation::flag_outliers(n_, 8, opt_.outliers, fit, r);
+    if (!last_fit.converged)
+      throw EstimationError(who_ + "the nonlinear fit did not converge after " + std::to_string(last_fit.iterations) +
+                            " iterations (" + estimation::to_string(last_fit.stop) + ")");
+  }
+
+  /// Every point's residual (outliers marked), the rms over the inliers,
+  /// the linear stage's rms over them.
+  void residuals() {
+    std::string behind;
+    double ss = 0.0;
+    for (int i = 0; i < n_; ++i) {
+      const Eigen::Vector3d pc = res_.camera.to_camera(pts_[i].p_m);
+      PointResidual pr;
+      pr.n = pts_[i].n;
+      pr.cam = pts_[i].cam;
+      pr.line = pts_[i].line;
+      pr.r_px = pts_[i].uv_px - res_.camera.project_camera(pc);
+      pr.px = pr.r_px.norm();
+      pr.outlier = !inlier_[i];
+      if (pr.outlier) {
+        res_.outliers.push_back(pts_[i].n);
+      } else {
+        if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(pts_[i]);
+        ss += pr.px * pr.px;
+        res_.max_px = std::max(res_.max_px, pr.px);
+        in_pts_.push_back(pts_[i]);
+      }
+      res_.residuals.push_back(pr);
+    }
+    if (!behind.empty()) throw EstimationInputError(who_ + "points behind the camera: " + behind);
+    res_.rms_px = std::sqrt(ss / static_cast<int>(in_pts_.size()));
+    if (res_.outliers.empty()) {
+      res_.linear_rms_px = rms_px(linear_all_, in_pts_);
+    } else {  // the linear stage on the inliers alone
+      bool cross = false;
+      res_.linear_rms_px = rms_px(calibrate_camera_linear(in_pts_, vp_, name_, opt_.rank_tolerance, &cross), in_pts_);
+    }
+  }
+
+  /// Covariance in (roll, pitch, yaw, x, y, z, f): J with the rotation
+  /// columns mapped from body increments to rpy rates, s^2 (J^T J)^-1; with
+  /// the arm model's term when its links have an sd.
+  void covariance() {
+    const int m = static_cast<int>(in_pts_.size());
+    idx_.clear();
+    for (int i = 0; i < n_; ++i)
+      if (inlier_[i]) idx_.push_back(i);
+    Eigen::VectorXd e(2 * m);
+    Eigen::Matrix<double, Eigen::Dynamic, 7> J(2 * m, 7);
+    evaluate(state_, e, &J);
+    res_.information = J.transpose() * J;
+    const Eigen::Vector3d rpy = rpy_from_rotation(state_.R);
+    J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy)).eval();
+    const double dof = std::max(2 * m - 7, 1);
+    const double s2 = e.squaredNorm() / dof;
+    res_.residual_variance_px2 = s2;
+    const Eigen::Matrix<double, 7, 7> H = J.transpose() * J;
+    const Eigen::Matrix<double, 7, 7> H_inv = H.inverse();
+    res_.covariance = s2 * H_inv;
+    if (opt_.arm_link_sigma_m > 0.0) add_arm_model(J, e, H_inv, rpy, dof);
+    res_.sigma = res_.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  }
+
+  /// The camera's response to the link lengths: K = H^-1 J^T J_links, with
+  /// J_links the pixels' motion per metre of each link (d uv / d p times the
+  /// point's sensitivity); the links independent with sd arm_link_sigma_m.
+  void add_arm_model(const Eigen::Matrix<double, Eigen::Dynamic, 7>& J, const Eigen::VectorXd& e,
+                     const Eigen::Matrix<double, 7, 7>& H_inv, const Eigen::Vector3d& rpy, double dof) {
+    const int m = static_cast<int>(idx_.size());
+    Eigen::Index links = 0;
+    for (const int i : idx_) links = std::max(links, pts_[i].dp_dlinks.cols());
+    if (links == 0) return;
+    Eigen::MatrixXd J_links = Eigen::MatrixXd::Zero(2 * m, links);
+    for (int k = 0; k < m; ++k) {
+      const Correspondence& c = pts_[idx_[k]];
+      if (c.dp_dlinks.cols() == 0) continue;
+      const Projection pr = project_with_jacobians(state_.R, state_.c, state_.f, pp_, c.p_m);
+      J_links.block(2 * k, 0, 2, c.dp_dlinks.cols()) = pr.d_point * c.dp_dlinks;
+    }
+    const Eigen::MatrixXd JtJl = J.transpose() * J_links;
+    const Eigen::MatrixXd K = H_inv * JtJl;
+    const double var_links = opt_.arm_link_sigma_m * opt_.arm_link_sigma_m;
+    res_.arm_model_covariance = var_links * K * K.transpose();
+    res_.arm_link_sigma_m = opt_.arm_link_sigma_m;
+    res_.link_sensitivity = K;  // rpy rates -> body increments: d_body = W d_rpy
+    res_.link_sensitivity.topRows<3>() = rpy_rate_matrix(rpy) * K.topRows<3>();
+    // The residuals carry the links' part the camera cannot take, expected
+    // var_links tr(J_links^T (I - J H^-1 J^T) J_links); counting it again as
+    // pixel noise would count the arm twice (measured: 1.4x too wide
+    // without pixel noise). The pixel noise is what is left (>= 0).
+    const double arm_in_residuals = var_links * (J_links.squaredNorm() - (JtJl.transpose() * K).trace());
+    const double noise_s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals) / dof;
+    res_.covariance = noise_s2 * H_inv + res_.arm_model_covariance;
+  }
+
+  const std::vector<Correspondence>& pts_;
+  const Viewport vp_;
+  const std::string& name_;
+  const std::string who_;
+  const CalibrationOptions& opt_;
+  CalibrationResult& res_;
+  const int n_;
+  const Eigen::Vector2d pp_;
+  std::vector<int> idx_;  ///< the points of the current fit
+  std::vector<bool> inlier_;
+  std::vector<Correspondence> in_pts_;
+  CamState state_{};
+  int iterations_ = 0;
+  Camera linear_all_;
+};
+
+}  // namespace
+
 CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
                                    const CalibrationOptions& opt) {
   check_points(pts, name);
@@ -231,159 +436,8 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   if (!(opt.arm_link_sigma_m >= 0.0) || !std::isfinite(opt.arm_link_sigma_m))
     throw EstimationInputError(who + "the arm's link-length sd must be a finite number >= 0 m, not " +
                                std::to_string(opt.arm_link_sigma_m));
-  const int n = static_cast<int>(pts.size());
-  const Eigen::Vector2d pp(vp.width_px / 2.0, vp.height_px / 2.0);
-
   CalibrationResult res;
-  res.n_points = n;
-  CamState state{};
-  std::vector<int> idx;  // the points of the current fit
-  int iterations = 0;
-
-  auto evaluate = [&](const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) {
-    for (int k = 0; k < static_cast<int>(idx.size()); ++k) {
-      const Correspondence& c = pts[idx[k]];
-      const Projection pr = project_with_jacobians(s.R, s.c, s.f, pp, c.p_m);
-      e.segment<2>(2 * k) = pr.uv_px - c.uv_px;
-      if (J) J->block<2, 7>(2 * k, 0) = pr.d_camera;  // body rotation, position, f_px
-    }
-  };
-  auto retract = [](const CamState& s, const Eigen::Matrix<double, 7, 1>& d) {
-    return CamState{s.R * exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
-  };
-  // Size of the parameters in the units of a step (rad, m, px): for the relative step test.
-  auto state_norm = [](const CamState& s) { return std::sqrt(3.0 + s.c.squaredNorm() + s.f * s.f); };
-  estimation::LmReport last_fit;
-  auto residual_norms = [&](const CamState& s) {
-    std::vector<double> r(static_cast<std::size_t>(n));
-    const Eigen::Matrix3d Rt = s.R.transpose();
-    for (int i = 0; i < n; ++i) {
-      const Eigen::Vector3d pc = Rt * (pts[i].p_m - s.c);
-      r[i] = (pp + s.f * pc.head<2>() / pc.z() - pts[i].uv_px).norm();
-    }
-    return r;
-  };
-
-  bool have_state = false;
-  Camera linear_all;
-  auto fit = [&](const std::vector<bool>& inlier) {
-    std::vector<Correspondence> sub;
-    idx.clear();
-    for (int i = 0; i < n; ++i)
-      if (inlier[i]) {
-        idx.push_back(i);
-        sub.push_back(pts[i]);
-      }
-    if (!have_state) {  // first fit: start from the linear solution
-      Camera lin = calibrate_camera_linear(sub, vp, name, opt.rank_tolerance, &res.linear_cross_product);
-      linear_all = lin;
-      state = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
-      have_state = true;
-    }
-    estimation::LmOptions lm;
-    lm.max_iterations = opt.max_iterations;
-    last_fit = estimation::levenberg_marquardt<7>(state, 2 * static_cast<int>(idx.size()), evaluate, retract, state_norm,
-                                              lm);
-    iterations = last_fit.iterations;
-    return residual_norms(state);
-  };
-  std::vector<double> r;
-  const std::vector<bool> inlier = estimation::flag_outliers(n, 8, opt.outliers, fit, r);
-  if (!last_fit.converged)
-    throw EstimationError(who + "the nonlinear fit did not converge after " + std::to_string(last_fit.iterations) +
-                          " iterations (" + estimation::to_string(last_fit.stop) + ")");
-
-  // The final camera and its statistics over the inliers.
-  res.camera.name = name;
-  res.camera.viewport = vp;
-  res.camera.f_px = state.f;
-  res.camera.base_T_camera = Pose::Identity();
-  res.camera.base_T_camera.linear() = state.R;
-  res.camera.base_T_camera.translation() = state.c;
-  res.iterations = iterations;
-  if (!(state.f > 0.0) || !std::isfinite(state.f) || !state.R.allFinite() || !state.c.allFinite())
-    throw EstimationError(who + "the nonlinear fit did not converge to a valid camera");
-
-  std::vector<Correspondence> in_pts;
-  std::string behind;
-  double ss = 0.0;
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d pc = res.camera.to_camera(pts[i].p_m);
-    PointResidual pr;
-    pr.n = pts[i].n;
-    pr.cam = pts[i].cam;
-    pr.line = pts[i].line;
-    pr.r_px = pts[i].uv_px - res.camera.project_camera(pc);
-    pr.px = pr.r_px.norm();
-    pr.outlier = !inlier[i];
-    if (pr.outlier) {
-      res.outliers.push_back(pts[i].n);
-    } else {
-      if (!(pc.z() > 0.0)) behind += (behind.empty() ? "" : ", ") + point_name(pts[i]);
-      ss += pr.px * pr.px;
-      res.max_px = std::max(res.max_px, pr.px);
-      in_pts.push_back(pts[i]);
-    }
-    res.residuals.push_back(pr);
-  }
-  if (!behind.empty()) throw EstimationInputError(who + "points behind the camera: " + behind);
-  const int m = static_cast<int>(in_pts.size());
-  res.rms_px = std::sqrt(ss / m);
-  if (res.outliers.empty()) {
-    res.linear_rms_px = rms_px(linear_all, in_pts);
-  } else {  // the linear stage on the inliers alone
-    bool cross = false;
-    res.linear_rms_px = rms_px(calibrate_camera_linear(in_pts, vp, name, opt.rank_tolerance, &cross), in_pts);
-  }
-
-  // Covariance in (roll, pitch, yaw, x, y, z, f): J with the rotation columns
-  // mapped from body increments to rpy rates, s^2 (J^T J)^-1.
-  idx.clear();
-  for (int i = 0; i < n; ++i)
-    if (inlier[i]) idx.push_back(i);
-  Eigen::VectorXd e(2 * m);
-  Eigen::Matrix<double, Eigen::Dynamic, 7> J(2 * m, 7);
-  evaluate(state, e, &J);
-  res.information = J.transpose() * J;
-  const Eigen::Vector3d rpy = rpy_from_rotation(state.R);
-  J.leftCols<3>() = (J.leftCols<3>() * rpy_rate_matrix(rpy)).eval();
-  const double dof = std::max(2 * m - 7, 1);
-  const double s2 = e.squaredNorm() / dof;
-  res.residual_variance_px2 = s2;
-  const Eigen::Matrix<double, 7, 7> H = J.transpose() * J;
-  const Eigen::Matrix<double, 7, 7> H_inv = H.inverse();
-  res.covariance = s2 * H_inv;
-  if (opt.arm_link_sigma_m > 0.0) {
-    // The camera's response to the link lengths: K = H^-1 J^T J_links, with
-    // J_links the pixels' motion per metre of each link (d uv / d p times the
-    // point's sensitivity); the links independent with sd arm_link_sigma_m.
-    Eigen::Index links = 0;
-    for (const int i : idx) links = std::max(links, pts[i].dp_dlinks.cols());
-    if (links > 0) {
-      Eigen::MatrixXd J_links = Eigen::MatrixXd::Zero(2 * m, links);
-      for (int k = 0; k < m; ++k) {
-        const Correspondence& c = pts[idx[k]];
-        if (c.dp_dlinks.cols() == 0) continue;
-        const Projection pr = project_with_jacobians(state.R, state.c, state.f, pp, c.p_m);
-        J_links.block(2 * k, 0, 2, c.dp_dlinks.cols()) = pr.d_point * c.dp_dlinks;
-      }
-      const Eigen::MatrixXd JtJl = J.transpose() * J_links;
-      const Eigen::MatrixXd K = H_inv * JtJl;
-      const double var_links = opt.arm_link_sigma_m * opt.arm_link_sigma_m;
-      res.arm_model_covariance = var_links * K * K.transpose();
-      res.arm_link_sigma_m = opt.arm_link_sigma_m;
-      res.link_sensitivity = K;  // rpy rates -> body increments: d_body = W d_rpy
-      res.link_sensitivity.topRows<3>() = rpy_rate_matrix(rpy) * K.topRows<3>();
-      // The residuals carry the links' part the camera cannot take, expected
-      // var_links tr(J_links^T (I - J H^-1 J^T) J_links); counting it again as
-      // pixel noise would count the arm twice (measured: 1.4x too wide
-      // without pixel noise). The pixel noise is what is left (>= 0).
-      const double arm_in_residuals = var_links * (J_links.squaredNorm() - (JtJl.transpose() * K).trace());
-      const double noise_s2 = std::max(0.0, e.squaredNorm() - arm_in_residuals) / dof;
-      res.covariance = noise_s2 * H_inv + res.arm_model_covariance;
-    }
-  }
-  res.sigma = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  CameraFit(pts, vp, name, opt, res).run();
   return res;
 }
 
