@@ -201,115 +201,145 @@ Extremes extremes(double p0, double p1, double m0, double m1, double h) noexcept
 
 }  // namespace hermite
 
-std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim, std::size_t* total) {
-  using R = Violation::Rule;
-  std::vector<Violation> out;
-  std::size_t count = 0;
-  const int n = traj.samples();
-  const int dof = traj.joints();
-  // (row, joint) pairs a sample rule flagged: the interpolant check leaves them be.
-  std::vector<char> flagged;
-  // Every violation is counted; only the first max_listed_violations are kept,
-  // and their messages are built only then (7e6 violations took minutes).
-  auto add = [&](R rule, int row, int joint, double value, double limit, auto&& message) {
-    ++count;
-    if (row >= 1 && joint >= 1 && !flagged.empty())
-      flagged[static_cast<std::size_t>(row - 1) * static_cast<std::size_t>(dof) + static_cast<std::size_t>(joint - 1)] = 1;
-    if (out.size() < lim.max_listed_violations) out.push_back({rule, row, joint, value, limit, message()});
-  };
-  auto finish = [&] {
-    std::stable_sort(out.begin(), out.end(), [](const Violation& x, const Violation& y) { return x.row < y.row; });
-    if (total != nullptr) *total = count;
-    return out;
-  };
-  if (static_cast<int>(traj.positions_rad.rows()) != n)
-    add(R::JointCount, -1, -1, static_cast<double>(traj.positions_rad.rows()), n, [&] {
-      return "position rows (" + std::to_string(traj.positions_rad.rows()) + ") differ from time samples (" +
-             std::to_string(n) + ")";
-    });
-  if (dof != lim.joints) {
-    add(R::JointCount, -1, -1, dof, lim.joints, [&] {
-      return "trajectory has " + std::to_string(dof) + " joints, the robot has " + std::to_string(lim.joints);
-    });
-    return finish();  // nothing else can be checked joint by joint
-  }
-  if (count > 0) return finish();
-  if (static_cast<int>(lim.joint_limits.size()) != dof)
-    throw std::invalid_argument("TrajectoryLimits: joint_limits has " + std::to_string(lim.joint_limits.size()) +
-                                " entries for " + std::to_string(dof) + " joints");
-  if (n < lim.min_samples)
-    add(R::TooFewSamples, -1, -1, n, lim.min_samples, [&] {
-      return "trajectory has " + std::to_string(n) + " samples, at least " + std::to_string(lim.min_samples) +
-             " needed";
-    });
-  if (n > lim.max_samples)
-    add(R::TooManySamples, -1, -1, n, lim.max_samples, [&] {
-      return "trajectory has " + std::to_string(n) + " samples, at most " + std::to_string(lim.max_samples) +
-             " allowed";
-    });
-  if (n > 0 && std::isfinite(traj.duration_s()) && traj.duration_s() > lim.max_duration_s)
-    add(R::Duration, -1, -1, traj.duration_s(), lim.max_duration_s, [&] {
-      return "duration " + fmt(traj.duration_s()) + " s exceeds " + fmt(lim.max_duration_s) + " s";
-    });
+namespace {
 
-  // One pass over the rows: the row's own checks, then the rates of the
-  // interval ending at it (only across rows that are finite and strictly
-  // increasing in time).
-  flagged.assign(static_cast<std::size_t>(std::max(n, 0)) * static_cast<std::size_t>(dof), 0);
-  std::vector<bool> row_ok(n, true);  // finite t and q
-  auto interval_ok = [&](int i) {     // interval (i-1, i)
-    return i > 0 && row_ok[i] && row_ok[i - 1] && traj.time_s[i] > traj.time_s[i - 1];
-  };
-  const double slack = 1.0 + lim.rate_tolerance;
-  for (int i = 0; i < n; ++i) {
-    auto row = [i] { return "row " + std::to_string(i + 1); };  // built only for a violation
-    if (!std::isfinite(traj.time_s[i])) {
-      add(R::NonFinite, i + 1, 0, traj.time_s[i], 0.0, [&] { return row() + ": t is not finite"; });
-      row_ok[i] = false;
+/// One validation: the trajectory's shape, then one pass over the rows (the
+/// samples' rules), then the interpolant the remote executes. Every
+/// violation is counted; only the first max_listed_violations are kept, and
+/// their messages are built only then (7e6 violations took minutes).
+class Validator {
+ public:
+  using R = Violation::Rule;
+
+  Validator(const Trajectory& traj, const TrajectoryLimits& lim)
+      : traj_(traj), lim_(lim), n_(traj.samples()), dof_(traj.joints()), slack_(1.0 + lim.rate_tolerance) {}
+
+  std::vector<Violation> run(std::size_t* total) {
+    if (shape_ok()) {
+      rows();
+      interpolant();
     }
-    for (int j = 0; j < dof; ++j) {
-      const double q = traj.positions_rad(i, j);
+    std::stable_sort(out_.begin(), out_.end(), [](const Violation& x, const Violation& y) { return x.row < y.row; });
+    if (total != nullptr) *total = count_;
+    return std::move(out_);
+  }
+
+ private:
+  template <class Message>
+  void add(R rule, int row, int joint, double value, double limit, Message&& message) {
+    ++count_;
+    if (row >= 1 && joint >= 1 && !flagged_.empty())
+      flagged_[static_cast<std::size_t>(row - 1) * static_cast<std::size_t>(dof_) + static_cast<std::size_t>(joint - 1)] = 1;
+    if (out_.size() < lim_.max_listed_violations) out_.push_back({rule, row, joint, value, limit, message()});
+  }
+
+  /// The counts, the sample count and the duration; false when nothing can
+  /// be checked row by row.
+  bool shape_ok() {
+    if (static_cast<int>(traj_.positions_rad.rows()) != n_)
+      add(R::JointCount, -1, -1, static_cast<double>(traj_.positions_rad.rows()), n_, [&] {
+        return "position rows (" + std::to_string(traj_.positions_rad.rows()) + ") differ from time samples (" +
+               std::to_string(n_) + ")";
+      });
+    if (dof_ != lim_.joints) {
+      add(R::JointCount, -1, -1, dof_, lim_.joints, [&] {
+        return "trajectory has " + std::to_string(dof_) + " joints, the robot has " + std::to_string(lim_.joints);
+      });
+      return false;  // nothing else can be checked joint by joint
+    }
+    if (count_ > 0) return false;
+    if (static_cast<int>(lim_.joint_limits.size()) != dof_)
+      throw std::invalid_argument("TrajectoryLimits: joint_limits has " + std::to_string(lim_.joint_limits.size()) +
+                                  " entries for " + std::to_string(dof_) + " joints");
+    if (n_ < lim_.min_samples)
+      add(R::TooFewSamples, -1, -1, n_, lim_.min_samples, [&] {
+        return "trajectory has " + std::to_string(n_) + " samples, at least " + std::to_string(lim_.min_samples) +
+               " needed";
+      });
+    if (n_ > lim_.max_samples)
+      add(R::TooManySamples, -1, -1, n_, lim_.max_samples, [&] {
+        return "trajectory has " + std::to_string(n_) + " samples, at most " + std::to_string(lim_.max_samples) +
+               " allowed";
+      });
+    if (n_ > 0 && std::isfinite(traj_.duration_s()) && traj_.duration_s() > lim_.max_duration_s)
+      add(R::Duration, -1, -1, traj_.duration_s(), lim_.max_duration_s, [&] {
+        return "duration " + fmt(traj_.duration_s()) + " s exceeds " + fmt(lim_.max_duration_s) + " s";
+      });
+    return true;
+  }
+
+  /// Interval (i-1, i): both rows finite and time strictly increasing.
+  bool interval_ok(int i) const {
+    return i > 0 && row_ok_[i] && row_ok_[i - 1] && traj_.time_s[i] > traj_.time_s[i - 1];
+  }
+
+  /// One pass over the rows: the row's own checks, then the rates of the
+  /// interval ending at it (only across rows that are finite and strictly
+  /// increasing in time).
+  void rows() {
+    // (row, joint) pairs a sample rule flagged: the interpolant check leaves them be.
+    flagged_.assign(static_cast<std::size_t>(std::max(n_, 0)) * static_cast<std::size_t>(dof_), 0);
+    row_ok_.assign(n_, true);  // finite t and q
+    for (int i = 0; i < n_; ++i) {
+      row_values(i);
+      row_timing(i);
+      if (interval_ok(i)) row_rates(i);
+    }
+  }
+
+  void row_values(int i) {
+    auto row = [i] { return "row " + std::to_string(i + 1); };  // built only for a violation
+    if (!std::isfinite(traj_.time_s[i])) {
+      add(R::NonFinite, i + 1, 0, traj_.time_s[i], 0.0, [&] { return row() + ": t is not finite"; });
+      row_ok_[i] = false;
+    }
+    for (int j = 0; j < dof_; ++j) {
+      const double q = traj_.positions_rad(i, j);
       auto where = [&] { return row() + ", joint " + qname(j + 1); };
       if (!std::isfinite(q)) {
         add(R::NonFinite, i + 1, j + 1, q, 0.0, [&] { return where() + ": position is not finite"; });
-        row_ok[i] = false;
+        row_ok_[i] = false;
         continue;
       }
-      const JointLimits& jl = lim.joint_limits[j];
+      const JointLimits& jl = lim_.joint_limits[j];
       if (q < jl.lower_rad || q > jl.upper_rad)
         add(R::PositionLimit, i + 1, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad, [&] {
           return where() + ": position " + fmt(q) + " rad outside [" + fmt(jl.lower_rad) + ", " + fmt(jl.upper_rad) +
                  "] rad";
         });
     }
-    if (i > 0 && row_ok[i] && row_ok[i - 1]) {
-      const double dt = traj.time_s[i] - traj.time_s[i - 1];
-      if (!(dt > 0.0))
-        add(R::TimeNotIncreasing, i + 1, 0, traj.time_s[i], traj.time_s[i - 1], [&] {
-          return row() + ": t = " + fmt(traj.time_s[i]) + " s does not increase (previous " +
-                 fmt(traj.time_s[i - 1]) + " s)";
-        });
-      else if (dt > lim.max_sample_interval_s)
-        add(R::SampleGap, i + 1, 0, dt, lim.max_sample_interval_s, [&] {
-          return row() + ": " + fmt(dt) + " s since the previous sample exceeds " + fmt(lim.max_sample_interval_s) +
-                 " s";
-        });
-    }
-    if (!interval_ok(i)) continue;
-    const double dt = traj.time_s[i] - traj.time_s[i - 1];
-    for (int j = 0; j < dof; ++j) {
-      const JointLimits& jl = lim.joint_limits[j];
-      const double v = (traj.positions_rad(i, j) - traj.positions_rad(i - 1, j)) / dt;
-      if (std::abs(v) > jl.velocity_rad_s * slack)
+  }
+
+  void row_timing(int i) {
+    if (!(i > 0 && row_ok_[i] && row_ok_[i - 1])) return;
+    const double dt = traj_.time_s[i] - traj_.time_s[i - 1];
+    if (!(dt > 0.0))
+      add(R::TimeNotIncreasing, i + 1, 0, traj_.time_s[i], traj_.time_s[i - 1], [&] {
+        return "row " + std::to_string(i + 1) + ": t = " + fmt(traj_.time_s[i]) + " s does not increase (previous " +
+               fmt(traj_.time_s[i - 1]) + " s)";
+      });
+    else if (dt > lim_.max_sample_interval_s)
+      add(R::SampleGap, i + 1, 0, dt, lim_.max_sample_interval_s, [&] {
+        return "row " + std::to_string(i + 1) + ": " + fmt(dt) + " s since the previous sample exceeds " +
+               fmt(lim_.max_sample_interval_s) + " s";
+      });
+  }
+
+  void row_rates(int i) {
+    const double dt = traj_.time_s[i] - traj_.time_s[i - 1];
+    for (int j = 0; j < dof_; ++j) {
+      const JointLimits& jl = lim_.joint_limits[j];
+      const double v = (traj_.positions_rad(i, j) - traj_.positions_rad(i - 1, j)) / dt;
+      if (std::abs(v) > jl.velocity_rad_s * slack_)
         add(R::VelocityLimit, i + 1, j + 1, v, jl.velocity_rad_s, [&] {
           return "row " + std::to_string(i + 1) + ", joint " + qname(j + 1) + ": velocity " + fmt(v) +
                  " rad/s exceeds limit " + fmt(jl.velocity_rad_s) + " rad/s";
         });
       if (i >= 2 && interval_ok(i - 1)) {
-        const double dt0 = traj.time_s[i - 1] - traj.time_s[i - 2];
-        const double v0 = (traj.positions_rad(i - 1, j) - traj.positions_rad(i - 2, j)) / dt0;
+        const double dt0 = traj_.time_s[i - 1] - traj_.time_s[i - 2];
+        const double v0 = (traj_.positions_rad(i - 1, j) - traj_.positions_rad(i - 2, j)) / dt0;
         const double a = (v - v0) / (0.5 * (dt + dt0));
-        if (std::abs(a) > jl.acceleration_rad_s2 * slack)
+        if (std::abs(a) > jl.acceleration_rad_s2 * slack_)
           add(R::AccelerationLimit, i, j + 1, a, jl.acceleration_rad_s2, [&] {
             return "row " + std::to_string(i) + ", joint " + qname(j + 1) + ": acceleration " + fmt(a) +
                    " rad/s^2 exceeds limit " + fmt(jl.acceleration_rad_s2) + " rad/s^2";
@@ -318,57 +348,76 @@ std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& 
     }
   }
 
-  // What the remote executes: the interpolant over every segment (i, i+1),
-  // from rest at the first sample to rest at the last: its position and
-  // velocity extremes. (Its acceleration, e.a_abs, is not bounded yet: the C1
-  // interpolant's second derivative jumps at the samples, and the planner's
-  // own plans reach 1.35x the limit between samples while many recordings
-  // start or end moving. A C2 interpolant and a stop tail for recordings come
-  // first: docs/control.md.) A tangent needs its row's neighbours well
-  // formed; a joint a sample rule flagged near the segment is not reported
-  // twice.
-  auto tangent = [&](int i, int j, double& m) -> bool {
-    if (i == 0 || i == n - 1) {
+  /// Sample i's tangent of joint j (0 at the ends: the arm at rest); false
+  /// when its neighbours are not well formed.
+  bool tangent(int i, int j, double& m) const {
+    if (i == 0 || i == n_ - 1) {
       m = 0.0;
-      return row_ok[i];
+      return row_ok_[i];
     }
     if (!interval_ok(i) || !interval_ok(i + 1)) return false;
-    m = hermite::tangent(traj.positions_rad(i - 1, j), traj.positions_rad(i, j), traj.positions_rad(i + 1, j),
-                         traj.time_s[i] - traj.time_s[i - 1], traj.time_s[i + 1] - traj.time_s[i]);
+    m = hermite::tangent(traj_.positions_rad(i - 1, j), traj_.positions_rad(i, j), traj_.positions_rad(i + 1, j),
+                         traj_.time_s[i] - traj_.time_s[i - 1], traj_.time_s[i + 1] - traj_.time_s[i]);
     return true;
-  };
-  auto near_flagged = [&](int i, int j) {
-    for (int r = std::max(0, i - 1); r <= std::min(n - 1, i + 2); ++r)
-      if (flagged[static_cast<std::size_t>(r) * static_cast<std::size_t>(dof) + static_cast<std::size_t>(j)]) return true;
+  }
+
+  bool near_flagged(int i, int j) const {
+    for (int r = std::max(0, i - 1); r <= std::min(n_ - 1, i + 2); ++r)
+      if (flagged_[static_cast<std::size_t>(r) * static_cast<std::size_t>(dof_) + static_cast<std::size_t>(j)]) return true;
     return false;
-  };
-  for (int i = 0; i + 1 < n; ++i) {
-    if (!interval_ok(i + 1)) continue;
-    const double h = traj.time_s[i + 1] - traj.time_s[i];
-    for (int j = 0; j < dof; ++j) {
-      double m0 = 0.0, m1 = 0.0;
-      if (!tangent(i, j, m0) || !tangent(i + 1, j, m1) || near_flagged(i, j)) continue;
-      const hermite::Extremes e =
-          hermite::extremes(traj.positions_rad(i, j), traj.positions_rad(i + 1, j), m0, m1, h);
-      const JointLimits& jl = lim.joint_limits[j];
-      auto where = [&] {
-        return "between rows " + std::to_string(i + 1) + " and " + std::to_string(i + 2) + ", joint " + qname(j + 1);
-      };
-      if (e.q_min < jl.lower_rad || e.q_max > jl.upper_rad) {
-        const double q = e.q_min < jl.lower_rad ? e.q_min : e.q_max;
-        add(R::PositionLimit, i + 2, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad, [&] {
-          return where() + ": the executed position reaches " + fmt(q) + " rad, outside [" + fmt(jl.lower_rad) +
-                 ", " + fmt(jl.upper_rad) + "] rad";
-        });
+  }
+
+  /// What the remote executes: the interpolant over every segment (i, i+1),
+  /// from rest at the first sample to rest at the last: its position and
+  /// velocity extremes. (Its acceleration, e.a_abs, is not bounded yet: the
+  /// C1 interpolant's second derivative jumps at the samples, and the
+  /// planner's own plans reach 1.35x the limit between samples while many
+  /// recordings start or end moving. A C2 interpolant and a stop tail for
+  /// recordings come first: docs/control.md.) A joint a sample rule flagged
+  /// near the segment is not reported twice.
+  void interpolant() {
+    for (int i = 0; i + 1 < n_; ++i) {
+      if (!interval_ok(i + 1)) continue;
+      const double h = traj_.time_s[i + 1] - traj_.time_s[i];
+      for (int j = 0; j < dof_; ++j) {
+        double m0 = 0.0, m1 = 0.0;
+        if (!tangent(i, j, m0) || !tangent(i + 1, j, m1) || near_flagged(i, j)) continue;
+        const hermite::Extremes e =
+            hermite::extremes(traj_.positions_rad(i, j), traj_.positions_rad(i + 1, j), m0, m1, h);
+        const JointLimits& jl = lim_.joint_limits[j];
+        auto where = [&] {
+          return "between rows " + std::to_string(i + 1) + " and " + std::to_string(i + 2) + ", joint " + qname(j + 1);
+        };
+        if (e.q_min < jl.lower_rad || e.q_max > jl.upper_rad) {
+          const double q = e.q_min < jl.lower_rad ? e.q_min : e.q_max;
+          add(R::PositionLimit, i + 2, j + 1, q, q < jl.lower_rad ? jl.lower_rad : jl.upper_rad, [&] {
+            return where() + ": the executed position reaches " + fmt(q) + " rad, outside [" + fmt(jl.lower_rad) +
+                   ", " + fmt(jl.upper_rad) + "] rad";
+          });
+        }
+        if (e.v_abs > jl.velocity_rad_s * slack_)
+          add(R::VelocityLimit, i + 2, j + 1, e.v_abs, jl.velocity_rad_s, [&] {
+            return where() + ": the executed velocity reaches " + fmt(e.v_abs) + " rad/s, over the limit " +
+                   fmt(jl.velocity_rad_s) + " rad/s";
+          });
       }
-      if (e.v_abs > jl.velocity_rad_s * slack)
-        add(R::VelocityLimit, i + 2, j + 1, e.v_abs, jl.velocity_rad_s, [&] {
-          return where() + ": the executed velocity reaches " + fmt(e.v_abs) + " rad/s, over the limit " +
-                 fmt(jl.velocity_rad_s) + " rad/s";
-        });
     }
   }
-  return finish();
+
+  const Trajectory& traj_;
+  const TrajectoryLimits& lim_;
+  const int n_, dof_;
+  const double slack_;
+  std::vector<Violation> out_;
+  std::size_t count_ = 0;
+  std::vector<char> flagged_;
+  std::vector<bool> row_ok_;
+};
+
+}  // namespace
+
+std::vector<Violation> validate(const Trajectory& traj, const TrajectoryLimits& lim, std::size_t* total) {
+  return Validator(traj, lim).run(total);
 }
 
 TrajectoryHash trajectory_hash(const Trajectory& traj) {
