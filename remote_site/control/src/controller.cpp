@@ -668,8 +668,29 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   out.drive_request = DriveRequest::None;
   out.stop = nullptr;
 
-  // Measured state.
   const bool joints_ok = in.joints == dof_;
+  const Pose base_T_sensor = measure(in, joints_ok);
+  refuse_enable_in_estop(in);
+  step_tare(in, out, base_T_sensor);
+  const WrenchCompensator::Output& w = comp_.update(in.wrench_ft, base_T_sensor.linear(), in.ft_fresh);
+  wrench_tool_ = w.filtered_tool;
+  shaped_ = w.shaped_tool;
+  if (in.link_lost != link_lost_ && !(in.link_lost && config_.link_loss == LinkLossPolicy::Stop))
+    link_lost_ = in.link_lost;
+
+  // Motion generation.
+  const bool powered = mode_ != ControllerMode::Disabled && mode_ != ControllerMode::Fault;
+  if (!joints_ok && powered) {
+    begin_stop(StopCause::DriveFault, StopCategory::Cat0, -1, static_cast<double>(in.joints),
+               static_cast<double>(dof_), "joint feedback count differs from the model");
+  }
+  generate_motion();
+  const std::uint32_t limited = limit_rate(in);
+  if (powered && mode_ != ControllerMode::Fault && mode_ != ControllerMode::Disabled) check_safety(in);
+  write_outputs(in, out, joints_ok, limited);
+}
+
+Pose Controller::measure(const CycleInputs& in, bool joints_ok) noexcept {
   q_prev_ = q_;
   for (std::size_t j = 0; j < dof_; ++j) q_[j] = joints_ok ? in.q[j] : q_cmd_prev_[j];
   if (!have_q_) {
@@ -686,8 +707,10 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     comp_.set_tare_orientation(base_T_sensor.linear());
     have_q_ = true;
   }
+  return base_T_sensor;
+}
 
-  // No power-up while the E-stop is pressed.
+void Controller::refuse_enable_in_estop(const CycleInputs& in) noexcept {
   if ((in.estop || in.safe_torque_off) && drive_request_pending_ && pending_request_ == DriveRequest::Enable &&
       !drive_request_issued_) {
     drive_request_pending_ = false;
@@ -697,39 +720,29 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     active_ = Active::None;
     active_id_ = 0;
   }
+}
 
-  // Tare: ask, then wait for the decoder to finish.
-  if (tare_id_ != 0) {
-    if (tare_request_ > 0) {
-      out.tare_samples = tare_request_;
-      tare_request_ = 0;
-      comp_.set_tare_orientation(base_T_sensor.linear());
-    } else {
-      ++tare_wait_cycles_;
-      if (in.ft_tare_in_progress) tare_seen_ = true;
-      if ((tare_seen_ || tare_wait_cycles_ > 3) && !in.ft_tare_in_progress) {
-        comp_.reset();
-        emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Completed, Reason::None, "tared");
-        tare_id_ = 0;
-      } else if (tare_wait_cycles_ > 20000) {
-        emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Failed, Reason::Timeout, "tare did not finish");
-        tare_id_ = 0;
-      }
-    }
+void Controller::step_tare(const CycleInputs& in, CycleOutputs& out, const Pose& base_T_sensor) noexcept {
+  if (tare_id_ == 0) return;
+  if (tare_request_ > 0) {
+    out.tare_samples = tare_request_;
+    tare_request_ = 0;
+    comp_.set_tare_orientation(base_T_sensor.linear());
+    return;
   }
-
-  const WrenchCompensator::Output& w = comp_.update(in.wrench_ft, base_T_sensor.linear(), in.ft_fresh);
-  wrench_tool_ = w.filtered_tool;
-  shaped_ = w.shaped_tool;
-  if (in.link_lost != link_lost_ && !(in.link_lost && config_.link_loss == LinkLossPolicy::Stop))
-    link_lost_ = in.link_lost;
-
-  // Motion generation.
-  const bool powered = mode_ != ControllerMode::Disabled && mode_ != ControllerMode::Fault;
-  if (!joints_ok && powered) {
-    begin_stop(StopCause::DriveFault, StopCategory::Cat0, -1, static_cast<double>(in.joints),
-               static_cast<double>(dof_), "joint feedback count differs from the model");
+  ++tare_wait_cycles_;
+  if (in.ft_tare_in_progress) tare_seen_ = true;
+  if ((tare_seen_ || tare_wait_cycles_ > 3) && !in.ft_tare_in_progress) {
+    comp_.reset();
+    emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Completed, Reason::None, "tared");
+    tare_id_ = 0;
+  } else if (tare_wait_cycles_ > 20000) {
+    emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Failed, Reason::Timeout, "tare did not finish");
+    tare_id_ = 0;
   }
+}
+
+void Controller::generate_motion() noexcept {
   switch (mode_) {
     case ControllerMode::Disabled:
     case ControllerMode::Fault:
@@ -743,47 +756,8 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
       else
         q_cmd_ = q_hold_;
       break;
-    case ControllerMode::Trajectory: {
-      traj_t_ += dt_;
-      follow_trajectory_at(traj_t_);
-      if (traj_t_ >= traj_->duration_s()) {
-        const bool compliant = traj_compliant_;
-        const JointArray end = traj_->end();
-        finish_active(MotionEventKind::Completed, Reason::None, "trajectory done");
-        hold_here();
-        q_hold_ = compliant ? q_cmd_ : end;
-        hold_compliant_ = false;
-      }
-      break;
-    }
-    case ControllerMode::Algorithm: {
-      const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
-      if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
-        const AdmittanceParams& now = adm_.params();
-        if (s.admittance.stiffness != now.stiffness || s.admittance.damping != now.damping)
-          adm_.configure(s.admittance);
-        compliant_offset_to_joints(s.base_T_ref, q_cmd_prev_, true);
-      }
-      if (s.status == AlgorithmStatus::Succeeded) {
-        finish_active(MotionEventKind::Completed, Reason::None, s.text.data());
-        q_hold_ = q_cmd_;
-        base_T_hold_ = s.base_T_ref;
-        mode_ = ControllerMode::Idle;
-        hold_compliant_ = true;  // keep the algorithm's compliance while the tool works
-      } else if (s.status == AlgorithmStatus::Failed) {
-        const Reason code = s.code;
-        std::array<char, 96> text = s.text;
-        finish_active(MotionEventKind::Failed, code, text.data());
-        // Hold compliantly where the tip is (a failed push must not keep pushing).
-        mode_ = ControllerMode::Idle;
-        base_T_hold_ = base_T_tip_;
-        hold_compliant_ = true;
-        adm_.reset();
-        compliant_offset_to_joints(base_T_hold_, q_cmd_prev_, true);
-        q_hold_ = q_cmd_;
-      }
-      break;
-    }
+    case ControllerMode::Trajectory: step_trajectory(); break;
+    case ControllerMode::Algorithm: step_algorithm(); break;
     case ControllerMode::Stopping:
       if (stop_on_path_ && traj_ != nullptr)
         path_stop_step();
@@ -792,13 +766,55 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
       break;
     case ControllerMode::Stopped: q_cmd_ = q_hold_; break;
   }
+}
 
-  // The rate limiter: what a stiff motion or hold commands, limited in
-  // acceleration and jerk. Not inside the force loop: an algorithm, a
-  // compliant trajectory or hold is shaped by its admittance (its virtual
-  // mass and damping), and a limiter there, lagging behind the admittance at
-  // the bus's 3-cycle loop delay, made the contact unstable (docs/control.md,
-  // "The rate limiter"). Controlled stops shape their own ramp.
+void Controller::step_trajectory() noexcept {
+  traj_t_ += dt_;
+  follow_trajectory_at(traj_t_);
+  if (traj_t_ >= traj_->duration_s()) {
+    const bool compliant = traj_compliant_;
+    const JointArray end = traj_->end();
+    finish_active(MotionEventKind::Completed, Reason::None, "trajectory done");
+    hold_here();
+    q_hold_ = compliant ? q_cmd_ : end;
+    hold_compliant_ = false;
+  }
+}
+
+void Controller::step_algorithm() noexcept {
+  const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
+  if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
+    const AdmittanceParams& now = adm_.params();
+    if (s.admittance.stiffness != now.stiffness || s.admittance.damping != now.damping) adm_.configure(s.admittance);
+    compliant_offset_to_joints(s.base_T_ref, q_cmd_prev_, true);
+  }
+  if (s.status == AlgorithmStatus::Succeeded) {
+    finish_active(MotionEventKind::Completed, Reason::None, s.text.data());
+    q_hold_ = q_cmd_;
+    base_T_hold_ = s.base_T_ref;
+    mode_ = ControllerMode::Idle;
+    hold_compliant_ = true;  // keep the algorithm's compliance while the tool works
+  } else if (s.status == AlgorithmStatus::Failed) {
+    const Reason code = s.code;
+    std::array<char, 96> text = s.text;
+    finish_active(MotionEventKind::Failed, code, text.data());
+    // Hold compliantly where the tip is (a failed push must not keep pushing).
+    mode_ = ControllerMode::Idle;
+    base_T_hold_ = base_T_tip_;
+    hold_compliant_ = true;
+    adm_.reset();
+    compliant_offset_to_joints(base_T_hold_, q_cmd_prev_, true);
+    q_hold_ = q_cmd_;
+  }
+}
+
+// The rate limiter: what a stiff motion or hold commands, limited in
+// acceleration and jerk. Not inside the force loop: an algorithm, a
+// compliant trajectory or hold is shaped by its admittance (its virtual
+// mass and damping), and a limiter there, lagging behind the admittance at
+// the bus's 3-cycle loop delay, made the contact unstable (docs/control.md,
+// "The rate limiter"). Controlled stops shape their own ramp.
+std::uint32_t Controller::limit_rate(const CycleInputs& in) noexcept {
   limiter_applied_ = false;
   std::uint32_t limited = 0;
   const bool stiff_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && !hold_compliant_) ||
@@ -828,9 +844,10 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
     for (std::size_t j = 0; j < dof_; ++j)
       if ((limited >> j) & 1u) ++rate_limited_joint_cycles_[j];
   }
-  if (powered && mode_ != ControllerMode::Fault && mode_ != ControllerMode::Disabled) check_safety(in);
+  return limited;
+}
 
-  // Outputs.
+void Controller::write_outputs(const CycleInputs& in, CycleOutputs& out, bool joints_ok, std::uint32_t limited) noexcept {
   if (power_off_now_) {
     out.power_off = true;
     power_off_now_ = false;

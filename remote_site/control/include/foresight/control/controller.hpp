@@ -210,6 +210,24 @@ class Controller {
   void compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointArray& q_seed, bool tracking) noexcept;
   void record_evidence(const CycleInputs& in) noexcept;
 
+  // The cycle's steps (step() calls them in this order).
+  /// The measured joints, their filtered velocity and the tip; the sensor's pose.
+  Pose measure(const CycleInputs& in, bool joints_ok) noexcept;
+  /// No power-up while the E-stop is pressed.
+  void refuse_enable_in_estop(const CycleInputs& in) noexcept;
+  /// Tare: ask, then wait for the decoder to finish.
+  void step_tare(const CycleInputs& in, CycleOutputs& out, const Pose& base_T_sensor) noexcept;
+  /// The mode's command (q_cmd_).
+  void generate_motion() noexcept;
+  void step_trajectory() noexcept;
+  void step_algorithm() noexcept;
+  /// The rate limiter on a stiff command, and a command too fast for it; the
+  /// joints it limited (a mask).
+  std::uint32_t limit_rate(const CycleInputs& in) noexcept;
+  /// The drives' requests, the command and its velocity, the stop, the
+  /// telemetry and the events.
+  void write_outputs(const CycleInputs& in, CycleOutputs& out, bool joints_ok, std::uint32_t limited) noexcept;
+
   const RobotModel& model_;
   ControllerConfig config_;
   KinematicsWorkspace ws_;
