@@ -841,60 +841,93 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   if (ft_) ft_->reading.fresh = false;
   if (const int tare = tare_request_.exchange(0, std::memory_order_acq_rel); tare > 0 && ft_)
     ft_->decoder.request_tare(tare);
-
-  for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
-    CanBus& bus = *buses_[bi];
-    BusState& bs = bus_state_[bi];
-    const auto bus8 = static_cast<std::uint8_t>(bi);
-    for (std::size_t k = 0; k < kMaxFramesPerRead; ++k) {
-      can_frame f{};
-      const CanIo io = bus.read(f);
-      if (io == CanIo::Ok) {
-        handle_frame(bi, f, now);
-        continue;
-      }
-      if (io == CanIo::ErrorFrame) continue;
-      if (io == CanIo::WouldBlock) break;
-      if (io == CanIo::Malformed) {
-        push_event({HwFault::MalformedFrame, bus8, 0, -1, 0, 0});
-        continue;
-      }
-      if (!bs.closed_reported) push_event({HwFault::RxFailed, bus8, 0, -1, static_cast<std::uint32_t>(io), 0});
-      bs.closed_reported = true;
-      break;
-    }
-    const BusHealth& h = bus.health();
-    if (h.bus_off && !bs.bus_off_reported) push_event({HwFault::BusOff, bus8, 0, -1, h.error_frames, 0});
-    if (!h.bus_off && bs.bus_off_reported) {  // restarted (the interface's restart-ms, or by hand)
-      ++bs.restarts;
-      push_event({HwFault::BusRestarted, bus8, 0, -1, bs.restarts, 0});
-      if (bs.restarts > config_.bus_off_restart_limit && !bs.restart_limit_hit) {
-        bs.restart_limit_hit = true;
-        push_event({HwFault::BusOffRepeated, bus8, 0, -1, bs.restarts, static_cast<std::uint32_t>(config_.bus_off_restart_limit)});
-      }
-    }
-    // Bus-off that lasts: ask the controller to restart (the interface's
-    // restart-ms may do it first), every bus_off_restart_delay_s, at most
-    // bus_off_restart_limit times per configure().
-    if (h.bus_off) {
-      const auto delay_cycles = static_cast<std::uint32_t>(std::max(1.0, config_.bus_off_restart_delay_s * config_.cycle_rate_hz));
-      if (++bs.bus_off_cycles >= delay_cycles &&
-          bs.restart_requests < static_cast<std::uint32_t>(std::max(0, config_.bus_off_restart_limit))) {
-        bs.bus_off_cycles = 0;
-        const RestartResult r = bus.request_restart();
-        ++bs.restart_requests;
-        push_event({HwFault::BusRestartRequested, bus8, 0, -1, bs.restart_requests, static_cast<std::uint32_t>(r)});
-      }
-    } else {
-      bs.bus_off_cycles = 0;
-    }
-    bs.bus_off_reported = h.bus_off;
-    if (h.error_passive && !bs.passive_reported) push_event({HwFault::BusErrorPassive, bus8, 0, -1, h.error_frames, 0});
-    bs.passive_reported = h.error_passive;
-  }
-
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) read_bus(bi, now);
   std::uint8_t active = 0;
   HwEvent first_active{};
+  supervise_drives(now, active, first_active);
+  supervise_ft(now, active, first_active, ft_out);
+  supervise_buses(active, first_active);
+
+  joints.count = drives_.size();
+  for (std::size_t j = 0; j < drives_.size(); ++j) joints.joints[j] = drives_[j].st;
+
+  CycleStatus s;
+  if (config_.sto_status_bit >= 0) {
+    const auto bit = static_cast<std::uint16_t>(1u << config_.sto_status_bit);
+    for (std::size_t j = 0; j < drives_.size() && !s.safe_torque_off; ++j)
+      if (drives_[j].st.state_known && (drives_[j].st.statusword & bit) != 0) {
+        s.safe_torque_off = true;
+        s.sto_joint = static_cast<std::int8_t>(j);
+      }
+  }
+  s.cycle = cycle_;
+  s.active_faults = active;
+  s.first_active = first_active;
+  s.frames_received = frames_this_cycle_;
+  s.event_count = static_cast<std::uint8_t>(pending_count_);
+  s.events_dropped = pending_dropped_;
+  for (std::size_t e = 0; e < pending_count_; ++e) {
+    s.events[e] = pending_[e];
+    s.stop_required = s.stop_required || requires_stop(pending_[e].fault);
+  }
+  s.stop_required = s.stop_required || active > 0;
+  pending_count_ = 0;
+  pending_dropped_ = 0;
+  return s;
+}
+
+void DriveSystem::read_bus(std::size_t bi, Clock::time_point now) noexcept {
+  CanBus& bus = *buses_[bi];
+  BusState& bs = bus_state_[bi];
+  const auto bus8 = static_cast<std::uint8_t>(bi);
+  for (std::size_t k = 0; k < kMaxFramesPerRead; ++k) {
+    can_frame f{};
+    const CanIo io = bus.read(f);
+    if (io == CanIo::Ok) {
+      handle_frame(bi, f, now);
+      continue;
+    }
+    if (io == CanIo::ErrorFrame) continue;
+    if (io == CanIo::WouldBlock) break;
+    if (io == CanIo::Malformed) {
+      push_event({HwFault::MalformedFrame, bus8, 0, -1, 0, 0});
+      continue;
+    }
+    if (!bs.closed_reported) push_event({HwFault::RxFailed, bus8, 0, -1, static_cast<std::uint32_t>(io), 0});
+    bs.closed_reported = true;
+    break;
+  }
+  const BusHealth& h = bus.health();
+  if (h.bus_off && !bs.bus_off_reported) push_event({HwFault::BusOff, bus8, 0, -1, h.error_frames, 0});
+  if (!h.bus_off && bs.bus_off_reported) {  // restarted (the interface's restart-ms, or by hand)
+    ++bs.restarts;
+    push_event({HwFault::BusRestarted, bus8, 0, -1, bs.restarts, 0});
+    if (bs.restarts > config_.bus_off_restart_limit && !bs.restart_limit_hit) {
+      bs.restart_limit_hit = true;
+      push_event({HwFault::BusOffRepeated, bus8, 0, -1, bs.restarts, static_cast<std::uint32_t>(config_.bus_off_restart_limit)});
+    }
+  }
+  // Bus-off that lasts: ask the controller to restart (the interface's
+  // restart-ms may do it first), every bus_off_restart_delay_s, at most
+  // bus_off_restart_limit times per configure().
+  if (h.bus_off) {
+    const auto delay_cycles = static_cast<std::uint32_t>(std::max(1.0, config_.bus_off_restart_delay_s * config_.cycle_rate_hz));
+    if (++bs.bus_off_cycles >= delay_cycles &&
+        bs.restart_requests < static_cast<std::uint32_t>(std::max(0, config_.bus_off_restart_limit))) {
+      bs.bus_off_cycles = 0;
+      const RestartResult r = bus.request_restart();
+      ++bs.restart_requests;
+      push_event({HwFault::BusRestartRequested, bus8, 0, -1, bs.restart_requests, static_cast<std::uint32_t>(r)});
+    }
+  } else {
+    bs.bus_off_cycles = 0;
+  }
+  bs.bus_off_reported = h.bus_off;
+  if (h.error_passive && !bs.passive_reported) push_event({HwFault::BusErrorPassive, bus8, 0, -1, h.error_frames, 0});
+  bs.passive_reported = h.error_passive;
+}
+
+void DriveSystem::supervise_drives(Clock::time_point now, std::uint8_t& active, HwEvent& first_active) noexcept {
   for (std::size_t j = 0; j < drives_.size(); ++j) {
     Drive& d = drives_[j];
     const auto bus8 = static_cast<std::uint8_t>(d.bus);
@@ -925,6 +958,10 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
       }
     }
   }
+}
+
+void DriveSystem::supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first_active,
+                               FtReading& ft_out) noexcept {
   if (ft_) {
     const auto bus8 = static_cast<std::uint8_t>(ft_->cfg.bus_index);
     if (bus_state_[static_cast<std::size_t>(ft_->cfg.bus_index)].sync_sent) {
@@ -956,6 +993,9 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   } else {
     ft_out = FtReading{};
   }
+}
+
+void DriveSystem::supervise_buses(std::uint8_t& active, HwEvent& first_active) noexcept {
   for (BusState& bs : bus_state_) {
     bs.sync_sent = false;
     if (bs.bus_off_reported || bs.closed_reported || bs.restart_limit_hit) {
@@ -968,32 +1008,6 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
     }
   }
 
-  joints.count = drives_.size();
-  for (std::size_t j = 0; j < drives_.size(); ++j) joints.joints[j] = drives_[j].st;
-
-  CycleStatus s;
-  if (config_.sto_status_bit >= 0) {
-    const auto bit = static_cast<std::uint16_t>(1u << config_.sto_status_bit);
-    for (std::size_t j = 0; j < drives_.size() && !s.safe_torque_off; ++j)
-      if (drives_[j].st.state_known && (drives_[j].st.statusword & bit) != 0) {
-        s.safe_torque_off = true;
-        s.sto_joint = static_cast<std::int8_t>(j);
-      }
-  }
-  s.cycle = cycle_;
-  s.active_faults = active;
-  s.first_active = first_active;
-  s.frames_received = frames_this_cycle_;
-  s.event_count = static_cast<std::uint8_t>(pending_count_);
-  s.events_dropped = pending_dropped_;
-  for (std::size_t e = 0; e < pending_count_; ++e) {
-    s.events[e] = pending_[e];
-    s.stop_required = s.stop_required || requires_stop(pending_[e].fault);
-  }
-  s.stop_required = s.stop_required || active > 0;
-  pending_count_ = 0;
-  pending_dropped_ = 0;
-  return s;
 }
 
 std::string DriveSystem::describe(const HwEvent& e) const {

@@ -311,6 +311,13 @@ class DriveSystem {
   };
 
   void handle_frame(std::size_t bus, const can_frame& f, Clock::time_point now) noexcept;
+  // cycle_read's steps, in its order. The supervision ones count the nodes
+  // and buses in fault (`active`) and keep the first (`first`).
+  /// Drains bus `bi` into the nodes' state; its health's transitions as events.
+  void read_bus(std::size_t bi, Clock::time_point now) noexcept;
+  void supervise_drives(Clock::time_point now, std::uint8_t& active, HwEvent& first) noexcept;
+  void supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first, FtReading& ft_out) noexcept;
+  void supervise_buses(std::uint8_t& active, HwEvent& first) noexcept;
   void push_event(const HwEvent& e) noexcept;
   void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
   void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
