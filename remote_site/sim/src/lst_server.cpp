@@ -190,7 +190,7 @@ void LstServer::apply_outputs(bool stopped) {
   if (s.torque_reached) status |= lst::kStatusTorqueReached;
   if (s.fault_bits != 0) status |= lst::kStatusFault;
   for (int i = 0; i < lst::kNumDiscreteInputs; ++i) m->tab_input_bits[i] = (status >> i) & 1u;
-  const auto turns = static_cast<std::int32_t>(std::lround(s.turns / lst::kTurnsPerCount));
+  const std::int32_t turns = lst::turns_to_counts(s.turns);
   const auto uturns = static_cast<std::uint32_t>(turns);
   m->tab_input_registers[lst::kInStatus] = status;
   m->tab_input_registers[lst::kInFault] = s.fault_bits;

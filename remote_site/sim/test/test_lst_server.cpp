@@ -120,6 +120,19 @@ TEST(LstServer, LooseningTakesNTurnsAboveTThroughModbus) {
   EXPECT_LE(s.turns, -2.0);
 }
 
+// The counter reports whole counts passed: a turns reading at the goal
+// means the goal was reached, not half a count before it.
+TEST(LstRegisters, TheTurnsCounterTruncatesTowardZero) {
+  using foresight::hw::lst::turns_to_counts;
+  EXPECT_EQ(turns_to_counts(-1.9996), -1999);
+  EXPECT_EQ(turns_to_counts(-1.9999999999999998), -1999);
+  EXPECT_EQ(turns_to_counts(-2.0), -2000);
+  EXPECT_EQ(turns_to_counts(-2.0004), -2000);
+  EXPECT_EQ(turns_to_counts(1.9996), 1999);
+  EXPECT_EQ(turns_to_counts(2.0), 2000);
+  EXPECT_EQ(turns_to_counts(0.0004), 0);
+}
+
 TEST(LstServer, LoosenAndTightenTaskSteps) {
   LstServer server(server_options());
   LstTool tool(client_config(server));

@@ -40,6 +40,7 @@
 //
 // Any other address is answered with exception 02 (illegal data address).
 
+#include <cmath>
 #include <cstdint>
 
 namespace foresight::hw::lst {
@@ -95,5 +96,15 @@ inline constexpr double kSpeedRadSPerCount = 0.01;
 inline constexpr double kTorqueNmPerCount = 0.01;
 inline constexpr double kTurnsPerCount = 0.001;
 inline constexpr double kAlivePeriodS = 0.01;
+
+/// The turns counter's value for `turns` turned: the whole counts passed,
+/// truncated toward zero as an incremental counter counts. A count of
+/// -2000 therefore means at least 2 turns were made: rounding reported
+/// -2.000 at -1.9996 turns, the tool stopped there and the simulated screw
+/// kept 0.0004 turns of thread (LstServer.LoosenAndTightenTaskSteps under
+/// ASan).
+inline std::int32_t turns_to_counts(double turns) {
+  return static_cast<std::int32_t>(std::trunc(turns / kTurnsPerCount));
+}
 
 }  // namespace foresight::hw::lst
