@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <stdexcept>
 #include <string>
@@ -90,11 +91,14 @@ class ChildProcess {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
     while (std::chrono::steady_clock::now() < deadline) {
       if (stdout_.find(text) != std::string::npos) return true;
+      if (out_fd_ < 0) return false;
       pollfd p{out_fd_, POLLIN, 0};
-      if (out_fd_ < 0 || ::poll(&p, 1, 100) < 0) return false;
-      if ((p.revents & (POLLIN | POLLHUP)) == 0) continue;
+      const int ready = ::poll(&p, 1, 100);
+      if (ready < 0 && errno != EINTR) return false;
+      if (ready <= 0 || (p.revents & (POLLIN | POLLHUP)) == 0) continue;  // a signal or nothing yet
       char buf[512];
       const ssize_t n = ::read(out_fd_, buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
       if (n <= 0) return stdout_.find(text) != std::string::npos;  // closed: the program ended
       stdout_.append(buf, static_cast<std::size_t>(n));
     }
