@@ -8,55 +8,19 @@
 #include <cstdio>
 #include <thread>
 
+#include "cia402_drive.hpp"
 #include "foresight/common/error.hpp"
+#include "ft_node.hpp"
 
 namespace foresight::hw {
 
 using namespace canopen;
 
 namespace {
-enum RouteKind : std::uint8_t {
-  kNone = 0, kOwn, kDriveTpdo, kDriveVelocity, kDriveEmcy, kDriveHb, kDriveSdo, kFtForce, kFtTorque, kFtEmcy, kFtHb, kFtSdo,
-};
 constexpr std::size_t kMaxFramesPerRead = 512;
 
 std::string hex(std::uint32_t v, int digits) { return hex_text(v, digits); }
 }  // namespace
-
-struct DriveSystem::Drive {
-  DriveConfig cfg;
-  std::size_t bus = 0;
-  std::uint8_t node = 0;
-  std::string name;
-  std::string device_name;
-  double rated_torque_nm = 0.0;  // motor side, from 0x6076
-  std::uint16_t controlword = controlword::kDisableVoltage;
-  std::int32_t target_counts = 0;
-  JointState st;
-  bool have_actual = false;
-  int missed = 0;
-  bool miss_reported = false;
-  bool booted = false;
-  Clock::time_point last_hb{};
-  DriveInfo info;
-  std::int64_t fe_counts = 0;  // following-error window, counts
-};
-
-struct DriveSystem::Ft {
-  FtConfig cfg;
-  FtDecoder decoder;
-  FtReading reading;
-  canopen::NmtState nmt = canopen::NmtState::PreOperational;
-  int missed = 0;
-  bool miss_reported = false;
-  bool booted = false;
-  bool heartbeat_lost = false;
-  std::uint8_t saturated_reported = 0;
-  bool fault_reported = false;
-  std::uint16_t last_emcy = 0;
-  Clock::time_point last_hb{};
-  Ft(const FtConfig& c) : cfg(c), decoder(c.force_counts_per_n, c.torque_counts_per_nm) {}
-};
 
 const char* to_string(HwFault f) noexcept {
   switch (f) {
@@ -122,47 +86,30 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
   if (config_.drives.size() > kMaxJoints) throw HwError("DriveSystem: more than " + std::to_string(kMaxJoints) + " drives");
 
   bus_state_.resize(buses_.size());
-  drives_.resize(config_.drives.size());
-  for (std::size_t j = 0; j < drives_.size(); ++j) {
-    Drive& d = drives_[j];
-    d.cfg = config_.drives[j];
-    d.bus = static_cast<std::size_t>(d.cfg.bus_index);
-    d.node = d.cfg.node_id;
-    d.name = d.cfg.joint;
-    d.fe_counts = static_cast<std::int64_t>(std::lround(std::abs(d.cfg.following_error_limit_rad * d.cfg.counts_per_rad())));
+  drives_.reserve(config_.drives.size());
+  for (std::size_t j = 0; j < config_.drives.size(); ++j) {
+    const Cia402Drive& d = drives_.emplace_back(config_.drives[j], j);
     if (!limits_.empty() && !limits_.count(d.cfg.joint))
       throw InputError(config_.source, d.cfg.line,
                        "drives[" + std::to_string(j) + "]: joint '" + d.cfg.joint + "' is not in the robot model");
     BusState& b = bus_state_[d.bus];
     b.drives.push_back(j);
-    const auto slot = static_cast<std::uint8_t>(j);
-    b.routes[kTpdo1Base + d.node] = {kDriveTpdo, slot};
-    if (config_.velocity_tpdo_every > 0) b.routes[kTpdo1Base + 0x100 + d.node] = {kDriveVelocity, slot};
-    b.routes[kEmcyBase + d.node] = {kDriveEmcy, slot};
-    b.routes[kHeartbeatBase + d.node] = {kDriveHb, slot};
-    b.routes[kSdoTxBase + d.node] = {kDriveSdo, slot};
-    b.routes[kRpdo1Base + d.node] = {kOwn, slot};  // our own frames, when the controller loops them back
-    b.routes[kSdoRxBase + d.node] = {kOwn, slot};
+    b.router.add_drive(d.node, static_cast<std::uint8_t>(j), config_.velocity_tpdo_every > 0);
   }
   if (config_.ft.present) {
-    ft_ = std::make_unique<Ft>(config_.ft);
-    BusState& b = bus_state_[static_cast<std::size_t>(config_.ft.bus_index)];
-    const std::uint8_t n = config_.ft.node_id;
-    b.routes[ft_frame::kForceBase + n] = {kFtForce, 0};
-    b.routes[ft_frame::kTorqueBase + n] = {kFtTorque, 0};
-    b.routes[kEmcyBase + n] = {kFtEmcy, 0};
-    b.routes[kHeartbeatBase + n] = {kFtHb, 0};
-    b.routes[kSdoTxBase + n] = {kFtSdo, 0};
+    ft_ = std::make_unique<FtNode>(config_.ft);
+    bus_state_[ft_->bus].router.add_ft(ft_->node);
   }
   for (std::size_t bi = 0; bi < buses_.size(); ++bi)
     sdo_.push_back(std::make_unique<SdoClient>(
         *buses_[bi], config_.buses[bi].name, config_.sdo_timeout_s,
         [this, bi](const can_frame& f) { handle_frame(bi, f, Clock::now()); },
         [this, bi](std::uint8_t node) { return node_label(bi, node); }));
-  for (BusState& b : bus_state_) {
-    b.routes[kNmt] = {kOwn, 0};
-    b.routes[kHeartbeatBase + config_.master_node_id] = {kOwn, 0};
-  }
+  for (BusState& b : bus_state_) b.router.add_master(config_.master_node_id);
+  // Every node, drives first: the set-up steps that treat them all alike
+  // (NMT, boot-up, heartbeat) in this order. drives_ is not resized again.
+  for (Cia402Drive& d : drives_) nodes_.push_back(&d);
+  if (ft_) nodes_.push_back(ft_.get());
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
   master_hb_period_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_producer_s * 1e9));
 }
@@ -173,31 +120,23 @@ DriveSystem::~DriveSystem() {
   // following a target nobody updates.
   if (!configured_ || !enabled_) return;
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) {
-    for (std::size_t j : bus_state_[bi].drives) {
-      can_frame f{};
-      f.can_id = kRpdo1Base + drives_[j].node;
-      f.can_dlc = 6;
-      put_u16(f.data, controlword::kQuickStop);
-      put_u32(f.data + 2, static_cast<std::uint32_t>(drives_[j].target_counts));
-      (void)buses_[bi]->write(f);
-    }
+    for (std::size_t j : bus_state_[bi].drives) (void)buses_[bi]->write(drives_[j].rpdo(controlword::kQuickStop));
     (void)buses_[bi]->write(make_frame(kSync, {}));
   }
 }
 
 std::string DriveSystem::node_label(std::size_t bus, std::uint8_t node) const {
   const std::string where = "(bus " + config_.buses[bus].name + " node " + std::to_string(node) + ")";
-  for (const Drive& d : drives_)
+  for (const Cia402Drive& d : drives_)
     if (d.bus == bus && d.node == node) return d.name + " " + where;
-  if (ft_ && static_cast<std::size_t>(ft_->cfg.bus_index) == bus && ft_->cfg.node_id == node)
-    return "F/T sensor " + where;
+  if (ft_ && ft_->bus == bus && ft_->node == node) return "F/T sensor " + where;
   return "node " + where;
 }
 
 std::size_t DriveSystem::joint_count() const noexcept { return drives_.size(); }
 
-const std::string& DriveSystem::device_name(std::size_t joint) const { return drives_.at(joint).device_name; }
-double DriveSystem::rated_torque_nm(std::size_t joint) const { return drives_.at(joint).rated_torque_nm; }
+const std::string& DriveSystem::device_name(std::size_t joint) const { return drives_.at(joint).info.device_name; }
+double DriveSystem::rated_torque_nm(std::size_t joint) const { return drives_.at(joint).info.rated_torque_nm; }
 const DriveInfo& DriveSystem::drive_info(std::size_t joint) const { return drives_.at(joint).info; }
 
 std::vector<std::string> DriveSystem::setup_notices() const {
@@ -243,7 +182,7 @@ void DriveSystem::poll_and_handle(std::vector<pollfd>& fds, int timeout_ms) {
 }
 
 DriveSetup DriveSystem::drive_setup(std::size_t j) const {
-  const Drive& d = drives_[j];
+  const Cia402Drive& d = drives_[j];
   DriveSetup s;
   s.node = d.node;
   s.period_us = static_cast<std::uint32_t>(std::lround(1e6 / config_.cycle_rate_hz));
@@ -274,96 +213,38 @@ void DriveSystem::configure() {
   // SDO reaches a node that is still booting.
   drain_buses();
   for (auto& c : sdo_) c->clear_notices();
-  for (Drive& d : drives_) d.booted = false;
-  if (ft_) ft_->booted = false;
+  for (CanNode* n : nodes_) n->booted = false;
   configured_ = false;
   enabled_ = false;
-  for (Drive& d : drives_) nmt(d.bus, NmtCommand::ResetNode, d.node);
-  if (ft_) nmt(static_cast<std::size_t>(ft_->cfg.bus_index), NmtCommand::ResetNode, ft_->cfg.node_id);
-  const auto boot_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                std::chrono::duration<double>(config_.enable_timeout_s));
-  auto all_booted = [&] {
-    for (const Drive& d : drives_)
-      if (!d.booted) return false;
-    return !ft_ || ft_->booted;
-  };
+  for (const CanNode* n : nodes_) nmt(n->bus, NmtCommand::ResetNode, n->node);
   std::vector<pollfd> fds;
   for (auto& b : buses_) fds.push_back({b->fd(), POLLIN, 0});
-  while (!all_booted()) {
-    const auto now = Clock::now();
-    if (now > boot_deadline) {
-      std::string missing;
-      for (const Drive& d : drives_)
-        if (!d.booted) missing += (missing.empty() ? "" : ", ") + node_label(d.bus, d.node);
-      if (ft_ && !ft_->booted)
-        missing += (missing.empty() ? "" : ", ") +
-                   node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id);
-      throw HwError("no boot-up message after NMT reset node within " +
-                    std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms from: " + missing +
-                    " (powered? node id right? bus wired?)");
-    }
-    poll_and_handle(fds, 10);
-  }
+  wait_for_boot_up(fds);
 
   // 2. SDO configuration of every node (pre-operational): node_config.hpp.
   for (std::size_t j = 0; j < drives_.size(); ++j) {
-    Drive& d = drives_[j];
+    Cia402Drive& d = drives_[j];
     NodeConfigurator nc(*sdo_[d.bus], [this, b = d.bus](std::uint8_t node) { return node_label(b, node); });
-    const DriveInfo info = nc.configure_drive(drive_setup(j));
-    d.device_name = info.device_name;
-    d.rated_torque_nm = info.rated_torque_nm;
-    d.info = info;
+    d.info = nc.configure_drive(drive_setup(j));
   }
   if (ft_) {
-    const auto b = static_cast<std::size_t>(ft_->cfg.bus_index);
+    const std::size_t b = ft_->bus;
     NodeConfigurator nc(*sdo_[b], [this, b](std::uint8_t node) { return node_label(b, node); });
-    nc.configure_ft(ft_->cfg.node_id, static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3)));
+    nc.configure_ft(ft_->node, static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3)));
   }
 
   // 3. NMT start: PDOs flow from the next SYNC. Heartbeat monitoring starts now.
   const auto now = Clock::now();
-  for (Drive& d : drives_) {
+  for (Cia402Drive& d : drives_) {
     nmt(d.bus, NmtCommand::Start, d.node);
-    d.last_hb = now;
-    d.st.heartbeat_lost = false;
-    d.st.nmt = NmtState::Operational;
-    d.missed = 0;
-    d.miss_reported = false;
-    d.controlword = controlword::kDisableVoltage;
-    d.have_actual = false;
-    d.st.state_known = false;
+    d.restart(now);
   }
   if (ft_) {
-    nmt(static_cast<std::size_t>(ft_->cfg.bus_index), NmtCommand::Start, ft_->cfg.node_id);
-    ft_->last_hb = now;
-    ft_->heartbeat_lost = false;
-    ft_->nmt = NmtState::Operational;
+    nmt(ft_->bus, NmtCommand::Start, ft_->node);
+    ft_->start_monitoring(now);
   }
   // 4. Confirm: every node's next heartbeat must say operational.
-  for (Drive& d : drives_) d.st.nmt = NmtState::PreOperational;
-  if (ft_) ft_->nmt = NmtState::PreOperational;
-  auto all_operational = [&] {
-    for (const Drive& d : drives_)
-      if (d.st.nmt != NmtState::Operational) return false;
-    return !ft_ || ft_->nmt == NmtState::Operational;
-  };
-  const auto hb_deadline = now + heartbeat_timeout_;
-  while (!all_operational()) {
-    if (Clock::now() > hb_deadline) {
-      std::string missing;
-      for (const Drive& d : drives_)
-        if (d.st.nmt != NmtState::Operational)
-          missing += (missing.empty() ? "" : ", ") + node_label(d.bus, d.node) + " (" + to_string(d.st.nmt) + ")";
-      if (ft_ && ft_->nmt != NmtState::Operational)
-        missing += (missing.empty() ? "" : ", ") +
-                   node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id) + " (" +
-                   to_string(ft_->nmt) + ")";
-      throw HwError("no heartbeat reporting NMT operational within " +
-                    std::to_string(static_cast<int>(config_.heartbeat_consumer_s * 1000)) +
-                    " ms after NMT start from: " + missing);
-    }
-    poll_and_handle(fds, 5);
-  }
+  wait_for_operational(fds, now + heartbeat_timeout_);
   for (BusState& b : bus_state_) {
     b.sync_sent = false;
     b.bus_off_reported = b.passive_reported = b.closed_reported = b.tx_fail_reported = false;
@@ -373,8 +254,47 @@ void DriveSystem::configure() {
     b.restart_requests = 0;
     b.bus_off_cycles = 0;
   }
-  pending_count_ = 0;
+  events_.discard();
   configured_ = true;
+}
+
+void DriveSystem::wait_for_boot_up(std::vector<pollfd>& fds) {
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(config_.enable_timeout_s));
+  auto all_booted = [&] {
+    return std::all_of(nodes_.begin(), nodes_.end(), [](const CanNode* n) { return n->booted; });
+  };
+  while (!all_booted()) {
+    if (Clock::now() > deadline) {
+      std::string missing;
+      for (const CanNode* n : nodes_)
+        if (!n->booted) missing += (missing.empty() ? "" : ", ") + node_label(n->bus, n->node);
+      throw HwError("no boot-up message after NMT reset node within " +
+                    std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms from: " + missing +
+                    " (powered? node id right? bus wired?)");
+    }
+    poll_and_handle(fds, 10);
+  }
+}
+
+void DriveSystem::wait_for_operational(std::vector<pollfd>& fds, Clock::time_point deadline) {
+  for (CanNode* n : nodes_) n->nmt = NmtState::PreOperational;
+  auto all_operational = [&] {
+    return std::all_of(nodes_.begin(), nodes_.end(),
+                       [](const CanNode* n) { return n->nmt == NmtState::Operational; });
+  };
+  while (!all_operational()) {
+    if (Clock::now() > deadline) {
+      std::string missing;
+      for (const CanNode* n : nodes_)
+        if (n->nmt != NmtState::Operational)
+          missing += (missing.empty() ? "" : ", ") + node_label(n->bus, n->node) + " (" + to_string(n->nmt) + ")";
+      throw HwError("no heartbeat reporting NMT operational within " +
+                    std::to_string(static_cast<int>(config_.heartbeat_consumer_s * 1000)) +
+                    " ms after NMT start from: " + missing);
+    }
+    poll_and_handle(fds, 5);
+  }
 }
 
 void DriveSystem::run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb,
@@ -390,22 +310,13 @@ void DriveSystem::enable() {
   quick_stop_.store(false);
   power_off_.store(false);
   const auto start = Clock::now();
-  for (Drive& d : drives_)
-    if (d.st.heartbeat_lost) {
-      if (start - d.last_hb <= heartbeat_timeout_)
-        d.st.heartbeat_lost = false;
-      else
-        throw HwError(node_label(d.bus, d.node) + ": heartbeat lost; cannot enable");
-    }
+  for (Cia402Drive& d : drives_)
+    if (!d.heartbeat_heard(start, heartbeat_timeout_))
+      throw HwError(node_label(d.bus, d.node) + ": heartbeat lost; cannot enable");
   // The F/T sensor the same way: a heartbeat lost while its bus was silent
   // stays lost (a stop on every cycle) until it is heard again.
-  if (ft_ && ft_->heartbeat_lost) {
-    if (start - ft_->last_hb <= heartbeat_timeout_)
-      ft_->heartbeat_lost = false;
-    else
-      throw HwError(node_label(static_cast<std::size_t>(ft_->cfg.bus_index), ft_->cfg.node_id) +
-                    " (F/T sensor): heartbeat lost; cannot enable");
-  }
+  if (ft_ && !ft_->heartbeat_heard(start, heartbeat_timeout_))
+    throw HwError(node_label(ft_->bus, ft_->node) + " (F/T sensor): heartbeat lost; cannot enable");
   const auto end = start + std::chrono::duration_cast<Clock::duration>(
                                std::chrono::duration<double>(config_.enable_timeout_s));
   Clock::time_point deadline = start;
@@ -413,28 +324,12 @@ void DriveSystem::enable() {
   CycleStatus status;
   // Decide only on states reported by TPDOs answering this enable()'s SYNCs:
   // the last known state may be stale (e.g. after the cycle stopped).
-  for (Drive& d : drives_) d.have_actual = false;
+  for (Cia402Drive& d : drives_) d.have_actual = false;
   for (;;) {
-    for (Drive& d : drives_) {
-      if (!d.have_actual) continue;  // keep the last controlword until the drive reports
-      if (d.st.state != PowerState::OperationEnabled) d.target_counts = d.st.position_counts;  // hold
-      switch (d.st.state) {
-        case PowerState::Fault:
-          d.controlword = (d.controlword & controlword::kFaultReset) ? controlword::kDisableVoltage
-                                                                       : controlword::kFaultReset;
-          break;
-        case PowerState::FaultReactionActive:
-        case PowerState::NotReadyToSwitchOn:
-        case PowerState::QuickStopActive: d.controlword = controlword::kDisableVoltage; break;
-        case PowerState::SwitchOnDisabled: d.controlword = controlword::kShutdown; break;
-        case PowerState::ReadyToSwitchOn: d.controlword = controlword::kSwitchOn; break;
-        case PowerState::SwitchedOn:
-        case PowerState::OperationEnabled: d.controlword = controlword::kEnableOperation; break;
-      }
-    }
+    for (Cia402Drive& d : drives_) d.step_to_enabled();
     // Write RPDOs with the held targets (counts set above) and SYNC.
     JointTargets t;
-    for (std::size_t j = 0; j < drives_.size(); ++j) t.position_rad[j] = drives_[j].cfg.to_rad(drives_[j].target_counts);
+    held_targets(t);
     cycle_write(t);
     run_cycle_blocking(deadline, fb, status);
     for (std::size_t e = 0; e < status.event_count; ++e) {
@@ -442,22 +337,20 @@ void DriveSystem::enable() {
       if (ev.fault == HwFault::HeartbeatLost || ev.fault == HwFault::NodeRebooted || ev.fault == HwFault::BusOff ||
           ev.fault == HwFault::TxFailed || ev.fault == HwFault::RxFailed ||
           ev.fault == HwFault::NodeNotOperational) {
-        for (Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
+        for (Cia402Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
         throw HwError("enable(): " + describe(ev));
       }
     }
-    bool all = true;
-    for (const Drive& d : drives_) all = all && d.st.state == PowerState::OperationEnabled && d.have_actual;
-    if (all) break;
+    if (std::all_of(drives_.begin(), drives_.end(), [](const Cia402Drive& d) { return d.enabled(); })) break;
     if (Clock::now() > end) {
       std::string msg = "enable(): not Operation enabled after " +
                         std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
-      for (Drive& d : drives_) {
+      for (Cia402Drive& d : drives_) {
         if (d.st.state == PowerState::OperationEnabled) continue;
         msg += " " + node_label(d.bus, d.node) + " stayed in '" + to_string(d.st.state) + "' (statusword " +
                hex(d.st.statusword, 4) + (d.have_actual ? "" : ", no TPDO received") + ")";
-        if (d.st.last_emcy)
-          msg += std::string(", last EMCY ") + hex(d.st.last_emcy, 4) + " " + to_string(classify_emcy(d.st.last_emcy));
+        if (d.last_emcy)
+          msg += std::string(", last EMCY ") + hex(d.last_emcy, 4) + " " + to_string(classify_emcy(d.last_emcy));
         msg += ";";
         d.controlword = controlword::kDisableVoltage;
       }
@@ -474,7 +367,7 @@ std::size_t DriveSystem::home() {
   constexpr std::uint16_t kHomingStart = 1u << 4, kHomingAttained = 1u << 12, kHomingError = 1u << 13;
   std::vector<std::size_t> homing;
   double timeout_s = 0.0;
-  auto write_back = [&](const Drive& d, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int size,
+  auto write_back = [&](const Cia402Drive& d, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int size,
                         const char* what) {
     sdo_write(d.bus, d.node, index, sub, value, size);
     const std::uint32_t mask = size == 4 ? 0xFFFFFFFFu : (1u << (8 * size)) - 1;
@@ -484,7 +377,7 @@ std::size_t DriveSystem::home() {
                     " after writing " + std::to_string(value & mask));
   };
   for (std::size_t j = 0; j < drives_.size(); ++j) {
-    const Drive& d = drives_[j];
+    const Cia402Drive& d = drives_[j];
     const HomingConfig& h = d.cfg.homing;
     if (!h.enabled) continue;
     const double cpr = std::abs(d.cfg.counts_per_rad());
@@ -518,7 +411,7 @@ std::size_t DriveSystem::home() {
     bool all = true;
     std::string errors;
     for (std::size_t j : homing) {
-      const Drive& d = drives_[j];
+      const Cia402Drive& d = drives_[j];
       // Two cycles after the start edge: the TPDO answers a SYNC after it.
       if (cycle >= 3 && d.st.fresh && (d.st.statusword & kHomingError))
         errors += " " + node_label(d.bus, d.node) + " homing error (statusword " + hex(d.st.statusword, 4) + ");";
@@ -543,7 +436,7 @@ std::size_t DriveSystem::home() {
   for (std::size_t j : homing) drives_[j].controlword = controlword::kEnableOperation;
   disable();  // holds the new actual positions as targets
   for (std::size_t j : homing) {
-    const Drive& d = drives_[j];
+    const Cia402Drive& d = drives_[j];
     write_back(d, od::kModesOfOperation, 0, static_cast<std::uint8_t>(kModeCyclicSyncPosition), 1, "mode 0x6060");
     if (static_cast<std::int8_t>(sdo_read(d.bus, d.node, od::kModesDisplay, 0)) != kModeCyclicSyncPosition)
       throw HwError(node_label(d.bus, d.node) + ": modes of operation display 0x6061 is not 8 (CSP) after homing");
@@ -552,7 +445,7 @@ std::size_t DriveSystem::home() {
 }
 
 void DriveSystem::held_targets(JointTargets& out) const noexcept {
-  for (std::size_t j = 0; j < drives_.size(); ++j) out.position_rad[j] = drives_[j].cfg.to_rad(drives_[j].target_counts);
+  for (std::size_t j = 0; j < drives_.size(); ++j) out.position_rad[j] = drives_[j].held_target_rad();
 }
 
 void DriveSystem::disable() {
@@ -563,24 +456,20 @@ void DriveSystem::disable() {
   JointFeedback fb;
   CycleStatus status;
   JointTargets t;
-  for (Drive& d : drives_) d.have_actual = false;  // as in enable(): fresh states only
+  for (Cia402Drive& d : drives_) d.have_actual = false;  // as in enable(): fresh states only
   for (;;) {
-    for (std::size_t j = 0; j < drives_.size(); ++j) {
-      Drive& d = drives_[j];
-      d.controlword = controlword::kDisableVoltage;
-      if (d.have_actual) d.target_counts = d.st.position_counts;
-      t.position_rad[j] = d.cfg.to_rad(d.target_counts);
-    }
+    for (Cia402Drive& d : drives_) d.step_to_disabled();
+    held_targets(t);
     cycle_write(t);
     run_cycle_blocking(deadline, fb, status);
     bool all = true;
-    for (const Drive& d : drives_) all = all && d.have_actual && !power_enabled(d.st.state);
+    for (const Cia402Drive& d : drives_) all = all && d.have_actual && !power_enabled(d.st.state);
     if (all) break;
     if (Clock::now() > end) {
       // Not silently: a drive that never answered may still be enabled.
       std::string msg = "disable(): not confirmed after " +
                         std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
-      for (const Drive& d : drives_) {
+      for (const Cia402Drive& d : drives_) {
         if (!d.have_actual)
           msg += " " + node_label(d.bus, d.node) + " never answered (no TPDO; state unknown, may still be enabled);";
         else if (power_enabled(d.st.state))
@@ -594,18 +483,21 @@ void DriveSystem::disable() {
 }
 
 void DriveSystem::nmt_all(NmtCommand cmd) {
-  for (const Drive& d : drives_) nmt(d.bus, cmd, d.node);
-  if (ft_) nmt(static_cast<std::size_t>(ft_->cfg.bus_index), cmd, ft_->cfg.node_id);
+  for (const CanNode* n : nodes_) nmt(n->bus, cmd, n->node);
   if (cmd != NmtCommand::Start) enabled_ = false;
 }
 
 // ---- real-time cycle ---------------------------------------------------------------
 
-void DriveSystem::push_event(const HwEvent& e) noexcept {
-  if (pending_count_ < pending_.size())
-    pending_[pending_count_++] = e;
-  else
-    ++pending_dropped_;
+void EventQueue::take(CycleStatus& s) noexcept {
+  s.event_count = static_cast<std::uint8_t>(count_);
+  s.events_dropped = dropped_;
+  for (std::size_t e = 0; e < count_; ++e) {
+    s.events[e] = events_[e];
+    s.stop_required = s.stop_required || requires_stop(events_[e].fault);
+  }
+  count_ = 0;
+  dropped_ = 0;
 }
 
 void DriveSystem::write_sync(std::size_t bi) noexcept {
@@ -657,31 +549,14 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
     const bool sync_ok = bs.sync_sent;
     bool all_sent = true;
     for (std::size_t j : bs.drives) {
-      Drive& d = drives_[j];
-      std::int32_t counts = 0;
-      if (!d.cfg.to_counts(targets.position_rad[j], counts)) {
-        push_event({HwFault::InvalidTarget, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j), 0, 0});
-      } else if (const std::int64_t step = static_cast<std::int64_t>(counts) - d.target_counts;
-                 enabled_ && (step > d.fe_counts || -step > d.fe_counts)) {
-        // Refused here, before the drive: it would fault on its following error.
-        push_event({HwFault::InvalidTarget, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
-                    static_cast<std::uint32_t>(step < 0 ? -step : step), 1});
-      } else {
-        d.target_counts = counts;
-      }
-      if (quick_stop && enabled_) d.controlword = controlword::kQuickStop;
-      if (power_off) d.controlword = controlword::kDisableVoltage;  // category 0 wins over everything
-      can_frame f{};
-      f.can_id = kRpdo1Base + d.node;
-      f.can_dlc = 6;
-      put_u16(f.data, d.controlword);
-      put_u32(f.data + 2, static_cast<std::uint32_t>(d.target_counts));
+      Cia402Drive& d = drives_[j];
+      d.take_target(targets.position_rad[j], enabled_, events_);
+      d.apply_stops(quick_stop && enabled_, power_off);
+      const can_frame f = d.rpdo(d.controlword);
       const CanIo io = bus.write(f);
       if (io != CanIo::Ok) {
         all_sent = false;
-        if (!bs.tx_fail_reported)
-          push_event({HwFault::TxFailed, static_cast<std::uint8_t>(bi), d.node, static_cast<std::int8_t>(j),
-                      static_cast<std::uint32_t>(io), f.can_id});
+        if (!bs.tx_fail_reported) push_event(d.event(HwFault::TxFailed, static_cast<std::uint32_t>(io), f.can_id));
         bs.tx_fail_reported = true;
       }
     }
@@ -713,114 +588,30 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
     bs.sync_seen = f.can_dlc >= 1 && config_.sync_counter_overflow > 0 ? f.data[0] : static_cast<std::uint8_t>(bs.sync_seen + 1);
     return;
   }
-  const Route r = bus_state_[bi].routes[id];
-  auto malformed = [&](std::int8_t joint) {
-    push_event({HwFault::MalformedFrame, bus8, node_of(id), joint, id, f.can_dlc});
-  };
+  using Kind = CobIdRouter::Kind;
+  const CobIdRouter::Route r = bs.router.route(id);
+  // A TPDO read before the echo of the last SYNC we sent answers an earlier
+  // SYNC (late, or that SYNC was lost): the handlers do not take it as fresh.
+  const CanNode::RxContext ctx{now, cycle_, configured_, bs.sync_echo_active && bs.sync_seen != bs.sync_counter,
+                               &quick_stop_};
+  CanNode::Rx rx = CanNode::Rx::Taken;
+  std::int8_t joint = -1;
   switch (r.kind) {
-    case kDriveTpdo: {
-      Drive& d = drives_[r.slot];
-      const auto j = static_cast<std::int8_t>(r.slot);
-      if (f.can_dlc != 8) return malformed(j);
-      if (bs.sync_echo_active && bs.sync_seen != bs.sync_counter) {
-        // Read before the echo of the last SYNC we sent: it answers an earlier
-        // SYNC (late, or that SYNC was lost). Not taken as fresh.
-        ++bs.stale_tpdos;
-        return;
-      }
-      const PowerState before = d.st.state;
-      d.st.statusword = get_u16(f.data);
-      d.st.position_counts = static_cast<std::int32_t>(get_u32(f.data + 2));
-      const auto torque_pm = static_cast<std::int16_t>(get_u16(f.data + 6));
-      d.st.position_rad = d.cfg.to_rad(d.st.position_counts);
-      d.st.torque_nm = torque_pm * 1e-3 * d.rated_torque_nm * d.cfg.gear_ratio * d.cfg.direction;
-      d.st.state = decode_statusword(d.st.statusword);
-      d.st.fresh = true;
-      d.st.state_known = true;
-      d.have_actual = true;
-      if ((d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive) &&
-          before != PowerState::Fault && before != PowerState::FaultReactionActive)
-        push_event({HwFault::DriveFault, bus8, d.node, j, d.st.statusword, d.st.last_emcy});
-      if (d.st.state == PowerState::QuickStopActive && before == PowerState::OperationEnabled &&
-          !quick_stop_.load(std::memory_order_relaxed))
-        push_event({HwFault::QuickStopActive, bus8, d.node, j, d.st.statusword, 0});
-      return;
-    }
-    case kDriveVelocity: {  // TPDO2: velocity actual, on every velocity_tpdo_every-th SYNC
-      Drive& d = drives_[r.slot];
-      if (f.can_dlc != 4) return malformed(static_cast<std::int8_t>(r.slot));
-      if (bs.sync_echo_active && bs.sync_seen != bs.sync_counter) {
-        ++bs.stale_tpdos;  // answers an earlier SYNC: not taken
-        return;
-      }
-      d.st.velocity_counts_s = static_cast<std::int32_t>(get_u32(f.data));
-      d.st.velocity_rad_s = d.st.velocity_counts_s / d.cfg.counts_per_rad();
-      d.st.velocity_cycle = cycle_;
-      return;
-    }
-    case kDriveEmcy:
-    case kFtEmcy: {
-      const std::int8_t j = r.kind == kDriveEmcy ? static_cast<std::int8_t>(r.slot) : -1;
-      if (f.can_dlc != 8) return malformed(j);
-      const std::uint16_t code = get_u16(f.data);
-      // CiA 301: the error register (byte 2) has bit 0 set while any error is
-      // present; an EMCY with a code and an empty register is a warning.
-      const HwFault kind = code == 0 ? HwFault::EmergencyCleared
-                           : f.data[2] == 0 ? HwFault::EmergencyWarning
-                                            : HwFault::Emergency;
-      if (kind != HwFault::EmergencyWarning) {
-        if (r.kind == kDriveEmcy)
-          drives_[r.slot].st.last_emcy = code;
-        else
-          ft_->last_emcy = code;
-      }
-      push_event({kind, bus8, node_of(id), j, code, f.data[2]});
-      return;
-    }
-    case kDriveHb:
-    case kFtHb: {
-      const std::int8_t j = r.kind == kDriveHb ? static_cast<std::int8_t>(r.slot) : -1;
-      if (f.can_dlc != 1) return malformed(j);
-      const auto state = static_cast<NmtState>(f.data[0] & 0x7F);
-      NmtState& nmt_state = r.kind == kDriveHb ? drives_[r.slot].st.nmt : ft_->nmt;
-      bool& booted = r.kind == kDriveHb ? drives_[r.slot].booted : ft_->booted;
-      (r.kind == kDriveHb ? drives_[r.slot].last_hb : ft_->last_hb) = now;
-      if (state == NmtState::BootUp) {
-        booted = true;
-        if (configured_) push_event({HwFault::NodeRebooted, bus8, node_of(id), j, 0, 0});
-        nmt_state = NmtState::PreOperational;
-        return;
-      }
-      if (configured_ && state != NmtState::Operational && nmt_state == NmtState::Operational)
-        push_event({HwFault::NodeNotOperational, bus8, node_of(id), j, static_cast<std::uint32_t>(state), 0});
-      nmt_state = state;
-      return;
-    }
-    case kFtForce:
-    case kFtTorque: {
-      const FtDecoder::Result res =
-          r.kind == kFtForce ? ft_->decoder.on_force_frame(f) : ft_->decoder.on_torque_frame(f);
-      if (res == FtDecoder::Result::Malformed) return malformed(-1);
-      if (res == FtDecoder::Result::Mismatch)
-        push_event({HwFault::FtFrameMismatch, bus8, node_of(id), -1, id, f.data[7]});
-      if (res == FtDecoder::Result::Sample) {
-        ft_->reading = ft_->decoder.latest();
-        const std::uint8_t sat = ft_->reading.saturated_mask;
-        if (sat & ~ft_->saturated_reported)
-          push_event({HwFault::FtSaturated, bus8, node_of(id), -1, sat, 0});
-        ft_->saturated_reported = sat;
-        if (ft_->reading.sensor_fault && !ft_->fault_reported)
-          push_event({HwFault::FtSensorFault, bus8, node_of(id), -1, 0, 0});
-        ft_->fault_reported = ft_->reading.sensor_fault;
-      }
-      return;
-    }
-    case kOwn: return;
-    case kDriveSdo:
-    case kFtSdo:
-      push_event({HwFault::UnexpectedSdo, bus8, node_of(id), -1, id, f.data[0]});
-      return;
-    default: {
+    case Kind::DriveTpdo:
+    case Kind::DriveVelocity:
+    case Kind::DriveEmcy:
+    case Kind::DriveHeartbeat:
+      joint = static_cast<std::int8_t>(r.slot);
+      rx = drives_[r.slot].on_frame(r.kind, f, ctx, events_);
+      break;
+    case Kind::FtForce:
+    case Kind::FtTorque:
+    case Kind::FtEmcy:
+    case Kind::FtHeartbeat: rx = ft_->on_frame(r.kind, f, ctx, events_); break;
+    case Kind::Own: return;
+    case Kind::DriveSdo:
+    case Kind::FtSdo: push_event({HwFault::UnexpectedSdo, bus8, node_of(id), -1, id, f.data[0]}); return;
+    case Kind::None: {
       ++bs.unknown_frames;
       std::uint64_t& word = bs.unknown_seen[id / 64];
       const std::uint64_t bit = std::uint64_t{1} << (id % 64);
@@ -829,6 +620,8 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
       return;
     }
   }
+  if (rx == CanNode::Rx::Malformed) push_event({HwFault::MalformedFrame, bus8, node_of(id), joint, id, f.can_dlc});
+  if (rx == CanNode::Rx::Stale) ++bs.stale_tpdos;
 }
 
 CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft) noexcept {
@@ -837,7 +630,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft) noexce
 
 CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Clock::time_point now) noexcept {
   frames_this_cycle_ = 0;
-  for (Drive& d : drives_) d.st.fresh = false;
+  for (Cia402Drive& d : drives_) d.st.fresh = false;
   if (ft_) ft_->reading.fresh = false;
   if (const int tare = tare_request_.exchange(0, std::memory_order_acq_rel); tare > 0 && ft_)
     ft_->decoder.request_tare(tare);
@@ -849,7 +642,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   supervise_buses(active, first_active);
 
   joints.count = drives_.size();
-  for (std::size_t j = 0; j < drives_.size(); ++j) joints.joints[j] = drives_[j].st;
+  for (std::size_t j = 0; j < drives_.size(); ++j) drives_[j].feedback(joints.joints[j]);
 
   CycleStatus s;
   if (config_.sto_status_bit >= 0) {
@@ -864,15 +657,8 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   s.active_faults = active;
   s.first_active = first_active;
   s.frames_received = frames_this_cycle_;
-  s.event_count = static_cast<std::uint8_t>(pending_count_);
-  s.events_dropped = pending_dropped_;
-  for (std::size_t e = 0; e < pending_count_; ++e) {
-    s.events[e] = pending_[e];
-    s.stop_required = s.stop_required || requires_stop(pending_[e].fault);
-  }
+  events_.take(s);
   s.stop_required = s.stop_required || active > 0;
-  pending_count_ = 0;
-  pending_dropped_ = 0;
   return s;
 }
 
@@ -928,71 +714,22 @@ void DriveSystem::read_bus(std::size_t bi, Clock::time_point now) noexcept {
 }
 
 void DriveSystem::supervise_drives(Clock::time_point now, std::uint8_t& active, HwEvent& first_active) noexcept {
-  for (std::size_t j = 0; j < drives_.size(); ++j) {
-    Drive& d = drives_[j];
-    const auto bus8 = static_cast<std::uint8_t>(d.bus);
-    if (bus_state_[d.bus].sync_sent) {
-      if (d.st.fresh) {
-        d.missed = 0;
-        d.miss_reported = false;
-      } else if (++d.missed >= config_.tpdo_miss_limit && !d.miss_reported) {
-        d.miss_reported = true;
-        push_event({HwFault::TpdoMissing, bus8, d.node, static_cast<std::int8_t>(j),
-                    static_cast<std::uint32_t>(d.missed), 0});
-      }
-    }
-    if (configured_ && !d.st.heartbeat_lost && now - d.last_hb > heartbeat_timeout_) {
-      d.st.heartbeat_lost = true;
-      push_event({HwFault::HeartbeatLost, bus8, d.node, static_cast<std::int8_t>(j),
-                  static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - d.last_hb).count()),
-                  0});
-    }
-    if (d.st.heartbeat_lost || d.miss_reported) d.st.state_known = false;  // a TPDO makes it known again
-    if (d.st.heartbeat_lost || d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive ||
-        d.miss_reported) {
-      if (active++ == 0) {
-        const HwFault why = d.st.heartbeat_lost ? HwFault::HeartbeatLost
-                            : d.miss_reported   ? HwFault::TpdoMissing
-                                                : HwFault::DriveFault;
-        first_active = {why, bus8, d.node, static_cast<std::int8_t>(j), d.st.statusword, 0};
-      }
-    }
+  for (Cia402Drive& d : drives_) {
+    const HwEvent fault = d.supervise(now, heartbeat_timeout_, bus_state_[d.bus].sync_sent, configured_,
+                                      config_.tpdo_miss_limit, events_);
+    if (fault.fault != HwFault::None && active++ == 0) first_active = fault;
   }
 }
 
 void DriveSystem::supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first_active,
                                FtReading& ft_out) noexcept {
-  if (ft_) {
-    const auto bus8 = static_cast<std::uint8_t>(ft_->cfg.bus_index);
-    if (bus_state_[static_cast<std::size_t>(ft_->cfg.bus_index)].sync_sent) {
-      if (ft_->reading.fresh) {
-        ft_->missed = 0;
-        ft_->miss_reported = false;
-      } else if (++ft_->missed >= config_.tpdo_miss_limit && !ft_->miss_reported) {
-        ft_->miss_reported = true;
-        push_event({HwFault::FtMissing, bus8, ft_->cfg.node_id, -1, static_cast<std::uint32_t>(ft_->missed), 0});
-      }
-    }
-    if (configured_ && !ft_->heartbeat_lost && now - ft_->last_hb > heartbeat_timeout_) {
-      ft_->heartbeat_lost = true;
-      push_event({HwFault::HeartbeatLost, bus8, ft_->cfg.node_id, -1,
-                  static_cast<std::uint32_t>(std::chrono::duration_cast<std::chrono::milliseconds>(now - ft_->last_hb).count()),
-                  0});
-    }
-    if (ft_->heartbeat_lost || ft_->miss_reported || ft_->reading.sensor_fault || ft_->reading.saturated_mask) {
-      if (active++ == 0) {
-        const HwFault why = ft_->heartbeat_lost        ? HwFault::HeartbeatLost
-                            : ft_->miss_reported       ? HwFault::FtMissing
-                            : ft_->reading.sensor_fault ? HwFault::FtSensorFault
-                                                        : HwFault::FtSaturated;
-        first_active = {why, bus8, ft_->cfg.node_id, -1, ft_->reading.saturated_mask, 0};
-      }
-    }
-    ft_out = ft_->reading;
-    ft_out.tare_in_progress = ft_->decoder.tare_in_progress();
-  } else {
+  if (!ft_) {
     ft_out = FtReading{};
+    return;
   }
+  const HwEvent fault = ft_->supervise(now, heartbeat_timeout_, bus_state_[ft_->bus].sync_sent, configured_,
+                                       config_.tpdo_miss_limit, events_, ft_out);
+  if (fault.fault != HwFault::None && active++ == 0) first_active = fault;
 }
 
 void DriveSystem::supervise_buses(std::uint8_t& active, HwEvent& first_active) noexcept {

@@ -3,8 +3,13 @@
 // one or more CAN buses, driven in cyclic synchronous position mode.
 //
 // The SDO client (sdo_client.hpp) and what is written to each node
-// (node_config.hpp) live in their own files; this class keeps the boot
-// sequence, the power state machine and the cycle.
+// (node_config.hpp) live in their own files, and so do, as in Lely's split of
+// master and drivers, the handler of each node (src/cia402_drive.hpp per
+// drive, src/ft_node.hpp for the F/T sensor: their frames' meaning, their
+// state, their supervision) and the COB-ID router that gives a received frame
+// to its handler (cob_id_router.hpp). This class is the orchestrator: it owns
+// the buses, the router and the handlers, runs the boot sequence, enable/
+// disable/homing and the cycle.
 //
 // Two phases:
 //  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
@@ -56,6 +61,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/hw/can_bus.hpp"
 #include "foresight/hw/canopen.hpp"
+#include "foresight/hw/cob_id_router.hpp"
 #include "foresight/hw/ft_sensor.hpp"
 #include "foresight/hw/node_config.hpp"
 #include "foresight/hw/sdo_client.hpp"
@@ -163,6 +169,34 @@ struct CycleStatus {
   std::int8_t sto_joint = -1;  ///< the first joint reporting it (0-based)
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
+
+/// The events of the cycle so far, until cycle_read hands them over in its
+/// CycleStatus: a fixed array (real-time safe); beyond kMaxEvents they are
+/// counted as dropped.
+class EventQueue {
+ public:
+  void push(const HwEvent& e) noexcept {
+    if (count_ < events_.size())
+      events_[count_++] = e;
+    else
+      ++dropped_;
+  }
+  /// Into `s` (events, event_count, events_dropped, stop_required for a
+  /// stopping event); the queue is then empty.
+  void take(CycleStatus& s) noexcept;
+  /// Forget the queued events (configure(): set-up's events are not the
+  /// cycle's); the drop count is still reported by the next take().
+  void discard() noexcept { count_ = 0; }
+
+ private:
+  std::array<HwEvent, CycleStatus::kMaxEvents> events_{};
+  std::size_t count_ = 0;
+  std::uint16_t dropped_ = 0;
+};
+
+class CanNode;
+class Cia402Drive;
+class FtNode;
 
 /// Joint limits by joint name from the robot model (URDF), for DriveSystem.
 inline std::map<std::string, JointLimits> joint_limits_by_name(const RobotModel& model) {
@@ -283,15 +317,9 @@ class DriveSystem {
   std::string sdo_read_string(std::size_t bus, std::uint8_t node, std::uint16_t index, std::uint8_t sub);
 
  private:
-  struct Drive;
-  struct Ft;
-  struct Route {
-    std::uint8_t kind = 0;
-    std::uint8_t slot = 0;
-  };
   struct BusState {
     std::vector<std::size_t> drives;
-    std::array<Route, 2048> routes{};
+    CobIdRouter router;  // filled by the constructor
     bool sync_sent = false;
     bool bus_off_reported = false;
     bool passive_reported = false;
@@ -318,28 +346,31 @@ class DriveSystem {
   void supervise_drives(Clock::time_point now, std::uint8_t& active, HwEvent& first) noexcept;
   void supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first, FtReading& ft_out) noexcept;
   void supervise_buses(std::uint8_t& active, HwEvent& first) noexcept;
-  void push_event(const HwEvent& e) noexcept;
+  void push_event(const HwEvent& e) noexcept { events_.push(e); }
   void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
   void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
   std::string node_label(std::size_t bus, std::uint8_t node) const;
   DriveSetup drive_setup(std::size_t joint) const;
   void drain_buses();
+  /// configure()'s waits: every node's boot-up after NMT reset, then a
+  /// heartbeat saying operational after NMT start (by `deadline`).
+  void wait_for_boot_up(std::vector<pollfd>& fds);
+  void wait_for_operational(std::vector<pollfd>& fds, Clock::time_point deadline);
   void poll_and_handle(std::vector<pollfd>& fds, int timeout_ms);
 
   RemoteConfig config_;
   std::vector<std::unique_ptr<CanBus>> buses_;
   std::vector<std::unique_ptr<SdoClient>> sdo_;
   std::map<std::string, JointLimits> limits_;
-  std::vector<Drive> drives_;
-  std::unique_ptr<Ft> ft_;
+  std::vector<Cia402Drive> drives_;
+  std::unique_ptr<FtNode> ft_;
+  std::vector<CanNode*> nodes_;  ///< drives_ then ft_: the set-up steps common to every node
   std::vector<BusState> bus_state_;
   std::chrono::nanoseconds heartbeat_timeout_;
   std::chrono::nanoseconds master_hb_period_;
   Clock::time_point last_master_hb_{};
 
-  std::array<HwEvent, CycleStatus::kMaxEvents> pending_{};
-  std::size_t pending_count_ = 0;
-  std::uint16_t pending_dropped_ = 0;
+  EventQueue events_;
   std::uint16_t frames_this_cycle_ = 0;
   std::uint64_t cycle_ = 0;
   bool configured_ = false;
