@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "foresight/common/format.hpp"
 #include "foresight/protocol/codec.hpp"
 #include "foresight/daemon/algorithm_params.hpp"
 
@@ -30,16 +31,6 @@ std::optional<ToolStepKind> tool_step_from_name(const std::string& name) noexcep
     if (name == to_string(k)) return k;
   return std::nullopt;
 }
-
-namespace {
-
-std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, f, a, b, c);
-  return buf;
-}
-
-}  // namespace
 
 std::string parse_tool_step(const protocol::InvokeAlgorithm& invoke, ToolStepKind kind,
                             const hw::LstToolConfig& tool, ToolStep& step) {
@@ -67,12 +58,12 @@ std::string parse_tool_step(const protocol::InvokeAlgorithm& invoke, ToolStepKin
   }
   if (!(step.timeout_s >= 0.0 && step.timeout_s <= kMaxAlgorithmTimeoutS)) return name + fmt_timeout(step.timeout_s);
   if (kind == ToolStepKind::Loosen && !(step.turns > 0.0 && step.turns <= 50.0))
-    return name + fmt(": turns %g out of range (0, 50]", step.turns);
+    return name + printf_text(": turns %g out of range (0, 50]", step.turns);
   if ((kind == ToolStepKind::Loosen || kind == ToolStepKind::Tighten)) {
     if (!(step.speed_rad_s > 0.0 && step.speed_rad_s <= tool.max_speed_rad_s))
-      return name + fmt(": speed_rad_s %g out of range (0, %g]", step.speed_rad_s, tool.max_speed_rad_s);
+      return name + printf_text(": speed_rad_s %g out of range (0, %g]", step.speed_rad_s, tool.max_speed_rad_s);
     if (!(step.torque_nm > 0.0 && step.torque_nm <= tool.max_torque_nm))
-      return name + fmt(": torque %g N m out of range (0, %g]", step.torque_nm, tool.max_torque_nm);
+      return name + printf_text(": torque %g N m out of range (0, %g]", step.torque_nm, tool.max_torque_nm);
   }
   return {};
 }
@@ -205,7 +196,7 @@ ToolStepResult ToolWorker::execute(const ToolStep& step) {
     }
     if (Clock::now() > deadline) {
       if (run_step) (void)tool_.stop();
-      return fail(Reason::Timeout, fmt("not done after %.1f s", timeout_s) + " (" + st.describe() + ")");
+      return fail(Reason::Timeout, printf_text("not done after %.1f s", timeout_s) + " (" + st.describe() + ")");
     }
     if ((ec = tool_.read_status(st))) {
       if (run_step) (void)tool_.stop();
@@ -245,17 +236,17 @@ ToolStepResult ToolWorker::execute(const ToolStep& step) {
           (void)tool_.stop();
           r.ok = true;
           r.turns = -st.turns;
-          r.text = fmt("loosen: %.2f turns, peak %.1f N m", -st.turns, std::abs(st.peak_torque_nm));
+          r.text = printf_text("loosen: %.2f turns, peak %.1f N m", -st.turns, std::abs(st.peak_torque_nm));
           return r;
         }
         if (st.torque_reached() && !st.running())
-          return fail(Reason::ToolFault, fmt("the screw did not break loose: stopped at the %.1f N m limit after %.2f turns",
+          return fail(Reason::ToolFault, printf_text("the screw did not break loose: stopped at the %.1f N m limit after %.2f turns",
                                              step.torque_nm, -st.turns));
         break;
       case ToolStepKind::Tighten:
         if (st.torque_reached() && !st.running()) {
           r.ok = true;
-          r.text = fmt("tighten: %.1f N m reached after %.2f turns", std::abs(st.peak_torque_nm), st.turns - turns0);
+          r.text = printf_text("tighten: %.1f N m reached after %.2f turns", std::abs(st.peak_torque_nm), st.turns - turns0);
           return r;
         }
         if (seen_running && !st.running() && !st.torque_reached()) {

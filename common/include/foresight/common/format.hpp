@@ -13,4 +13,13 @@ inline std::string fixed(double v, int digits) {
   return buf;
 }
 
+/// printf-style text of up to three numbers ("%.1f s", "%g of %g"), for
+/// reasons and log lines; at most 255 characters. Every argument is a
+/// double, so the format's conversions are f, e, g (never d or s).
+inline std::string printf_text(const char* format, double a, double b = 0.0, double c = 0.0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, format, a, b, c);
+  return buf;
+}
+
 }  // namespace foresight
