@@ -146,6 +146,31 @@ TEST(Align, ReusedBuffersGiveTheSameAnswerAndLeaveTheCallersFrameAlone) {
   EXPECT_EQ(s1.iou, s2.iou);
 }
 
+// One AlignmentModel (the primitives and mesh edges, built once) shared by
+// two aligners, as by two threads each with its own buffers: each gives the
+// answer of an aligner that built its own model.
+TEST(Align, SharedModelGivesTheOwnModelsAnswer) {
+  World w;
+  const Camera truth = scene_camera(w.scene, "oblique");
+  SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 3));
+  const Eigen::VectorXd q = w.approach_q();
+  const AlignView view{perturbed(truth, 3.0, -2.0, 1.005), {{synth.render(truth, q).image_bgr, q}}};
+  ModelAligner own(*w.ctx, w.model, &w.oru, truth.viewport);
+  const AlignResult expected = own.align({view}, w.scene.base_T_object);
+  ASSERT_EQ(expected.status, AlignStatus::Aligned) << expected.reason;
+  const auto model = make_alignment_model(w.model, &w.oru, truth.viewport);
+  ModelAligner a(*w.ctx, model), b(*w.ctx, model);
+  for (ModelAligner* aligner : {&a, &b}) {
+    const AlignResult r = aligner->align({view}, w.scene.base_T_object);
+    ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
+    EXPECT_EQ(r.iterations, expected.iterations);
+    EXPECT_TRUE(r.cameras[0].base_T_camera.isApprox(expected.cameras[0].base_T_camera, 0.0));
+    EXPECT_EQ(r.cameras[0].f_px, expected.cameras[0].f_px);
+    EXPECT_EQ(r.covariance, expected.covariance);
+  }
+  EXPECT_THROW(ModelAligner(*w.ctx, nullptr), std::invalid_argument);
+}
+
 TEST(Align, FivePixelsOffConvergesWithNoise) {
   World w;
   for (const std::string name : {"side", "oblique"}) {

@@ -30,7 +30,13 @@
 // against every visible sample, misses counted as 8 px) is not lower than at
 // the start. A model entirely out of view is reported separately (bad input).
 //
-// Not real-time code: set-up uploads meshes; align() renders and allocates.
+// Not real-time code: set-up uploads meshes; align() renders. The aligner is
+// split as pinocchio splits a robot (Model / Data): an immutable
+// AlignmentModel (the models' primitives and mesh edges, the viewport) built
+// once and shareable between threads, the buffers every call writes (images,
+// frames, samples, Jacobians, normal equations) kept per aligner and reused
+// by the next call, and the steps as free functions of (model, data, input)
+// in model_aligner.cpp.
 
 #include <Eigen/Core>
 #include <memory>
@@ -168,12 +174,25 @@ struct AlignResult {
   std::vector<double> arm_link_delta_m, arm_link_sigma_m;
 };
 
-/// The aligner for one viewport: holds a GL renderer and the model's
-/// primitives. One per thread. Set-up may throw std::runtime_error (GL).
+/// What an aligner keeps fixed (the arm's and the object's primitives with
+/// their mesh edges, the viewport): read-only once built, so one may be
+/// shared by the aligners of several threads. Defined in model_aligner.cpp.
+struct AlignmentModel;
+/// `object` may be null (arm only). The models must outlive the result.
+std::shared_ptr<const AlignmentModel> make_alignment_model(const RobotModel& arm, const ObjectModel* object,
+                                                           const Viewport& viewport);
+
+/// The aligner for one viewport: an AlignmentModel and this aligner's own
+/// buffers (GL renderers with the model's meshes, images, samples), reused
+/// from one call to the next. One per thread. Set-up may throw
+/// std::runtime_error (GL).
 class ModelAligner {
  public:
   /// `object` may be null (arm only). The models must outlive this.
   ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object, const Viewport& viewport);
+  /// On a model built once (make_alignment_model), e.g. shared with the
+  /// aligners of other threads; throws std::invalid_argument when null.
+  ModelAligner(render::GlContext& context, std::shared_ptr<const AlignmentModel> model);
   ~ModelAligner();
   ModelAligner(const ModelAligner&) = delete;
   ModelAligner& operator=(const ModelAligner&) = delete;
