@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "foresight/hw/canopen.hpp"
+#include "foresight/hw/cob_id_router.hpp"
 #include "foresight/hw/ft_sensor.hpp"
 #include "foresight/hw/remote_config.hpp"
 
@@ -114,4 +115,38 @@ TEST(FtFrames, WireBytesAreLittleEndianWithStatusAndSequence) {
     EXPECT_EQ(a.data[i], ea[i]) << i;
     EXPECT_EQ(b.data[i], eb[i]) << i;
   }
+}
+
+// The master's COB-ID router (cob_id_router.hpp): literal COB-IDs of the
+// predefined connection set for drive 3 and the F/T sensor (node 9).
+TEST(CobIdRouter, RoutesEachNodesCobIdsToItsHandler) {
+  using Kind = CobIdRouter::Kind;
+  CobIdRouter r;
+  r.add_drive(3, 2, true);
+  r.add_ft(9);
+  r.add_master(127);
+  auto is = [&](std::uint32_t id, Kind k, std::uint8_t slot) {
+    EXPECT_EQ(r.route(id).kind, k) << std::hex << id;
+    EXPECT_EQ(r.route(id).slot, slot) << std::hex << id;
+  };
+  is(0x183, Kind::DriveTpdo, 2);
+  is(0x283, Kind::DriveVelocity, 2);
+  is(0x083, Kind::DriveEmcy, 2);
+  is(0x703, Kind::DriveHeartbeat, 2);
+  is(0x583, Kind::DriveSdo, 2);
+  is(0x203, Kind::Own, 2);  // our RPDO and SDO requests, looped back
+  is(0x603, Kind::Own, 2);
+  is(0x189, Kind::FtForce, 0);
+  is(0x289, Kind::FtTorque, 0);
+  is(0x089, Kind::FtEmcy, 0);
+  is(0x709, Kind::FtHeartbeat, 0);
+  is(0x589, Kind::FtSdo, 0);
+  is(0x000, Kind::Own, 0);  // NMT
+  is(0x77F, Kind::Own, 0);  // the master's heartbeat
+  is(0x184, Kind::None, 0);
+  is(0x7FF, Kind::None, 0);
+
+  CobIdRouter no_velocity;
+  no_velocity.add_drive(3, 0, false);
+  EXPECT_EQ(no_velocity.route(0x283).kind, Kind::None);
 }
