@@ -73,8 +73,10 @@ double LstMechanism::turn(bool loosen, double angle_rad, double limit_nm, bool& 
       broken_loose_ = true;
       state_.preload_nm = 0.0;
       // The last turn of thread frees it exactly: engaged - (engaged * 2pi) / 2pi
-      // can leave ~1e-16 turns engaged (seen once in a loaded CI run, when
-      // the tool's last step ended on the thread's end: not free).
+      // can leave ~1e-16 turns engaged in floating point, which would read as
+      // "not free". (A screw left engaged after loosening by the full count
+      // was a different cause: the tool's turns counter rounding to the
+      // nearest count, lst::turns_to_counts.)
       const double left = state_.engaged_turns * kTwoPi;
       if (remaining <= left) {  // still engaged, or just freed
         state_.engaged_turns -= remaining / kTwoPi;
