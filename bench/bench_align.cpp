@@ -28,13 +28,13 @@ void BM_AlignCamera(benchmark::State& state) {
   KinematicsWorkspace ws(model);
   const auto ik = inverse_kinematics(model, ws, scene.base_T_object * oru.tags.at("approach_20cm"),
                                      model.mid_configuration());
-  const Camera truth = render::scene_camera(scene, "oblique");
+  const camera::Camera truth = render::scene_camera(scene, "oblique");
   auto ctx = render::GlContext::create(render::GlBackend::OSMesa);
   render::SyntheticCamera synth(*ctx, model, oru, scene, truth.viewport);
   align::ModelAligner aligner(*ctx, model, &oru, truth.viewport);
-  Camera start = truth;
+  camera::Camera start = truth;
   start.base_T_camera.linear() =
-      truth.base_T_camera.linear() * exp_so3(Eigen::Vector3d(-3.0 / truth.f_px, 4.0 / truth.f_px, 0.0));
+      truth.base_T_camera.linear() * camera::exp_so3(Eigen::Vector3d(-3.0 / truth.f_px, 4.0 / truth.f_px, 0.0));
   const align::AlignView view{start, {{synth.render(truth, ik.q).image_bgr, ik.q}}};
   std::vector<Eigen::Vector3d> pts;
   for (int link = 0; link < static_cast<int>(model.links().size()); ++link)
@@ -69,7 +69,7 @@ void BM_HealthNormalMotion1000(benchmark::State& state) {
   KinematicsWorkspace ws(model);
   const auto ik = inverse_kinematics(model, ws, scene.base_T_object * oru.tags.at("approach_20cm"),
                                      model.mid_configuration());
-  const Camera camera = render::scene_camera(scene, "oblique");
+  const camera::Camera camera = render::scene_camera(scene, "oblique");
   auto ctx = render::GlContext::create(render::GlBackend::OSMesa);
   render::SyntheticOptions so;
   so.noise_sigma_dn = 2.0;

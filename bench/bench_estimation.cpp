@@ -17,8 +17,8 @@ using namespace foresight;
 namespace {
 
 struct Data {
-  std::vector<Camera> cameras;
-  std::map<std::string, Camera> camera_map;
+  std::vector<camera::Camera> cameras;
+  std::map<std::string, camera::Camera> camera_map;
   std::vector<Correspondence> calibration;  // 30 clicks of the first (side) camera
   std::vector<Correspondence> object;       // 8 clicks in each view
   std::vector<Correspondence> object_view1; // the first view's 8
@@ -30,13 +30,13 @@ const Data& data() {
     const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
     for (const auto& name : scene.camera_order) {
       const SceneCamera& c = scene.cameras.at(name);
-      d.cameras.push_back(Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up));
+      d.cameras.push_back(camera::Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up));
       d.camera_map[name] = d.cameras.back();
     }
     std::mt19937 rng(1);
     std::normal_distribution<double> noise(0.0, 1.0);
     std::uniform_real_distribution<double> x(0.35, 0.95), y(-0.35, 0.55), z(0.2, 1.0), o(-0.25, 0.25);
-    const Camera& side = d.cameras[0];
+    const camera::Camera& side = d.cameras[0];
     while (d.calibration.size() < 30) {
       const Eigen::Vector3d p(x(rng), y(rng), z(rng));
       if (!side.in_front(p) || !side.in_view(side.project(p))) continue;
@@ -53,10 +53,10 @@ const Data& data() {
       const Eigen::Vector3d p(o(rng), o(rng), o(rng));
       const Eigen::Vector3d pb = scene.base_T_object * p;
       bool seen = true;
-      for (const Camera& cam : d.cameras) seen = seen && cam.in_front(pb) && cam.in_view(cam.project(pb));
+      for (const camera::Camera& cam : d.cameras) seen = seen && cam.in_front(pb) && cam.in_view(cam.project(pb));
       if (seen) model.push_back(p);
     }
-    for (const Camera& cam : d.cameras)
+    for (const camera::Camera& cam : d.cameras)
       for (std::size_t i = 0; i < model.size(); ++i) {
         Correspondence c;
         c.n = static_cast<int>(i) + 1;
@@ -83,7 +83,7 @@ BENCHMARK(BM_Calibrate30)->Unit(benchmark::kMicrosecond);
 void BM_CalibrateLinear30(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    Camera c = calibrate_camera_linear(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
+    camera::Camera c = calibrate_camera_linear(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
     benchmark::DoNotOptimize(c.f_px);
   }
 }

@@ -22,7 +22,7 @@ void BM_Overlay(benchmark::State& state, GlBackend backend, RenderMode mode) {
   const RobotModel model = RobotModel::from_file(cfg + "/robot.urdf");
   const ObjectModel oru = ObjectModel::from_file(cfg + "/oru.yaml");
   const Scene scene = Scene::from_file(cfg + "/scene.yaml");
-  const Camera camera = scene_camera(scene, "oblique");
+  const camera::Camera camera = scene_camera(scene, "oblique");
   auto ctx = GlContext::create(backend);
   Renderer renderer(*ctx, camera.viewport);
   ArmGeometry arm(renderer, model);

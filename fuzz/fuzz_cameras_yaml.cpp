@@ -6,6 +6,6 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static foresight::fuzz::ScratchFile file(".yaml");
-  foresight::fuzz::expect_input_errors([&] { (void)foresight::load_cameras(file.write(data, size)); });
+  foresight::fuzz::expect_input_errors([&] { (void)foresight::camera::load_cameras(file.write(data, size)); });
   return 0;
 }

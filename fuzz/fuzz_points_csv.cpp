@@ -12,7 +12,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const foresight::RobotLinkPoints robot(model);
   foresight::fuzz::expect_input_errors([&] {
     const auto points = foresight::parse_correspondences_csv(foresight::fuzz::text_of(data, size), "fuzz.csv", &robot);
-    foresight::check_in_viewport(points, foresight::Viewport{}, "fuzz.csv");
+    foresight::check_in_viewport(points, foresight::camera::Viewport{}, "fuzz.csv");
     (void)foresight::to_csv(points);
   });
   return 0;

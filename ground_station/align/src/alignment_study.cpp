@@ -118,7 +118,7 @@ class AlignmentStudy {
   /// A trial's click calibration of every camera (on the true arm, the
   /// believed points from the nominal arm) and the ORU's clicks.
   struct Clicks {
-    std::map<std::string, Camera> cams;
+    std::map<std::string, camera::Camera> cams;
     std::map<std::string, Eigen::Matrix<double, 7, 7>> covariance, noise_covariance;
     std::map<std::string, Eigen::MatrixXd> link_sensitivity;
     std::vector<Correspondence> oru;
@@ -131,10 +131,10 @@ class AlignmentStudy {
   /// The cameras of a trial after each step.
   struct TrialCameras {
     std::vector<AlignView> views;                       ///< the click cameras with the frames
-    std::vector<Camera> aligned;                        ///< step 4 (the start when refused)
+    std::vector<camera::Camera> aligned;                        ///< step 4 (the start when refused)
     std::vector<Eigen::Matrix<double, 7, 7>> aligned_cov;
     std::vector<int> views_aligned;
-    std::vector<Camera> bundle;                         ///< step 5
+    std::vector<camera::Camera> bundle;                         ///< step 5
     std::vector<Eigen::Matrix<double, 7, 7>> bundle_cov;
     std::vector<double> arm_delta;                      ///< step 5's links (empty: the nominal arm)
   };
@@ -241,7 +241,7 @@ class AlignmentStudy {
     c.aligned_cov.resize(nv_);
     for (int v = 0; v < nv_; ++v) c.aligned_cov[v] = clicks.covariance.at(setup_.views[v].truth.name);
     for (int v = 0; v < nv_; ++v) {
-      const Camera& truth = setup_.views[v].truth;
+      const camera::Camera& truth = setup_.views[v].truth;
       c.views[v].camera = clicks.cams.at(truth.name);
       for (const int p : view_poses_[v])
         c.views[v].frames.push_back({synth.render(truth, setup_.arm_q[p]).image_bgr, setup_.arm_q[p]});
@@ -445,7 +445,7 @@ class AlignmentStudy {
   StudySetup setup_;
   const std::vector<ArmCalibrationPose> poses_;
   int nv_ = 0, nls_ = 0;
-  Viewport vp_;
+  camera::Viewport vp_;
   AlignmentStudyResult res_;
   std::vector<std::vector<int>> view_poses_;
   std::vector<AlignmentComboStats> combos_;

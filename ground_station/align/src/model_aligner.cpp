@@ -45,7 +45,7 @@ const char* to_string(AlignStatus s) {
   return "?";
 }
 
-double reprojection_rms_px(const Camera& a, const Camera& b, const std::vector<Eigen::Vector3d>& pts) {
+double reprojection_rms_px(const camera::Camera& a, const camera::Camera& b, const std::vector<Eigen::Vector3d>& pts) {
   double s = 0.0;
   int n = 0;
   for (const auto& p : pts) {
@@ -310,7 +310,7 @@ double link_prior_weight(const std::vector<Sample>& samples, const Eval& e, doub
 /// meshes and mesh edges), the viewport. The steps only read it, so one is
 /// shared by every call and by the aligners of several threads.
 struct AlignmentModel {
-  AlignmentModel(const RobotModel& a, const ObjectModel* o, const Viewport& v) : arm(a), object(o), vp(v) {
+  AlignmentModel(const RobotModel& a, const ObjectModel* o, const camera::Viewport& v) : arm(a), object(o), vp(v) {
     const auto& links = arm.links();
     for (int k = 0; k < static_cast<int>(links.size()); ++k)
       for (const auto& shape : links[k].visuals) add(k, render::make_shape(shape), shape.rgba);
@@ -324,7 +324,7 @@ struct AlignmentModel {
 
   const RobotModel& arm;
   const ObjectModel* const object;
-  const Viewport vp;
+  const camera::Viewport vp;
   std::vector<Primitive> prims;      // prims[i].label == i + 1
   std::vector<render::Mesh> meshes;  // prims[i]'s, uploaded by each AlignmentData's renderers
   int total_edges = 0;               // over all primitives
@@ -343,7 +343,7 @@ struct AlignmentModel {
 };
 
 std::shared_ptr<const AlignmentModel> make_alignment_model(const RobotModel& arm, const ObjectModel* object,
-                                                           const Viewport& viewport) {
+                                                           const camera::Viewport& viewport) {
   return std::make_shared<const AlignmentModel>(arm, object, viewport);
 }
 
@@ -403,7 +403,7 @@ struct AlignmentData {
   std::vector<Sample> samples, final_samples;
   std::vector<int> per_view;
   Eval e, score_eval;
-  std::vector<Camera> cams;    // evaluate(): the current cameras
+  std::vector<camera::Camera> cams;    // evaluate(): the current cameras
   std::vector<double> abs_r;   // tukey_scale()
   // The Gauss-Newton step's normal equations (H is also the covariance's).
   Eigen::MatrixXd H, A;
@@ -484,7 +484,7 @@ void prepare(const AlignmentModel& m, AlignmentData& d, const AlignFrame& frame,
 // rim) and the background's contrast move the gradient peak by 0.1-0.3 px;
 // the residual is then the image's offset minus this predicted one. Uses
 // `d.layer` (the label image of the same camera and frame, just rendered).
-void predict_bias(const AlignmentModel& m, AlignmentData& d, const Camera& cam, const FrameData& f,
+void predict_bias(const AlignmentModel& m, AlignmentData& d, const camera::Camera& cam, const FrameData& f,
                   const std::optional<Pose>& base_T_object, double blur, double search_px, double threshold,
                   const AlignOptions& o, std::vector<Sample>& out, std::size_t begin) {
   if (begin >= out.size()) return;
@@ -572,7 +572,7 @@ void predict_bias(const AlignmentModel& m, AlignmentData& d, const Camera& cam, 
     Sample& s = out[i];
     const Eigen::Vector3d p = s.on_object ? Eigen::Vector3d(*base_T_object * s.p_local) : s.p_local;
     const Eigen::Vector3d dir = s.on_object ? Eigen::Vector3d(base_T_object->linear() * s.dir_local) : s.dir_local;
-    const Projection pr = project_with_jacobians(cam, p);
+    const camera::Projection pr = camera::project_with_jacobians(cam, p);
     Eigen::Vector2d d2 = pr.d_point * dir;
     if (d2.norm() < 1e-9) continue;
     d2.normalize();
@@ -586,7 +586,7 @@ void predict_bias(const AlignmentModel& m, AlignmentData& d, const Camera& cam, 
 }
 
 // The visible model edge samples of one frame through `cam`.
-void sample(const AlignmentModel& m, AlignmentData& d, const Camera& cam, const FrameData& f,
+void sample(const AlignmentModel& m, AlignmentData& d, const camera::Camera& cam, const FrameData& f,
             const std::optional<Pose>& base_T_object, int view, int frame_index, bool want_arm, bool want_object,
             const AlignOptions& o, std::vector<Sample>& out) {
   d.list.clear();
@@ -737,8 +737,8 @@ void init_links(const AlignmentModel& m, AlignmentData& d, const AlignInput& in)
   if (!in.o.arm_link_delta_m.empty() || d.NL > 0) update_arm(m, d);
 }
 
-Camera camera_of(const AlignmentData& d, const AlignInput& in, int v) {
-  Camera c = in.views[v].camera;
+camera::Camera camera_of(const AlignmentData& d, const AlignInput& in, int v) {
+  camera::Camera c = in.views[v].camera;
   c.base_T_camera = make_pose(d.cam_R[v], d.cam_c[v]);
   c.f_px = d.cam_f[v];
   return c;
@@ -759,7 +759,7 @@ void collect(const AlignmentModel& m, AlignmentData& d, const AlignInput& in, st
   if (per_view) per_view->assign(d.V, 0);
   const auto obj = object_pose(d, in);
   for (int v = 0; v < d.V; ++v) {
-    const Camera cam = camera_of(d, in, v);
+    const camera::Camera cam = camera_of(d, in, v);
     for (int k = 0; k < d.frame_count[v]; ++k) {
       const std::size_t before = samples.size();
       sample(m, d, cam, d.frame(v, k), obj, v, k, d.refine_camera, d.refine_object, in.o, samples);
@@ -790,7 +790,7 @@ void evaluate(AlignmentData& d, const AlignInput& in, const std::vector<Sample>&
   for (int v = 0; v < d.V; ++v) d.cams[v] = camera_of(d, in, v);
   for (std::size_t i = 0; i < samples.size(); ++i) {
     const Sample& s = samples[i];
-    const Camera& cam = d.cams[s.view];
+    const camera::Camera& cam = d.cams[s.view];
     Eigen::Vector3d p, dir;
     if (s.on_object) {
       p = d.obj_R * s.p_local + d.obj_t;
@@ -801,7 +801,7 @@ void evaluate(AlignmentData& d, const AlignInput& in, const std::vector<Sample>&
       dir = T.linear() * s.dir_link;
     }
     if (cam.to_camera(p).z() <= kNear_m) continue;
-    const Projection pr = project_with_jacobians(cam, p);
+    const camera::Projection pr = camera::project_with_jacobians(cam, p);
     Eigen::Vector2d d2 = pr.d_point * dir;
     if (d2.norm() < 1e-9) continue;
     d2.normalize();
@@ -817,7 +817,7 @@ void evaluate(AlignmentData& d, const AlignInput& in, const std::vector<Sample>&
       // propagated into the object's below).
       e.J[i].leftCols<7>() = n.transpose() * pr.d_camera;
       if (d.refine_object && s.on_object)
-        e.J[i].rightCols<6>() = n.transpose() * object_pose_jacobian(pr, d.obj_R, s.p_local);
+        e.J[i].rightCols<6>() = n.transpose() * camera::object_pose_jacobian(pr, d.obj_R, s.p_local);
       if (d.NL > 0 && !s.on_object) {
         const Eigen::RowVector3d nd = n.transpose() * pr.d_point;
         for (int j = 0; j < d.NL; ++j)
@@ -893,14 +893,14 @@ void apply(const AlignmentModel& m, AlignmentData& d, const Eigen::VectorXd& del
   if (d.refine_camera)
     for (int v = 0; v < d.V; ++v) {
       const Eigen::Matrix<double, 7, 1> step = delta.segment<7>(7 * v);
-      d.cam_R[v] = d.cam_R[v] * exp_so3(step.head<3>());
+      d.cam_R[v] = d.cam_R[v] * camera::exp_so3(step.head<3>());
       d.cam_c[v] += step.segment<3>(3);
       d.cam_f[v] += step[6];
       d.res.camera_change[v] += step;
     }
   if (d.refine_object) {
     const Eigen::Matrix<double, 6, 1> step = delta.segment<6>(d.obj_col);
-    d.obj_R = d.obj_R * exp_so3(step.head<3>());
+    d.obj_R = d.obj_R * camera::exp_so3(step.head<3>());
     d.obj_t += step.tail<3>();
     d.res.object_change += step;
   }
@@ -1095,7 +1095,7 @@ void debug_image(const AlignmentData& d, const AlignInput& in) {
   cv::cvtColor(in.views[0].frames[0].image_bgr, img, cv::COLOR_BGR2GRAY);
   cv::cvtColor(img, img, cv::COLOR_GRAY2BGR);
   cv::resize(img, img, cv::Size(), 2.0, 2.0, cv::INTER_NEAREST);
-  const Camera cam = camera_of(d, in, 0);
+  const camera::Camera cam = camera_of(d, in, 0);
   double sum = 0;
   int n = 0;
   for (std::size_t i = 0; i < d.samples.size(); ++i) {
@@ -1146,8 +1146,8 @@ double moved_px(AlignmentData& d, const AlignInput& in) {
   const Pose start_obj = in.start ? *in.start : Pose::Identity();
   const auto end_obj = object_pose(d, in);
   for (const auto& s : d.samples) {
-    const Camera end_cam = camera_of(d, in, s.view);
-    const Camera& start_cam = in.views[s.view].camera;
+    const camera::Camera end_cam = camera_of(d, in, s.view);
+    const camera::Camera& start_cam = in.views[s.view].camera;
     const Eigen::Vector3d p_end = s.on_object ? Eigen::Vector3d(*end_obj * s.p_local)
                                               : Eigen::Vector3d(d.frame(s.view, s.frame).link_poses[s.link] * s.p_link);
     const Eigen::Vector3d p_start = s.on_object ? Eigen::Vector3d(start_obj * s.p_local) : p_end;
@@ -1335,7 +1335,7 @@ struct ModelAligner::Impl {
 };
 
 ModelAligner::ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object,
-                           const Viewport& viewport)
+                           const camera::Viewport& viewport)
     : ModelAligner(context, make_alignment_model(arm, object, viewport)) {}
 
 ModelAligner::ModelAligner(render::GlContext& context, std::shared_ptr<const AlignmentModel> model) {
@@ -1357,7 +1357,7 @@ AlignResult ModelAligner::align(const std::vector<AlignView>& views, const std::
   return run(m, d, in);
 }
 
-ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFrame& frame,
+ModelAligner::FrameScore ModelAligner::score(const camera::Camera& camera, const AlignFrame& frame,
                                              const std::optional<Pose>& base_T_object, const AlignOptions& o) {
   const AlignmentModel& m = *impl_->model;
   AlignmentData& d = impl_->data;
@@ -1391,7 +1391,7 @@ ModelAligner::FrameScore ModelAligner::score(const Camera& camera, const AlignFr
   }
   double between = 0.0;
   for (const auto& s : samples) {
-    const Projection pr = project_with_jacobians(camera, s.p_local);
+    const camera::Projection pr = camera::project_with_jacobians(camera, s.p_local);
     Eigen::Vector2d d2 = (pr.d_point * s.dir_local).normalized();
     const Eigen::Vector2d n(-d2.y(), d2.x());
     double t = 0.0;

@@ -61,10 +61,10 @@ struct World {
 
 // The camera rotated by (dx, dy) pixels' worth about its own y and x axes,
 // and its focal length scaled.
-Camera perturbed(const Camera& c, double dx_px, double dy_px, double f_scale = 1.0, const Eigen::Vector3d& dt = {0, 0, 0}) {
-  Camera out = c;
+camera::Camera perturbed(const camera::Camera& c, double dx_px, double dy_px, double f_scale = 1.0, const Eigen::Vector3d& dt = {0, 0, 0}) {
+  camera::Camera out = c;
   const Eigen::Vector3d theta(-dy_px / c.f_px, dx_px / c.f_px, 0.0);
-  out.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(theta);
+  out.base_T_camera.linear() = c.base_T_camera.linear() * camera::exp_so3(theta);
   out.base_T_camera.translation() += dt;
   out.f_px *= f_scale;
   return out;
@@ -81,7 +81,7 @@ SyntheticOptions options(double noise_dn, unsigned seed = 1) {
 
 TEST(Align, NoiseFreeFramesRecoverTheTrueCamera) {
   World w;
-  const Camera truth = scene_camera(w.scene, "oblique");
+  const camera::Camera truth = scene_camera(w.scene, "oblique");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(0.0));
   ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
   const Eigen::VectorXd q = w.approach_q();
@@ -110,7 +110,7 @@ TEST(Align, NoiseFreeFramesRecoverTheTrueCamera) {
 // rewritten by the buffers' reuse.
 TEST(Align, ReusedBuffersGiveTheSameAnswerAndLeaveTheCallersFrameAlone) {
   World w;
-  const Camera truth = scene_camera(w.scene, "oblique");
+  const camera::Camera truth = scene_camera(w.scene, "oblique");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 3));
   ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
   const Eigen::VectorXd q = w.approach_q();
@@ -151,7 +151,7 @@ TEST(Align, ReusedBuffersGiveTheSameAnswerAndLeaveTheCallersFrameAlone) {
 // answer of an aligner that built its own model.
 TEST(Align, SharedModelGivesTheOwnModelsAnswer) {
   World w;
-  const Camera truth = scene_camera(w.scene, "oblique");
+  const camera::Camera truth = scene_camera(w.scene, "oblique");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 3));
   const Eigen::VectorXd q = w.approach_q();
   const AlignView view{perturbed(truth, 3.0, -2.0, 1.005), {{synth.render(truth, q).image_bgr, q}}};
@@ -174,7 +174,7 @@ TEST(Align, SharedModelGivesTheOwnModelsAnswer) {
 TEST(Align, FivePixelsOffConvergesWithNoise) {
   World w;
   for (const std::string name : {"side", "oblique"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 7));
     ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
     const Eigen::VectorXd q = w.approach_q();
@@ -212,7 +212,7 @@ TEST(Align, ErrorsWithinThreeSigmaOfTheCovarianceOverSeeds) {
   int checked = 0, outside = 0, beyond4 = 0;
   double worst = 0.0;
   for (const std::string name : {"side", "oblique"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
     for (unsigned seed = 11; seed < 15; ++seed) {
       SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, seed));
@@ -246,7 +246,7 @@ TEST(Align, ErrorsWithinThreeSigmaOfTheCovarianceOverSeeds) {
 
 TEST(Align, FiftyPixelsOffIsRefusedOrConverges) {
   World w;
-  const Camera truth = scene_camera(w.scene, "side");
+  const camera::Camera truth = scene_camera(w.scene, "side");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 3));
   ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
   const Eigen::VectorXd q = w.approach_q();
@@ -272,14 +272,14 @@ TEST(Align, ObjectPoseOverAllViews) {
   std::vector<AlignView> views;
   std::vector<std::unique_ptr<SyntheticCamera>> synths;
   for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     synths.push_back(std::make_unique<SyntheticCamera>(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 5)));
     views.push_back({truth, {{synths.back()->render(truth, q).image_bgr, q}}});
   }
   ModelAligner aligner(*w.ctx, w.model, &w.oru, views[0].camera.viewport);
   Pose start = w.scene.base_T_object;
   start.translation() += Eigen::Vector3d(0.004, -0.003, 0.005);
-  start.linear() = start.linear() * exp_so3(Eigen::Vector3d(0.0, 0.008, -0.005));
+  start.linear() = start.linear() * camera::exp_so3(Eigen::Vector3d(0.0, 0.008, -0.005));
   AlignOptions o;
   o.refine = Refine::Object;
   const AlignResult r = aligner.align(views, start, o);
@@ -304,7 +304,7 @@ TEST(Align, ObjectPoseOverAllViews) {
 TEST(Align, TheStaticObjectsEdgesAreOneClusterOverTheFramesOfAView) {
   World w;
   const Eigen::VectorXd q = w.approach_q();
-  const Camera side = scene_camera(w.scene, "side");
+  const camera::Camera side = scene_camera(w.scene, "side");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, side.viewport, options(2.0, 3));
   const AlignFrame frame{synth.render(side, q).image_bgr, q};
   ModelAligner aligner(*w.ctx, w.model, &w.oru, side.viewport);
@@ -344,7 +344,7 @@ TEST(Align, TheBayHidesTheOrusEdgesInsideIt) {
   bare.surroundings.clear();
   ASSERT_FALSE(w.oru.surroundings.empty());
   for (const std::string name : {"side", "overhead_wide"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, truth.viewport, options(2.0, 7));
     const AlignView view{truth, {{synth.render(truth, q).image_bgr, q}}};
     AlignOptions o;
@@ -364,11 +364,11 @@ TEST(Align, TheBayHidesTheOrusEdgesInsideIt) {
 
 TEST(Align, ModelNotInViewAndBadFrames) {
   World w;
-  const Camera truth = scene_camera(w.scene, "side");
+  const camera::Camera truth = scene_camera(w.scene, "side");
   ModelAligner aligner(*w.ctx, w.model, &w.oru, truth.viewport);
   const Eigen::VectorXd q = w.approach_q();
   // Looking away from the work site.
-  Camera away = Camera::look_at("away", truth.viewport, truth.f_px, {0.75, -1.9, 0.85}, {0.75, -5.0, 0.85});
+  camera::Camera away = camera::Camera::look_at("away", truth.viewport, truth.f_px, {0.75, -1.9, 0.85}, {0.75, -5.0, 0.85});
   cv::Mat grey(truth.viewport.height_px, truth.viewport.width_px, CV_8UC3, cv::Scalar(30, 30, 30));
   const AlignResult r = aligner.align({{away, {{grey, q}}}}, std::nullopt);
   EXPECT_EQ(r.status, AlignStatus::NotInView);
@@ -415,10 +415,10 @@ TEST(Align, ArmLinkLengthsWithTheCameras) {
   const RobotModel truth_arm = w.model.with_link_lengths_changed(truth_delta);
   const auto poses = arm_calibration_poses(w.model);
   std::vector<AlignView> views, nominal_only;
-  std::vector<Camera> truths;
+  std::vector<camera::Camera> truths;
   std::vector<std::unique_ptr<SyntheticCamera>> synths;
   for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     truths.push_back(truth);
     synths.push_back(std::make_unique<SyntheticCamera>(*w.ctx, truth_arm, w.oru, w.scene, truth.viewport, options(2.0, 21)));
     AlignView v{perturbed(truth, 2.5, -1.5, 1.004), {}};
@@ -496,7 +496,7 @@ struct StudyTrial {
   World w;
   std::vector<std::vector<int>> view_poses;
   std::vector<Eigen::VectorXd> arm_q;
-  std::vector<Camera> truth;  // per view
+  std::vector<camera::Camera> truth;  // per view
   std::unique_ptr<SyntheticCamera> synth;
   std::vector<double> arm_delta;
   RobotModel truth_arm;
@@ -519,7 +519,7 @@ struct StudyTrial {
     synth = std::make_unique<SyntheticCamera>(*w.ctx, truth_arm, w.oru, w.scene, scene_camera(w.scene, "side").viewport, so);
   }
 
-  AlignView view(int v, const Camera& camera,
+  AlignView view(int v, const camera::Camera& camera,
                  const Eigen::Matrix<double, 7, 7>& covariance = Eigen::Matrix<double, 7, 7>::Zero()) {
     AlignView out{camera, {}, covariance};
     for (const int p : view_poses[v]) out.frames.push_back({synth->render(truth[v], arm_q[p]).image_bgr, arm_q[p]});
@@ -538,8 +538,8 @@ struct Seed2Trial0 : StudyTrial {
                    15838) {}  // 2 x 7919 + trial 0
 };
 
-Camera camera_from(const Camera& like, double f_px, const std::array<double, 16>& m) {
-  Camera c = like;
+camera::Camera camera_from(const camera::Camera& like, double f_px, const std::array<double, 16>& m) {
+  camera::Camera c = like;
   c.f_px = f_px;
   c.base_T_camera = pose_from(m);
   return c;
@@ -575,7 +575,7 @@ void expect_refused_keeping_the_clicks(const AlignResult& r, const Pose& clicks,
 
 TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
   Seed2Trial0 t;
-  const Camera oblique = camera_from(
+  const camera::Camera oblique = camera_from(
       scene_camera(t.w.scene, "oblique"), 640.17115357376872,
       {0.75931091569290576, -0.65072800051314528, -5.1553512760573943e-05, 0, -0.29808987380653129,
        -0.34775984303126994, -0.88893504751971186, 0, 0.57843699781705515, 0.6749934525038227, -0.45803327240863467, 0,
@@ -623,7 +623,7 @@ TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
 
 TEST(Align, SingleViewOruCloseToTheClicksIsKept) {
   Seed2Trial0 t;
-  const Camera zoom = camera_from(
+  const camera::Camera zoom = camera_from(
       scene_camera(t.w.scene, "overhead_zoom"), 1099.6116647272622,
       {3.4949756288404522e-05, -0.99999999913784554, -2.2423719082050054e-05, 0, -0.97558135062367857,
        -2.9171220651472302e-05, -0.21963840161574605, 0, 0.21963840077225666, 2.9552470755974696e-05,
@@ -668,7 +668,7 @@ TEST(Align, SingleViewOruTurnedAwayFromTheClicksIsRefused) {
                 0.00010035031452190278, 0.0031601634277454763, -0.0028304907427884429, -0.0023458162879468818,
                 -0.0020749986401431687, 0},
                87126);  // 11 x 7919 + trial 17
-  const Camera side = camera_from(
+  const camera::Camera side = camera_from(
       scene_camera(t.w.scene, "side"), 700.64477183844542,
       {0.99969128404229424, -0.024846223058172027, -4.2539520190074752e-05, 0,
        -0.0037225894881122352, -0.1480856890241507, -0.98896752779539931, 0,
@@ -827,7 +827,7 @@ TEST(Align, OruCamerasAndArmRefinedTogetherOverFourViews) {
 TEST(Align, HeldCameraUncertaintyEntersTheObjectCovariance) {
   World w;
   const Eigen::VectorXd q = w.approach_q();
-  const Camera side = scene_camera(w.scene, "side");
+  const camera::Camera side = scene_camera(w.scene, "side");
   SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, side.viewport, options(2.0, 7));
   AlignView view{side, {{synth.render(side, q).image_bgr, q}}};
   ModelAligner aligner(*w.ctx, w.model, &w.oru, side.viewport);

@@ -27,10 +27,10 @@ TEST(Health, CameraBumpOfPointThreeDegreesIsFlaggedNoFalseAlarm) {
   ASSERT_TRUE(ik.success);
   auto ctx = GlContext::create(GlBackend::OSMesa);
   for (const std::string name : {"side", "oblique"}) {
-    const Camera calibrated = scene_camera(scene, name);
-    Camera bumped = calibrated;
+    const camera::Camera calibrated = scene_camera(scene, name);
+    camera::Camera bumped = calibrated;
     bumped.base_T_camera.linear() =
-        calibrated.base_T_camera.linear() * exp_so3(Eigen::Vector3d(0.0, 0.3 * M_PI / 180.0, 0.0));
+        calibrated.base_T_camera.linear() * camera::exp_so3(Eigen::Vector3d(0.0, 0.3 * M_PI / 180.0, 0.0));
     SyntheticOptions so;
     so.noise_sigma_dn = 2.0;
     SyntheticCamera synth(*ctx, model, oru, scene, calibrated.viewport, so);

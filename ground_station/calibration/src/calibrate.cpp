@@ -52,7 +52,7 @@ void check_points(const std::vector<Correspondence>& pts, const std::string& nam
   }
 }
 
-double rms_px(const Camera& cam, const std::vector<Correspondence>& pts) {
+double rms_px(const camera::Camera& cam, const std::vector<Correspondence>& pts) {
   double ss = 0.0;
   for (const auto& c : pts) {
     const Eigen::Vector3d pc = cam.to_camera(c.p_m);
@@ -102,7 +102,7 @@ double robust_sigma_px(std::vector<double> r) {
   return med / 1.1774100225154747;  // median of a Rayleigh(sigma) = sigma sqrt(2 ln 2)
 }
 
-Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+camera::Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const camera::Viewport& vp, const std::string& name,
                                double rank_tolerance, bool* cross_product) {
   check_points(pts, name);
   const std::string who = "camera '" + name + "': ";
@@ -157,7 +157,7 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
 
   // Candidate rotations: the direct third row, and the cross product of the
   // first two (the far / near-orthographic case, appendix A).
-  Camera best;
+  camera::Camera best;
   double best_rms = std::numeric_limits<double>::infinity();
   bool best_cross = false;
   for (int variant = 0; variant < 2; ++variant) {
@@ -184,7 +184,7 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
     if (!(f_n > 0.0) || !std::isfinite(f_n)) continue;
     const Eigen::Matrix3d R = nearest_rotation(M);  // camera_R_base
     const Eigen::Vector3d t_scaled(m14 / (lambda * f_n), m24 / (lambda * f_n), m34 / lambda);
-    Camera cam;
+    camera::Camera cam;
     cam.name = name;
     cam.viewport = vp;
     cam.f_px = f_n * s_px;
@@ -207,8 +207,8 @@ Camera calibrate_camera_linear(const std::vector<Correspondence>& pts, const Vie
 
 Eigen::Vector3d CalibrationResult::rpy_rad() const { return rpy_from_rotation(camera.base_T_camera.linear()); }
 
-CameraCalibrationInfo CalibrationResult::info(const std::string& date_utc) const {
-  CameraCalibrationInfo i;
+camera::CameraCalibrationInfo CalibrationResult::info(const std::string& date_utc) const {
+  camera::CameraCalibrationInfo i;
   i.covariance = covariance;
   i.rms_px = rms_px;
   i.max_px = max_px;
@@ -230,7 +230,7 @@ namespace {
 /// arm model's term.
 class CameraFit {
  public:
-  CameraFit(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+  CameraFit(const std::vector<Correspondence>& pts, const camera::Viewport& vp, const std::string& name,
             const CalibrationOptions& opt, CalibrationResult& res)
       : pts_(pts),
         vp_(vp),
@@ -263,7 +263,7 @@ class CameraFit {
   void evaluate(const CamState& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 7>* J) const {
     for (int k = 0; k < static_cast<int>(idx_.size()); ++k) {
       const Correspondence& c = pts_[idx_[k]];
-      const Projection pr = project_with_jacobians(s.R, s.c, s.f, pp_, c.p_m);
+      const camera::Projection pr = camera::project_with_jacobians(s.R, s.c, s.f, pp_, c.p_m);
       e.segment<2>(2 * k) = pr.uv_px - c.uv_px;
       if (J) J->block<2, 7>(2 * k, 0) = pr.d_camera;  // body rotation, position, f_px
     }
@@ -283,7 +283,7 @@ class CameraFit {
   /// outliers flagged and left out.
   void fit_with_outliers() {
     const auto retract = [](const CamState& s, const Eigen::Matrix<double, 7, 1>& d) {
-      return CamState{s.R * exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
+      return CamState{s.R * camera::exp_so3(d.head<3>()), s.c + d.segment<3>(3), s.f + d[6]};
     };
     // Size of the parameters in the units of a step (rad, m, px): for the relative step test.
     const auto state_norm = [](const CamState& s) { return std::sqrt(3.0 + s.c.squaredNorm() + s.f * s.f); };
@@ -301,7 +301,7 @@ class CameraFit {
           sub.push_back(pts_[i]);
         }
       if (!have_state) {  // first fit: start from the linear solution
-        Camera lin = calibrate_camera_linear(sub, vp_, name_, opt_.rank_tolerance, &res_.linear_cross_product);
+        camera::Camera lin = calibrate_camera_linear(sub, vp_, name_, opt_.rank_tolerance, &res_.linear_cross_product);
         linear_all_ = lin;
         state_ = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
         have_state = true;
@@ -391,7 +391,7 @@ class CameraFit {
     for (int k = 0; k < m; ++k) {
       const Correspondence& c = pts_[idx_[k]];
       if (c.dp_dlinks.cols() == 0) continue;
-      const Projection pr = project_with_jacobians(state_.R, state_.c, state_.f, pp_, c.p_m);
+      const camera::Projection pr = camera::project_with_jacobians(state_.R, state_.c, state_.f, pp_, c.p_m);
       J_links.block(2 * k, 0, 2, c.dp_dlinks.cols()) = pr.d_point * c.dp_dlinks;
     }
     const Eigen::MatrixXd JtJl = J.transpose() * J_links;
@@ -411,7 +411,7 @@ class CameraFit {
   }
 
   const std::vector<Correspondence>& pts_;
-  const Viewport vp_;
+  const camera::Viewport vp_;
   const std::string& name_;
   const std::string who_;
   const CalibrationOptions& opt_;
@@ -423,12 +423,12 @@ class CameraFit {
   std::vector<Correspondence> in_pts_;
   CamState state_{};
   int iterations_ = 0;
-  Camera linear_all_;
+  camera::Camera linear_all_;
 };
 
 }  // namespace
 
-CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const Viewport& vp, const std::string& name,
+CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const camera::Viewport& vp, const std::string& name,
                                    const CalibrationOptions& opt) {
   check_points(pts, name);
   const std::string who = "camera '" + name + "': ";

@@ -140,7 +140,7 @@ std::vector<Correspondence> read_correspondences_csv(const std::string& path, co
   return parse_correspondences_csv(read_text_file(path, "cannot open points file"), path, robot);
 }
 
-void check_in_viewport(const std::vector<Correspondence>& points, const Viewport& vp, const std::string& source) {
+void check_in_viewport(const std::vector<Correspondence>& points, const camera::Viewport& vp, const std::string& source) {
   const double m = limits::kViewportMarginFraction * std::max(vp.width_px, vp.height_px);
   for (const auto& c : points) {
     const double u = c.uv_px.x(), v = c.uv_px.y();

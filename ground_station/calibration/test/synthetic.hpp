@@ -13,20 +13,20 @@ namespace foresight::testing {
 
 /// A camera at `distance_m` from `target` in a random direction, with a
 /// random roll about its axis (up chosen at random, not parallel).
-inline Camera random_camera(std::mt19937& rng, const Eigen::Vector3d& target, double distance_m, double f_px,
-                            const Viewport& vp = {}) {
+inline camera::Camera random_camera(std::mt19937& rng, const Eigen::Vector3d& target, double distance_m, double f_px,
+                            const camera::Viewport& vp = {}) {
   std::normal_distribution<double> g(0.0, 1.0);
   Eigen::Vector3d dir, up;
   do {
     dir = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
     up = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
   } while (std::abs(dir.dot(up)) > 0.9);
-  return Camera::look_at("cam", vp, f_px, target + distance_m * dir, target, up);
+  return camera::Camera::look_at("cam", vp, f_px, target + distance_m * dir, target, up);
 }
 
 /// Up to `count` points uniformly in a cube of half-size `half_m` about
 /// `centre` that are in front of the camera and inside its view.
-inline std::vector<Correspondence> random_points(std::mt19937& rng, const Camera& cam, const Eigen::Vector3d& centre,
+inline std::vector<Correspondence> random_points(std::mt19937& rng, const camera::Camera& cam, const Eigen::Vector3d& centre,
                                                  double half_m, int count, double noise_px) {
   std::uniform_real_distribution<double> u(-half_m, half_m);
   std::normal_distribution<double> g(0.0, noise_px);

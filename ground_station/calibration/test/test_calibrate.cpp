@@ -14,7 +14,7 @@ using foresight::testing::with_noise;
 
 namespace {
 
-std::string error_of(const std::vector<Correspondence>& pts, const Viewport& vp = {}) {
+std::string error_of(const std::vector<Correspondence>& pts, const camera::Viewport& vp = {}) {
   try {
     calibrate_camera(pts, vp, "side");
   } catch (const Error& e) {  // EstimationInputError or EstimationError
@@ -24,7 +24,7 @@ std::string error_of(const std::vector<Correspondence>& pts, const Viewport& vp 
 }
 
 /// Parameter vector (roll, pitch, yaw, x, y, z, f) of a camera.
-Eigen::Matrix<double, 7, 1> params(const Camera& c) {
+Eigen::Matrix<double, 7, 1> params(const camera::Camera& c) {
   Eigen::Matrix<double, 7, 1> p;
   p << rpy_from_rotation(c.base_T_camera.linear()), c.base_T_camera.translation(), c.f_px;
   return p;
@@ -32,7 +32,7 @@ Eigen::Matrix<double, 7, 1> params(const Camera& c) {
 
 /// Difference in (roll, pitch, yaw) by the body rotation error mapped
 /// through the rpy rate matrix (avoids angle wrap).
-Eigen::Matrix<double, 7, 1> param_error(const Camera& est, const Camera& truth) {
+Eigen::Matrix<double, 7, 1> param_error(const camera::Camera& est, const camera::Camera& truth) {
   Eigen::Matrix<double, 7, 1> d = params(est) - params(truth);
   const Eigen::AngleAxisd aa(truth.base_T_camera.linear().transpose() * est.base_T_camera.linear());
   const Eigen::Vector3d w = aa.angle() * aa.axis();
@@ -47,7 +47,7 @@ TEST(Calibrate, NoiseFreeRecoversEveryParameter) {
   for (int trial = 0; trial < 25; ++trial) {
     const Eigen::Vector3d target(0.8, 0.1, 0.5);
     const double f = 400.0 + 100.0 * trial;
-    const Camera truth = random_camera(rng, target, 1.5 + 0.1 * trial, f);
+    const camera::Camera truth = random_camera(rng, target, 1.5 + 0.1 * trial, f);
     const auto pts = random_points(rng, truth, target, 0.4, 30, 0.0);
     ASSERT_EQ(pts.size(), 30u);
     const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
@@ -65,7 +65,7 @@ TEST(Calibrate, NoiseFreeRecoversEveryParameter) {
 TEST(Calibrate, NoisyEstimatesWithinThreeSigmaAndSigmaMatchesSpread) {
   std::mt19937 rng(11);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = random_camera(rng, target, 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, target, 2.0, 700.0);
   const auto exact = random_points(rng, truth, target, 0.5, 30, 0.0);
   const double noise = 1.0;
   const int trials = 400;
@@ -96,7 +96,7 @@ TEST(Calibrate, AFitThatHasNotConvergedFailsWithItsIterationCount) {
   // data: a computation error (exit 1), not a camera presented as converged.
   std::mt19937 rng(12);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = random_camera(rng, target, 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, target, 2.0, 700.0);
   const auto pts = with_noise(rng, random_points(rng, truth, target, 0.5, 30, 0.0), 1.0);
   CalibrationOptions opt;
   opt.max_iterations = 1;
@@ -115,7 +115,7 @@ TEST(Calibrate, BadInputAndFailedComputationAreDistinctErrors) {
   static_assert(std::is_base_of_v<ComputationError, EstimationError>);
   static_assert(!std::is_base_of_v<std::invalid_argument, EstimationError>);
   std::mt19937 rng(13);
-  const Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
   const auto five = random_points(rng, truth, Eigen::Vector3d(1, 0, 0.5), 0.4, 5, 0.0);
   EXPECT_THROW(calibrate_camera(five, truth.viewport, "side"), EstimationInputError);
 }
@@ -123,7 +123,7 @@ TEST(Calibrate, BadInputAndFailedComputationAreDistinctErrors) {
 TEST(Calibrate, PlantedOutliersFlaggedAndFitUnharmed) {
   std::mt19937 rng(3);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = random_camera(rng, target, 2.2, 800.0);
+  const camera::Camera truth = random_camera(rng, target, 2.2, 800.0);
   auto pts = random_points(rng, truth, target, 0.5, 30, 0.5);
   std::vector<Correspondence> clean;
   for (std::size_t i = 0; i < pts.size(); ++i)
@@ -149,7 +149,7 @@ TEST(Calibrate, FarNearOrthographicView) {
   // 25 m away with a 2.2 degree field of view: nearly orthographic.
   std::mt19937 rng(5);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = random_camera(rng, target, 25.0, 12000.0);
+  const camera::Camera truth = random_camera(rng, target, 25.0, 12000.0);
   const auto exact = random_points(rng, truth, target, 0.4, 30, 0.0);
   ASSERT_EQ(exact.size(), 30u);
   const CalibrationResult r0 = calibrate_camera(exact, truth.viewport, "cam");
@@ -170,7 +170,7 @@ TEST(Calibrate, FarNearOrthographicView) {
 
 TEST(CalibrateBadInput, FewerThanSixPoints) {
   std::mt19937 rng(1);
-  const Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
   auto pts = random_points(rng, truth, Eigen::Vector3d(1, 0, 0.5), 0.4, 5, 0.0);
   EXPECT_EQ(error_of(pts), "camera 'side': 5 points; the linear calibration needs at least 6 (11 unknowns, 2 equations a point)");
   EXPECT_EQ(error_of({}), "camera 'side': 0 points; the linear calibration needs at least 6 (11 unknowns, 2 equations a point)");
@@ -179,7 +179,7 @@ TEST(CalibrateBadInput, FewerThanSixPoints) {
 TEST(CalibrateBadInput, CoplanarAndCollinearPoints) {
   std::mt19937 rng(2);
   const Eigen::Vector3d target(1, 0, 0.5);
-  const Camera truth = random_camera(rng, target, 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, target, 2.0, 700.0);
   auto pts = random_points(rng, truth, target, 0.4, 12, 0.0);
   for (auto& c : pts) {  // flatten onto z = 0.5 and re-project
     c.p_m.z() = 0.5;
@@ -201,7 +201,7 @@ TEST(CalibrateBadInput, PointsBehindTheCamera) {
   // the fit reproduces it exactly; the fitted camera shows it is behind.
   std::mt19937 rng(4);
   const Eigen::Vector3d target(1, 0, 0.5);
-  const Camera truth = random_camera(rng, target, 1.0, 500.0);
+  const camera::Camera truth = random_camera(rng, target, 1.0, 500.0);
   auto pts = random_points(rng, truth, target, 0.3, 12, 0.0);
   const Eigen::Vector3d behind = truth.base_T_camera * Eigen::Vector3d(0.1, 0.05, -0.4);
   Correspondence c = pts[0];
@@ -215,7 +215,7 @@ TEST(CalibrateBadInput, PointsBehindTheCamera) {
 
 TEST(CalibrateBadInput, NonFiniteNumbers) {
   std::mt19937 rng(6);
-  const Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
+  const camera::Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
   auto pts = random_points(rng, truth, Eigen::Vector3d(1, 0, 0.5), 0.4, 10, 0.0);
   pts[3].uv_px.x() = std::nan("");
   pts[3].line = 6;
@@ -241,7 +241,7 @@ TEST(Calibrate, RpyRateMatrixMatchesFiniteDifferences) {
 TEST(Calibrate, CovarianceBetweenRpyAndBodyIncrementAgreesWithTheInformation) {
   std::mt19937 rng(11);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = random_camera(rng, target, 2.0, 800.0);
+  const camera::Camera truth = random_camera(rng, target, 2.0, 800.0);
   const auto pts = random_points(rng, truth, target, 0.4, 40, 1.0);
   const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
   const Eigen::Matrix3d R = r.camera.base_T_camera.linear();

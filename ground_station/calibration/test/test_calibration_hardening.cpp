@@ -84,18 +84,18 @@ TEST(PointsCsvHardening, MoreRowsThanAPointsFileMayHaveAreRefused) {
 
 TEST(PointsCsvHardening, ClicksOutsideTheViewportAreRefused) {
   const auto pts = parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,10,10\n7,side,0,0,1,300,200\n", "pts.csv");
-  EXPECT_NO_THROW(check_in_viewport(pts, Viewport{646, 486}, "pts.csv"));
+  EXPECT_NO_THROW(check_in_viewport(pts, camera::Viewport{646, 486}, "pts.csv"));
   try {
-    check_in_viewport(pts, Viewport{1, 1}, "pts.csv");
+    check_in_viewport(pts, camera::Viewport{1, 1}, "pts.csv");
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "pts.csv:2: point n=1: pixel (10, 10) is outside the 1x1 viewport of camera 'side'");
   }
   // The calibration itself refuses them too (a 1x1 viewport moved the camera 1 m without a word).
   std::mt19937 rng(5);
-  const Camera truth = foresight::testing::random_camera(rng, Eigen::Vector3d(0.8, 0.1, 0.5), 2.2, 800.0);
+  const camera::Camera truth = foresight::testing::random_camera(rng, Eigen::Vector3d(0.8, 0.1, 0.5), 2.2, 800.0);
   const auto good = foresight::testing::random_points(rng, truth, Eigen::Vector3d(0.8, 0.1, 0.5), 0.5, 20, 0.3);
-  EXPECT_THROW(calibrate_camera(good, Viewport{1, 1}, "cam"), InputError);
+  EXPECT_THROW(calibrate_camera(good, camera::Viewport{1, 1}, "cam"), InputError);
 }
 
 TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
@@ -103,7 +103,7 @@ TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
   // 4,000 times (70 s at 1e6 rows); in rounds it is a handful of fits.
   std::mt19937 rng(11);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = foresight::testing::random_camera(rng, target, 2.2, 800.0);
+  const camera::Camera truth = foresight::testing::random_camera(rng, target, 2.2, 800.0);
   auto pts = foresight::testing::random_points(rng, truth, target, 0.5, 20000, 0.5);
   ASSERT_EQ(pts.size(), 20000u);
   std::uniform_real_distribution<double> big(30.0, 60.0);
@@ -156,7 +156,7 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
         centroid += forward_kinematics(m, ws, poses[k], l) * p;
       }
   centroid /= static_cast<double>(features.size());
-  const Camera truth = Camera::look_at("side", Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
+  const camera::Camera truth = camera::Camera::look_at("side", camera::Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
                                        Eigen::Vector3d::UnitZ());
   std::vector<Correspondence> believed;
   for (const Feature& f : features) {
@@ -263,7 +263,7 @@ TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
 TEST(CalibrateArmModel, ANegativeOrNonFiniteLinkSigmaIsBadInput) {
   std::mt19937 rng(3);
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
-  const Camera truth = foresight::testing::random_camera(rng, target, 2.0, 800.0);
+  const camera::Camera truth = foresight::testing::random_camera(rng, target, 2.0, 800.0);
   const auto pts = foresight::testing::random_points(rng, truth, target, 0.4, 20, 0.5);
   for (const double bad : {-0.001, std::nan("")}) {
     CalibrationOptions o;

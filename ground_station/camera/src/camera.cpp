@@ -12,7 +12,7 @@
 #include "foresight/common/input_limits.hpp"
 #include "foresight/common/yaml_util.hpp"
 
-namespace foresight {
+namespace foresight::camera {
 
 namespace {
 constexpr int kMaxViewportPx = 1 << 15;  ///< a viewport side (pixels)
@@ -237,4 +237,4 @@ void save_cameras(const std::string& path, const std::map<std::string, CameraRec
                               em.c_str() + "\n");
 }
 
-}  // namespace foresight
+}  // namespace foresight::camera

@@ -9,7 +9,7 @@
 using namespace foresight;
 
 TEST(Camera, LookAtProjectsTargetToPrincipalPoint) {
-  const Camera c = Camera::look_at("side", {646, 486}, 700.0, {0, -2, 1}, {0.5, 0, 0.5});
+  const camera::Camera c = camera::Camera::look_at("side", {646, 486}, 700.0, {0, -2, 1}, {0.5, 0, 0.5});
   const Eigen::Vector2d uv = c.project({0.5, 0, 0.5});
   EXPECT_NEAR(uv.x(), 323.0, 1e-9);
   EXPECT_NEAR(uv.y(), 243.0, 1e-9);
@@ -20,7 +20,7 @@ TEST(Camera, LookAtProjectsTargetToPrincipalPoint) {
 }
 
 TEST(Camera, GlMatricesAgreeWithProjection) {
-  const Camera c = Camera::look_at("oblique", {646, 486}, 640.0, {-0.4, -1.3, 1.5}, {0.8, 0.1, 0.55});
+  const camera::Camera c = camera::Camera::look_at("oblique", {646, 486}, 640.0, {-0.4, -1.3, 1.5}, {0.8, 0.1, 0.55});
   const Eigen::Matrix4d PV = c.gl_projection(0.05, 20.0) * c.gl_view();
   for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.8, 0.1, 0.55), Eigen::Vector3d(1.0, 0.3, 0.2), Eigen::Vector3d(0.2, -0.3, 0.9)}) {
     const Eigen::Vector4d clip = PV * p.homogeneous();
@@ -33,31 +33,31 @@ TEST(Camera, GlMatricesAgreeWithProjection) {
 }
 
 TEST(Camera, FovyFromFocalLength) {
-  Camera c;
+  camera::Camera c;
   c.viewport = {646, 486};
   c.f_px = 243.0;  // half height: 90 degrees
   EXPECT_NEAR(c.fovy_rad(), M_PI / 2, 1e-12);
 }
 
 TEST(Camera, ViewportParsing) {
-  EXPECT_EQ(parse_viewport("646x486"), (Viewport{646, 486}));
-  EXPECT_THROW(parse_viewport("646*486"), std::invalid_argument);
-  EXPECT_THROW(parse_viewport("0x486"), std::invalid_argument);
-  EXPECT_THROW(parse_viewport("646x486px"), std::invalid_argument);
+  EXPECT_EQ(camera::parse_viewport("646x486"), (camera::Viewport{646, 486}));
+  EXPECT_THROW(camera::parse_viewport("646*486"), std::invalid_argument);
+  EXPECT_THROW(camera::parse_viewport("0x486"), std::invalid_argument);
+  EXPECT_THROW(camera::parse_viewport("646x486px"), std::invalid_argument);
 }
 
 TEST(Camera, YamlRoundTrip) {
-  std::map<std::string, CameraRecord> cams;
-  cams["side"].camera = Camera::look_at("side", {646, 486}, 712.5, {0, -2, 1}, {0.5, 0, 0.5});
-  CameraCalibrationInfo info;
+  std::map<std::string, camera::CameraRecord> cams;
+  cams["side"].camera = camera::Camera::look_at("side", {646, 486}, 712.5, {0, -2, 1}, {0.5, 0, 0.5});
+  camera::CameraCalibrationInfo info;
   info.rms_px = 0.41;
   info.n_points = 24;
   info.outliers = {7};
   info.covariance(6, 6) = 4.0;
   cams["side"].calibration = info;
   const std::string path = "/tmp/foresight_cameras_test.yaml";
-  save_cameras(path, cams);
-  const auto back = load_cameras(path);
+  camera::save_cameras(path, cams);
+  const auto back = camera::load_cameras(path);
   ASSERT_EQ(back.size(), 1u);
   const auto& r = back.at("side");
   EXPECT_DOUBLE_EQ(r.camera.f_px, 712.5);
@@ -69,8 +69,8 @@ TEST(Camera, YamlRoundTrip) {
   // With the arm model's link sensitivity (7 rows, one column per link).
   cams["side"].calibration->arm_link_sigma_m = 0.002;
   cams["side"].calibration->arm_link_sensitivity = Eigen::MatrixXd::Random(7, 10);
-  save_cameras(path, cams);
-  const CameraCalibrationInfo k = *load_cameras(path).at("side").calibration;
+  camera::save_cameras(path, cams);
+  const camera::CameraCalibrationInfo k = *camera::load_cameras(path).at("side").calibration;
   EXPECT_EQ(k.arm_link_sigma_m, 0.002);
   ASSERT_EQ(k.arm_link_sensitivity.rows(), 7);
   ASSERT_EQ(k.arm_link_sensitivity.cols(), 10);
@@ -86,7 +86,7 @@ TEST(Camera, LoadRejectsABadArmLinkSensitivity) {
                 "  calibration:\n" + calibration).c_str(), f);
     std::fclose(f);
     try {
-      load_cameras(path);
+      camera::load_cameras(path);
     } catch (const InputError& e) {
       return e.what();
     }
@@ -121,7 +121,7 @@ TEST(Camera, LoadRejectsNonOrthonormalRotation) {
     std::fclose(f);
   }
   try {
-    load_cameras(path);
+    camera::load_cameras(path);
     FAIL();
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), (path + ":4: camera 'side': base_T_camera rotation is not orthonormal").c_str());
@@ -132,20 +132,20 @@ TEST(Camera, LoadRejectsNonOrthonormalRotation) {
 // ---- the projection module: value as Camera::project, Jacobians as finite differences ----
 
 TEST(Projection, ValueAndJacobiansMatchFiniteDifferences) {
-  const Camera cam = Camera::look_at("side", Viewport{646, 486}, 812.0, Eigen::Vector3d(2.1, -1.3, 1.4),
+  const camera::Camera cam = camera::Camera::look_at("side", camera::Viewport{646, 486}, 812.0, Eigen::Vector3d(2.1, -1.3, 1.4),
                                      Eigen::Vector3d(0.7, 0.1, 0.5));
-  const Eigen::Matrix3d R_obj = exp_so3(Eigen::Vector3d(0.3, -0.2, 0.9));
+  const Eigen::Matrix3d R_obj = camera::exp_so3(Eigen::Vector3d(0.3, -0.2, 0.9));
   const Eigen::Vector3d t_obj(0.8, 0.05, 0.45), p_obj(0.1, -0.07, 0.2);
   const Eigen::Vector3d p = R_obj * p_obj + t_obj;
-  const Projection pr = project_with_jacobians(cam, p);
+  const camera::Projection pr = camera::project_with_jacobians(cam, p);
   EXPECT_LT((pr.uv_px - cam.project(p)).norm(), 1e-12);
   const double h = 1e-6;
   for (int k = 0; k < 7; ++k) {  // camera: body rotation, position, f
     auto moved = [&](double s) {
       Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
       d[k] = s;
-      Camera c = cam;
-      c.base_T_camera.linear() = cam.base_T_camera.linear() * exp_so3(d.head<3>());
+      camera::Camera c = cam;
+      c.base_T_camera.linear() = cam.base_T_camera.linear() * camera::exp_so3(d.head<3>());
       c.base_T_camera.translation() += d.segment<3>(3);
       c.f_px += d[6];
       return c.project(p);
@@ -153,17 +153,17 @@ TEST(Projection, ValueAndJacobiansMatchFiniteDifferences) {
     const Eigen::Vector2d fd = (moved(h) - moved(-h)) / (2 * h);
     EXPECT_LT((pr.d_camera.col(k) - fd).norm(), 1e-5 * (1.0 + fd.norm())) << "camera parameter " << k;
   }
-  const Eigen::Matrix<double, 2, 6> J = object_pose_jacobian(pr, R_obj, p_obj);
+  const Eigen::Matrix<double, 2, 6> J = camera::object_pose_jacobian(pr, R_obj, p_obj);
   for (int k = 0; k < 6; ++k) {  // object pose: body rotation, origin
     auto moved = [&](double s) {
       Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
       d[k] = s;
-      return cam.project(R_obj * exp_so3(d.head<3>()) * p_obj + t_obj + d.tail<3>());
+      return cam.project(R_obj * camera::exp_so3(d.head<3>()) * p_obj + t_obj + d.tail<3>());
     };
     const Eigen::Vector2d fd = (moved(h) - moved(-h)) / (2 * h);
     EXPECT_LT((J.col(k) - fd).norm(), 1e-5 * (1.0 + fd.norm())) << "pose parameter " << k;
   }
-  EXPECT_LT((skew(Eigen::Vector3d(1, 2, 3)) * Eigen::Vector3d(-4, 5, 0.5) -
+  EXPECT_LT((camera::skew(Eigen::Vector3d(1, 2, 3)) * Eigen::Vector3d(-4, 5, 0.5) -
              Eigen::Vector3d(1, 2, 3).cross(Eigen::Vector3d(-4, 5, 0.5)))
                 .norm(),
             1e-15);
@@ -171,16 +171,16 @@ TEST(Projection, ValueAndJacobiansMatchFiniteDifferences) {
 
 TEST(Projection, InverseRightJacobianMatchesFiniteDifferences) {
   for (const Eigen::Vector3d& phi : {Eigen::Vector3d(0.3, -0.5, 0.2), Eigen::Vector3d(1e-8, 0.0, 2e-8)}) {
-    const Eigen::Matrix3d R = exp_so3(phi);
+    const Eigen::Matrix3d R = camera::exp_so3(phi);
     auto log_of = [](const Eigen::Matrix3d& M) {
       const Eigen::AngleAxisd aa(M);
       return Eigen::Vector3d(aa.angle() * aa.axis());
     };
-    const Eigen::Matrix3d Jinv = right_jacobian_inverse_so3(phi);
+    const Eigen::Matrix3d Jinv = camera::right_jacobian_inverse_so3(phi);
     for (int k = 0; k < 3; ++k) {
       Eigen::Vector3d d = Eigen::Vector3d::Zero();
       d[k] = 1e-6;
-      const Eigen::Vector3d fd = (log_of(R * exp_so3(d)) - log_of(R * exp_so3(-d))) / 2e-6;
+      const Eigen::Vector3d fd = (log_of(R * camera::exp_so3(d)) - log_of(R * camera::exp_so3(-d))) / 2e-6;
       EXPECT_LT((Jinv.col(k) - fd).norm(), 1e-6) << k;
     }
   }

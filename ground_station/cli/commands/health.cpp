@@ -93,7 +93,7 @@ int run_health(const HealthArgs& a) {
   using namespace foresight::align;
   const GlBackend backend = parse_gl_backend(a.gl);
   const bool telemetry = a.joints_from == "telemetry";
-  const Camera camera = load_camera(a.cameras, a.camera);
+  const camera::Camera camera = load_camera(a.cameras, a.camera);
   const RobotModel model = RobotModel::from_file(a.robot);
   const auto joints = telemetry ? std::vector<Eigen::VectorXd>{} : read_joint_lines(a.joints_from, model);
   std::optional<ObjectModel> object;

@@ -32,7 +32,7 @@ int run_overlay(const OverlayArgs& args) {
   using namespace foresight::render;
   const session::OverlayRequest& a = args.request;
   const session::Overlaid o = session::overlay_frame(a);
-  const Camera& camera = o.camera;
+  const camera::Camera& camera = o.camera;
   const Eigen::VectorXd& q = o.q;
   const Eigen::Vector2d& tip_uv = o.tip_px;
   const int triangles = o.triangles;

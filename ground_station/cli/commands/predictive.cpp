@@ -39,7 +39,7 @@ int run_predictive(const PredictiveArgs& a) {
   const GlBackend backend = parse_gl_backend(a.gl);
   if (!(a.alpha >= 0.0 && a.alpha <= 1.0)) throw std::invalid_argument("--alpha must be in [0, 1]");
   if (!(a.delay_s >= 0.0)) throw std::invalid_argument("--delay-s must be a non-negative number of seconds");
-  const Camera camera = load_camera(a.cameras, a.camera);
+  const camera::Camera camera = load_camera(a.cameras, a.camera);
   const RobotModel model = RobotModel::from_file(a.robot);
   const Eigen::VectorXd q_cmd = parse_joints(a.commanded, "--commanded", model, a.deg);
   const Eigen::VectorXd q_act = parse_joints(a.actual, "--actual", model, a.deg);

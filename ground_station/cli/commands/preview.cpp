@@ -36,7 +36,7 @@ int run_preview(const PreviewArgs& args) {
   const session::Previewed p = session::preview_trajectory(a);
   const preview::PreviewOptions& o = p.options;
   const preview::PreviewResult& r = p.result;
-  const Camera& camera = p.camera;
+  const camera::Camera& camera = p.camera;
   for (const auto& v : p.violations) std::cerr << "foresight preview: warning: " << a.trajectory << ": " << v.message << "\n";
   if (p.violations_total > p.violations.size())
     std::cerr << "foresight preview: warning: " << a.trajectory << ": ... and " << p.violations_total - p.violations.size()

@@ -49,9 +49,9 @@ inline cv::Mat residual_plot_background(const ResidualPlotArgs& a, const std::st
 }
 
 /// (camera, viewport) of each named view.
-inline std::vector<std::pair<std::string, Viewport>> plot_views(const std::vector<std::string>& views,
-                                                                const std::map<std::string, Camera>& cameras) {
-  std::vector<std::pair<std::string, Viewport>> out;
+inline std::vector<std::pair<std::string, camera::Viewport>> plot_views(const std::vector<std::string>& views,
+                                                                const std::map<std::string, camera::Camera>& cameras) {
+  std::vector<std::pair<std::string, camera::Viewport>> out;
   for (const auto& v : views)
     if (const auto it = cameras.find(v); it != cameras.end()) out.emplace_back(v, it->second.viewport);
   return out;
@@ -61,7 +61,7 @@ inline std::vector<std::pair<std::string, Viewport>> plot_views(const std::vecto
 /// `views`: (camera, viewport). Does nothing when --plot was not given.
 inline void write_residual_plot(const ResidualPlotArgs& a, const std::vector<Correspondence>& clicks,
                                 const std::vector<PointResidual>& residuals,
-                                const std::vector<std::pair<std::string, Viewport>>& views, double rms_px) {
+                                const std::vector<std::pair<std::string, camera::Viewport>>& views, double rms_px) {
   if (a.out.empty()) return;
   std::vector<cv::Mat> pictures;
   for (const auto& [camera, viewport] : views) {

@@ -35,7 +35,7 @@ int run_synth(const SynthArgs& args) {
   using namespace foresight::render;
   const session::SynthRequest& a = args.request;
   const session::Synthesized f = session::synth_frame(a);
-  const Camera& camera = f.camera;
+  const camera::Camera& camera = f.camera;
   if (args.json) {
     std::cout << nlohmann::json{{"out", a.out},
                                 {"camera", camera.name},

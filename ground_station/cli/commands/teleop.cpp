@@ -117,7 +117,7 @@ int teleop_command(Options& o) {
   if (t.frame == teleop::ReferenceFrame::Camera) {
     if (o.camera.empty()) throw std::invalid_argument("--frame camera needs --camera NAME");
     if (!o.cameras.empty()) {
-      const auto cams = load_cameras(o.cameras);
+      const auto cams = camera::load_cameras(o.cameras);
       const auto it = cams.find(o.camera);
       if (it == cams.end()) throw InputError(o.cameras, "no camera '" + o.camera + "'");
       t.base_T_camera = it->second.camera.base_T_camera;
@@ -127,7 +127,7 @@ int teleop_command(Options& o) {
       const auto it = scene.cameras.find(o.camera);
       if (it == scene.cameras.end()) throw InputError(o.scene, "no camera '" + o.camera + "'");
       const auto& c = it->second;
-      t.base_T_camera = Camera::look_at(o.camera, Viewport{c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m,
+      t.base_T_camera = camera::Camera::look_at(o.camera, camera::Viewport{c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m,
                                         c.up).base_T_camera;
       camera_source = o.scene + " (the work site's layout, not a calibration)";
     }

@@ -35,7 +35,7 @@ struct Fixture {
   Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   KinematicsWorkspace ws{model};
   std::string q_text, frame, truth_yaml, start_yaml;
-  std::map<std::string, CameraRecord> truth;
+  std::map<std::string, camera::CameraRecord> truth;
 
   Fixture() {
     const auto ik = inverse_kinematics(model, ws, scene.base_T_object * oru.tags.at("approach_20cm"),
@@ -51,15 +51,15 @@ struct Fixture {
     const auto r = run_foresight("synth --camera side --joints " + q_text + " --out " + frame + " --write-cameras " +
                                  truth_yaml + " --seed 4");
     EXPECT_EQ(r.status, 0) << r.err;
-    truth = load_cameras(truth_yaml);
+    truth = camera::load_cameras(truth_yaml);
     // The start: side 4 px right and 3 px down of its truth.
     auto start = truth;
-    Camera& c = start.at("side").camera;
-    c.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(Eigen::Vector3d(-3.0 / c.f_px, 4.0 / c.f_px, 0.0));
+    camera::Camera& c = start.at("side").camera;
+    c.base_T_camera.linear() = c.base_T_camera.linear() * camera::exp_so3(Eigen::Vector3d(-3.0 / c.f_px, 4.0 / c.f_px, 0.0));
     // A camera looking away from the work site.
-    start["away"].camera = Camera::look_at("away", c.viewport, 700.0, {0.75, -1.9, 0.85}, {0.75, -5.0, 0.85});
+    start["away"].camera = camera::Camera::look_at("away", c.viewport, 700.0, {0.75, -1.9, 0.85}, {0.75, -5.0, 0.85});
     start_yaml = temp_path(".yaml");
-    save_cameras(start_yaml, start);
+    camera::save_cameras(start_yaml, start);
   }
 };
 
@@ -80,12 +80,12 @@ TEST(AlignCli, RefinesTheCameraBackOntoTheTruth) {
   EXPECT_EQ(j["status"], "aligned");
   EXPECT_LT(j["final_score_px"].get<double>(), j["start_score_px"].get<double>());
   EXPECT_EQ(j["covariance"].size(), 7u);
-  const auto cams = load_cameras(out);
+  const auto cams = camera::load_cameras(out);
   ASSERT_TRUE(cams.count("side"));
   ASSERT_TRUE(cams.at("side").calibration);
   // Reprojection of the arm's link origins: refined vs true camera.
-  const Camera& est = cams.at("side").camera;
-  const Camera& tru = f.truth.at("side").camera;
+  const camera::Camera& est = cams.at("side").camera;
+  const camera::Camera& tru = f.truth.at("side").camera;
   Eigen::VectorXd q = Eigen::VectorXd::Zero(f.model.dof());
   std::vector<double> values;
   std::stringstream ss(f.q_text);
@@ -127,7 +127,7 @@ TEST(AlignCli, ScaleImageResizesAFrameOfAnotherResolution) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["status"], "aligned");
   EXPECT_LT(j["final_score_px"].get<double>(), j["start_score_px"].get<double>());
-  EXPECT_TRUE(load_cameras(out).at("side").calibration);
+  EXPECT_TRUE(camera::load_cameras(out).at("side").calibration);
 }
 
 // The object pose's covariance (as `localize --json` writes it) is read for
@@ -285,8 +285,8 @@ TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
   const auto poses = arm_calibration_poses(f.model);
   int n = 0;
   for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
-    Camera& c = start.at(name).camera;
-    c.base_T_camera.linear() = c.base_T_camera.linear() * exp_so3(Eigen::Vector3d(1.5 / c.f_px, 2.5 / c.f_px, 0.0));
+    camera::Camera& c = start.at(name).camera;
+    c.base_T_camera.linear() = c.base_T_camera.linear() * camera::exp_so3(Eigen::Vector3d(1.5 / c.f_px, 2.5 / c.f_px, 0.0));
     c.f_px *= 1.004;
     for (const auto& p : poses) {
       std::string q;
@@ -299,7 +299,7 @@ TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
     }
   }
   const std::string start_yaml = temp_path(".yaml"), out = temp_path(".yaml"), arm_out = temp_path(".yaml");
-  save_cameras(start_yaml, start);
+  camera::save_cameras(start_yaml, start);
   const auto r = run_foresight("align --cameras " + start_yaml + args + " --arm-prior-mm 2 --arm-out " + arm_out +
                                " --out " + out + " --json");
   ASSERT_EQ(r.status, 0) << r.err << r.out;
@@ -320,7 +320,7 @@ TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
   std::printf("links: true error %.2f mm rms, estimate's error %.2f mm rms\n", std::sqrt(t2 / segs.size()) * 1e3,
               std::sqrt(e2 / segs.size()) * 1e3);
   EXPECT_LT(std::sqrt(e2), 0.5 * std::sqrt(t2));
-  EXPECT_EQ(load_cameras(out).size(), 3u);  // the refined cameras
+  EXPECT_EQ(camera::load_cameras(out).size(), 3u);  // the refined cameras
 
   // Read back: the model rendered and sampled with the corrections.
   const auto back = run_foresight("align --cameras " + out + " --camera side --image " + f.frame + " --joints " +

@@ -29,16 +29,16 @@ std::string write_file(const std::string& text, const std::string& suffix = ".cs
   return test::write_temp_file(text, suffix);
 }
 
-std::map<std::string, Camera> scene_cameras() {
+std::map<std::string, camera::Camera> scene_cameras() {
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
-  std::map<std::string, Camera> out;
+  std::map<std::string, camera::Camera> out;
   for (const auto& [name, c] : scene.cameras)
-    out[name] = Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up);
+    out[name] = camera::Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up);
   return out;
 }
 
 /// Base-frame clicks for `cam`: workspace points it sees, noisy pixels.
-std::string calibration_csv(const Camera& cam, int count, double noise, unsigned seed, int outlier_n = -1) {
+std::string calibration_csv(const camera::Camera& cam, int count, double noise, unsigned seed, int outlier_n = -1) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> x(0.35, 0.95), y(-0.35, 0.55), z(0.2, 1.0);
   std::normal_distribution<double> g(0.0, noise);
@@ -61,7 +61,7 @@ std::string calibration_csv(const Camera& cam, int count, double noise, unsigned
 
 TEST(CliCalibrate, JsonContractAndCamerasFile) {
   const auto cams = scene_cameras();
-  const Camera& side = cams.at("side");
+  const camera::Camera& side = cams.at("side");
   const std::string pts = write_file(calibration_csv(side, 30, 0.3, 1, 7) + calibration_csv(cams.at("oblique"), 25, 0.3, 2).substr(16));
   const std::string out = temp_path(".yaml");
   const CliRun r = run("calibrate " + pts + " --camera side --json --out " + out);
@@ -91,7 +91,7 @@ TEST(CliCalibrate, JsonContractAndCamerasFile) {
   const CliRun r2 = run("calibrate " + pts + " --camera oblique --out " + out);
   ASSERT_EQ(r2.status, 0) << r2.err;
   EXPECT_NE(r2.out.find("camera oblique"), std::string::npos);
-  const auto file = load_cameras(out);
+  const auto file = camera::load_cameras(out);
   ASSERT_EQ(file.size(), 2u);
   EXPECT_NEAR(file.at("side").camera.f_px, f, 1e-6);
   ASSERT_TRUE(file.at("side").calibration.has_value());
@@ -105,7 +105,7 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   // Points on the arm's links at three arm poses, through the URDF's FK.
   const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   const RobotLinkPoints robot(model);
-  const Camera side = scene_cameras().at("side");
+  const camera::Camera side = scene_cameras().at("side");
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> off(-0.05, 0.05);
   std::ostringstream s;
@@ -153,7 +153,7 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
               1e-9 * std::sqrt(lib.arm_model_covariance(6, 6)));
   EXPECT_EQ(ja["arm_model_sigma"]["arm_link_sigma_m"].get<double>(), 0.002);
   EXPECT_NEAR(ja["sigma"]["f_px"].get<double>(), lib.sigma[6], 1e-9 * lib.sigma[6]);
-  const CameraCalibrationInfo stored = *load_cameras(yaml).at("side").calibration;
+  const camera::CameraCalibrationInfo stored = *camera::load_cameras(yaml).at("side").calibration;
   EXPECT_NEAR(stored.covariance(6, 6), lib.covariance(6, 6), 1e-6 * lib.covariance(6, 6));
   // cameras.yaml keeps the camera's response to the links (rpy, as the
   // covariance), so localization can carry the arm's error on.
@@ -190,7 +190,7 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   lo.camera_covariance["side"] = camera_covariance_body_from_rpy(lib.covariance - lib.arm_model_covariance, R);
   lo.camera_link_sensitivity["side"] = lib.link_sensitivity;
   lo.arm_link_sigma_m = 0.002;
-  const std::map<std::string, Camera> cams = {{"side", lib.camera}};
+  const std::map<std::string, camera::Camera> cams = {{"side", lib.camera}};
   const auto oru_clicks = read_correspondences_csv(oru_pts);
   const LocalizationResult with = localize_object(oru_clicks, cams, lo), exact = localize_object(oru_clicks, cams);
   for (int i = 0; i < 3; ++i) {
@@ -239,7 +239,7 @@ TEST(CliCalibrate, AFailedComputationExitsOne) {
 }
 
 TEST(CliCalibrate, BadInputsExitTwoWithTheirMessage) {
-  const Camera side = scene_cameras().at("side");
+  const camera::Camera side = scene_cameras().at("side");
   const CliRun missing = run("calibrate /nonexistent/pts.csv --camera side");
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.err.find("/nonexistent/pts.csv: cannot open points file"), std::string::npos) << missing.err;
@@ -289,10 +289,10 @@ TEST(CliLocalize, JsonContractTagsViewsAndBadInputs) {
   const auto cams = scene_cameras();
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  std::map<std::string, CameraRecord> recs;
-  for (const auto& [name, c] : cams) recs[name] = CameraRecord{c, std::nullopt};
+  std::map<std::string, camera::CameraRecord> recs;
+  for (const auto& [name, c] : cams) recs[name] = camera::CameraRecord{c, std::nullopt};
   const std::string cam_file = temp_path(".yaml");
-  save_cameras(cam_file, recs);
+  camera::save_cameras(cam_file, recs);
   std::ostringstream s;
   s.precision(12);
   s << "n,cam,x,y,z,u,v\n";
@@ -441,9 +441,9 @@ TEST(CliLocalize, CalibrateThenLocalizeWithCameraUncertainty) {
   EXPECT_EQ(jp["held_camera_uncertainty"], nlohmann::json::array({"oblique", "overhead_wide", "side"}));
   EXPECT_EQ(jj["held_camera_uncertainty"], nlohmann::json::array());
   EXPECT_EQ(jp["arm_link_sigma_m"].get<double>(), 0.0);
-  std::map<std::string, Camera> calibrated;
+  std::map<std::string, camera::Camera> calibrated;
   LocalizationOptions held;
-  for (const auto& [name, rec] : load_cameras(cam_file)) {
+  for (const auto& [name, rec] : camera::load_cameras(cam_file)) {
     calibrated[name] = rec.camera;
     if (rec.calibration)
       held.camera_covariance[name] = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
@@ -468,12 +468,12 @@ TEST(CliLocalize, CamerasCalibratedWithDifferentArmSigmasAreRefused) {
   const auto cams = scene_cameras();
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  std::map<std::string, CameraRecord> records;
+  std::map<std::string, camera::CameraRecord> records;
   double sd = 0.001;
   for (const char* name : {"oblique", "side"}) {
-    CameraRecord& rec = records[name];
+    camera::CameraRecord& rec = records[name];
     rec.camera = cams.at(name);
-    CameraCalibrationInfo info;
+    camera::CameraCalibrationInfo info;
     info.covariance = 1e-8 * Eigen::Matrix<double, 7, 7>::Identity();
     info.rms_px = 0.5;
     info.n_points = 20;
@@ -483,7 +483,7 @@ TEST(CliLocalize, CamerasCalibratedWithDifferentArmSigmasAreRefused) {
     rec.calibration = info;
   }
   const std::string cam_file = temp_path(".yaml");
-  save_cameras(cam_file, records);
+  camera::save_cameras(cam_file, records);
   std::ostringstream s;
   s.precision(12);
   s << "n,cam,x,y,z,u,v\n";

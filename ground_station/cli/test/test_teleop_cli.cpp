@@ -38,12 +38,12 @@ std::string one_axis_input(int axis) {
 
 /// A camera with a known, oblique orientation in cameras.yaml.
 std::string camera_file(Eigen::Matrix3d* base_R_camera) {
-  foresight::CameraRecord rec;
-  rec.camera = foresight::Camera::look_at("test_cam", {}, 700.0, Eigen::Vector3d(1.8, -1.2, 1.5),
+  foresight::camera::CameraRecord rec;
+  rec.camera = foresight::camera::Camera::look_at("test_cam", {}, 700.0, Eigen::Vector3d(1.8, -1.2, 1.5),
                                           Eigen::Vector3d(0.4, 0.1, 0.4));
   *base_R_camera = rec.camera.base_T_camera.linear();
   const std::string path = temp_path(".yaml");
-  foresight::save_cameras(path, {{"test_cam", rec}});
+  foresight::camera::save_cameras(path, {{"test_cam", rec}});
   return path;
 }
 

@@ -36,7 +36,7 @@ std::vector<ModelPoint> object_model_points(const ObjectModel& object) {
   return out;
 }
 
-Camera model_view_camera(const std::vector<ModelPoint>& points, const Viewport& viewport,
+camera::Camera model_view_camera(const std::vector<ModelPoint>& points, const camera::Viewport& viewport,
                          const Eigen::Vector3d& view_direction, const Eigen::Vector3d& up) {
   if (points.empty()) throw std::invalid_argument("model view: no model points");
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -47,10 +47,10 @@ Camera model_view_camera(const std::vector<ModelPoint>& points, const Viewport& 
   const double f_px = 0.9 * std::min(viewport.width_px, viewport.height_px);
   // The sphere of `radius` subtends half of 70 % of the smaller side: d = r f / (0.35 side).
   const double distance = radius * f_px / (0.35 * std::min(viewport.width_px, viewport.height_px)) + radius;
-  return Camera::look_at("model", viewport, f_px, c + distance * view_direction.normalized(), c, up);
+  return camera::Camera::look_at("model", viewport, f_px, c + distance * view_direction.normalized(), c, up);
 }
 
-Camera default_model_view(const std::vector<ModelPoint>& points, const Viewport& viewport, bool arm) {
+camera::Camera default_model_view(const std::vector<ModelPoint>& points, const camera::Viewport& viewport, bool arm) {
   return arm ? model_view_camera(points, viewport, {1.0, -0.8, 0.55}, Eigen::Vector3d::UnitZ())
              : model_view_camera(points, viewport, {-0.35, -0.3, -1.0}, -Eigen::Vector3d::UnitY());
 }

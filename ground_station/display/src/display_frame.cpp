@@ -36,7 +36,7 @@ struct DisplayComposer::Impl {
   render::DrawList list;
   cv::Mat layer;
 
-  PerViewport& at(const Viewport& vp) {
+  PerViewport& at(const camera::Viewport& vp) {
     auto& p = per_viewport[{vp.width_px, vp.height_px}];
     if (!p.renderer) {
       p.renderer = std::make_unique<render::Renderer>(context, vp);
@@ -53,7 +53,7 @@ DisplayComposer::DisplayComposer(render::GlContext& context, const RobotModel& r
 
 DisplayComposer::~DisplayComposer() = default;
 
-cv::Mat DisplayComposer::arm_silhouette(const Camera& camera, const Eigen::VectorXd& q) {
+cv::Mat DisplayComposer::arm_silhouette(const camera::Camera& camera, const Eigen::VectorXd& q) {
   PerViewport& p = impl_->at(camera.viewport);
   impl_->list.clear();
   p.arm->append(q, impl_->list);
@@ -66,7 +66,7 @@ cv::Mat DisplayComposer::arm_silhouette(const Camera& camera, const Eigen::Vecto
   return alpha > 0;
 }
 
-cv::Mat DisplayComposer::compose(const Camera& camera, const cv::Mat& video_bgr, const DisplayState& s) {
+cv::Mat DisplayComposer::compose(const camera::Camera& camera, const cv::Mat& video_bgr, const DisplayState& s) {
   const cv::Size size(camera.viewport.width_px, camera.viewport.height_px);
   cv::Mat out;
   if (video_bgr.empty()) {

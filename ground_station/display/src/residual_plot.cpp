@@ -51,7 +51,7 @@ void label(cv::Mat& img, const std::string& text, cv::Point p, const cv::Scalar&
 
 }  // namespace
 
-cv::Mat draw_residual_plot(const cv::Mat& background, const Viewport& viewport, const std::vector<PlotPoint>& points,
+cv::Mat draw_residual_plot(const cv::Mat& background, const camera::Viewport& viewport, const std::vector<PlotPoint>& points,
                            const ResidualPlotOptions& o) {
   cv::Mat img;
   if (background.empty()) {

@@ -148,7 +148,7 @@ TEST(ModelPoints, ArmPointsAreLinkFeaturesAndTheModelViewSeesThemAll) {
   EXPECT_NEAR((pts[0].p_m - forward_kinematics(model, ws, q, 1).translation()).norm(), 0.0, 1e-12);
   for (std::size_t i = 0; i < pts.size(); ++i)
     for (std::size_t j = i + 1; j < pts.size(); ++j) EXPECT_GE((pts[i].p_m - pts[j].p_m).norm(), 0.03);
-  const Camera view = model_view_camera(pts, Viewport{646, 486}, {1.0, -0.8, 0.5}, Eigen::Vector3d::UnitZ());
+  const camera::Camera view = model_view_camera(pts, camera::Viewport{646, 486}, {1.0, -0.8, 0.5}, Eigen::Vector3d::UnitZ());
   for (const auto& p : pts) {
     ASSERT_TRUE(view.in_front(p.p_m));
     EXPECT_TRUE(view.in_view(view.project(p.p_m))) << p.label;

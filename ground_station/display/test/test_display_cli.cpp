@@ -80,7 +80,7 @@ struct World {
   RobotModel model = RobotModel::from_file(kConfig + "/robot.urdf");
   ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
   Scene scene = Scene::from_file(kConfig + "/scene.yaml");
-  Camera truth = render::scene_camera(scene, kCamera);
+  camera::Camera truth = render::scene_camera(scene, kCamera);
 };
 
 std::string joints_text(const Eigen::VectorXd& q) {
@@ -226,11 +226,11 @@ TEST(DisplayCli, HeadlessSyntheticRecordingShowsTheOverlayWhereTheTruthSays) {
 TEST(DisplayCli, HealthShowsHowWellTheArmsEdgesMatchTheVideo) {
   World w;
   const std::string cams = true_cameras();
-  auto records = load_cameras(cams);
-  Camera& bumped = records.at(kCamera).camera;
-  bumped.base_T_camera.linear() = bumped.base_T_camera.linear() * exp_so3(Eigen::Vector3d(0.0, 0.3 * M_PI / 180.0, 0.0));
+  auto records = camera::load_cameras(cams);
+  camera::Camera& bumped = records.at(kCamera).camera;
+  bumped.base_T_camera.linear() = bumped.base_T_camera.linear() * camera::exp_so3(Eigen::Vector3d(0.0, 0.3 * M_PI / 180.0, 0.0));
   const std::string bumped_cams = temp_path(".yaml");
-  save_cameras(bumped_cams, records);
+  camera::save_cameras(bumped_cams, records);
   KinematicsWorkspace ws(w.model);
   const auto ik = inverse_kinematics(w.model, ws, w.scene.base_T_object * w.oru.tags.at("approach_20cm"),
                                      w.model.mid_configuration());
@@ -510,7 +510,7 @@ TEST(ClickCli, ClicksAtTheTrueProjectionsCalibrateTheTrueCamera) {
     ASSERT_FALSE(image_win.empty()) << "last seen: " << seen << "\n" << read_file(err_path);
     // The model window's points (as the command draws them) and their true image points.
     const auto points = display::arm_model_points(w.model, q);
-    const Camera view = display::default_model_view(points, w.truth.viewport, true);
+    const camera::Camera view = display::default_model_view(points, w.truth.viewport, true);
     std::string clicks = "xdotool";
     int here = 0;
     for (const auto& p : points) {

@@ -43,7 +43,7 @@ struct World {
 
 TEST(DisplayFrame, ActualArmOverlayCoversTheSyntheticArm) {
   World w;
-  const Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
+  const camera::Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
   render::SyntheticCamera synth(*w.gl, w.model, w.oru, w.scene, cam.viewport);
   DisplayComposer composer(*w.gl, w.model, &w.oru, w.scene.base_T_object);
   Eigen::VectorXd q = w.model.mid_configuration();
@@ -83,7 +83,7 @@ TEST(DisplayFrame, ActualArmOverlayCoversTheSyntheticArm) {
 
 TEST(DisplayFrame, TextSaysTheVideoProblemAndTheFault) {
   World w;
-  const Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
+  const camera::Camera cam = render::scene_camera(w.scene, w.scene.camera_order.front());
   DisplayComposer composer(*w.gl, w.model, nullptr, std::nullopt);
   DisplayState s;
   s.q_actual = w.model.mid_configuration();

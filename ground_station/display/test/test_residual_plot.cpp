@@ -62,7 +62,7 @@ TEST(ResidualPlot, ArrowsRunFromReprojectionAlongTheScaledResidual) {
                                       {2, {400.5, 300.5}, {396.5, 300.5}, true}};
   ResidualPlotOptions o;
   o.arrow_scale = 10.0;
-  const cv::Mat img = draw_residual_plot(cv::Mat(), Viewport{646, 486}, pts, o);
+  const cv::Mat img = draw_residual_plot(cv::Mat(), camera::Viewport{646, 486}, pts, o);
   ASSERT_EQ(img.size(), cv::Size(646, 486));
   auto is_yellow = [&](int x, int y) {
     const cv::Vec3b p = img.at<cv::Vec3b>(y, x);
@@ -82,7 +82,7 @@ TEST(ResidualPlot, ArrowsRunFromReprojectionAlongTheScaledResidual) {
   EXPECT_GE(red, 2);
   // A background of another size is used as it is; a grey one becomes BGR.
   const cv::Mat grey(100, 120, CV_8UC1, cv::Scalar(128));
-  const cv::Mat on_grey = draw_residual_plot(grey, Viewport{646, 486}, {}, {});
+  const cv::Mat on_grey = draw_residual_plot(grey, camera::Viewport{646, 486}, {}, {});
   EXPECT_EQ(on_grey.size(), grey.size());
   EXPECT_EQ(on_grey.type(), CV_8UC3);
 }

@@ -107,7 +107,7 @@ std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& m) {
   return out;
 }
 
-std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrationPose& pose, int max_count) {
+std::vector<ArmFeature> visible_features(const camera::Camera& camera, const ArmCalibrationPose& pose, int max_count) {
   std::vector<ArmFeature> seen;
   for (const auto& f : pose.features)
     if (camera.in_front(f.p_base) && camera.in_view(camera.project(f.p_base))) seen.push_back(f);
@@ -163,7 +163,7 @@ StudySetup make_study_setup(const Scene& scene, const ObjectModel& object,
   for (const auto& name : scene.camera_order) {
     const SceneCamera& sc = scene.cameras.at(name);
     StudyView v;
-    v.truth = Camera::look_at(name, Viewport{sc.width_px, sc.height_px}, sc.f_px, sc.position_m, sc.look_at_m, sc.up);
+    v.truth = camera::Camera::look_at(name, camera::Viewport{sc.width_px, sc.height_px}, sc.f_px, sc.position_m, sc.look_at_m, sc.up);
     for (const auto& p : arm_points_base)
       if (v.truth.in_front(p) && v.truth.in_view(v.truth.project(p))) v.calibration_points_base.push_back(p);
     const Eigen::Vector3d cam_in_object = s.base_T_object.inverse() * sc.position_m;
@@ -194,12 +194,12 @@ void cramer_rao_bound(const StudySetup& setup, const std::vector<int>& views, do
   for (int k = 0; k < k_views; ++k) {
     const StudyView& view = setup.views[views[k]];
     for (const auto& p : view.calibration_points_base) {
-      J.block<2, 7>(r, 6 + 7 * k) = project_with_jacobians(view.truth, p).d_camera;
+      J.block<2, 7>(r, 6 + 7 * k) = camera::project_with_jacobians(view.truth, p).d_camera;
       r += 2;
     }
     for (const auto& p : view.object_points) {
-      const Projection pr = project_with_jacobians(view.truth, T * p);
-      J.block<2, 6>(r, 0) = object_pose_jacobian(pr, T.linear(), p);
+      const camera::Projection pr = camera::project_with_jacobians(view.truth, T * p);
+      J.block<2, 6>(r, 0) = camera::object_pose_jacobian(pr, T.linear(), p);
       J.block<2, 7>(r, 6 + 7 * k) = pr.d_camera;
       r += 2;
     }
@@ -280,7 +280,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
           believed[v][i] = forward_kinematics(model, ws, setup.arm_q.at(f.pose), f.link) * f.p_link;
         }
     }
-    std::map<std::string, Camera> cams;
+    std::map<std::string, camera::Camera> cams;
     std::map<std::string, Eigen::Matrix<double, 7, 7>> information;
     std::vector<Correspondence> clicks;
     bool ok = true;
@@ -326,7 +326,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
         ++combo.joint_failures;
       }
       if (combo.views.size() == 1) {
-        const Camera& cam = cams.at(lo.views[0]);
+        const camera::Camera& cam = cams.at(lo.views[0]);
         if (const auto T = solve_pnp_opencv(pts, cam, PnpMethod::Iterative))
           pnp_it[ci].add(pose_error(*T, setup.base_T_object));
         if (const auto T = solve_pnp_opencv(pts, cam, PnpMethod::Sqpnp))

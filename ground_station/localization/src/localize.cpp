@@ -26,7 +26,7 @@ std::string point_name(const Correspondence& c) {
 }
 
 
-std::string names_of(const std::map<std::string, Camera>& cameras) {
+std::string names_of(const std::map<std::string, camera::Camera>& cameras) {
   std::string s;
   for (const auto& [name, cam] : cameras) s += (s.empty() ? "" : ", ") + name;
   return s.empty() ? "none" : s;
@@ -35,7 +35,7 @@ std::string names_of(const std::map<std::string, Camera>& cameras) {
 /// One click with its camera resolved.
 struct Obs {
   const Correspondence* c;
-  const Camera* cam;
+  const camera::Camera* cam;
 };
 
 /// Reprojection rms and number of points behind their camera for a pose.
@@ -125,7 +125,7 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
     Eigen::MatrixXd A(2 * n, u);
     Eigen::VectorXd b(2 * n);
     for (int i = 0; i < n; ++i) {
-      const Camera& cam = *obs[i].cam;
+      const camera::Camera& cam = *obs[i].cam;
       const Eigen::Vector3d p = Q.transpose() * (obs[i].c->p_m - mean) / sigma;
       const Eigen::Matrix3d& Rc = cam.base_T_camera.linear();
       const Eigen::Vector3d c = cam.base_T_camera.translation();
@@ -188,7 +188,7 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
   return best;
 }
 
-std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                          const std::vector<std::string>& views, std::vector<std::string>& used_views) {
   std::set<std::string> wanted(views.begin(), views.end());
   for (const auto& v : views)
@@ -216,7 +216,7 @@ std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::m
 /// covariance with the held cameras' and the arm model's terms).
 class Localizer {
  public:
-  Localizer(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+  Localizer(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
             const LocalizationOptions& opt, LocalizationResult& res)
       : cameras_(cameras), opt_(opt), res_(res) {
     check_options();
@@ -276,9 +276,9 @@ class Localizer {
   void evaluate(const State& s, Eigen::VectorXd& e, Eigen::Matrix<double, Eigen::Dynamic, 6>* J) const {
     for (int k = 0; k < static_cast<int>(idx_.size()); ++k) {
       const Obs& o = obs_[idx_[k]];
-      const Projection pr = project_with_jacobians(*o.cam, s.R * o.c->p_m + s.t);
+      const camera::Projection pr = camera::project_with_jacobians(*o.cam, s.R * o.c->p_m + s.t);
       e.segment<2>(2 * k) = pr.uv_px - o.c->uv_px;
-      if (J) J->block<2, 6>(2 * k, 0) = object_pose_jacobian(pr, s.R, o.c->p_m);  // body rotation, translation
+      if (J) J->block<2, 6>(2 * k, 0) = camera::object_pose_jacobian(pr, s.R, o.c->p_m);  // body rotation, translation
     }
   }
 
@@ -302,7 +302,7 @@ class Localizer {
   /// flagged and left out (idx_: the inliers, m_ of them).
   void fit_with_outliers() {
     const auto retract = [](const State& s, const Eigen::Matrix<double, 6, 1>& d) {
-      return State{s.R * exp_so3(d.head<3>()), s.t + d.tail<3>()};
+      return State{s.R * camera::exp_so3(d.head<3>()), s.t + d.tail<3>()};
     };
     // Size of the parameters in the units of a step (rad, m): for the relative step test.
     const auto state_norm = [](const State& s) { return std::sqrt(3.0 + s.t.squaredNorm()); };
@@ -357,7 +357,7 @@ class Localizer {
       const Eigen::MatrixXd* K = arm_term_ ? sensitivity_of(o.c->cam) : nullptr;
       const auto cov = opt_.camera_covariance.find(o.c->cam);
       if (!K && cov == opt_.camera_covariance.end()) continue;
-      const Eigen::Matrix<double, 2, 7> d_camera = project_with_jacobians(*o.cam, R * o.c->p_m + t).d_camera;
+      const Eigen::Matrix<double, 2, 7> d_camera = camera::project_with_jacobians(*o.cam, R * o.c->p_m + t).d_camera;
       if (K) dedl.middleRows<2>(2 * k) = d_camera * *K;
       if (cov != opt_.camera_covariance.end()) {
         Eigen::MatrixXd& d = dedc[o.c->cam];
@@ -395,7 +395,7 @@ class Localizer {
     if (kj == 0) return;
     std::map<std::string, int> slot;
     std::vector<Eigen::Matrix<double, 7, 7>> Lt(kj);
-    std::vector<Camera> cams0;
+    std::vector<camera::Camera> cams0;
     for (int j = 0; j < kj; ++j) {
       slot[joint_names_[j]] = j;
       cams0.push_back(cameras_.at(joint_names_[j]));
@@ -408,7 +408,7 @@ class Localizer {
     struct JointState {
       Eigen::Matrix3d R;
       Eigen::Vector3d t;
-      std::vector<Camera> cams;
+      std::vector<camera::Camera> cams;
     };
     JointState js{state_.R, state_.t, cams0};
     const int m = m_;
@@ -418,11 +418,11 @@ class Localizer {
       for (int k = 0; k < m; ++k) {
         const Obs& o = obs_[idx_[k]];
         const auto it = slot.find(o.c->cam);
-        const Camera& cam = it == slot.end() ? *o.cam : s.cams[it->second];
-        const Projection pr = project_with_jacobians(cam, s.R * o.c->p_m + s.t);
+        const camera::Camera& cam = it == slot.end() ? *o.cam : s.cams[it->second];
+        const camera::Projection pr = camera::project_with_jacobians(cam, s.R * o.c->p_m + s.t);
         e.segment<2>(2 * k) = pr.uv_px - o.c->uv_px;
         if (J) {
-          J->block<2, 6>(2 * k, 0) = object_pose_jacobian(pr, s.R, o.c->p_m);
+          J->block<2, 6>(2 * k, 0) = camera::object_pose_jacobian(pr, s.R, o.c->p_m);
           if (it != slot.end()) J->block<2, 7>(2 * k, 6 + 7 * it->second) = pr.d_camera;
         }
       }
@@ -434,16 +434,16 @@ class Localizer {
         e.segment<7>(2 * m + 7 * j) = Lt[j] * dlt;
         if (J) {  // d log(R0^T R exp([d]x)) / dd is the inverse right Jacobian, not I
           Eigen::Matrix<double, 7, 7> D = Eigen::Matrix<double, 7, 7>::Identity();
-          D.topLeftCorner<3, 3>() = right_jacobian_inverse_so3(dlt.head<3>());
+          D.topLeftCorner<3, 3>() = camera::right_jacobian_inverse_so3(dlt.head<3>());
           J->block<7, 7>(2 * m + 7 * j, 6 + 7 * j) = Lt[j] * D;
         }
       }
     };
     auto jretract = [&](const JointState& s, const Eigen::VectorXd& d) {
-      JointState out{s.R * exp_so3(d.head<3>()), s.t + d.segment<3>(3), s.cams};
+      JointState out{s.R * camera::exp_so3(d.head<3>()), s.t + d.segment<3>(3), s.cams};
       for (int j = 0; j < kj; ++j) {
         const auto dc = d.segment<7>(6 + 7 * j);
-        out.cams[j].base_T_camera.linear() = s.cams[j].base_T_camera.linear() * exp_so3(dc.head<3>());
+        out.cams[j].base_T_camera.linear() = s.cams[j].base_T_camera.linear() * camera::exp_so3(dc.head<3>());
         out.cams[j].base_T_camera.translation() += dc.segment<3>(3);
         out.cams[j].f_px += dc[6];
       }
@@ -470,7 +470,7 @@ class Localizer {
     res_.refined_cameras = refined_;
   }
 
-  const Camera& camera_of(const Obs& o) const {
+  const camera::Camera& camera_of(const Obs& o) const {
     const auto it = refined_.find(o.c->cam);
     return it == refined_.end() ? *o.cam : it->second;
   }
@@ -483,7 +483,7 @@ class Localizer {
     std::vector<Obs> in_obs;
     for (int i = 0; i < n_; ++i) {
       const Obs& o = obs_[i];
-      const Camera& cam = camera_of(o);
+      const camera::Camera& cam = camera_of(o);
       const Eigen::Vector3d pc = cam.to_camera(res_.base_T_object * o.c->p_m);
       PointResidual pr;
       pr.n = o.c->n;
@@ -540,7 +540,7 @@ class Localizer {
     res_.sigma_position_m = sd.tail<3>();
   }
 
-  const std::map<std::string, Camera>& cameras_;
+  const std::map<std::string, camera::Camera>& cameras_;
   const LocalizationOptions& opt_;
   LocalizationResult& res_;
   Eigen::Index links_ = 0;
@@ -559,7 +559,7 @@ class Localizer {
   Eigen::Matrix<double, 6, 6> held_body_ = Eigen::Matrix<double, 6, 6>::Zero();
   double arm_in_residuals_ = 0.0;
   std::vector<std::string> joint_names_;
-  std::map<std::string, Camera> refined_;
+  std::map<std::string, camera::Camera> refined_;
   Eigen::MatrixXd joint_H_;
   double joint_ss_ = 0.0;
 };
@@ -568,7 +568,7 @@ class Localizer {
 
 Eigen::Vector3d LocalizationResult::rpy_rad() const { return rpy_from_rotation(base_T_object.linear()); }
 
-Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                             double rank_tolerance) {
   std::vector<std::string> used;
   const std::vector<Obs> obs = resolve(points, cameras, {}, used);
@@ -577,7 +577,7 @@ Pose localize_object_linear(const std::vector<Correspondence>& points, const std
 }
 
 LocalizationResult localize_object(const std::vector<Correspondence>& points,
-                                   const std::map<std::string, Camera>& cameras, const LocalizationOptions& opt) {
+                                   const std::map<std::string, camera::Camera>& cameras, const LocalizationOptions& opt) {
   LocalizationResult res;
   Localizer(points, cameras, opt, res).run();
   return res;

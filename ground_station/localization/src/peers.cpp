@@ -7,7 +7,7 @@
 
 namespace foresight {
 
-std::optional<Pose> solve_pnp_opencv(const std::vector<Correspondence>& points, const Camera& camera,
+std::optional<Pose> solve_pnp_opencv(const std::vector<Correspondence>& points, const camera::Camera& camera,
                                      PnpMethod method) {
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
@@ -37,11 +37,11 @@ std::optional<Pose> solve_pnp_opencv(const std::vector<Correspondence>& points, 
   return camera.base_T_camera * camera_T_object;
 }
 
-Eigen::Vector3d triangulate_dlt(const std::vector<const Camera*>& cameras, const std::vector<Eigen::Vector2d>& uv) {
+Eigen::Vector3d triangulate_dlt(const std::vector<const camera::Camera*>& cameras, const std::vector<Eigen::Vector2d>& uv) {
   const int v = static_cast<int>(cameras.size());
   Eigen::MatrixXd A(2 * v, 4);
   for (int k = 0; k < v; ++k) {
-    const Camera& c = *cameras[k];
+    const camera::Camera& c = *cameras[k];
     Eigen::Matrix<double, 3, 4> P;  // K [R | t] with camera_T_base
     Eigen::Matrix3d K;
     K << c.f_px, 0, c.principal_point().x(), 0, c.f_px, c.principal_point().y(), 0, 0, 1;
@@ -60,7 +60,7 @@ Eigen::Vector3d triangulate_dlt(const std::vector<const Camera*>& cameras, const
 }
 
 std::optional<Pose> triangulate_and_align(const std::vector<Correspondence>& points,
-                                          const std::map<std::string, Camera>& cameras) {
+                                          const std::map<std::string, camera::Camera>& cameras) {
   std::vector<Eigen::Vector3d> model;
   std::vector<std::vector<std::size_t>> groups;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -77,7 +77,7 @@ std::optional<Pose> triangulate_and_align(const std::vector<Correspondence>& poi
   }
   std::vector<Eigen::Vector3d> src, dst;
   for (std::size_t g = 0; g < model.size(); ++g) {
-    std::vector<const Camera*> cams;
+    std::vector<const camera::Camera*> cams;
     std::vector<Eigen::Vector2d> uv;
     for (const std::size_t i : groups[g]) {
       const auto it = cameras.find(points[i].cam);

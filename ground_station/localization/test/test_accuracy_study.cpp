@@ -54,7 +54,7 @@ TEST(AccuracyStudy, CramerRaoBoundIsConsistent) {
 
 TEST(AccuracyStudy, PeersExactOnExactData) {
   const StudySetup s = project_setup();
-  std::map<std::string, Camera> cams;
+  std::map<std::string, camera::Camera> cams;
   std::vector<Correspondence> all;
   for (const auto& v : s.views) {
     cams[v.truth.name] = v.truth;

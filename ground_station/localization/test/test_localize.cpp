@@ -15,7 +15,7 @@ using foresight::testing::random_camera;
 namespace {
 
 struct Scenario {
-  std::map<std::string, Camera> cameras;
+  std::map<std::string, camera::Camera> cameras;
   Pose base_T_object;
   std::vector<Correspondence> exact;  // object-frame points, exact pixels
 };
@@ -29,7 +29,7 @@ Scenario make_setup(std::mt19937& rng, int views, int per_view, bool planar = fa
                               Eigen::Vector3d(a(rng), a(rng) / 2, a(rng)));
   const Eigen::Vector3d centre = s.base_T_object.translation();
   for (int v = 0; v < views; ++v) {
-    Camera cam = random_camera(rng, centre, 1.5 + 0.5 * v, 500.0 + 150.0 * v);
+    camera::Camera cam = random_camera(rng, centre, 1.5 + 0.5 * v, 500.0 + 150.0 * v);
     cam.name = "cam" + std::to_string(v + 1);
     int n = 0;
     for (int tries = 0; tries < 10000 && n < per_view; ++tries) {
@@ -65,7 +65,7 @@ Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
   return d;
 }
 
-std::string error_of(const std::vector<Correspondence>& pts, const std::map<std::string, Camera>& cams,
+std::string error_of(const std::vector<Correspondence>& pts, const std::map<std::string, camera::Camera>& cams,
                      const std::vector<std::string>& views = {}) {
   LocalizationOptions opt;
   opt.views = views;
@@ -159,7 +159,7 @@ TEST(LocalizeBadInput, PointBehindItsCamera) {
   std::mt19937 rng(12);
   const Scenario s = make_setup(rng, 2, 8);
   auto pts = s.exact;
-  const Camera& cam = s.cameras.at("cam1");
+  const camera::Camera& cam = s.cameras.at("cam1");
   Correspondence c = pts[0];
   c.n = 42;
   c.line = 20;
@@ -228,7 +228,7 @@ TEST(Localize, JointRefinementWithCameraPriors) {
   const int trials = 200;
   Eigen::Matrix<double, 6, 1> sq_joint = Eigen::Matrix<double, 6, 1>::Zero(), sig_joint = sq_joint, sig_plain = sq_joint;
   for (int t = 0; t < trials; ++t) {
-    std::map<std::string, Camera> cams;
+    std::map<std::string, camera::Camera> cams;
     LocalizationOptions joint, plain;
     joint.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
@@ -271,7 +271,7 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
   const int trials = 200;
   Eigen::Matrix<double, 6, 1> sq = Eigen::Matrix<double, 6, 1>::Zero(), sig = sq, sig_plain = sq;
   for (int t = 0; t < trials; ++t) {
-    std::map<std::string, Camera> cams;
+    std::map<std::string, camera::Camera> cams;
     LocalizationOptions held, plain;
     held.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
@@ -333,10 +333,10 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
       }
   }
   centroid /= static_cast<double>(features.size());
-  const std::vector<Camera> truth = {
-      Camera::look_at("side", Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
+  const std::vector<camera::Camera> truth = {
+      camera::Camera::look_at("side", camera::Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
                       Eigen::Vector3d::UnitZ()),
-      Camera::look_at("front", Viewport{}, 600.0, centroid + Eigen::Vector3d(2.3, 0.5, 0.8), centroid,
+      camera::Camera::look_at("front", camera::Viewport{}, 600.0, centroid + Eigen::Vector3d(2.3, 0.5, 0.8), centroid,
                       Eigen::Vector3d::UnitZ())};
   // The ORU: a box's corners and face centres beside the arm, in both views.
   const Pose base_T_oru = make_pose(centroid + Eigen::Vector3d(0.25, 0.1, -0.15), Eigen::Vector3d(0.2, -0.1, 0.6));
@@ -344,7 +344,7 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
   for (int c = 0; c < 8; ++c) oru_points.emplace_back((c & 1) ? 0.15 : -0.15, (c & 2) ? 0.1 : -0.1, (c & 4) ? 0.08 : -0.08);
   for (const Eigen::Vector3d& f : {Eigen::Vector3d(0.15, 0, 0), Eigen::Vector3d(0, 0.1, 0), Eigen::Vector3d(0, 0, 0.08)})
     oru_points.push_back(f);
-  for (const Camera& cam : truth)
+  for (const camera::Camera& cam : truth)
     for (const Eigen::Vector3d& p : oru_points) ASSERT_TRUE(cam.in_view(cam.project(base_T_oru * p))) << cam.name;
 
   CalibrationOptions co;
@@ -361,13 +361,13 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
     for (const int k : arm.offset_segments()) delta[k] = link_error(rng);
     const RobotModel true_arm = arm.with_link_lengths_changed(delta);
     KinematicsWorkspace tws(true_arm);
-    std::map<std::string, Camera> cams;
+    std::map<std::string, camera::Camera> cams;
     LocalizationOptions alone, both;
     alone.views = {"side"};
     alone.outliers.enabled = both.outliers.enabled = false;
     alone.arm_link_sigma_m = both.arm_link_sigma_m = co.arm_link_sigma_m;
     std::vector<Correspondence> oru;
-    for (const Camera& cam : truth) {
+    for (const camera::Camera& cam : truth) {
       std::vector<Correspondence> cal;
       for (const Feature& f : features) {
         Correspondence c;

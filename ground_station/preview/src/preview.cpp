@@ -60,7 +60,7 @@ std::string seconds_text(double t) {
 
 }  // namespace
 
-PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& arm, const Camera& camera,
+PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& arm, const camera::Camera& camera,
                              const cv::Mat& background, const Trajectory& tr, const OverlayExtras& extras,
                              const PreviewOptions& o, const std::string& video_path, const std::string& sheet_path) {
   if (!(o.speed > 0.0) || !std::isfinite(o.speed))
@@ -134,7 +134,7 @@ PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& ar
   return result;
 }
 
-cv::Mat predictive_frame(render::Renderer& renderer, render::ArmGeometry& arm, const Camera& camera,
+cv::Mat predictive_frame(render::Renderer& renderer, render::ArmGeometry& arm, const camera::Camera& camera,
                          const cv::Mat& background, const Eigen::VectorXd& q_commanded,
                          const Eigen::VectorXd& q_actual, double delay_s, const OverlayExtras& extras,
                          const PredictiveOptions& o) {

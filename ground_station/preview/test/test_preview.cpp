@@ -35,7 +35,7 @@ struct Fixture : ::testing::Test {
   ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
   Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   std::unique_ptr<GlContext> ctx = GlContext::create(GlBackend::OSMesa);
-  Camera camera = scene_camera(scene, "oblique");
+  camera::Camera camera = scene_camera(scene, "oblique");
   Renderer renderer{*ctx, camera.viewport};
   ArmGeometry arm{renderer, model};
   cv::Mat background = cv::Mat(camera.viewport.height_px, camera.viewport.width_px, CV_8UC3, cv::Scalar(40, 30, 20));

@@ -6,8 +6,8 @@
 
 namespace foresight::render {
 
-Camera load_camera(const std::string& path, const std::string& name) {
-  const auto cams = load_cameras(path);
+camera::Camera load_camera(const std::string& path, const std::string& name) {
+  const auto cams = camera::load_cameras(path);
   const auto it = cams.find(name);
   if (it == cams.end()) {
     std::string known;

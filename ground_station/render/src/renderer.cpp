@@ -84,7 +84,7 @@ void to_float(const Eigen::Matrix4d& M, float out[16]) {
 
 struct Renderer::Impl {
   GlContext& ctx;
-  Viewport vp;
+  camera::Viewport vp;
   int samples = 1;
   detail::GlFunctions gl;
   GLuint program = 0, vao = 0, vbo = 0, ebo = 0, line_vao = 0, line_vbo = 0;
@@ -99,7 +99,7 @@ struct Renderer::Impl {
   std::vector<std::uint32_t> triangle_indices, edge_indices;  // edges stored after triangles in the EBO
   std::vector<Vertex> line_vertices;
 
-  Impl(GlContext& c, const Viewport& v, int s) : ctx(c), vp(v), samples(std::max(1, s)) {}
+  Impl(GlContext& c, const camera::Viewport& v, int s) : ctx(c), vp(v), samples(std::max(1, s)) {}
 
   void check(const char* what) {
     const GLenum e = gl.GetError();
@@ -216,7 +216,7 @@ struct Renderer::Impl {
   }
 };
 
-Renderer::Renderer(GlContext& context, const Viewport& viewport, int samples)
+Renderer::Renderer(GlContext& context, const camera::Viewport& viewport, int samples)
     : impl_(std::make_unique<Impl>(context, viewport, samples)) {
   impl_->setup();
 }
@@ -267,7 +267,7 @@ int Renderer::body_triangles(int body) const {
   return static_cast<int>(impl_->bodies[body].triangle_indices / 3);
 }
 
-const Viewport& Renderer::viewport() const { return impl_->vp; }
+const camera::Viewport& Renderer::viewport() const { return impl_->vp; }
 GlContext& Renderer::context() { return impl_->ctx; }
 
 std::string Renderer::gl_description() const {
@@ -280,7 +280,7 @@ std::string Renderer::gl_description() const {
   return s(GL_RENDERER) + ", " + s(GL_VERSION);
 }
 
-int Renderer::render(const Camera& camera, const DrawList& list, const RenderSettings& st, cv::Mat& layer) {
+int Renderer::render(const camera::Camera& camera, const DrawList& list, const RenderSettings& st, cv::Mat& layer) {
   auto& I = *impl_;
   auto& gl = I.gl;
   if (!(camera.viewport == I.vp))

@@ -52,7 +52,7 @@ LineSet tool_path(ArmGeometry& arm, const Eigen::MatrixXd& q_samples, const Eige
   return s;
 }
 
-Camera scene_camera(const Scene& scene, const std::string& name, const std::string& source) {
+camera::Camera scene_camera(const Scene& scene, const std::string& name, const std::string& source) {
   const auto it = scene.cameras.find(name);
   if (it == scene.cameras.end()) {
     std::string known;
@@ -60,7 +60,7 @@ Camera scene_camera(const Scene& scene, const std::string& name, const std::stri
     throw InputError(source, "no camera '" + name + "' (known: " + known + ")");
   }
   const SceneCamera& c = it->second;
-  return Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up);
+  return camera::Camera::look_at(name, {c.width_px, c.height_px}, c.f_px, c.position_m, c.look_at_m, c.up);
 }
 
 }  // namespace foresight::render

@@ -14,7 +14,7 @@ struct SyntheticCamera::Impl {
   DrawList list;
   cv::Mat layer;
 
-  Impl(GlContext& ctx, const RobotModel& model, const ObjectModel& object, const Scene& s, const Viewport& vp,
+  Impl(GlContext& ctx, const RobotModel& model, const ObjectModel& object, const Scene& s, const camera::Viewport& vp,
        const SyntheticOptions& o)
       : options(o), scene(s), renderer(ctx, vp, o.samples), arm(renderer, model) {
     object_body = add_object_body(renderer, object);
@@ -38,7 +38,7 @@ struct SyntheticCamera::Impl {
     if (floor_body >= 0) list.bodies.push_back({floor_body, Pose::Identity(), kObjectWireRgba, colour(3)});
   }
 
-  cv::Mat mask(const Camera& cam, const Eigen::VectorXd& q, const Pose& base_T_object, int who) {
+  cv::Mat mask(const camera::Camera& cam, const Eigen::VectorXd& q, const Pose& base_T_object, int who) {
     build(q, base_T_object, who);
     RenderSettings st;
     st.mode = RenderMode::Solid;
@@ -52,12 +52,12 @@ struct SyntheticCamera::Impl {
 };
 
 SyntheticCamera::SyntheticCamera(GlContext& context, const RobotModel& arm, const ObjectModel& object,
-                                 const Scene& scene, const Viewport& viewport, const SyntheticOptions& options)
+                                 const Scene& scene, const camera::Viewport& viewport, const SyntheticOptions& options)
     : impl_(std::make_unique<Impl>(context, arm, object, scene, viewport, options)) {}
 
 SyntheticCamera::~SyntheticCamera() = default;
 
-SyntheticFrame SyntheticCamera::render(const Camera& cam, const Eigen::VectorXd& q,
+SyntheticFrame SyntheticCamera::render(const camera::Camera& cam, const Eigen::VectorXd& q,
                                        const std::optional<Pose>& base_T_object_opt) {
   auto& I = *impl_;
   I.arm.check_joints(q);

@@ -39,7 +39,7 @@ cv::Mat read_video_frame(const std::string& path, int frame_index) {
   return frame;
 }
 
-cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const Camera& camera, bool scale) {
+cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const camera::Camera& camera, bool scale) {
   const int w = camera.viewport.width_px, h = camera.viewport.height_px;
   if (frame.cols == w && frame.rows == h) return frame;
   if (!scale)

@@ -28,7 +28,7 @@ class BackendTest : public ::testing::TestWithParam<GlBackend> {};
 // plane and turned 0.5 rad about the optical axis, so the pixel quantization
 // of its edges averages out over the rows (an axis-aligned square's centroid
 // is quantized to whole pixels).
-Mesh facing_square(const Camera& cam, const Eigen::Vector3d& p_base, double s_m) {
+Mesh facing_square(const camera::Camera& cam, const Eigen::Vector3d& p_base, double s_m) {
   Mesh m;
   const Eigen::Matrix3d R = cam.base_T_camera.linear() * Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const double h = s_m / 2.0;
@@ -82,7 +82,7 @@ TEST_P(BackendTest, ProjectionMatchesCameraWithinHalfPixel) {
   const Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   double worst_px = 0.0;
   for (const std::string name : {"side", "oblique", "overhead_wide", "overhead_zoom"}) {
-    const Camera cam = scene_camera(scene, name);
+    const camera::Camera cam = scene_camera(scene, name);
     Renderer r(*ctx, cam.viewport);
     // Markers spread over the image: back-project grid pixels to 1.2-2.5 m depth.
     const std::vector<Eigen::Vector2d> targets = {{40.3, 35.7}, {323.0, 243.0}, {600.2, 450.9}, {100.6, 420.1}, {580.4, 60.2}};
@@ -119,7 +119,7 @@ TEST_P(BackendTest, HiddenLinesDrawFewerEdgePixelsThanWire) {
   auto ctx = GlContext::create(GetParam());
   const Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
-  const Camera cam = scene_camera(scene, "oblique");
+  const camera::Camera cam = scene_camera(scene, "oblique");
   Renderer r(*ctx, cam.viewport);
   const int body = add_object_body(r, oru);
   DrawList list;
@@ -147,7 +147,7 @@ TEST_P(BackendTest, GhostBlendsAsConfigured) {
   auto ctx = GlContext::create(GetParam());
   const Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
-  const Camera cam = scene_camera(scene, "side");
+  const camera::Camera cam = scene_camera(scene, "side");
   Renderer r(*ctx, cam.viewport);
   const int body = add_object_body(r, oru);
   DrawList list;
@@ -184,7 +184,7 @@ TEST_P(BackendTest, GhostBlendsAsConfigured) {
 TEST(Render, BackendsAgree) {
   const Scene scene = Scene::from_file(kConfig + "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(kConfig + "/oru.yaml");
-  const Camera cam = scene_camera(scene, "oblique");
+  const camera::Camera cam = scene_camera(scene, "oblique");
   cv::Mat layers[2];
   int i = 0;
   for (GlBackend b : {GlBackend::OSMesa, GlBackend::Egl}) {
@@ -205,7 +205,7 @@ TEST(Render, BackendsAgree) {
 TEST(Render, TriadAndPathLines) {
   auto ctx = GlContext::create(GlBackend::OSMesa);
   const Scene scene = Scene::from_file(kConfig + "/scene.yaml");
-  const Camera cam = scene_camera(scene, "side");
+  const camera::Camera cam = scene_camera(scene, "side");
   Renderer r(*ctx, cam.viewport);
   DrawList list;
   append_triad(list, scene.base_T_object, 0.1);
@@ -252,7 +252,7 @@ TEST(RenderBadInput, ViewportBeyondGlLimit) {
 TEST(RenderBadInput, CameraViewportDiffersFromRenderer) {
   auto ctx = GlContext::create(GlBackend::OSMesa);
   Renderer r(*ctx, {646, 486});
-  Camera cam;
+  camera::Camera cam;
   cam.name = "small";
   cam.viewport = {320, 240};
   cv::Mat layer;
@@ -314,7 +314,7 @@ TEST(VideoFrame, ReadsTheRequestedFrameOfAVideo) {
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), path + ": video has only 5 frames; frame 7 requested");
   }
-  Camera cam;
+  camera::Camera cam;
   cam.name = "side";
   cam.viewport = {64, 48};
   EXPECT_EQ(fit_to_viewport(read_video_frame(path, 1), path, cam, false).cols, 64);

@@ -48,7 +48,7 @@ cv::Mat alpha_mask(const cv::Mat& layer_bgra) {
 
 // The arm as the calibration fixture: link origins and the tool tip at
 // several arm poses, clicked exactly where the true camera sees them.
-std::vector<Correspondence> noise_free_clicks(World& w, const Camera& truth) {
+std::vector<Correspondence> noise_free_clicks(World& w, const camera::Camera& truth) {
   std::vector<Correspondence> clicks;
   const Eigen::VectorXd q0 = w.approach_q();
   const double offsets[][3] = {{0, 0, 0}, {0.3, -0.2, 0.2}, {-0.3, 0.25, -0.2}, {0.2, 0.3, 0.3}, {-0.2, -0.3, 0.1}};
@@ -79,7 +79,7 @@ std::vector<Correspondence> noise_free_clicks(World& w, const Camera& truth) {
 TEST(SyntheticCamera, MasksMatchTheScene) {
   World w;
   auto ctx = GlContext::create(GlBackend::OSMesa);
-  const Camera cam = scene_camera(w.scene, "oblique");
+  const camera::Camera cam = scene_camera(w.scene, "oblique");
   SyntheticCamera synth(*ctx, w.model, w.oru, w.scene, cam.viewport);
   const Eigen::VectorXd q = w.approach_q();
   const SyntheticFrame f = synth.render(cam, q);
@@ -112,7 +112,7 @@ TEST(SyntheticCamera, OverlayThroughCalibratedCameraCoversSyntheticArm) {
   Renderer overlay(*ctx, {646, 486});
   ArmGeometry arm(overlay, w.model);
   for (const std::string name : {"side", "oblique"}) {
-    const Camera truth = scene_camera(w.scene, name);
+    const camera::Camera truth = scene_camera(w.scene, name);
     const SyntheticFrame frame = synth.render(truth, q);
     const std::vector<Correspondence> clicks = noise_free_clicks(w, truth);
     ASSERT_GE(clicks.size(), 12u) << name;

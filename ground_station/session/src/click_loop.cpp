@@ -109,9 +109,9 @@ class ClickLoop {
     if (arm_ && a.joints.empty() && a.joints_deg.empty())
       throw std::invalid_argument("--model robot needs the arm's joint angles in the frame (--joints or --joints-deg)");
     image_ = read_video_frame(a.image, a.frame);
-    vp_ = Viewport{image_.cols, image_.rows};
+    vp_ = camera::Viewport{image_.cols, image_.rows};
     if (!a.cameras.empty())
-      for (const auto& [name, rec] : load_cameras(a.cameras)) cameras_[name] = rec.camera;
+      for (const auto& [name, rec] : camera::load_cameras(a.cameras)) cameras_[name] = rec.camera;
     std::vector<Correspondence> existing;
     if (a.append && std::filesystem::exists(a.out)) existing = read_correspondences_csv(a.out);
     if (!std::filesystem::exists(std::filesystem::absolute(a.out).parent_path()))
@@ -170,7 +170,7 @@ class ClickLoop {
   /// The model picture: rendered once, the numbers drawn per refresh.
   void render_model(const Eigen::VectorXd& q) {
     using namespace foresight::render;
-    const Camera view = display::default_model_view(points_, vp_, arm_);
+    const camera::Camera view = display::default_model_view(points_, vp_, arm_);
     auto context = GlContext::create(parse_gl_backend(a_.gl));
     Renderer renderer(*context, vp_);
     DrawList list;
@@ -299,8 +299,8 @@ class ClickLoop {
   const RobotModel robot_;
   const ObjectModel object_;
   cv::Mat image_;
-  Viewport vp_;
-  std::map<std::string, Camera> cameras_;
+  camera::Viewport vp_;
+  std::map<std::string, camera::Camera> cameras_;
   std::vector<display::ModelPoint> points_;
   std::unique_ptr<ClickSession> session_;
   std::unique_ptr<display::ZoomView> zoom_;

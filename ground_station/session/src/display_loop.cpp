@@ -50,7 +50,7 @@ int fourcc_for(const std::string& path) {
 
 /// The loop's inputs, checked and loaded (nothing opened yet).
 struct Inputs {
-  std::vector<Camera> cameras;
+  std::vector<camera::Camera> cameras;
   std::size_t first_camera = 0;
   RobotModel robot;
   ObjectModel object;
@@ -71,8 +71,8 @@ Inputs check_and_load(const DisplaySettings& a) {
   if (!a.joints.empty() && !a.joints_deg.empty()) throw std::invalid_argument("give only one of --joints, --joints-deg");
   parse_render_mode(a.mode);
   parse_gl_backend(a.gl);
-  const auto records = load_cameras(a.cameras);
-  std::vector<Camera> cameras;
+  const auto records = camera::load_cameras(a.cameras);
+  std::vector<camera::Camera> cameras;
   for (const auto& [name, rec] : records) cameras.push_back(rec.camera);
   std::size_t cam_index = 0;
   while (cam_index < cameras.size() && cameras[cam_index].name != a.camera) ++cam_index;
@@ -144,7 +144,7 @@ class DisplayLoop {
     const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / a_.fps));
     auto next = Clock::now();
     for (int k = 0; in_.frames == 0 || k < in_.frames; ++k) {
-      const Camera& camera = in_.cameras[cam_index_];
+      const camera::Camera& camera = in_.cameras[cam_index_];
       const double t_s = (in_.trajectory ? in_.trajectory->time_s.front() : 0.0) + k / a_.fps;
       update_arms(t_s);
       const cv::Mat video = read_video(camera);
@@ -259,7 +259,7 @@ class DisplayLoop {
 
   /// The video frame (empty when the source has none now); a problem is said
   /// on stderr once, and when the source delivers again.
-  cv::Mat read_video(const Camera& camera) {
+  cv::Mat read_video(const camera::Camera& camera) {
     cv::Mat video;
     std::string problem;
     if (synth_) {
@@ -282,7 +282,7 @@ class DisplayLoop {
   }
 
   /// Calibration health: the aligner's score of the shown arm against the video.
-  void score_health(int k, const Camera& camera, const cv::Mat& video) {
+  void score_health(int k, const camera::Camera& camera, const cv::Mat& video) {
     const auto score = aligner_->score(camera, {video, state_.q_actual}, in_.base_T_object);
     if (score.visible_samples == 0) {
       state_.health_text = "calibration: the arm is not in view";
@@ -302,7 +302,7 @@ class DisplayLoop {
                                          (v.in_baseline ? " (learning)" : "");
   }
 
-  void show_and_record(const Camera& camera, const cv::Mat& video) {
+  void show_and_record(const camera::Camera& camera, const cv::Mat& video) {
     const auto c0 = Clock::now();
     picture_ = composer_.compose(camera, video, state_);
     compose_s_ += std::chrono::duration<double>(Clock::now() - c0).count();

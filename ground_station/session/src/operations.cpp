@@ -52,9 +52,9 @@ std::string utc_now() {
 /// yaw, x, y, z, f) = s^2 (J_rpy^T J_rpy)^-1, with s^2 = rms^2 m / (2 m - 7)
 /// over the m inliers; J_rpy = J_body W(rpy).
 Eigen::Matrix<double, 7, 7> calibration_information(const std::string& file, const std::string& name,
-                                                    const CameraRecord& rec) {
+                                                    const camera::CameraRecord& rec) {
   if (!rec.calibration) throw std::invalid_argument(file + ": camera '" + name + "' has no calibration covariance (--camera-uncertainty)");
-  const CameraCalibrationInfo& c = *rec.calibration;
+  const camera::CameraCalibrationInfo& c = *rec.calibration;
   const int m = c.n_points - static_cast<int>(c.outliers.size());
   if (m < 4 || !(c.rms_px > 0.0))
     throw std::invalid_argument(file + ": camera '" + name + "' calibration has no usable rms_px/n_points (--camera-uncertainty)");
@@ -402,7 +402,7 @@ SynthClicks synth_clicks(const SynthClicksRequest& a) {
 
   std::mt19937 rng(a.seed);
   std::normal_distribution<double> noise(0.0, 1.0);
-  auto click = [&](const Camera& c, const Eigen::Vector3d& p_base) {
+  auto click = [&](const camera::Camera& c, const Eigen::Vector3d& p_base) {
     return Eigen::Vector2d(c.project(p_base) + a.noise_px * Eigen::Vector2d(noise(rng), noise(rng)));
   };
 
@@ -455,7 +455,7 @@ SynthClicks synth_clicks(const SynthClicksRequest& a) {
 
 Calibrated calibrate_from_clicks(const CalibrateRequest& a) {
   Calibrated out;
-  out.viewport = parse_viewport(a.viewport);
+  out.viewport = camera::parse_viewport(a.viewport);
   if (!a.out.empty()) check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
   RobotLinkPoints robot(a.robot);
   const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
@@ -514,15 +514,15 @@ nlohmann::json calibrated_json(const CalibrateRequest& a, const Calibrated& c) {
 }
 
 void add_camera(const std::string& cameras_yaml, const std::string& camera, const Calibrated& c) {
-  std::map<std::string, CameraRecord> cams;
-  if (std::filesystem::exists(cameras_yaml)) cams = load_cameras(cameras_yaml);
-  cams[camera] = CameraRecord{c.result.camera, c.result.info(utc_now())};
-  save_cameras(cameras_yaml, cams);
+  std::map<std::string, camera::CameraRecord> cams;
+  if (std::filesystem::exists(cameras_yaml)) cams = camera::load_cameras(cameras_yaml);
+  cams[camera] = camera::CameraRecord{c.result.camera, c.result.info(utc_now())};
+  camera::save_cameras(cameras_yaml, cams);
 }
 
 Localized localize_from_clicks(const LocalizeRequest& a) {
   Localized out{ObjectModel::from_file(a.object), {}, {}, {}, 0.0, {}};
-  const auto records = load_cameras(a.cameras);
+  const auto records = camera::load_cameras(a.cameras);
   for (const auto& [name, rec] : records) out.cameras[name] = rec.camera;
   out.points = read_correspondences_csv(a.points);
   const std::vector<Correspondence>& pts = out.points;
@@ -542,7 +542,7 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
   std::string arm_first;
   for (const auto& [name, rec] : records) {
     if (!in_use(name) || !rec.calibration) continue;
-    const CameraCalibrationInfo& c = *rec.calibration;
+    const camera::CameraCalibrationInfo& c = *rec.calibration;
     const Eigen::Matrix3d R = rec.camera.base_T_camera.linear();
     Eigen::Matrix<double, 7, 7> arm_rpy = Eigen::Matrix<double, 7, 7>::Zero();
     if (c.arm_link_sensitivity.size() > 0) {
@@ -620,9 +620,9 @@ Synthesized synth_frame(const SynthRequest& a) {
           : !a.joints_deg.empty() ? parse_joints(a.joints_deg, "--joints-deg", model, true)
                                   : model.mid_configuration();
   if (!a.write_cameras.empty()) {
-    std::map<std::string, CameraRecord> cams;
+    std::map<std::string, camera::CameraRecord> cams;
     for (const auto& name : scene.camera_order) cams[name].camera = scene_camera(scene, name, a.scene);
-    save_cameras(a.write_cameras, cams);
+    camera::save_cameras(a.write_cameras, cams);
   }
   auto context = GlContext::create(out.backend);
   SyntheticOptions o;
@@ -648,7 +648,7 @@ Overlaid overlay_frame(const OverlayRequest& a) {
   if (a.joints.empty() == a.joints_deg.empty())
     throw std::invalid_argument("give the arm's joint angles with exactly one of --joints (rad) or --joints-deg");
   out.camera = load_camera(a.cameras, a.camera);
-  const Camera& camera = out.camera;
+  const camera::Camera& camera = out.camera;
   const RobotModel model = RobotModel::from_file(a.robot);
   out.q = a.joints.empty() ? parse_joints(a.joints_deg, "--joints-deg", model, true)
                            : parse_joints(a.joints, "--joints", model);
@@ -719,7 +719,7 @@ AlignedViews align_views(const AlignRequest& a) {
   for (const std::string* path : {&a.out, &a.object_out, &a.arm_out})
     if (!path->empty()) check_output_path(*path);
 
-  std::map<std::string, CameraRecord> records = load_cameras(a.cameras);
+  std::map<std::string, camera::CameraRecord> records = camera::load_cameras(a.cameras);
   std::vector<AlignView> views;
   std::vector<int> view_of_image;  // per --image (several cameras): its view
   for (const auto& name : a.camera) {
@@ -731,7 +731,7 @@ AlignedViews align_views(const AlignRequest& a) {
     const auto seen = std::find_if(views.begin(), views.end(), [&](const AlignView& v) { return v.camera.name == name; });
     view_of_image.push_back(static_cast<int>(seen - views.begin()));
     if (seen != views.end()) continue;  // another frame of that camera
-    const CameraRecord& rec = records.at(name);
+    const camera::CameraRecord& rec = records.at(name);
     AlignView view{rec.camera, {}};
     // The calibration's uncertainty: with --refine object the camera is held
     // but not exact, and its error enters the object's covariance.
@@ -777,11 +777,11 @@ AlignedViews align_views(const AlignRequest& a) {
 
   if (r.status == AlignStatus::Aligned) {
     if (!a.out.empty() && cam_refined) {
-      std::map<std::string, CameraRecord> out_records =
-          std::filesystem::exists(a.out) ? load_cameras(a.out) : std::map<std::string, CameraRecord>{};
+      std::map<std::string, camera::CameraRecord> out_records =
+          std::filesystem::exists(a.out) ? camera::load_cameras(a.out) : std::map<std::string, camera::CameraRecord>{};
       if (a.out == a.cameras) out_records = records;
       for (std::size_t v = 0; v < r.cameras.size(); ++v) {
-        CameraCalibrationInfo info;
+        camera::CameraCalibrationInfo info;
         // cameras.yaml keeps roll/pitch/yaw; the aligner's rotation is a
         // body increment (calibrate writes the same convention).
         info.covariance = camera_covariance_rpy_from_body(r.covariance.block<7, 7>(7 * v, 7 * v),
@@ -790,9 +790,9 @@ AlignedViews align_views(const AlignRequest& a) {
         info.max_px = 1.0;  // inliers are within 1 px by definition
         info.n_points = r.matched_samples;
         info.date = utc_now();
-        out_records[r.cameras[v].name] = CameraRecord{r.cameras[v], info};
+        out_records[r.cameras[v].name] = camera::CameraRecord{r.cameras[v], info};
       }
-      save_cameras(a.out, out_records);
+      camera::save_cameras(a.out, out_records);
     }
     if (!a.arm_out.empty() && !r.arm_link_sigma_m.empty())
       save_arm_links(a.arm_out, {r.arm_link_delta_m, r.arm_link_sigma_m}, a.robot, utc_now());

@@ -120,7 +120,7 @@ struct AlignFrame {
 
 /// One camera and its frames.
 struct AlignView {
-  Camera camera;
+  camera::Camera camera;
   std::vector<AlignFrame> frames;
   /// The camera's uncertainty in the alignment's camera parameters (body
   /// rotation increment rad, centre in base m, f_px; zero: taken as exact).
@@ -142,7 +142,7 @@ const char* to_string(AlignStatus status);
 struct AlignResult {
   AlignStatus status = AlignStatus::Refused;
   std::string reason;                 ///< why refused / not in view; empty when aligned
-  std::vector<Camera> cameras;        ///< refined (or the start, when not aligned)
+  std::vector<camera::Camera> cameras;        ///< refined (or the start, when not aligned)
   std::optional<Pose> base_T_object;  ///< refined (or the start), when an object was given
   double start_score_px = 0.0;        ///< truncated RMS edge distance at the start
   double final_score_px = 0.0;        ///< same measure at the end
@@ -180,7 +180,7 @@ struct AlignResult {
 struct AlignmentModel;
 /// `object` may be null (arm only). The models must outlive the result.
 std::shared_ptr<const AlignmentModel> make_alignment_model(const RobotModel& arm, const ObjectModel* object,
-                                                           const Viewport& viewport);
+                                                           const camera::Viewport& viewport);
 
 /// The aligner for one viewport: an AlignmentModel and this aligner's own
 /// buffers (GL renderers with the model's meshes, images, samples), reused
@@ -189,7 +189,7 @@ std::shared_ptr<const AlignmentModel> make_alignment_model(const RobotModel& arm
 class ModelAligner {
  public:
   /// `object` may be null (arm only). The models must outlive this.
-  ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object, const Viewport& viewport);
+  ModelAligner(render::GlContext& context, const RobotModel& arm, const ObjectModel* object, const camera::Viewport& viewport);
   /// On a model built once (make_alignment_model), e.g. shared with the
   /// aligners of other threads; throws std::invalid_argument when null.
   ModelAligner(render::GlContext& context, std::shared_ptr<const AlignmentModel> model);
@@ -218,7 +218,7 @@ class ModelAligner {
     /// image edges found along its normals (a miss counts as the cap).
     double iou = 0.0;
   };
-  FrameScore score(const Camera& camera, const AlignFrame& frame, const std::optional<Pose>& base_T_object,
+  FrameScore score(const camera::Camera& camera, const AlignFrame& frame, const std::optional<Pose>& base_T_object,
                    const AlignOptions& options = {});
 
  private:
@@ -228,6 +228,6 @@ class ModelAligner {
 
 /// RMS pixel distance between two cameras' projections of `points_base`
 /// (points behind either camera skipped): the reprojection difference.
-double reprojection_rms_px(const Camera& a, const Camera& b, const std::vector<Eigen::Vector3d>& points_base);
+double reprojection_rms_px(const camera::Camera& a, const camera::Camera& b, const std::vector<Eigen::Vector3d>& points_base);
 
 }  // namespace foresight::align

@@ -12,7 +12,7 @@
 //     of base_T_camera, f_px) minimising the pixel reprojection error,
 //     started from the linear solution.
 // The camera model is the paper's: square pixels, principal point at the
-// viewport centre (foresight::Camera, the one projection code path).
+// viewport centre (foresight::camera::Camera, the one projection code path).
 // Outlying clicks are flagged robustly (residual above k robust sigmas and a
 // pixel floor), named with their residual, and left out of the final fit.
 //
@@ -88,7 +88,7 @@ struct PointResidual {
 };
 
 struct CalibrationResult {
-  Camera camera;                 ///< name, viewport, f_px, base_T_camera
+  camera::Camera camera;                 ///< name, viewport, f_px, base_T_camera
   /// Covariance of (roll, pitch, yaw [rad] of base_T_camera, position x, y, z
   /// [m] of the camera in base, f_px), from the Jacobian at the solution and
   /// the inlier residual variance: s^2 (J^T J)^-1, s^2 = SSR / (2 N - 7)
@@ -128,7 +128,7 @@ struct CalibrationResult {
   Eigen::Vector3d rpy_rad() const;
   Eigen::Vector3d position_m() const { return camera.base_T_camera.translation(); }
   /// What cameras.yaml stores; `date_utc` in ISO 8601.
-  CameraCalibrationInfo info(const std::string& date_utc) const;
+  camera::CameraCalibrationInfo info(const std::string& date_utc) const;
 };
 
 /// Calibrate one camera from its correspondences (base-frame points). All
@@ -141,12 +141,12 @@ struct CalibrationResult {
 /// EstimationError (computation): the linear stage found no camera with the
 /// points in front; the nonlinear fit did not converge (the message gives
 /// the iteration count).
-CalibrationResult calibrate_camera(const std::vector<Correspondence>& points, const Viewport& viewport,
+CalibrationResult calibrate_camera(const std::vector<Correspondence>& points, const camera::Viewport& viewport,
                                    const std::string& name, const CalibrationOptions& options = {});
 
 /// The linear stage alone (appendix A): exposed for tests and benchmarks.
 /// `cross_product` reports whether r3 = r1 x r2 was kept.
-Camera calibrate_camera_linear(const std::vector<Correspondence>& points, const Viewport& viewport,
+camera::Camera calibrate_camera_linear(const std::vector<Correspondence>& points, const camera::Viewport& viewport,
                                const std::string& name, double rank_tolerance = 1e-9,
                                bool* cross_product = nullptr);
 

@@ -88,7 +88,7 @@ std::vector<Correspondence> read_correspondences_csv(const std::string& path,
 /// each widened by limits::kViewportMarginFraction of the larger side):
 /// InputError "<source>:<line>: point n=N: pixel (u, v) is outside the WxH
 /// viewport of camera 'C'". `source` names the points file.
-void check_in_viewport(const std::vector<Correspondence>& points, const Viewport& viewport,
+void check_in_viewport(const std::vector<Correspondence>& points, const camera::Viewport& viewport,
                        const std::string& source);
 
 /// The rows whose camera is `cam`, in file order.

@@ -23,7 +23,7 @@
 
 #include "foresight/common/pose.hpp"
 
-namespace foresight {
+namespace foresight::camera {
 
 struct Viewport {
   int width_px = 646;   ///< the paper's NTSC window
@@ -97,4 +97,4 @@ std::map<std::string, CameraRecord> load_cameras(const std::string& path);
 /// Write all cameras (sorted by name). Throws InputError when not writable.
 void save_cameras(const std::string& path, const std::map<std::string, CameraRecord>& cameras);
 
-}  // namespace foresight
+}  // namespace foresight::camera

@@ -17,7 +17,7 @@
 
 #include "foresight/camera/camera.hpp"
 
-namespace foresight {
+namespace foresight::camera {
 
 /// The cross-product matrix: skew(v) * x = v x x.
 inline Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
@@ -88,4 +88,4 @@ inline Eigen::Matrix<double, 2, 6> object_pose_jacobian(const Projection& p, con
   return J;
 }
 
-}  // namespace foresight
+}  // namespace foresight::camera

@@ -43,13 +43,13 @@ std::vector<ModelPoint> object_model_points(const ObjectModel& object);
 /// A camera that sees every point: looking at their centroid from
 /// `view_direction` (from the centroid towards the eye), far enough that the
 /// points fill about 70 % of the smaller image side.
-Camera model_view_camera(const std::vector<ModelPoint>& points, const Viewport& viewport,
+camera::Camera model_view_camera(const std::vector<ModelPoint>& points, const camera::Viewport& viewport,
                          const Eigen::Vector3d& view_direction, const Eigen::Vector3d& up);
 
 /// The model window's camera of `foresight click`: the arm (base frame, z
 /// up) seen from the front right above; the ORU (object frame: z into the
 /// hole, y down) seen from in front of its face, a little from the side.
-Camera default_model_view(const std::vector<ModelPoint>& points, const Viewport& viewport, bool arm);
+camera::Camera default_model_view(const std::vector<ModelPoint>& points, const camera::Viewport& viewport, bool arm);
 
 /// Index of the projected point nearest to `uv_px` within `radius_px`, -1 if none.
 int nearest_point(const std::vector<Eigen::Vector2d>& projected_px, const Eigen::Vector2d& uv_px, double radius_px);

@@ -64,11 +64,11 @@ class DisplayComposer {
   /// The displayed picture for `camera`: `video_bgr` (8-bit BGR of the
   /// camera's viewport; empty = black) with the overlay and text. Throws
   /// std::invalid_argument on a wrong joint count or video size.
-  cv::Mat compose(const Camera& camera, const cv::Mat& video_bgr, const DisplayState& state);
+  cv::Mat compose(const camera::Camera& camera, const cv::Mat& video_bgr, const DisplayState& state);
 
   /// The actual arm's overlay silhouette alone (255 where drawn) at q:
   /// what a test compares with the synthetic camera's truth.
-  cv::Mat arm_silhouette(const Camera& camera, const Eigen::VectorXd& q);
+  cv::Mat arm_silhouette(const camera::Camera& camera, const Eigen::VectorXd& q);
 
  private:
   struct Impl;

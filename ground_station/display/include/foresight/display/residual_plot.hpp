@@ -43,7 +43,7 @@ struct ResidualPlotOptions {
 /// blank of `viewport`). Clicks: green crosses numbered; reprojections:
 /// small circles; residual arrows (yellow; red and circled for outliers),
 /// scaled; legend with the scale. Returns 8-bit BGR.
-cv::Mat draw_residual_plot(const cv::Mat& background, const Viewport& viewport, const std::vector<PlotPoint>& points,
+cv::Mat draw_residual_plot(const cv::Mat& background, const camera::Viewport& viewport, const std::vector<PlotPoint>& points,
                            const ResidualPlotOptions& options = {});
 
 /// Tiles pictures in a grid of up to `columns` (each labelled already), same

@@ -38,7 +38,7 @@ struct ArmFeature {
 };
 
 struct StudyView {
-  Camera truth;
+  camera::Camera truth;
   std::vector<Eigen::Vector3d> calibration_points_base;  ///< arm points seen by this camera (exact)
   /// The arm features behind calibration_points_base, one each, when the
   /// points come from the arm (choose_calibration_points); empty otherwise.
@@ -74,7 +74,7 @@ std::vector<ArmCalibrationPose> arm_calibration_poses(const RobotModel& model);
 
 /// The features of `pose` that `camera` sees (in front, inside the view), at
 /// most `max_count` spread evenly over them, as an operator clicks 6-8 a pose.
-std::vector<ArmFeature> visible_features(const Camera& camera, const ArmCalibrationPose& pose, int max_count = 8);
+std::vector<ArmFeature> visible_features(const camera::Camera& camera, const ArmCalibrationPose& pose, int max_count = 8);
 
 /// Sets every view's calibration points (and features) to the visible
 /// features of every pose, and setup.arm_q to the poses' joint angles.

@@ -84,7 +84,7 @@ struct LocalizationResult {
   std::vector<PointResidual> residuals; ///< every point used, input order
   std::vector<int> outliers;            ///< `n` of each flagged point
   bool camera_uncertainty = false;      ///< the joint refinement ran
-  std::map<std::string, Camera> refined_cameras;  ///< cameras refined with the pose (joint case)
+  std::map<std::string, camera::Camera> refined_cameras;  ///< cameras refined with the pose (joint case)
 
   Eigen::Vector3d rpy_rad() const;
   Eigen::Vector3d position_m() const { return base_T_object.translation(); }
@@ -99,12 +99,12 @@ struct LocalizationResult {
 /// EstimationError (computation): no linear solution, or the nonlinear fit
 /// did not converge (the message gives the iteration count).
 LocalizationResult localize_object(const std::vector<Correspondence>& points,
-                                   const std::map<std::string, Camera>& cameras,
+                                   const std::map<std::string, camera::Camera>& cameras,
                                    const LocalizationOptions& options = {});
 
 /// The linear stage alone (eq. 7-8), on every given point; for tests and
 /// benchmarks. Cameras must contain every point's camera.
-Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, Camera>& cameras,
+Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                             double rank_tolerance = 1e-9);
 
 }  // namespace foresight

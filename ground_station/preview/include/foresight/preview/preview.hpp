@@ -70,7 +70,7 @@ struct PreviewResult {
 /// and, when non-empty, the contact sheet PNG `sheet_path`. Throws
 /// std::invalid_argument on a joint-count mismatch or bad options, and
 /// InputError when an output cannot be written.
-PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& arm, const Camera& camera,
+PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& arm, const camera::Camera& camera,
                              const cv::Mat& background_bgr, const Trajectory& trajectory, const OverlayExtras& extras,
                              const PreviewOptions& options, const std::string& video_path,
                              const std::string& sheet_path);
@@ -83,7 +83,7 @@ struct PredictiveOptions {
 
 /// The predictive display: the actual arm (reported `delay_s` ago) solid,
 /// the commanded arm as a ghost over it, labelled with the delay.
-cv::Mat predictive_frame(render::Renderer& renderer, render::ArmGeometry& arm, const Camera& camera,
+cv::Mat predictive_frame(render::Renderer& renderer, render::ArmGeometry& arm, const camera::Camera& camera,
                          const cv::Mat& background_bgr, const Eigen::VectorXd& q_commanded,
                          const Eigen::VectorXd& q_actual, double delay_s, const OverlayExtras& extras,
                          const PredictiveOptions& options = {});

@@ -14,6 +14,6 @@
 namespace foresight::render {
 
 /// Camera `name` of a cameras.yaml file. InputError "no camera 'X' (known: a, b)".
-Camera load_camera(const std::string& cameras_yaml, const std::string& name);
+camera::Camera load_camera(const std::string& cameras_yaml, const std::string& name);
 
 }  // namespace foresight::render

@@ -81,7 +81,7 @@ class Renderer {
   /// pixel is either drawn or not). The context is made current. Throws
   /// std::runtime_error when the viewport exceeds the GL limits or the
   /// framebuffer cannot be created, naming the size.
-  Renderer(GlContext& context, const Viewport& viewport, int samples = 1);
+  Renderer(GlContext& context, const camera::Viewport& viewport, int samples = 1);
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
@@ -89,7 +89,7 @@ class Renderer {
   /// Uploads a mesh; returns its body id. Set-up only.
   int add_body(const Mesh& mesh);
   int body_triangles(int body) const;
-  const Viewport& viewport() const;
+  const camera::Viewport& viewport() const;
   GlContext& context();
   /// GL_RENDERER / GL_VERSION strings of the context.
   std::string gl_description() const;
@@ -98,7 +98,7 @@ class Renderer {
   /// into `layer_bgra` (CV_8UC4, top row first; alpha 255 where the model is
   /// drawn, clear_rgba elsewhere). Returns the number of triangles drawn.
   /// Throws std::invalid_argument on a viewport mismatch or an unknown body.
-  int render(const Camera& camera, const DrawList& list, const RenderSettings& settings, cv::Mat& layer_bgra);
+  int render(const camera::Camera& camera, const DrawList& list, const RenderSettings& settings, cv::Mat& layer_bgra);
 
  private:
   struct Impl;

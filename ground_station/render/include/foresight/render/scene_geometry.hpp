@@ -56,6 +56,6 @@ LineSet tool_path(ArmGeometry& arm, const Eigen::MatrixXd& q_samples, const Eige
 
 /// The true camera `name` of the scene (look-at form). Throws InputError
 /// naming scene_source and the known cameras when there is no such camera.
-Camera scene_camera(const Scene& scene, const std::string& name, const std::string& scene_source = "scene");
+camera::Camera scene_camera(const Scene& scene, const std::string& name, const std::string& scene_source = "scene");
 
 }  // namespace foresight::render

@@ -42,13 +42,13 @@ class SyntheticCamera {
  public:
   /// Uploads the scene for cameras of `viewport`. The models must outlive this.
   SyntheticCamera(GlContext& context, const RobotModel& arm, const ObjectModel& object, const Scene& scene,
-                  const Viewport& viewport, const SyntheticOptions& options = {});
+                  const camera::Viewport& viewport, const SyntheticOptions& options = {});
   ~SyntheticCamera();
 
   /// The frame through `true_camera` with the arm at q and the object at
   /// base_T_object (default: the scene's). Throws std::invalid_argument on a
   /// wrong joint count or a camera of another viewport.
-  SyntheticFrame render(const Camera& true_camera, const Eigen::VectorXd& q,
+  SyntheticFrame render(const camera::Camera& true_camera, const Eigen::VectorXd& q,
                         const std::optional<Pose>& base_T_object = std::nullopt);
 
  private:

@@ -20,7 +20,7 @@ cv::Mat read_video_frame(const std::string& path, int frame_index = 0);
 /// with `scale` it is resized to the viewport; without, throws InputError
 /// "image is WxH but camera 'NAME' has a WxH viewport (pass --scale-image to
 /// resize it)".
-cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const Camera& camera, bool scale);
+cv::Mat fit_to_viewport(const cv::Mat& frame, const std::string& path, const camera::Camera& camera, bool scale);
 
 /// Writes `image` to `path` (format from the extension). Throws InputError
 /// "<path>: <cannot_write>" when OpenCV cannot write it.

@@ -136,7 +136,7 @@ struct CalibrateRequest {
 };
 
 struct Calibrated {
-  Viewport viewport;
+  camera::Viewport viewport;
   std::vector<Correspondence> points;  ///< the camera's rows
   CalibrationResult result;
 };
@@ -162,7 +162,7 @@ struct LocalizeRequest {
 
 struct Localized {
   ObjectModel object;
-  std::map<std::string, Camera> cameras;
+  std::map<std::string, camera::Camera> cameras;
   std::vector<Correspondence> points;
   std::vector<std::string> held_cameras;  ///< cameras whose calibration covariance entered the pose's
   double arm_link_sigma_m = 0.0;          ///< the arm model's link sigma that entered it
@@ -192,7 +192,7 @@ struct SynthRequest {
 };
 
 struct Synthesized {
-  Camera camera;
+  camera::Camera camera;
   render::GlBackend backend = render::GlBackend::OSMesa;
   Eigen::VectorXd q;
   int arm_pixels = 0, object_pixels = 0;
@@ -218,7 +218,7 @@ struct OverlayRequest {
 };
 
 struct Overlaid {
-  Camera camera;
+  camera::Camera camera;
   render::RenderMode mode = render::RenderMode::Wire;
   render::GlBackend backend = render::GlBackend::OSMesa;
   double opacity = 1.0;
@@ -285,7 +285,7 @@ struct PreviewRequest {
 };
 
 struct Previewed {
-  Camera camera;
+  camera::Camera camera;
   preview::PreviewOptions options;
   render::GlBackend backend = render::GlBackend::OSMesa;
   int samples = 0, joints = 0;
