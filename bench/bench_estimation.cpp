@@ -19,9 +19,9 @@ namespace {
 struct Data {
   std::vector<camera::Camera> cameras;
   std::map<std::string, camera::Camera> camera_map;
-  std::vector<Correspondence> calibration;  // 30 clicks of the first (side) camera
-  std::vector<Correspondence> object;       // 8 clicks in each view
-  std::vector<Correspondence> object_view1; // the first view's 8
+  std::vector<calibration::Correspondence> calibration;  // 30 clicks of the first (side) camera
+  std::vector<calibration::Correspondence> object;       // 8 clicks in each view
+  std::vector<calibration::Correspondence> object_view1; // the first view's 8
 };
 
 const Data& data() {
@@ -40,7 +40,7 @@ const Data& data() {
     while (d.calibration.size() < 30) {
       const Eigen::Vector3d p(x(rng), y(rng), z(rng));
       if (!side.in_front(p) || !side.in_view(side.project(p))) continue;
-      Correspondence c;
+      calibration::Correspondence c;
       c.n = static_cast<int>(d.calibration.size()) + 1;
       c.cam = side.name;
       c.p_m = p;
@@ -58,7 +58,7 @@ const Data& data() {
     }
     for (const camera::Camera& cam : d.cameras)
       for (std::size_t i = 0; i < model.size(); ++i) {
-        Correspondence c;
+        calibration::Correspondence c;
         c.n = static_cast<int>(i) + 1;
         c.cam = cam.name;
         c.p_m = model[i];
@@ -74,7 +74,7 @@ const Data& data() {
 void BM_Calibrate30(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    CalibrationResult r = calibrate_camera(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
+    calibration::CalibrationResult r = calibration::calibrate_camera(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
     benchmark::DoNotOptimize(r.camera.f_px);
   }
 }
@@ -83,7 +83,7 @@ BENCHMARK(BM_Calibrate30)->Unit(benchmark::kMicrosecond);
 void BM_CalibrateLinear30(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    camera::Camera c = calibrate_camera_linear(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
+    camera::Camera c = calibration::calibrate_camera_linear(d.calibration, d.cameras[0].viewport, d.cameras[0].name);
     benchmark::DoNotOptimize(c.f_px);
   }
 }

@@ -9,11 +9,11 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const foresight::RobotModel model = foresight::RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  static const foresight::RobotLinkPoints robot(model);
+  static const foresight::calibration::RobotLinkPoints robot(model);
   foresight::fuzz::expect_input_errors([&] {
-    const auto points = foresight::parse_correspondences_csv(foresight::fuzz::text_of(data, size), "fuzz.csv", &robot);
-    foresight::check_in_viewport(points, foresight::camera::Viewport{}, "fuzz.csv");
-    (void)foresight::to_csv(points);
+    const auto points = foresight::calibration::parse_correspondences_csv(foresight::fuzz::text_of(data, size), "fuzz.csv", &robot);
+    foresight::calibration::check_in_viewport(points, foresight::camera::Viewport{}, "fuzz.csv");
+    (void)foresight::calibration::to_csv(points);
   });
   return 0;
 }

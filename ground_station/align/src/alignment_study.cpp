@@ -96,7 +96,7 @@ class AlignmentStudy {
     // carries the arm model's uncertainty (arm_link_prior_m), which the
     // residuals cannot show.
     calibration_dp_dlinks_.resize(nv_);
-    LinkLengthSensitivity sensitivity(robot);
+    calibration::LinkLengthSensitivity sensitivity(robot);
     for (int v = 0; v < nv_; ++v)
       for (const ArmFeature& f : setup_.views[v].calibration_features)
         calibration_dp_dlinks_[v].push_back(sensitivity.at(setup_.arm_q.at(f.pose), f.link, f.p_link));
@@ -121,7 +121,7 @@ class AlignmentStudy {
     std::map<std::string, camera::Camera> cams;
     std::map<std::string, Eigen::Matrix<double, 7, 7>> covariance, noise_covariance;
     std::map<std::string, Eigen::MatrixXd> link_sensitivity;
-    std::vector<Correspondence> oru;
+    std::vector<calibration::Correspondence> oru;
   };
   /// The ORU localized from the clicks per view combination.
   struct ClickPoses {
@@ -182,13 +182,13 @@ class AlignmentStudy {
                                            [&] { return noise_(rng_); });
       for (std::size_t i = 0; i < vc.calibration.size(); ++i) vc.calibration[i].dp_dlinks = calibration_dp_dlinks_[v][i];
       try {
-        const CalibrationResult cr = calibrate_camera(vc.calibration, vp_, view.truth.name, calibration_options_);
+        const calibration::CalibrationResult cr = calibration::calibrate_camera(vc.calibration, vp_, view.truth.name, calibration_options_);
         clicks.cams[view.truth.name] = cr.camera;
         clicks.link_sensitivity[view.truth.name] = cr.link_sensitivity;
         clicks.covariance[view.truth.name] =
-            camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
+            calibration::camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
         clicks.noise_covariance[view.truth.name] =
-            camera_covariance_body_from_rpy(cr.covariance - cr.arm_model_covariance, cr.camera.base_T_camera.linear());
+            calibration::camera_covariance_body_from_rpy(cr.covariance - cr.arm_model_covariance, cr.camera.base_T_camera.linear());
       } catch (const Error&) {
         ok = false;
       }
@@ -208,7 +208,7 @@ class AlignmentStudy {
     out.arm_covariance.assign(combos_.size(), Eigen::Matrix<double, 6, 6>::Zero());
     for (std::size_t ci = 0; ci < combos_.size(); ++ci) {
       LocalizationOptions lo;
-      std::vector<Correspondence> pts;
+      std::vector<calibration::Correspondence> pts;
       for (const int v : combos_[ci].views) {
         lo.views.push_back(setup_.views[v].truth.name);
         for (const auto& c : clicks.oru)
@@ -385,7 +385,7 @@ class AlignmentStudy {
     Eigen::Matrix<double, 6, 1> e;
     e << aa.angle() * aa.axis(), clicks_pose.translation() - setup_.base_T_object.translation();
     Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
-    T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(clicks_pose.linear()));
+    T.topLeftCorner<3, 3>() = calibration::rpy_rate_matrix(rpy_from_rotation(clicks_pose.linear()));
     const Eigen::Matrix<double, 6, 6> Cb = T * clicks_cov * T.transpose();
     const Eigen::Matrix<double, 6, 6> Ca = T * click_poses.arm_covariance[ci] * T.transpose();
     std::fprintf(stderr, "HONEST t%d %-8s clicks z6 %.2f zrot %.2f zpos %.2f | rot err %.2f deg sd %.2f %.2f %.2f deg (arm %.2f %.2f %.2f)\n", t,
@@ -454,7 +454,7 @@ class AlignmentStudy {
   int link_trials_ = 0, good_ = 0;
   std::vector<Eigen::Vector3d> metric_points_;
   std::vector<std::vector<Eigen::Matrix3Xd>> calibration_dp_dlinks_;
-  CalibrationOptions calibration_options_;
+  calibration::CalibrationOptions calibration_options_;
   std::unique_ptr<ModelAligner> aligner_;
   std::mt19937_64 rng_;
   std::normal_distribution<double> noise_;

@@ -1167,7 +1167,7 @@ double start_disagreement(AlignmentData& d, const AlignInput& in) {
   moved << turn.angle() * turn.axis(), d.obj_t - in.start->translation();
   // The start's rpy covariance in body rotation increments (the object's parameters here).
   Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
-  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(in.start->linear()));
+  T.topLeftCorner<3, 3>() = calibration::rpy_rate_matrix(rpy_from_rotation(in.start->linear()));
   const Eigen::Matrix<double, 6, 6> C =
       T * *in.o.object_start_covariance * T.transpose() + d.res.covariance.block<6, 6>(d.obj_col, d.obj_col);
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(C);

@@ -13,7 +13,7 @@
 #include "foresight/calibration/outlier_flagging.hpp"
 #include "foresight/camera/projection.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 namespace {
 
@@ -291,7 +291,7 @@ class CameraFit {
       evaluate(s, e, J);
     };
     bool have_state = false;
-    estimation::LmReport last_fit;
+    LmReport last_fit;
     const auto fit = [&](const std::vector<bool>& inlier) {
       std::vector<Correspondence> sub;
       idx_.clear();
@@ -306,18 +306,18 @@ class CameraFit {
         state_ = {lin.base_T_camera.linear(), lin.base_T_camera.translation(), lin.f_px};
         have_state = true;
       }
-      estimation::LmOptions lm;
+      LmOptions lm;
       lm.max_iterations = opt_.max_iterations;
-      last_fit = estimation::levenberg_marquardt<7>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
+      last_fit = levenberg_marquardt<7>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
                                                     state_norm, lm);
       iterations_ = last_fit.iterations;
       return residual_norms(state_);
     };
     std::vector<double> r;
-    inlier_ = estimation::flag_outliers(n_, 8, opt_.outliers, fit, r);
+    inlier_ = flag_outliers(n_, 8, opt_.outliers, fit, r);
     if (!last_fit.converged)
       throw EstimationError(who_ + "the nonlinear fit did not converge after " + std::to_string(last_fit.iterations) +
-                            " iterations (" + estimation::to_string(last_fit.stop) + ")");
+                            " iterations (" + to_string(last_fit.stop) + ")");
   }
 
   /// Every point's residual (outliers marked), the rms over the inliers,
@@ -441,4 +441,4 @@ CalibrationResult calibrate_camera(const std::vector<Correspondence>& pts, const
   return res;
 }
 
-}  // namespace foresight
+}  // namespace foresight::calibration

@@ -12,7 +12,7 @@
 #include "foresight/common/number_list.hpp"
 #include "foresight/common/text_file.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 namespace {
 
@@ -168,4 +168,4 @@ std::string to_csv(const std::vector<Correspondence>& points) {
   return s.str();
 }
 
-}  // namespace foresight
+}  // namespace foresight::calibration

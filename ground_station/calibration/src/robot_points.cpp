@@ -4,7 +4,7 @@
 
 #include "foresight/common/input_limits.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 LinkLengthSensitivity::LinkLengthSensitivity(const RobotModel& model) : model_(model), ws_(model) {
   const unsigned nseg = model.segment_count();
@@ -84,4 +84,4 @@ Eigen::Matrix3Xd RobotLinkPoints::link_length_sensitivity(const std::string& lin
   return sensitivity_->at(q, m.link_index(link), p_link);
 }
 
-}  // namespace foresight
+}  // namespace foresight::calibration

@@ -26,17 +26,17 @@ inline camera::Camera random_camera(std::mt19937& rng, const Eigen::Vector3d& ta
 
 /// Up to `count` points uniformly in a cube of half-size `half_m` about
 /// `centre` that are in front of the camera and inside its view.
-inline std::vector<Correspondence> random_points(std::mt19937& rng, const camera::Camera& cam, const Eigen::Vector3d& centre,
+inline std::vector<calibration::Correspondence> random_points(std::mt19937& rng, const camera::Camera& cam, const Eigen::Vector3d& centre,
                                                  double half_m, int count, double noise_px) {
   std::uniform_real_distribution<double> u(-half_m, half_m);
   std::normal_distribution<double> g(0.0, noise_px);
-  std::vector<Correspondence> out;
+  std::vector<calibration::Correspondence> out;
   for (int tries = 0; tries < 100000 && static_cast<int>(out.size()) < count; ++tries) {
     const Eigen::Vector3d p = centre + Eigen::Vector3d(u(rng), u(rng), u(rng));
     if (!cam.in_front(p)) continue;
     const Eigen::Vector2d uv = cam.project(p);
     if (!cam.in_view(uv)) continue;
-    Correspondence c;
+    calibration::Correspondence c;
     c.n = static_cast<int>(out.size()) + 1;
     c.cam = cam.name;
     c.p_m = p;
@@ -48,7 +48,7 @@ inline std::vector<Correspondence> random_points(std::mt19937& rng, const camera
 }
 
 /// Adds fresh Gaussian noise to exact projections.
-inline std::vector<Correspondence> with_noise(std::mt19937& rng, std::vector<Correspondence> pts, double noise_px) {
+inline std::vector<calibration::Correspondence> with_noise(std::mt19937& rng, std::vector<calibration::Correspondence> pts, double noise_px) {
   std::normal_distribution<double> g(0.0, noise_px);
   for (auto& c : pts) c.uv_px += Eigen::Vector2d(g(rng), g(rng));
   return pts;

@@ -14,9 +14,9 @@ using foresight::testing::with_noise;
 
 namespace {
 
-std::string error_of(const std::vector<Correspondence>& pts, const camera::Viewport& vp = {}) {
+std::string error_of(const std::vector<calibration::Correspondence>& pts, const camera::Viewport& vp = {}) {
   try {
-    calibrate_camera(pts, vp, "side");
+    calibration::calibrate_camera(pts, vp, "side");
   } catch (const Error& e) {  // EstimationInputError or EstimationError
     return e.what();
   }
@@ -36,7 +36,7 @@ Eigen::Matrix<double, 7, 1> param_error(const camera::Camera& est, const camera:
   Eigen::Matrix<double, 7, 1> d = params(est) - params(truth);
   const Eigen::AngleAxisd aa(truth.base_T_camera.linear().transpose() * est.base_T_camera.linear());
   const Eigen::Vector3d w = aa.angle() * aa.axis();
-  d.head<3>() = rpy_rate_matrix(rpy_from_rotation(truth.base_T_camera.linear())).inverse() * w;
+  d.head<3>() = calibration::rpy_rate_matrix(rpy_from_rotation(truth.base_T_camera.linear())).inverse() * w;
   return d;
 }
 
@@ -50,14 +50,14 @@ TEST(Calibrate, NoiseFreeRecoversEveryParameter) {
     const camera::Camera truth = random_camera(rng, target, 1.5 + 0.1 * trial, f);
     const auto pts = random_points(rng, truth, target, 0.4, 30, 0.0);
     ASSERT_EQ(pts.size(), 30u);
-    const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
+    const calibration::CalibrationResult r = calibration::calibrate_camera(pts, truth.viewport, "cam");
     const auto d = param_error(r.camera, truth);
     for (int i = 0; i < 7; ++i) EXPECT_LT(std::abs(d[i]), 1e-6) << "trial " << trial << " parameter " << i;
     EXPECT_LT(r.rms_px, 1e-6);
     EXPECT_LT(r.linear_rms_px, 1e-6);
     EXPECT_TRUE(r.outliers.empty());
     // The linear stage alone is exact on exact data too.
-    const auto dl = param_error(calibrate_camera_linear(pts, truth.viewport, "cam"), truth);
+    const auto dl = param_error(calibration::calibrate_camera_linear(pts, truth.viewport, "cam"), truth);
     EXPECT_LT(dl.head<6>().cwiseAbs().maxCoeff(), 1e-6);
   }
 }
@@ -73,9 +73,9 @@ TEST(Calibrate, NoisyEstimatesWithinThreeSigmaAndSigmaMatchesSpread) {
   Eigen::Matrix<double, 7, 1> sum_sigma = Eigen::Matrix<double, 7, 1>::Zero();
   int within = 0;
   for (int t = 0; t < trials; ++t) {
-    CalibrationOptions opt;
+    calibration::CalibrationOptions opt;
     opt.outliers.enabled = false;  // pure Gaussian noise: compare with the spread
-    const CalibrationResult r = calibrate_camera(with_noise(rng, exact, noise), truth.viewport, "cam", opt);
+    const calibration::CalibrationResult r = calibration::calibrate_camera(with_noise(rng, exact, noise), truth.viewport, "cam", opt);
     const auto d = param_error(r.camera, truth);
     sum_sq += d.cwiseAbs2();
     sum_sigma += r.sigma;
@@ -98,26 +98,26 @@ TEST(Calibrate, AFitThatHasNotConvergedFailsWithItsIterationCount) {
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
   const camera::Camera truth = random_camera(rng, target, 2.0, 700.0);
   const auto pts = with_noise(rng, random_points(rng, truth, target, 0.5, 30, 0.0), 1.0);
-  CalibrationOptions opt;
+  calibration::CalibrationOptions opt;
   opt.max_iterations = 1;
   try {
-    calibrate_camera(pts, truth.viewport, "side", opt);
+    calibration::calibrate_camera(pts, truth.viewport, "side", opt);
     ADD_FAILURE() << "no error";
-  } catch (const EstimationError& e) {
+  } catch (const calibration::EstimationError& e) {
     EXPECT_EQ(std::string(e.what()), "camera 'side': the nonlinear fit did not converge after 1 iterations (iteration limit)");
   }
   opt.max_iterations = 100;  // the default converges
-  EXPECT_LT(calibrate_camera(pts, truth.viewport, "side", opt).iterations, 100);
+  EXPECT_LT(calibration::calibrate_camera(pts, truth.viewport, "side", opt).iterations, 100);
 }
 
 TEST(Calibrate, BadInputAndFailedComputationAreDistinctErrors) {
-  static_assert(std::is_base_of_v<InputError, EstimationInputError>);
-  static_assert(std::is_base_of_v<ComputationError, EstimationError>);
-  static_assert(!std::is_base_of_v<std::invalid_argument, EstimationError>);
+  static_assert(std::is_base_of_v<InputError, calibration::EstimationInputError>);
+  static_assert(std::is_base_of_v<ComputationError, calibration::EstimationError>);
+  static_assert(!std::is_base_of_v<std::invalid_argument, calibration::EstimationError>);
   std::mt19937 rng(13);
   const camera::Camera truth = random_camera(rng, Eigen::Vector3d(1, 0, 0.5), 2.0, 700.0);
   const auto five = random_points(rng, truth, Eigen::Vector3d(1, 0, 0.5), 0.4, 5, 0.0);
-  EXPECT_THROW(calibrate_camera(five, truth.viewport, "side"), EstimationInputError);
+  EXPECT_THROW(calibration::calibrate_camera(five, truth.viewport, "side"), calibration::EstimationInputError);
 }
 
 TEST(Calibrate, PlantedOutliersFlaggedAndFitUnharmed) {
@@ -125,20 +125,20 @@ TEST(Calibrate, PlantedOutliersFlaggedAndFitUnharmed) {
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
   const camera::Camera truth = random_camera(rng, target, 2.2, 800.0);
   auto pts = random_points(rng, truth, target, 0.5, 30, 0.5);
-  std::vector<Correspondence> clean;
+  std::vector<calibration::Correspondence> clean;
   for (std::size_t i = 0; i < pts.size(); ++i)
     if (i != 4 && i != 17 && i != 25) clean.push_back(pts[i]);
   pts[4].uv_px += Eigen::Vector2d(25.0, -10.0);
   pts[17].uv_px += Eigen::Vector2d(-8.0, 12.0);
   pts[25].uv_px += Eigen::Vector2d(40.0, 30.0);
-  const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
+  const calibration::CalibrationResult r = calibration::calibrate_camera(pts, truth.viewport, "cam");
   EXPECT_EQ(r.outliers, (std::vector<int>{pts[4].n, pts[17].n, pts[25].n}));
   EXPECT_TRUE(r.residuals[4].outlier);
   EXPECT_GT(r.residuals[25].px, 40.0);  // named with its residual under the final fit
   EXPECT_LT(r.rms_px, 1.0);
-  CalibrationOptions no_rejection;
+  calibration::CalibrationOptions no_rejection;
   no_rejection.outliers.enabled = false;
-  const CalibrationResult ref = calibrate_camera(clean, truth.viewport, "cam", no_rejection);
+  const calibration::CalibrationResult ref = calibration::calibrate_camera(clean, truth.viewport, "cam", no_rejection);
   const auto d = param_error(r.camera, ref.camera);
   for (int i = 0; i < 7; ++i)  // the same fit as without the outliers (to convergence tolerance)
     EXPECT_LT(std::abs(d[i]), 1e-3 * ref.sigma[i]) << "parameter " << i;
@@ -152,14 +152,14 @@ TEST(Calibrate, FarNearOrthographicView) {
   const camera::Camera truth = random_camera(rng, target, 25.0, 12000.0);
   const auto exact = random_points(rng, truth, target, 0.4, 30, 0.0);
   ASSERT_EQ(exact.size(), 30u);
-  const CalibrationResult r0 = calibrate_camera(exact, truth.viewport, "cam");
+  const calibration::CalibrationResult r0 = calibration::calibrate_camera(exact, truth.viewport, "cam");
   const auto d0 = param_error(r0.camera, truth);
   for (int i = 0; i < 7; ++i) EXPECT_LT(std::abs(d0[i]), 1e-6 * (i == 6 ? truth.f_px : 1.0)) << i;
   // With noise the linear third row is poor; the cross-product start keeps the
   // fit on the truth, within its (large) reported uncertainty.
   int cross = 0;
   for (int t = 0; t < 20; ++t) {
-    const CalibrationResult r = calibrate_camera(with_noise(rng, exact, 0.5), truth.viewport, "cam");
+    const calibration::CalibrationResult r = calibration::calibrate_camera(with_noise(rng, exact, 0.5), truth.viewport, "cam");
     const auto d = param_error(r.camera, truth);
     for (int i = 0; i < 7; ++i) EXPECT_LT(std::abs(d[i]), 4.0 * r.sigma[i]) << "trial " << t << " parameter " << i;
     EXPECT_LT(r.rms_px, 1.0);
@@ -204,7 +204,7 @@ TEST(CalibrateBadInput, PointsBehindTheCamera) {
   const camera::Camera truth = random_camera(rng, target, 1.0, 500.0);
   auto pts = random_points(rng, truth, target, 0.3, 12, 0.0);
   const Eigen::Vector3d behind = truth.base_T_camera * Eigen::Vector3d(0.1, 0.05, -0.4);
-  Correspondence c = pts[0];
+  calibration::Correspondence c = pts[0];
   c.n = 99;
   c.line = 14;
   c.p_m = behind;
@@ -224,7 +224,7 @@ TEST(CalibrateBadInput, NonFiniteNumbers) {
 
 TEST(Calibrate, RpyRateMatrixMatchesFiniteDifferences) {
   const Eigen::Vector3d rpy(0.3, -0.7, 2.1);
-  const Eigen::Matrix3d W = rpy_rate_matrix(rpy);
+  const Eigen::Matrix3d W = calibration::rpy_rate_matrix(rpy);
   for (int k = 0; k < 3; ++k) {
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
     d[k] = 1e-7;
@@ -243,12 +243,12 @@ TEST(Calibrate, CovarianceBetweenRpyAndBodyIncrementAgreesWithTheInformation) {
   const Eigen::Vector3d target(0.8, 0.1, 0.5);
   const camera::Camera truth = random_camera(rng, target, 2.0, 800.0);
   const auto pts = random_points(rng, truth, target, 0.4, 40, 1.0);
-  const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
+  const calibration::CalibrationResult r = calibration::calibrate_camera(pts, truth.viewport, "cam");
   const Eigen::Matrix3d R = r.camera.base_T_camera.linear();
-  const Eigen::Matrix<double, 7, 7> body = camera_covariance_body_from_rpy(r.covariance, R);
+  const Eigen::Matrix<double, 7, 7> body = calibration::camera_covariance_body_from_rpy(r.covariance, R);
   const Eigen::Matrix<double, 7, 7> expected = r.residual_variance_px2 * r.information.inverse();
   for (int i = 0; i < 7; ++i)
     for (int j = 0; j < 7; ++j)
       EXPECT_NEAR(body(i, j), expected(i, j), 1e-6 * std::sqrt(expected(i, i) * expected(j, j))) << i << "," << j;
-  EXPECT_LT((camera_covariance_rpy_from_body(body, R) - r.covariance).norm(), 1e-9 * r.covariance.norm());
+  EXPECT_LT((calibration::camera_covariance_rpy_from_body(body, R) - r.covariance).norm(), 1e-9 * r.covariance.norm());
 }

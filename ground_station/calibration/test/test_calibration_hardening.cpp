@@ -24,9 +24,9 @@ using namespace foresight;
 
 namespace {
 
-std::string error_of(const std::string& text, const LinkPointResolver* robot = nullptr) {
+std::string error_of(const std::string& text, const calibration::LinkPointResolver* robot = nullptr) {
   try {
-    parse_correspondences_csv(text, "pts.csv", robot);
+    calibration::parse_correspondences_csv(text, "pts.csv", robot);
   } catch (const InputError& e) {
     return e.what();
   }
@@ -49,7 +49,7 @@ std::string link_row(const std::string& q) { return "1,side,link3,0,0,0.1," + q 
 }  // namespace
 
 TEST(PointsCsvHardening, JointAnglesBeyondTheArmsLimitsAreRefused) {
-  RobotLinkPoints robot(arm());
+  calibration::RobotLinkPoints robot(arm());
   EXPECT_EQ(error_of(header(7) + link_row("0,0,0,-1,0,0,0"), &robot), "(no error)");
   EXPECT_EQ(error_of(header(7) + link_row("100,0,0,-1,0,0,0"), &robot),
             "pts.csv:2: point on link 'link3': q1 = 100 rad is outside the joint's limits [-2.96706, 2.96706] rad "
@@ -59,7 +59,7 @@ TEST(PointsCsvHardening, JointAnglesBeyondTheArmsLimitsAreRefused) {
 }
 
 TEST(PointsCsvHardening, AHeaderNamingAnotherNumberOfJointsIsRefused) {
-  RobotLinkPoints robot(arm());
+  calibration::RobotLinkPoints robot(arm());
   EXPECT_EQ(error_of(header(1) + link_row("0,0,0,-1,0,0,0"), &robot),
             "pts.csv:2: the header names 1 joint angles, the robot has 7 joints (q1..q7)");
   EXPECT_EQ(error_of(header(9) + link_row("0,0,0,-1,0,0,0"), &robot),
@@ -83,10 +83,10 @@ TEST(PointsCsvHardening, MoreRowsThanAPointsFileMayHaveAreRefused) {
 }
 
 TEST(PointsCsvHardening, ClicksOutsideTheViewportAreRefused) {
-  const auto pts = parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,10,10\n7,side,0,0,1,300,200\n", "pts.csv");
-  EXPECT_NO_THROW(check_in_viewport(pts, camera::Viewport{646, 486}, "pts.csv"));
+  const auto pts = calibration::parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,10,10\n7,side,0,0,1,300,200\n", "pts.csv");
+  EXPECT_NO_THROW(calibration::check_in_viewport(pts, camera::Viewport{646, 486}, "pts.csv"));
   try {
-    check_in_viewport(pts, camera::Viewport{1, 1}, "pts.csv");
+    calibration::check_in_viewport(pts, camera::Viewport{1, 1}, "pts.csv");
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "pts.csv:2: point n=1: pixel (10, 10) is outside the 1x1 viewport of camera 'side'");
@@ -95,7 +95,7 @@ TEST(PointsCsvHardening, ClicksOutsideTheViewportAreRefused) {
   std::mt19937 rng(5);
   const camera::Camera truth = foresight::testing::random_camera(rng, Eigen::Vector3d(0.8, 0.1, 0.5), 2.2, 800.0);
   const auto good = foresight::testing::random_points(rng, truth, Eigen::Vector3d(0.8, 0.1, 0.5), 0.5, 20, 0.3);
-  EXPECT_THROW(calibrate_camera(good, camera::Viewport{1, 1}, "cam"), InputError);
+  EXPECT_THROW(calibration::calibrate_camera(good, camera::Viewport{1, 1}, "cam"), InputError);
 }
 
 TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
@@ -114,7 +114,7 @@ TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
     planted.push_back(pts[i].n);
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const CalibrationResult r = calibrate_camera(pts, truth.viewport, "cam");
+  const calibration::CalibrationResult r = calibration::calibrate_camera(pts, truth.viewport, "cam");
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // Every planted outlier flagged; beside them only the clean points whose
   // 0.5 px noise happens to exceed the 2 px floor (p ~ 3e-4 each).
@@ -135,7 +135,7 @@ TEST(CalibrateHardening, OutlierFlaggingRefitsABoundedNumberOfTimes) {
 TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
   const RobotModel& m = arm();
   KinematicsWorkspace ws(m);
-  LinkLengthSensitivity sensitivity(m);
+  calibration::LinkLengthSensitivity sensitivity(m);
   // The arm at five poses, points on every link (its origin and two 6 cm off it).
   std::vector<Eigen::VectorXd> poses;
   for (int k = 0; k < 5; ++k) {
@@ -158,9 +158,9 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
   centroid /= static_cast<double>(features.size());
   const camera::Camera truth = camera::Camera::look_at("side", camera::Viewport{}, 500.0, centroid + Eigen::Vector3d(0.4, -2.2, 0.5), centroid,
                                        Eigen::Vector3d::UnitZ());
-  std::vector<Correspondence> believed;
+  std::vector<calibration::Correspondence> believed;
   for (const Feature& f : features) {
-    Correspondence c;
+    calibration::Correspondence c;
     c.n = static_cast<int>(believed.size()) + 1;
     c.cam = truth.name;
     c.p_m = forward_kinematics(m, ws, poses[f.pose], f.link) * f.p_link;
@@ -170,10 +170,10 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
   ASSERT_GE(believed.size(), 40u);
 
   const unsigned nseg = m.segment_count();
-  CalibrationOptions with_arm;
+  calibration::CalibrationOptions with_arm;
   with_arm.arm_link_sigma_m = 0.002;
   with_arm.outliers.enabled = false;  // a mismatch of the arm is not an outlier
-  CalibrationOptions without = with_arm;
+  calibration::CalibrationOptions without = with_arm;
   without.arm_link_sigma_m = 0.0;
   constexpr int kArms = 300;
   for (const double noise_px : {0.0, 1.0}) {
@@ -186,14 +186,14 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
       for (const int k : m.offset_segments()) delta[k] = link_error(rng);
       const RobotModel true_arm = m.with_link_lengths_changed(delta);
       KinematicsWorkspace tws(true_arm);
-      std::vector<Correspondence> pts = believed;
+      std::vector<calibration::Correspondence> pts = believed;
       for (std::size_t i = 0; i < pts.size(); ++i) {
         pts[i].uv_px = truth.project(forward_kinematics(true_arm, tws, poses[features[i].pose], features[i].link) *
                                      features[i].p_link);
         if (noise_px > 0.0) pts[i].uv_px += Eigen::Vector2d(pixel(rng), pixel(rng));
       }
-      const CalibrationResult r = calibrate_camera(pts, truth.viewport, truth.name, with_arm);
-      const CalibrationResult r0 = calibrate_camera(pts, truth.viewport, truth.name, without);
+      const calibration::CalibrationResult r = calibration::calibrate_camera(pts, truth.viewport, truth.name, with_arm);
+      const calibration::CalibrationResult r0 = calibration::calibrate_camera(pts, truth.viewport, truth.name, without);
       // The arm's uncertainty changes the claim, not the solution.
       ASSERT_EQ(r0.camera.f_px, r.camera.f_px);
       ASSERT_TRUE(r0.camera.base_T_camera.isApprox(r.camera.base_T_camera, 0.0));
@@ -231,9 +231,9 @@ TEST(CalibrateArmModel, LinkLengthUncertaintyMatchesTheCamerasSpreadOverArms) {
 // so each column is a unit vector (in base) for the segments before the
 // point's link and zero beyond it; an x,y,z row carries none.
 TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
-  RobotLinkPoints robot(arm());
+  calibration::RobotLinkPoints robot(arm());
   const std::string q = "0.3,-0.4,0.2,-1.2,0.5,0.6,-0.3";
-  const auto pts = parse_correspondences_csv(header(7) + "1,side,link3,0,0,0.1," + q + ",300,200\n" + "2,side," +
+  const auto pts = calibration::parse_correspondences_csv(header(7) + "1,side,link3,0,0,0.1," + q + ",300,200\n" + "2,side," +
                                                  arm().links().back().name + ",0.02,0,0," + q + ",300,200\n",
                                              "pts.csv", &robot);
   const unsigned nseg = arm().segment_count();
@@ -257,7 +257,7 @@ TEST(CalibrateArmModel, LinkFormRowsCarryTheirPointsLinkLengthSensitivity) {
   }
   EXPECT_GT(unit3, 0);
   EXPECT_LT(unit3, unit);
-  EXPECT_EQ(parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,1,1\n", "pts.csv")[0].dp_dlinks.cols(), 0);
+  EXPECT_EQ(calibration::parse_correspondences_csv("n,cam,x,y,z,u,v\n1,side,0,0,0,1,1\n", "pts.csv")[0].dp_dlinks.cols(), 0);
 }
 
 TEST(CalibrateArmModel, ANegativeOrNonFiniteLinkSigmaIsBadInput) {
@@ -266,12 +266,12 @@ TEST(CalibrateArmModel, ANegativeOrNonFiniteLinkSigmaIsBadInput) {
   const camera::Camera truth = foresight::testing::random_camera(rng, target, 2.0, 800.0);
   const auto pts = foresight::testing::random_points(rng, truth, target, 0.4, 20, 0.5);
   for (const double bad : {-0.001, std::nan("")}) {
-    CalibrationOptions o;
+    calibration::CalibrationOptions o;
     o.arm_link_sigma_m = bad;
     try {
-      calibrate_camera(pts, truth.viewport, "cam", o);
+      calibration::calibrate_camera(pts, truth.viewport, "cam", o);
       ADD_FAILURE() << "accepted " << bad;
-    } catch (const EstimationInputError& e) {
+    } catch (const calibration::EstimationInputError& e) {
       EXPECT_THAT(e.what(), ::testing::HasSubstr("camera 'cam': the arm's link-length sd must be a finite number >= 0 m"));
     }
   }

@@ -10,7 +10,7 @@ namespace {
 
 /// A 2-joint "arm": link "l1" rotates about z by q1 at the origin, link "l2"
 /// is l1 translated 1 m along its x and rotated by q2 about z.
-class FakeArm : public LinkPointResolver {
+class FakeArm : public calibration::LinkPointResolver {
  public:
   int dof() const override { return 2; }
   bool has_link(const std::string& l) const override { return l == "base" || l == "l1" || l == "l2"; }
@@ -23,9 +23,9 @@ class FakeArm : public LinkPointResolver {
   }
 };
 
-std::string error_of(const std::string& text, const LinkPointResolver* robot = nullptr) {
+std::string error_of(const std::string& text, const calibration::LinkPointResolver* robot = nullptr) {
   try {
-    parse_correspondences_csv(text, "pts.csv", robot);
+    calibration::parse_correspondences_csv(text, "pts.csv", robot);
   } catch (const InputError& e) {
     return e.what();
   }
@@ -35,7 +35,7 @@ std::string error_of(const std::string& text, const LinkPointResolver* robot = n
 }  // namespace
 
 TEST(PointsCsv, ParsesBaseRowsWithLineNumbers) {
-  const auto pts = parse_correspondences_csv("# clicks\nn,cam,x,y,z,u,v\n\n1, side, 0.5, -0.25, 1e-1, 320.5, 240\n2,top,1,2,3,4,5\n",
+  const auto pts = calibration::parse_correspondences_csv("# clicks\nn,cam,x,y,z,u,v\n\n1, side, 0.5, -0.25, 1e-1, 320.5, 240\n2,top,1,2,3,4,5\n",
                                              "pts.csv");
   ASSERT_EQ(pts.size(), 2u);
   EXPECT_EQ(pts[0].n, 1);
@@ -44,15 +44,15 @@ TEST(PointsCsv, ParsesBaseRowsWithLineNumbers) {
   EXPECT_EQ(pts[0].p_m, Eigen::Vector3d(0.5, -0.25, 0.1));
   EXPECT_EQ(pts[0].uv_px, Eigen::Vector2d(320.5, 240));
   EXPECT_EQ(pts[1].line, 5);
-  EXPECT_EQ(select_camera(pts, "top").size(), 1u);
+  EXPECT_EQ(calibration::select_camera(pts, "top").size(), 1u);
   // Round trip.
-  const auto again = parse_correspondences_csv(to_csv(pts), "x.csv");
+  const auto again = calibration::parse_correspondences_csv(calibration::to_csv(pts), "x.csv");
   EXPECT_EQ(again[1].p_m, pts[1].p_m);
 }
 
 TEST(PointsCsv, LinkRowsGoThroughForwardKinematics) {
   FakeArm arm;
-  const auto pts = parse_correspondences_csv(
+  const auto pts = calibration::parse_correspondences_csv(
       "n,cam,link,lx,ly,lz,q1,q2,u,v\n1,side,l2,0.5,0,0,1.5707963267948966,0,10,20\n2,side,0.1,0.2,0.3,30,40\n", "pts.csv",
       &arm);
   ASSERT_EQ(pts.size(), 2u);

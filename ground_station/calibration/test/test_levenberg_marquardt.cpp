@@ -8,9 +8,9 @@
 
 #include "foresight/calibration/levenberg_marquardt.hpp"
 
-using foresight::estimation::levenberg_marquardt;
-using foresight::estimation::LmOptions;
-using foresight::estimation::LmStop;
+using foresight::calibration::levenberg_marquardt;
+using foresight::calibration::LmOptions;
+using foresight::calibration::LmStop;
 using Vec2 = Eigen::Matrix<double, 2, 1>;
 
 namespace {

@@ -33,7 +33,7 @@ struct CalibrateArgs {
 int run_calibrate(const CalibrateArgs& args) {
   const session::CalibrateRequest& a = args.request;
   const session::Calibrated c = session::calibrate_from_clicks(a);
-  const CalibrationResult& r = c.result;
+  const calibration::CalibrationResult& r = c.result;
   const camera::Viewport& vp = c.viewport;
   write_residual_plot(args.plot, c.points, r.residuals, {{a.camera, vp}}, r.rms_px);
   if (!a.out.empty()) session::add_camera(a.out, a.camera, c);

@@ -59,8 +59,8 @@ inline std::vector<std::pair<std::string, camera::Viewport>> plot_views(const st
 
 /// One picture per view (tiled when there are several), written to a.out.
 /// `views`: (camera, viewport). Does nothing when --plot was not given.
-inline void write_residual_plot(const ResidualPlotArgs& a, const std::vector<Correspondence>& clicks,
-                                const std::vector<PointResidual>& residuals,
+inline void write_residual_plot(const ResidualPlotArgs& a, const std::vector<calibration::Correspondence>& clicks,
+                                const std::vector<calibration::PointResidual>& residuals,
                                 const std::vector<std::pair<std::string, camera::Viewport>>& views, double rms_px) {
   if (a.out.empty()) return;
   std::vector<cv::Mat> pictures;

@@ -104,7 +104,7 @@ TEST(CliCalibrate, JsonContractAndCamerasFile) {
 TEST(CliCalibrate, ArmAsFixtureRows) {
   // Points on the arm's links at three arm poses, through the URDF's FK.
   const RobotModel model = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  const RobotLinkPoints robot(model);
+  const calibration::RobotLinkPoints robot(model);
   const camera::Camera side = scene_cameras().at("side");
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> off(-0.05, 0.05);
@@ -144,10 +144,10 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   ASSERT_EQ(ra.status, 0) << ra.err;
   const auto ja = nlohmann::json::parse(ra.out);
   EXPECT_EQ(ja["f_px"].get<double>(), j["f_px"].get<double>());
-  CalibrationOptions arm_options;
+  calibration::CalibrationOptions arm_options;
   arm_options.arm_link_sigma_m = 0.002;
-  const CalibrationResult lib =
-      calibrate_camera(select_camera(read_correspondences_csv(pts, &robot), "side"), side.viewport, "side", arm_options);
+  const calibration::CalibrationResult lib =
+      calibration::calibrate_camera(calibration::select_camera(calibration::read_correspondences_csv(pts, &robot), "side"), side.viewport, "side", arm_options);
   ASSERT_GT(lib.arm_model_covariance(6, 6), 0.0);
   EXPECT_NEAR(ja["arm_model_sigma"]["f_px"].get<double>(), std::sqrt(lib.arm_model_covariance(6, 6)),
               1e-9 * std::sqrt(lib.arm_model_covariance(6, 6)));
@@ -187,11 +187,11 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   EXPECT_EQ(jl["held_camera_uncertainty"], nlohmann::json::array({"side"}));
   LocalizationOptions lo;
   const Eigen::Matrix3d R = lib.camera.base_T_camera.linear();
-  lo.camera_covariance["side"] = camera_covariance_body_from_rpy(lib.covariance - lib.arm_model_covariance, R);
+  lo.camera_covariance["side"] = calibration::camera_covariance_body_from_rpy(lib.covariance - lib.arm_model_covariance, R);
   lo.camera_link_sensitivity["side"] = lib.link_sensitivity;
   lo.arm_link_sigma_m = 0.002;
   const std::map<std::string, camera::Camera> cams = {{"side", lib.camera}};
-  const auto oru_clicks = read_correspondences_csv(oru_pts);
+  const auto oru_clicks = calibration::read_correspondences_csv(oru_pts);
   const LocalizationResult with = localize_object(oru_clicks, cams, lo), exact = localize_object(oru_clicks, cams);
   for (int i = 0; i < 3; ++i) {
     const double sp = jl["sigma"]["position_m"][i];
@@ -446,9 +446,9 @@ TEST(CliLocalize, CalibrateThenLocalizeWithCameraUncertainty) {
   for (const auto& [name, rec] : camera::load_cameras(cam_file)) {
     calibrated[name] = rec.camera;
     if (rec.calibration)
-      held.camera_covariance[name] = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
+      held.camera_covariance[name] = calibration::camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
   }
-  const auto clicks = read_correspondences_csv(pts);
+  const auto clicks = calibration::read_correspondences_csv(pts);
   const LocalizationResult exact = localize_object(clicks, calibrated), lib = localize_object(clicks, calibrated, held);
   for (int i = 0; i < 3; ++i) {
     const double sj = jj["sigma"]["position_m"][i], sp = jp["sigma"]["position_m"][i];

@@ -112,7 +112,7 @@ ClickSession::ClickSession(std::string camera, std::vector<ModelPoint> model_poi
   if (image_size_.width <= 0 || image_size_.height <= 0) throw std::invalid_argument("click session: empty image");
 }
 
-void ClickSession::set_existing_rows(std::vector<Correspondence> rows) {
+void ClickSession::set_existing_rows(std::vector<calibration::Correspondence> rows) {
   existing_ = std::move(rows);
   next_n_ = 1;
   for (const auto& r : existing_) next_n_ = std::max(next_n_, r.n + 1);
@@ -129,7 +129,7 @@ ClickSession::Outcome ClickSession::click_image(const Eigen::Vector2d& uv) {
   if (!(uv.x() >= 0.0 && uv.x() < image_size_.width && uv.y() >= 0.0 && uv.y() < image_size_.height))
     return Outcome::OutsideImage;
   if (selected_ < 0) return Outcome::NoModelPoint;
-  Correspondence c;
+  calibration::Correspondence c;
   c.n = next_n_++;
   c.cam = camera_;
   c.p_m = model_points_[selected_].p_m;
@@ -159,12 +159,12 @@ void ClickSession::clear() {
   selected_ = -1;
 }
 
-std::vector<Correspondence> ClickSession::rows() const {
-  std::vector<Correspondence> all = existing_;
+std::vector<calibration::Correspondence> ClickSession::rows() const {
+  std::vector<calibration::Correspondence> all = existing_;
   all.insert(all.end(), rows_.begin(), rows_.end());
   return all;
 }
 
-std::string ClickSession::csv() const { return to_csv(rows()); }
+std::string ClickSession::csv() const { return calibration::to_csv(rows()); }
 
 }  // namespace foresight::display

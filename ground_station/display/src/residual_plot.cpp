@@ -8,12 +8,12 @@
 
 namespace foresight::display {
 
-std::vector<PlotPoint> plot_points(const std::vector<Correspondence>& clicks,
-                                   const std::vector<PointResidual>& residuals, const std::string& camera) {
+std::vector<PlotPoint> plot_points(const std::vector<calibration::Correspondence>& clicks,
+                                   const std::vector<calibration::PointResidual>& residuals, const std::string& camera) {
   std::vector<PlotPoint> out;
   for (const auto& r : residuals) {
     if (!r.cam.empty() && r.cam != camera) continue;
-    const Correspondence* match = nullptr;
+    const calibration::Correspondence* match = nullptr;
     for (const auto& c : clicks)
       if (c.n == r.n && c.cam == camera && (r.line == 0 || c.line == 0 || c.line == r.line)) {
         match = &c;

@@ -29,7 +29,7 @@ TEST(ClickSession, ModelPointThenImagePointMakesARow) {
   EXPECT_EQ(s.click_image({100.5, 200.25}), ClickSession::Outcome::Added);
   EXPECT_EQ(s.state(), ClickSession::State::AwaitModelPoint);
   ASSERT_EQ(s.rows().size(), 1u);
-  const Correspondence r = s.rows()[0];
+  const calibration::Correspondence r = s.rows()[0];
   EXPECT_EQ(r.n, 1);
   EXPECT_EQ(r.cam, "side");
   EXPECT_EQ(r.p_m, Eigen::Vector3d(-0.4, 0.5, 1.25));
@@ -77,7 +77,7 @@ TEST(ClickSession, DeleteLastAndClear) {
 
 TEST(ClickSession, AppendsAfterExistingRowsAndWritesTheCsvCalibrateReads) {
   ClickSession s("side", three_points(), cv::Size(646, 486));
-  Correspondence old;
+  calibration::Correspondence old;
   old.n = 41;
   old.cam = "top";
   old.p_m = {1, 2, 3};
@@ -89,7 +89,7 @@ TEST(ClickSession, AppendsAfterExistingRowsAndWritesTheCsvCalibrateReads) {
   EXPECT_FALSE(s.delete_last());
   ASSERT_TRUE(s.select_model_point(2));
   ASSERT_EQ(s.click_image({320.25, 240.75}), ClickSession::Outcome::Added);
-  const auto back = parse_correspondences_csv(s.csv(), "session");
+  const auto back = calibration::parse_correspondences_csv(s.csv(), "session");
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(back[0].n, 41);
   EXPECT_EQ(back[0].cam, "top");

@@ -9,16 +9,16 @@ using namespace foresight::display;
 
 namespace {
 
-Correspondence click(int n, const std::string& cam, double u, double v) {
-  Correspondence c;
+calibration::Correspondence click(int n, const std::string& cam, double u, double v) {
+  calibration::Correspondence c;
   c.n = n;
   c.cam = cam;
   c.uv_px = {u, v};
   return c;
 }
 
-PointResidual residual(int n, const std::string& cam, double du, double dv, bool outlier = false) {
-  PointResidual r;
+calibration::PointResidual residual(int n, const std::string& cam, double du, double dv, bool outlier = false) {
+  calibration::PointResidual r;
   r.n = n;
   r.cam = cam;
   r.r_px = {du, dv};
@@ -30,7 +30,7 @@ PointResidual residual(int n, const std::string& cam, double du, double dv, bool
 }  // namespace
 
 TEST(ResidualPlot, ReprojectionIsTheClickMinusTheResidual) {
-  const std::vector<Correspondence> clicks = {click(1, "a", 100.5, 50.5), click(2, "b", 10, 10),
+  const std::vector<calibration::Correspondence> clicks = {click(1, "a", 100.5, 50.5), click(2, "b", 10, 10),
                                               click(3, "a", 300, 200)};
   const auto pts = plot_points(clicks, {residual(1, "a", 2.0, -1.0), residual(3, "a", 0.5, 0.5, true)}, "a");
   ASSERT_EQ(pts.size(), 2u);

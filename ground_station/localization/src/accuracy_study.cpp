@@ -50,7 +50,7 @@ ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::
                                 const std::function<double()>& noise) {
   ViewClicks out;
   for (std::size_t i = 0; i < believed_base.size(); ++i) {
-    Correspondence c;
+    calibration::Correspondence c;
     c.n = static_cast<int>(i) + 1;
     c.cam = view.truth.name;
     c.p_m = believed_base[i];
@@ -58,7 +58,7 @@ ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::
     out.calibration.push_back(c);
   }
   for (std::size_t i = 0; i < view.object_points.size(); ++i) {
-    Correspondence c;
+    calibration::Correspondence c;
     c.n = static_cast<int>(i) + 1;
     c.cam = view.truth.name;
     c.p_m = view.object_points[i];
@@ -231,7 +231,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   }
   for (const auto& v : setup.views) {
     if (v.calibration_points_base.size() < 6)
-      throw EstimationInputError("view '" + v.truth.name + "' sees " + std::to_string(v.calibration_points_base.size()) +
+      throw calibration::EstimationInputError("view '" + v.truth.name + "' sees " + std::to_string(v.calibration_points_base.size()) +
                             " arm points; calibration needs at least 6");
     res.view_names.push_back(v.truth.name);
     res.calibration_points.push_back(static_cast<int>(v.calibration_points_base.size()));
@@ -282,14 +282,14 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
     }
     std::map<std::string, camera::Camera> cams;
     std::map<std::string, Eigen::Matrix<double, 7, 7>> information;
-    std::vector<Correspondence> clicks;
+    std::vector<calibration::Correspondence> clicks;
     bool ok = true;
     for (int v = 0; v < nv && ok; ++v) {
       const StudyView& view = setup.views[v];
       ViewClicks vc = simulate_view_clicks(view, believed[v], view.calibration_points_base, setup.base_T_object,
                                            [&] { return noise(rng); });
       try {
-        const CalibrationResult r = calibrate_camera(vc.calibration, view.truth.viewport, view.truth.name);
+        const calibration::CalibrationResult r = calibration::calibrate_camera(vc.calibration, view.truth.viewport, view.truth.name);
         cams[view.truth.name] = r.camera;
         information[view.truth.name] = r.information;
         calib_rms_sum[v] += r.rms_px;
@@ -307,7 +307,7 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
     for (std::size_t ci = 0; ci < res.combos.size(); ++ci) {
       ComboStats& combo = res.combos[ci];
       LocalizationOptions lo;
-      std::vector<Correspondence> pts;
+      std::vector<calibration::Correspondence> pts;
       for (const int v : combo.views) {
         lo.views.push_back(setup.views[v].truth.name);
         for (const auto& c : clicks)

@@ -19,7 +19,7 @@ namespace foresight {
 
 namespace {
 
-std::string point_name(const Correspondence& c) {
+std::string point_name(const calibration::Correspondence& c) {
   std::string s = "n=" + std::to_string(c.n) + " in view '" + c.cam + "'";
   if (c.line > 0) s += " (line " + std::to_string(c.line) + ")";
   return s;
@@ -34,7 +34,7 @@ std::string names_of(const std::map<std::string, camera::Camera>& cameras) {
 
 /// One click with its camera resolved.
 struct Obs {
-  const Correspondence* c;
+  const calibration::Correspondence* c;
   const camera::Camera* cam;
 };
 
@@ -52,18 +52,18 @@ std::pair<int, double> score(const Pose& base_T_object, const std::vector<Obs>& 
 
 void check_geometry(const std::vector<Obs>& obs) {
   if (obs.size() < 6)
-    throw EstimationInputError("localization needs at least 6 clicked points over all views, got " +
+    throw calibration::EstimationInputError("localization needs at least 6 clicked points over all views, got " +
                           std::to_string(obs.size()));
   std::vector<Eigen::Vector3d> distinct;
   for (const auto& o : obs) {
     if (!o.c->p_m.allFinite() || !o.c->uv_px.allFinite())
-      throw EstimationInputError("point " + point_name(*o.c) + " has a non-finite coordinate");
+      throw calibration::EstimationInputError("point " + point_name(*o.c) + " has a non-finite coordinate");
     bool seen = false;
     for (const auto& d : distinct) seen = seen || (d - o.c->p_m).norm() < 1e-12;
     if (!seen) distinct.push_back(o.c->p_m);
   }
   if (distinct.size() < 4)
-    throw EstimationInputError("localization needs at least 4 distinct model points, got " + std::to_string(distinct.size()));
+    throw calibration::EstimationInputError("localization needs at least 4 distinct model points, got " + std::to_string(distinct.size()));
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& d : distinct) mean += d;
   mean /= static_cast<double>(distinct.size());
@@ -72,7 +72,7 @@ void check_geometry(const std::vector<Obs>& obs) {
   const Eigen::Vector3d s =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
   if (s[0] <= 1e-12 || s[1] <= 1e-7 * s[0])
-    throw EstimationInputError("the " + std::to_string(distinct.size()) +
+    throw calibration::EstimationInputError("the " + std::to_string(distinct.size()) +
                           " distinct model points are collinear: the object's rotation about that line is undetermined");
 }
 
@@ -145,7 +145,7 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
     const bool ok = u == 12 ? particular_and_null<12>(A, b, rank_tolerance, xp, xh)
                             : particular_and_null<9>(A, b, rank_tolerance, xp, xh);
     if (!ok)
-      throw EstimationInputError("the linear localization system is rank deficient (rank below " + std::to_string(u - 1) +
+      throw calibration::EstimationInputError("the linear localization system is rank deficient (rank below " + std::to_string(u - 1) +
                             "): degenerate geometry of the model points and views");
     auto rot_part = [&](const Eigen::VectorXd& x) {
       Eigen::VectorXd r(3 * cols);
@@ -184,28 +184,28 @@ Pose linear_pose(const std::vector<Obs>& obs, double rank_tolerance) {
       }
     }
   }
-  if (best_score.first > n) throw EstimationError("the linear localization found no pose");
+  if (best_score.first > n) throw calibration::EstimationError("the linear localization found no pose");
   return best;
 }
 
-std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
+std::vector<Obs> resolve(const std::vector<calibration::Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                          const std::vector<std::string>& views, std::vector<std::string>& used_views) {
   std::set<std::string> wanted(views.begin(), views.end());
   for (const auto& v : views)
-    if (!cameras.count(v)) throw EstimationInputError("unknown view '" + v + "' (known cameras: " + names_of(cameras) + ")");
+    if (!cameras.count(v)) throw calibration::EstimationInputError("unknown view '" + v + "' (known cameras: " + names_of(cameras) + ")");
   std::vector<Obs> obs;
   std::set<std::string> used;
   for (const auto& c : points) {
     if (!wanted.empty() && !wanted.count(c.cam)) continue;
     const auto it = cameras.find(c.cam);
     if (it == cameras.end())
-      throw EstimationInputError("point n=" + std::to_string(c.n) + (c.line > 0 ? " (line " + std::to_string(c.line) + ")" : "") +
+      throw calibration::EstimationInputError("point n=" + std::to_string(c.n) + (c.line > 0 ? " (line " + std::to_string(c.line) + ")" : "") +
                             ": unknown camera '" + c.cam + "' (known cameras: " + names_of(cameras) + ")");
     obs.push_back({&c, &it->second});
     used.insert(c.cam);
   }
   for (const auto& v : views)
-    if (!used.count(v)) throw EstimationInputError("view '" + v + "' has no points");
+    if (!used.count(v)) throw calibration::EstimationInputError("view '" + v + "' has no points");
   used_views.assign(used.begin(), used.end());
   return obs;
 }
@@ -216,7 +216,7 @@ std::vector<Obs> resolve(const std::vector<Correspondence>& points, const std::m
 /// covariance with the held cameras' and the arm model's terms).
 class Localizer {
  public:
-  Localizer(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
+  Localizer(const std::vector<calibration::Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
             const LocalizationOptions& opt, LocalizationResult& res)
       : cameras_(cameras), opt_(opt), res_(res) {
     check_options();
@@ -232,7 +232,7 @@ class Localizer {
   void run() {
     fit_with_outliers();
     refine_jointly();
-    if (!state_.R.allFinite() || !state_.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+    if (!state_.R.allFinite() || !state_.t.allFinite()) throw calibration::EstimationError("the nonlinear localization did not converge");
     res_.base_T_object = Pose::Identity();
     res_.base_T_object.linear() = state_.R;
     res_.base_T_object.translation() = state_.t;
@@ -249,14 +249,14 @@ class Localizer {
 
   void check_options() {
     if (!(opt_.arm_link_sigma_m >= 0.0) || !std::isfinite(opt_.arm_link_sigma_m))
-      throw EstimationInputError("arm link sigma must be a non-negative number of metres, got " +
+      throw calibration::EstimationInputError("arm link sigma must be a non-negative number of metres, got " +
                                  std::to_string(opt_.arm_link_sigma_m));
     for (const auto& [name, K] : opt_.camera_link_sensitivity) {
       if (K.rows() != 7 || K.cols() == 0 || !K.allFinite())
-        throw EstimationInputError("camera '" + name + "': the link sensitivity must be 7 rows of finite numbers, one column per link (" +
+        throw calibration::EstimationInputError("camera '" + name + "': the link sensitivity must be 7 rows of finite numbers, one column per link (" +
                                    std::to_string(K.rows()) + " x " + std::to_string(K.cols()) + " given)");
       if (links_ > 0 && K.cols() != links_)
-        throw EstimationInputError("camera '" + name + "': the link sensitivity has " + std::to_string(K.cols()) +
+        throw calibration::EstimationInputError("camera '" + name + "': the link sensitivity has " + std::to_string(K.cols()) +
                                    " links, another camera's " + std::to_string(links_));
       links_ = K.cols();
     }
@@ -264,7 +264,7 @@ class Localizer {
       const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(C);
       if (!C.allFinite() || !C.isApprox(C.transpose(), 1e-9) || ldlt.info() != Eigen::Success ||
           (ldlt.vectorD().array() < -1e-12 * std::max(1.0, C.diagonal().maxCoeff())).any())
-        throw EstimationInputError("camera '" + name + "': the covariance must be a finite, symmetric, positive semi-definite 7x7 matrix");
+        throw calibration::EstimationInputError("camera '" + name + "': the covariance must be a finite, symmetric, positive semi-definite 7x7 matrix");
     }
   }
 
@@ -293,9 +293,9 @@ class Localizer {
 
   void require_converged(const char* stage) const {
     if (!last_fit_.converged)
-      throw EstimationError(std::string("the ") + stage + " did not converge after " +
+      throw calibration::EstimationError(std::string("the ") + stage + " did not converge after " +
                             std::to_string(last_fit_.iterations) + " iterations (" +
-                            estimation::to_string(last_fit_.stop) + ")");
+                            calibration::to_string(last_fit_.stop) + ")");
   }
 
   /// The pose from the linear solution by Levenberg-Marquardt, the outliers
@@ -319,15 +319,15 @@ class Localizer {
         state_ = {linear_all_.linear(), linear_all_.translation()};
         have_state = true;
       }
-      last_fit_ = estimation::levenberg_marquardt<6>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
+      last_fit_ = calibration::levenberg_marquardt<6>(state_, 2 * static_cast<int>(idx_.size()), eval, retract,
                                                      state_norm, lm_);
       iterations_ = last_fit_.iterations;
       return residual_norms(state_);
     };
     std::vector<double> r;
-    inlier_ = estimation::flag_outliers(n_, 6, opt_.outliers, fit, r);
+    inlier_ = calibration::flag_outliers(n_, 6, opt_.outliers, fit, r);
     require_converged("nonlinear localization");
-    if (!state_.R.allFinite() || !state_.t.allFinite()) throw EstimationError("the nonlinear localization did not converge");
+    if (!state_.R.allFinite() || !state_.t.allFinite()) throw calibration::EstimationError("the nonlinear localization did not converge");
     idx_.clear();
     for (int i = 0; i < n_; ++i)
       if (inlier_[i]) idx_.push_back(i);
@@ -402,7 +402,7 @@ class Localizer {
       const Eigen::Matrix<double, 7, 7>& info = opt_.camera_information.at(joint_names_[j]);
       const Eigen::LLT<Eigen::Matrix<double, 7, 7>> llt(info);
       if (llt.info() != Eigen::Success || !info.allFinite())
-        throw EstimationInputError("camera '" + joint_names_[j] + "': calibration information is not positive definite");
+        throw calibration::EstimationInputError("camera '" + joint_names_[j] + "': calibration information is not positive definite");
       Lt[j] = llt.matrixL().transpose();
     }
     struct JointState {
@@ -454,7 +454,7 @@ class Localizer {
       for (int j = 0; j < kj; ++j) ss += s.cams[j].base_T_camera.translation().squaredNorm() + s.cams[j].f_px * s.cams[j].f_px;
       return std::sqrt(ss);
     };
-    last_fit_ = estimation::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm_, np);
+    last_fit_ = calibration::levenberg_marquardt<Eigen::Dynamic>(js, nr, jevaluate, jretract, jnorm, lm_, np);
     require_converged("joint refinement (pose and cameras)");
     iterations_ += last_fit_.iterations;
     state_.R = js.R;
@@ -485,7 +485,7 @@ class Localizer {
       const Obs& o = obs_[i];
       const camera::Camera& cam = camera_of(o);
       const Eigen::Vector3d pc = cam.to_camera(res_.base_T_object * o.c->p_m);
-      PointResidual pr;
+      calibration::PointResidual pr;
       pr.n = o.c->n;
       pr.cam = o.c->cam;
       pr.line = o.c->line;
@@ -502,7 +502,7 @@ class Localizer {
       }
       res_.residuals.push_back(pr);
     }
-    if (!behind.empty()) throw EstimationInputError("points behind their camera at the fitted pose: " + behind);
+    if (!behind.empty()) throw calibration::EstimationInputError("points behind their camera at the fitted pose: " + behind);
     res_.rms_px = std::sqrt(ss / m_);
     res_.linear_rms_px =
         score(res_.outliers.empty() ? linear_all_ : linear_pose(in_obs, opt_.rank_tolerance), in_obs).second;
@@ -526,7 +526,7 @@ class Localizer {
       C_body = s2 * H.inverse();
     }
     Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
-    G.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(state_.R)).inverse();
+    G.topLeftCorner<3, 3>() = calibration::rpy_rate_matrix(rpy_from_rotation(state_.R)).inverse();
     C_body += held_body_;
     res_.held_cameras_covariance = G * held_body_ * G.transpose();
     if (arm_term_) {
@@ -552,8 +552,8 @@ class Localizer {
   std::vector<bool> inlier_;
   State state_{};
   int iterations_ = 0;
-  estimation::LmOptions lm_;
-  estimation::LmReport last_fit_;
+  calibration::LmOptions lm_;
+  calibration::LmReport last_fit_;
   Pose linear_all_ = Pose::Identity();
   Eigen::MatrixXd arm_D_;
   Eigen::Matrix<double, 6, 6> held_body_ = Eigen::Matrix<double, 6, 6>::Zero();
@@ -568,7 +568,7 @@ class Localizer {
 
 Eigen::Vector3d LocalizationResult::rpy_rad() const { return rpy_from_rotation(base_T_object.linear()); }
 
-Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
+Pose localize_object_linear(const std::vector<calibration::Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                             double rank_tolerance) {
   std::vector<std::string> used;
   const std::vector<Obs> obs = resolve(points, cameras, {}, used);
@@ -576,7 +576,7 @@ Pose localize_object_linear(const std::vector<Correspondence>& points, const std
   return linear_pose(obs, rank_tolerance);
 }
 
-LocalizationResult localize_object(const std::vector<Correspondence>& points,
+LocalizationResult localize_object(const std::vector<calibration::Correspondence>& points,
                                    const std::map<std::string, camera::Camera>& cameras, const LocalizationOptions& opt) {
   LocalizationResult res;
   Localizer(points, cameras, opt, res).run();

@@ -7,7 +7,7 @@
 
 namespace foresight {
 
-std::optional<Pose> solve_pnp_opencv(const std::vector<Correspondence>& points, const camera::Camera& camera,
+std::optional<Pose> solve_pnp_opencv(const std::vector<calibration::Correspondence>& points, const camera::Camera& camera,
                                      PnpMethod method) {
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
@@ -59,7 +59,7 @@ Eigen::Vector3d triangulate_dlt(const std::vector<const camera::Camera*>& camera
   return X.head<3>() / X[3];
 }
 
-std::optional<Pose> triangulate_and_align(const std::vector<Correspondence>& points,
+std::optional<Pose> triangulate_and_align(const std::vector<calibration::Correspondence>& points,
                                           const std::map<std::string, camera::Camera>& cameras) {
   std::vector<Eigen::Vector3d> model;
   std::vector<std::vector<std::size_t>> groups;

@@ -55,12 +55,12 @@ TEST(AccuracyStudy, CramerRaoBoundIsConsistent) {
 TEST(AccuracyStudy, PeersExactOnExactData) {
   const StudySetup s = project_setup();
   std::map<std::string, camera::Camera> cams;
-  std::vector<Correspondence> all;
+  std::vector<calibration::Correspondence> all;
   for (const auto& v : s.views) {
     cams[v.truth.name] = v.truth;
-    std::vector<Correspondence> pts;
+    std::vector<calibration::Correspondence> pts;
     for (const auto& p : v.object_points) {
-      Correspondence c;
+      calibration::Correspondence c;
       c.n = static_cast<int>(pts.size()) + 1;
       c.cam = v.truth.name;
       c.p_m = p;

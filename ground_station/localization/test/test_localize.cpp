@@ -17,7 +17,7 @@ namespace {
 struct Scenario {
   std::map<std::string, camera::Camera> cameras;
   Pose base_T_object;
-  std::vector<Correspondence> exact;  // object-frame points, exact pixels
+  std::vector<calibration::Correspondence> exact;  // object-frame points, exact pixels
 };
 
 /// `views` cameras around a random object pose; `per_view` random model
@@ -36,7 +36,7 @@ Scenario make_setup(std::mt19937& rng, int views, int per_view, bool planar = fa
       const Eigen::Vector3d p(u(rng), u(rng), planar ? 0.0 : u(rng));
       const Eigen::Vector3d pb = s.base_T_object * p;
       if (!cam.in_front(pb) || !cam.in_view(cam.project(pb))) continue;
-      Correspondence c;
+      calibration::Correspondence c;
       c.n = ++n;
       c.cam = cam.name;
       c.p_m = p;
@@ -49,7 +49,7 @@ Scenario make_setup(std::mt19937& rng, int views, int per_view, bool planar = fa
   return s;
 }
 
-std::vector<Correspondence> noisy(std::mt19937& rng, std::vector<Correspondence> pts, double sd) {
+std::vector<calibration::Correspondence> noisy(std::mt19937& rng, std::vector<calibration::Correspondence> pts, double sd) {
   std::normal_distribution<double> g(0.0, sd);
   for (auto& c : pts) c.uv_px += Eigen::Vector2d(g(rng), g(rng));
   return pts;
@@ -60,12 +60,12 @@ std::vector<Correspondence> noisy(std::mt19937& rng, std::vector<Correspondence>
 Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
   Eigen::Matrix<double, 6, 1> d;
   const Eigen::AngleAxisd aa(truth.linear().transpose() * est.linear());
-  d.head<3>() = rpy_rate_matrix(rpy_from_rotation(truth.linear())).inverse() * (aa.angle() * aa.axis());
+  d.head<3>() = calibration::rpy_rate_matrix(rpy_from_rotation(truth.linear())).inverse() * (aa.angle() * aa.axis());
   d.tail<3>() = est.translation() - truth.translation();
   return d;
 }
 
-std::string error_of(const std::vector<Correspondence>& pts, const std::map<std::string, camera::Camera>& cams,
+std::string error_of(const std::vector<calibration::Correspondence>& pts, const std::map<std::string, camera::Camera>& cams,
                      const std::vector<std::string>& views = {}) {
   LocalizationOptions opt;
   opt.views = views;
@@ -125,7 +125,7 @@ TEST(Localize, PlantedOutliersFlaggedAndFitUnharmed) {
   std::mt19937 rng(8);
   const Scenario s = make_setup(rng, 3, 10);
   auto pts = noisy(rng, s.exact, 0.5);
-  std::vector<Correspondence> clean;
+  std::vector<calibration::Correspondence> clean;
   for (std::size_t i = 0; i < pts.size(); ++i)
     if (i != 3 && i != 14) clean.push_back(pts[i]);
   pts[3].uv_px += Eigen::Vector2d(30.0, 0.0);
@@ -160,7 +160,7 @@ TEST(LocalizeBadInput, PointBehindItsCamera) {
   const Scenario s = make_setup(rng, 2, 8);
   auto pts = s.exact;
   const camera::Camera& cam = s.cameras.at("cam1");
-  Correspondence c = pts[0];
+  calibration::Correspondence c = pts[0];
   c.n = 42;
   c.line = 20;
   c.p_m = s.base_T_object.inverse() * (cam.base_T_camera * Eigen::Vector3d(0.1, 0.05, -0.3));
@@ -210,7 +210,7 @@ TEST(Localize, JointRefinementWithCameraPriors) {
   // fit takes the cameras as exact and under-reports.
   std::mt19937 rng(31);
   const Scenario s = make_setup(rng, 3, 8);
-  std::map<std::string, std::vector<Correspondence>> cal_exact;
+  std::map<std::string, std::vector<calibration::Correspondence>> cal_exact;
   for (const auto& [name, cam] : s.cameras) {
     cal_exact[name] = foresight::testing::random_points(rng, cam, s.base_T_object.translation(), 0.6, 20, 0.0);
     for (auto& c : cal_exact[name]) c.cam = name;
@@ -219,7 +219,7 @@ TEST(Localize, JointRefinementWithCameraPriors) {
   {
     LocalizationOptions opt;
     for (const auto& [name, pts] : cal_exact)
-      opt.camera_information[name] = calibrate_camera(pts, s.cameras.at(name).viewport, name).information;
+      opt.camera_information[name] = calibration::calibrate_camera(pts, s.cameras.at(name).viewport, name).information;
     const LocalizationResult r = localize_object(s.exact, s.cameras, opt);
     EXPECT_TRUE(r.camera_uncertainty);
     EXPECT_EQ(r.refined_cameras.size(), 3u);
@@ -232,9 +232,9 @@ TEST(Localize, JointRefinementWithCameraPriors) {
     LocalizationOptions joint, plain;
     joint.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
-      CalibrationOptions co;
+      calibration::CalibrationOptions co;
       co.outliers.enabled = false;
-      const CalibrationResult c = calibrate_camera(noisy(rng, pts, 1.0), s.cameras.at(name).viewport, name, co);
+      const calibration::CalibrationResult c = calibration::calibrate_camera(noisy(rng, pts, 1.0), s.cameras.at(name).viewport, name, co);
       cams[name] = c.camera;
       joint.camera_information[name] = c.information;
     }
@@ -263,7 +263,7 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
   // noise alone, too small. The pose is the same either way.
   std::mt19937 rng(41);
   const Scenario s = make_setup(rng, 2, 24);
-  std::map<std::string, std::vector<Correspondence>> cal_exact;
+  std::map<std::string, std::vector<calibration::Correspondence>> cal_exact;
   for (const auto& [name, cam] : s.cameras) {
     cal_exact[name] = foresight::testing::random_points(rng, cam, s.base_T_object.translation(), 0.6, 8, 0.0);
     for (auto& c : cal_exact[name]) c.cam = name;
@@ -275,11 +275,11 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
     LocalizationOptions held, plain;
     held.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
-      CalibrationOptions co;
+      calibration::CalibrationOptions co;
       co.outliers.enabled = false;
-      const CalibrationResult c = calibrate_camera(noisy(rng, pts, 1.0), s.cameras.at(name).viewport, name, co);
+      const calibration::CalibrationResult c = calibration::calibrate_camera(noisy(rng, pts, 1.0), s.cameras.at(name).viewport, name, co);
       cams[name] = c.camera;
-      held.camera_covariance[name] = camera_covariance_body_from_rpy(c.covariance, c.camera.base_T_camera.linear());
+      held.camera_covariance[name] = calibration::camera_covariance_body_from_rpy(c.covariance, c.camera.base_T_camera.linear());
     }
     const auto clicks = noisy(rng, s.exact, 1.0);
     const LocalizationResult rh = localize_object(clicks, cams, held);
@@ -315,7 +315,7 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
 TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
   const RobotModel arm = RobotModel::from_file(std::string(FORESIGHT_CONFIG_DIR) + "/robot.urdf");
   KinematicsWorkspace ws(arm);
-  LinkLengthSensitivity sensitivity(arm);
+  calibration::LinkLengthSensitivity sensitivity(arm);
   struct Feature {
     Eigen::VectorXd q;
     int link;
@@ -347,7 +347,7 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
   for (const camera::Camera& cam : truth)
     for (const Eigen::Vector3d& p : oru_points) ASSERT_TRUE(cam.in_view(cam.project(base_T_oru * p))) << cam.name;
 
-  CalibrationOptions co;
+  calibration::CalibrationOptions co;
   co.arm_link_sigma_m = 0.002;
   co.outliers.enabled = false;  // a mismatch of the arm is not an outlier
   constexpr int kArms = 300;
@@ -366,11 +366,11 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
     alone.views = {"side"};
     alone.outliers.enabled = both.outliers.enabled = false;
     alone.arm_link_sigma_m = both.arm_link_sigma_m = co.arm_link_sigma_m;
-    std::vector<Correspondence> oru;
+    std::vector<calibration::Correspondence> oru;
     for (const camera::Camera& cam : truth) {
-      std::vector<Correspondence> cal;
+      std::vector<calibration::Correspondence> cal;
       for (const Feature& f : features) {
-        Correspondence c;
+        calibration::Correspondence c;
         c.n = static_cast<int>(cal.size()) + 1;
         c.cam = cam.name;
         c.p_m = forward_kinematics(arm, ws, f.q, f.link) * f.p_link;
@@ -378,13 +378,13 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
         c.uv_px = cam.project(forward_kinematics(true_arm, tws, f.q, f.link) * f.p_link);
         cal.push_back(c);
       }
-      const CalibrationResult r = calibrate_camera(cal, cam.viewport, cam.name, co);
+      const calibration::CalibrationResult r = calibration::calibrate_camera(cal, cam.viewport, cam.name, co);
       cams[cam.name] = r.camera;
       ASSERT_EQ(r.link_sensitivity.rows(), 7);
       alone.camera_link_sensitivity[cam.name] = both.camera_link_sensitivity[cam.name] = r.link_sensitivity;
       both.camera_information[cam.name] = r.information;
       for (const Eigen::Vector3d& p : oru_points) {
-        Correspondence c;
+        calibration::Correspondence c;
         c.n = static_cast<int>(oru.size()) + 1;
         c.cam = cam.name;
         c.p_m = p;
@@ -440,7 +440,7 @@ TEST(LocalizeBadInput, ArmModelOptionsAreChecked) {
   auto message = [&](const LocalizationOptions& opt) -> std::string {
     try {
       localize_object(s.exact, s.cameras, opt);
-    } catch (const EstimationInputError& e) {
+    } catch (const calibration::EstimationInputError& e) {
       return e.what();
     }
     return "(no error)";

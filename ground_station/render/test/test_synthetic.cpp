@@ -48,8 +48,8 @@ cv::Mat alpha_mask(const cv::Mat& layer_bgra) {
 
 // The arm as the calibration fixture: link origins and the tool tip at
 // several arm poses, clicked exactly where the true camera sees them.
-std::vector<Correspondence> noise_free_clicks(World& w, const camera::Camera& truth) {
-  std::vector<Correspondence> clicks;
+std::vector<calibration::Correspondence> noise_free_clicks(World& w, const camera::Camera& truth) {
+  std::vector<calibration::Correspondence> clicks;
   const Eigen::VectorXd q0 = w.approach_q();
   const double offsets[][3] = {{0, 0, 0}, {0.3, -0.2, 0.2}, {-0.3, 0.25, -0.2}, {0.2, 0.3, 0.3}, {-0.2, -0.3, 0.1}};
   int n = 0;
@@ -63,7 +63,7 @@ std::vector<Correspondence> noise_free_clicks(World& w, const camera::Camera& tr
       if (!truth.in_front(p)) continue;
       const Eigen::Vector2d uv = truth.project(p);
       if (!truth.in_view(uv)) continue;
-      Correspondence c;
+      calibration::Correspondence c;
       c.n = ++n;
       c.cam = truth.name;
       c.p_m = p;
@@ -114,9 +114,9 @@ TEST(SyntheticCamera, OverlayThroughCalibratedCameraCoversSyntheticArm) {
   for (const std::string name : {"side", "oblique"}) {
     const camera::Camera truth = scene_camera(w.scene, name);
     const SyntheticFrame frame = synth.render(truth, q);
-    const std::vector<Correspondence> clicks = noise_free_clicks(w, truth);
+    const std::vector<calibration::Correspondence> clicks = noise_free_clicks(w, truth);
     ASSERT_GE(clicks.size(), 12u) << name;
-    const CalibrationResult cal = calibrate_camera(clicks, truth.viewport, name);
+    const calibration::CalibrationResult cal = calibration::calibrate_camera(clicks, truth.viewport, name);
     EXPECT_LT(cal.rms_px, 1e-3) << name;
 
     DrawList list;

@@ -112,8 +112,8 @@ class ClickLoop {
     vp_ = camera::Viewport{image_.cols, image_.rows};
     if (!a.cameras.empty())
       for (const auto& [name, rec] : camera::load_cameras(a.cameras)) cameras_[name] = rec.camera;
-    std::vector<Correspondence> existing;
-    if (a.append && std::filesystem::exists(a.out)) existing = read_correspondences_csv(a.out);
+    std::vector<calibration::Correspondence> existing;
+    if (a.append && std::filesystem::exists(a.out)) existing = calibration::read_correspondences_csv(a.out);
     if (!std::filesystem::exists(std::filesystem::absolute(a.out).parent_path()))
       throw InputError(a.out, "the folder does not exist");
     if (const std::string why = display::x_display_problem(); !why.empty())
@@ -192,10 +192,10 @@ class ClickLoop {
   /// Calibrate (robot) or localize (oru) from the rows so far; the residual
   /// arrows and a summary line.
   void fit() {
-    const auto rows = select_camera(session_->rows(), a_.camera);
+    const auto rows = calibration::select_camera(session_->rows(), a_.camera);
     try {
       if (arm_) {
-        const CalibrationResult r = calibrate_camera(rows, vp_, a_.camera);
+        const calibration::CalibrationResult r = calibration::calibrate_camera(rows, vp_, a_.camera);
         fit_arrows_ = display::plot_points(rows, r.residuals, a_.camera);
         char b[160];
         std::snprintf(b, sizeof b, "fit: f %.1f px, rms %.2f px, %zu outlier(s)", r.camera.f_px, r.rms_px,

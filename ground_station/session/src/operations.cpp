@@ -64,7 +64,7 @@ Eigen::Matrix<double, 7, 7> calibration_information(const std::string& file, con
     throw std::invalid_argument(file + ": camera '" + name + "' covariance is not positive definite");
   const Eigen::Matrix<double, 7, 7> H_rpy = s2 * ldlt.solve(Eigen::Matrix<double, 7, 7>::Identity());
   Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
-  T.topLeftCorner<3, 3>() = rpy_rate_matrix(rpy_from_rotation(rec.camera.base_T_camera.linear())).inverse();
+  T.topLeftCorner<3, 3>() = calibration::rpy_rate_matrix(rpy_from_rotation(rec.camera.base_T_camera.linear())).inverse();
   return T.transpose() * H_rpy * T;
 }
 
@@ -457,9 +457,9 @@ Calibrated calibrate_from_clicks(const CalibrateRequest& a) {
   Calibrated out;
   out.viewport = camera::parse_viewport(a.viewport);
   if (!a.out.empty()) check_output_path(a.out);  // before any work: a folder or a missing folder is bad input
-  RobotLinkPoints robot(a.robot);
-  const std::vector<Correspondence> all = read_correspondences_csv(a.points, &robot);
-  out.points = select_camera(all, a.camera);
+  calibration::RobotLinkPoints robot(a.robot);
+  const std::vector<calibration::Correspondence> all = calibration::read_correspondences_csv(a.points, &robot);
+  out.points = calibration::select_camera(all, a.camera);
   if (out.points.empty()) {
     std::set<std::string> names;
     for (const auto& c : all) names.insert(c.cam);
@@ -468,17 +468,17 @@ Calibrated calibrate_from_clicks(const CalibrateRequest& a) {
     throw InputError(a.points, "no points for camera '" + a.camera + "' (cameras in the file: " + list + ")");
   }
   if (a.max_iterations < 1) throw std::invalid_argument("--max-iterations must be at least 1");
-  check_in_viewport(out.points, out.viewport, a.points);
-  CalibrationOptions copt;
+  calibration::check_in_viewport(out.points, out.viewport, a.points);
+  calibration::CalibrationOptions copt;
   copt.max_iterations = a.max_iterations;
   copt.arm_link_sigma_m = a.arm_link_sigma_m;
-  out.result = calibrate_camera(out.points, out.viewport, a.camera, copt);
+  out.result = calibration::calibrate_camera(out.points, out.viewport, a.camera, copt);
   return out;
 }
 
 nlohmann::json calibrated_json(const CalibrateRequest& a, const Calibrated& c) {
   constexpr double kDeg = M_PI / 180.0;
-  const CalibrationResult& r = c.result;
+  const calibration::CalibrationResult& r = c.result;
   const Eigen::Matrix<double, 7, 1> arm_sigma = r.arm_model_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   nlohmann::json residuals = nlohmann::json::array();
   for (const auto& p : r.residuals)
@@ -524,13 +524,13 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
   Localized out{ObjectModel::from_file(a.object), {}, {}, {}, 0.0, {}};
   const auto records = camera::load_cameras(a.cameras);
   for (const auto& [name, rec] : records) out.cameras[name] = rec.camera;
-  out.points = read_correspondences_csv(a.points);
-  const std::vector<Correspondence>& pts = out.points;
-  for (const auto& [name, camera] : out.cameras) check_in_viewport(select_camera(pts, name), camera.viewport, a.points);
+  out.points = calibration::read_correspondences_csv(a.points);
+  const std::vector<calibration::Correspondence>& pts = out.points;
+  for (const auto& [name, camera] : out.cameras) calibration::check_in_viewport(calibration::select_camera(pts, name), camera.viewport, a.points);
   LocalizationOptions opt;
   if (!a.views.empty()) opt.views = split_views(a.views);
   const auto in_use = [&](const std::string& name) {
-    return std::any_of(pts.begin(), pts.end(), [&](const Correspondence& c) { return c.cam == name; }) &&
+    return std::any_of(pts.begin(), pts.end(), [&](const calibration::Correspondence& c) { return c.cam == name; }) &&
            (opt.views.empty() || std::find(opt.views.begin(), opt.views.end(), name) != opt.views.end());
   };
   if (a.camera_uncertainty)
@@ -554,13 +554,13 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
       opt.arm_link_sigma_m = c.arm_link_sigma_m;
       arm_rpy = c.arm_link_sigma_m * c.arm_link_sigma_m * c.arm_link_sensitivity * c.arm_link_sensitivity.transpose();
       Eigen::MatrixXd K = c.arm_link_sensitivity;  // rpy rates -> body increments
-      K.topRows<3>() = rpy_rate_matrix(rpy_from_rotation(R)) * c.arm_link_sensitivity.topRows<3>();
+      K.topRows<3>() = calibration::rpy_rate_matrix(rpy_from_rotation(R)) * c.arm_link_sensitivity.topRows<3>();
       opt.camera_link_sensitivity[name] = K;
     }
     if (opt.camera_information.count(name) || c.covariance.isZero(0.0)) continue;
     // The calibration's own (noise) part, kept positive semi-definite against
     // the file's rounding.
-    const Eigen::Matrix<double, 7, 7> body = camera_covariance_body_from_rpy(c.covariance - arm_rpy, R);
+    const Eigen::Matrix<double, 7, 7> body = calibration::camera_covariance_body_from_rpy(c.covariance - arm_rpy, R);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 7, 7>> eig(0.5 * (body + body.transpose()));
     opt.camera_covariance[name] =
         eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
@@ -736,7 +736,7 @@ AlignedViews align_views(const AlignRequest& a) {
     // The calibration's uncertainty: with --refine object the camera is held
     // but not exact, and its error enters the object's covariance.
     if (rec.calibration)
-      view.camera_covariance = camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
+      view.camera_covariance = calibration::camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
     views.push_back(std::move(view));
   }
   const RobotModel model = RobotModel::from_file(a.robot);
@@ -784,7 +784,7 @@ AlignedViews align_views(const AlignRequest& a) {
         camera::CameraCalibrationInfo info;
         // cameras.yaml keeps roll/pitch/yaw; the aligner's rotation is a
         // body increment (calibrate writes the same convention).
-        info.covariance = camera_covariance_rpy_from_body(r.covariance.block<7, 7>(7 * v, 7 * v),
+        info.covariance = calibration::camera_covariance_rpy_from_body(r.covariance.block<7, 7>(7 * v, 7 * v),
                                                           r.cameras[v].base_T_camera.linear());
         info.rms_px = r.residual_rms_px;
         info.max_px = 1.0;  // inliers are within 1 px by definition

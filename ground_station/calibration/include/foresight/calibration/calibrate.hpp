@@ -27,7 +27,7 @@
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/error.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 /// The data cannot determine the estimate: too few points, degenerate
 /// geometry (collinear, coplanar, rank deficient), non-finite input, points
@@ -166,4 +166,4 @@ Eigen::Matrix<double, 7, 7> camera_covariance_body_from_rpy(const Eigen::Matrix<
 /// Per-axis robust sigma (pixels) from 2-D residual norms.
 double robust_sigma_px(std::vector<double> residual_norms_px);
 
-}  // namespace foresight
+}  // namespace foresight::calibration

@@ -25,7 +25,7 @@
 
 #include "foresight/camera/camera.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 struct Correspondence {
   int n = 0;                ///< the point number (`n` column)
@@ -98,4 +98,4 @@ std::vector<Correspondence> select_camera(const std::vector<Correspondence>& poi
 /// inverse of parse_correspondences_csv for x,y,z rows.
 std::string to_csv(const std::vector<Correspondence>& points);
 
-}  // namespace foresight
+}  // namespace foresight::calibration

@@ -26,7 +26,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace foresight::estimation {
+namespace foresight::calibration {
 
 enum class LmStop { Gradient, Function, Parameter, ZeroResidual, NoDecrease, MaxIterations };
 
@@ -129,4 +129,4 @@ LmReport levenberg_marquardt(State& state, int residuals, Evaluate&& evaluate, R
   return finish(LmStop::MaxIterations);
 }
 
-}  // namespace foresight::estimation
+}  // namespace foresight::calibration

@@ -9,7 +9,7 @@
 
 #include "foresight/calibration/calibrate.hpp"
 
-namespace foresight::estimation {
+namespace foresight::calibration {
 
 /// Flags outliers in a bounded number of rounds (opt.max_rounds, each one
 /// refit): every inlier whose residual exceeds max(k * robust sigma, floor)
@@ -59,4 +59,4 @@ inline std::vector<bool> flag_outliers(int n, int min_inliers, const OutlierOpti
   return inlier;
 }
 
-}  // namespace foresight::estimation
+}  // namespace foresight::calibration

@@ -12,7 +12,7 @@
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/robot_model.hpp"
 
-namespace foresight {
+namespace foresight::calibration {
 
 /// How a point fixed on an arm link moves in base when the arm's link
 /// lengths change: 3 x (chain segments), column k the point's motion per
@@ -65,4 +65,4 @@ class RobotLinkPoints : public LinkPointResolver {
   mutable std::unique_ptr<LinkLengthSensitivity> sensitivity_;  // built on first use
 };
 
-}  // namespace foresight
+}  // namespace foresight::calibration

@@ -91,7 +91,7 @@ class ClickSession {
   ClickSession(std::string camera, std::vector<ModelPoint> model_points, cv::Size image_size);
 
   /// Keeps rows read from an existing file (appending): numbering continues after their largest n.
-  void set_existing_rows(std::vector<Correspondence> rows);
+  void set_existing_rows(std::vector<calibration::Correspondence> rows);
 
   /// Selects model point `index` (then the next image click pairs with it).
   /// False (state unchanged) when out of range.
@@ -111,12 +111,12 @@ class ClickSession {
   int selected() const { return selected_; }
   const std::vector<ModelPoint>& model_points() const { return model_points_; }
   /// Existing rows then this session's, in order.
-  std::vector<Correspondence> rows() const;
+  std::vector<calibration::Correspondence> rows() const;
   /// This session's rows only.
-  const std::vector<Correspondence>& session_rows() const { return rows_; }
+  const std::vector<calibration::Correspondence>& session_rows() const { return rows_; }
   /// Model-point index of each session row.
   const std::vector<int>& session_model_index() const { return row_point_; }
-  /// The points CSV (n,cam,x,y,z,u,v; foresight::to_csv) of rows().
+  /// The points CSV (n,cam,x,y,z,u,v; foresight::calibration::to_csv) of rows().
   std::string csv() const;
   const std::string& camera() const { return camera_; }
 
@@ -124,7 +124,7 @@ class ClickSession {
   std::string camera_;
   std::vector<ModelPoint> model_points_;
   cv::Size image_size_;
-  std::vector<Correspondence> existing_, rows_;
+  std::vector<calibration::Correspondence> existing_, rows_;
   std::vector<int> row_point_;
   int selected_ = -1;
   int next_n_ = 1;

@@ -27,8 +27,8 @@ struct PlotPoint {
 /// by point number n and camera): reprojected = clicked - residual. Points
 /// of other cameras are skipped. Throws std::invalid_argument when a
 /// residual has no click.
-std::vector<PlotPoint> plot_points(const std::vector<Correspondence>& clicks,
-                                   const std::vector<PointResidual>& residuals, const std::string& camera);
+std::vector<PlotPoint> plot_points(const std::vector<calibration::Correspondence>& clicks,
+                                   const std::vector<calibration::PointResidual>& residuals, const std::string& camera);
 
 /// Arrow magnification: 0 = automatic (the largest inlier residual drawn
 /// about 40 px long, a 1-2-5 step between 1 and 500).

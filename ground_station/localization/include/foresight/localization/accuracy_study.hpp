@@ -118,7 +118,7 @@ std::string view_combination_label(const std::vector<int>& views);
 /// their true projections (the object at base_T_object) plus noise. The
 /// noise is drawn in that order, u then v per click.
 struct ViewClicks {
-  std::vector<Correspondence> calibration, object;
+  std::vector<calibration::Correspondence> calibration, object;
 };
 ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::Vector3d>& believed_base,
                                 const std::vector<Eigen::Vector3d>& true_base, const Pose& base_T_object,

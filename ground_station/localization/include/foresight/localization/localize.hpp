@@ -29,7 +29,7 @@ namespace foresight {
 
 struct LocalizationOptions {
   int max_iterations = 100;
-  OutlierOptions outliers;
+  calibration::OutlierOptions outliers;
   /// Views to use (camera names); empty: every camera that has points. A
   /// listed view without points is an error.
   std::vector<std::string> views;
@@ -81,7 +81,7 @@ struct LocalizationResult {
   int iterations = 0;
   int n_points = 0;
   std::vector<std::string> views;       ///< the views used, sorted
-  std::vector<PointResidual> residuals; ///< every point used, input order
+  std::vector<calibration::PointResidual> residuals; ///< every point used, input order
   std::vector<int> outliers;            ///< `n` of each flagged point
   bool camera_uncertainty = false;      ///< the joint refinement ran
   std::map<std::string, camera::Camera> refined_cameras;  ///< cameras refined with the pose (joint case)
@@ -98,13 +98,13 @@ struct LocalizationResult {
 /// linear system; points behind their camera at the fitted pose. Throws
 /// EstimationError (computation): no linear solution, or the nonlinear fit
 /// did not converge (the message gives the iteration count).
-LocalizationResult localize_object(const std::vector<Correspondence>& points,
+LocalizationResult localize_object(const std::vector<calibration::Correspondence>& points,
                                    const std::map<std::string, camera::Camera>& cameras,
                                    const LocalizationOptions& options = {});
 
 /// The linear stage alone (eq. 7-8), on every given point; for tests and
 /// benchmarks. Cameras must contain every point's camera.
-Pose localize_object_linear(const std::vector<Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
+Pose localize_object_linear(const std::vector<calibration::Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                             double rank_tolerance = 1e-9);
 
 }  // namespace foresight

@@ -137,8 +137,8 @@ struct CalibrateRequest {
 
 struct Calibrated {
   camera::Viewport viewport;
-  std::vector<Correspondence> points;  ///< the camera's rows
-  CalibrationResult result;
+  std::vector<calibration::Correspondence> points;  ///< the camera's rows
+  calibration::CalibrationResult result;
 };
 
 /// The camera's calibration from its rows of the points file. Nothing is
@@ -163,7 +163,7 @@ struct LocalizeRequest {
 struct Localized {
   ObjectModel object;
   std::map<std::string, camera::Camera> cameras;
-  std::vector<Correspondence> points;
+  std::vector<calibration::Correspondence> points;
   std::vector<std::string> held_cameras;  ///< cameras whose calibration covariance entered the pose's
   double arm_link_sigma_m = 0.0;          ///< the arm model's link sigma that entered it
   LocalizationResult result;
