@@ -92,7 +92,7 @@ BENCHMARK(BM_CalibrateLinear30)->Unit(benchmark::kMicrosecond);
 void BM_Localize4x8(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    LocalizationResult r = localize_object(d.object, d.camera_map);
+    localization::LocalizationResult r = localization::localize_object(d.object, d.camera_map);
     benchmark::DoNotOptimize(r.rms_px);
   }
 }
@@ -101,26 +101,26 @@ BENCHMARK(BM_Localize4x8)->Unit(benchmark::kMicrosecond);
 void BM_Localize1x8(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    LocalizationResult r = localize_object(d.object_view1, d.camera_map);
+    localization::LocalizationResult r = localization::localize_object(d.object_view1, d.camera_map);
     benchmark::DoNotOptimize(r.rms_px);
   }
 }
 BENCHMARK(BM_Localize1x8)->Unit(benchmark::kMicrosecond);
 
-void BM_OpenCvSolvePnP(benchmark::State& state, PnpMethod m) {
+void BM_OpenCvSolvePnP(benchmark::State& state, localization::PnpMethod m) {
   const Data& d = data();
   for (auto _ : state) {
-    auto T = solve_pnp_opencv(d.object_view1, d.cameras[0], m);
+    auto T = localization::solve_pnp_opencv(d.object_view1, d.cameras[0], m);
     benchmark::DoNotOptimize(T);
   }
 }
-BENCHMARK_CAPTURE(BM_OpenCvSolvePnP, SQPNP, PnpMethod::Sqpnp)->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_OpenCvSolvePnP, ITERATIVE, PnpMethod::Iterative)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_OpenCvSolvePnP, SQPNP, localization::PnpMethod::Sqpnp)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_OpenCvSolvePnP, ITERATIVE, localization::PnpMethod::Iterative)->Unit(benchmark::kMicrosecond);
 
 void BM_TriangulateAlign4x8(benchmark::State& state) {
   const Data& d = data();
   for (auto _ : state) {
-    auto T = triangulate_and_align(d.object, d.camera_map);
+    auto T = localization::triangulate_and_align(d.object, d.camera_map);
     benchmark::DoNotOptimize(T);
   }
 }

@@ -37,13 +37,13 @@ class AlignmentStudy {
         object_(object),
         scene_(scene),
         opt_(opt),
-        setup_(make_study_setup(scene, object, {})),
-        poses_(arm_calibration_poses(robot)),
+        setup_(localization::make_study_setup(scene, object, {})),
+        poses_(localization::arm_calibration_poses(robot)),
         rng_(opt.seed),
         noise_(0.0, opt.noise_px),
         arm_rng_(opt.seed ^ 0x9E3779B97F4A7C15ull),
         link_error_(0.0, opt.arm_link_error_m > 0.0 ? opt.arm_link_error_m : 1.0) {
-    choose_calibration_points(setup_, poses_);
+    localization::choose_calibration_points(setup_, poses_);
     nv_ = static_cast<int>(setup_.views.size());
     vp_ = setup_.views.front().truth.viewport;
     for (const auto& v : setup_.views)
@@ -65,7 +65,7 @@ class AlignmentStudy {
         AlignmentComboStats c;
         for (int v = 0; v < nv_; ++v)
           if (mask & (1 << v)) c.views.push_back(v);
-        c.label = view_combination_label(c.views);
+        c.label = localization::view_combination_label(c.views);
         combos_.push_back(c);
       }
     acc_clicks_.resize(combos_.size());
@@ -98,7 +98,7 @@ class AlignmentStudy {
     calibration_dp_dlinks_.resize(nv_);
     calibration::LinkLengthSensitivity sensitivity(robot);
     for (int v = 0; v < nv_; ++v)
-      for (const ArmFeature& f : setup_.views[v].calibration_features)
+      for (const localization::ArmFeature& f : setup_.views[v].calibration_features)
         calibration_dp_dlinks_[v].push_back(sensitivity.at(setup_.arm_q.at(f.pose), f.link, f.p_link));
     calibration_options_.arm_link_sigma_m = opt.arm_link_prior_m;
     aligner_ = std::make_unique<ModelAligner>(ctx, robot, &object, vp_);
@@ -174,11 +174,11 @@ class AlignmentStudy {
     KinematicsWorkspace tws(truth_arm);
     bool ok = true;
     for (int v = 0; v < nv_ && ok; ++v) {
-      const StudyView& view = setup_.views[v];
+      const localization::StudyView& view = setup_.views[v];
       std::vector<Eigen::Vector3d> true_base;
-      for (const ArmFeature& f : view.calibration_features)
+      for (const localization::ArmFeature& f : view.calibration_features)
         true_base.push_back(forward_kinematics(truth_arm, tws, setup_.arm_q.at(f.pose), f.link) * f.p_link);
-      ViewClicks vc = simulate_view_clicks(view, view.calibration_points_base, true_base, setup_.base_T_object,
+      localization::ViewClicks vc = localization::simulate_view_clicks(view, view.calibration_points_base, true_base, setup_.base_T_object,
                                            [&] { return noise_(rng_); });
       for (std::size_t i = 0; i < vc.calibration.size(); ++i) vc.calibration[i].dp_dlinks = calibration_dp_dlinks_[v][i];
       try {
@@ -207,7 +207,7 @@ class AlignmentStudy {
     out.covariance.assign(combos_.size(), Eigen::Matrix<double, 6, 6>::Zero());
     out.arm_covariance.assign(combos_.size(), Eigen::Matrix<double, 6, 6>::Zero());
     for (std::size_t ci = 0; ci < combos_.size(); ++ci) {
-      LocalizationOptions lo;
+      localization::LocalizationOptions lo;
       std::vector<calibration::Correspondence> pts;
       for (const int v : combos_[ci].views) {
         lo.views.push_back(setup_.views[v].truth.name);
@@ -218,7 +218,7 @@ class AlignmentStudy {
       lo.camera_link_sensitivity = clicks.link_sensitivity;
       lo.arm_link_sigma_m = opt_.arm_link_prior_m;
       try {
-        const LocalizationResult lr = localize_object(pts, clicks.cams, lo);
+        const localization::LocalizationResult lr = localization::localize_object(pts, clicks.cams, lo);
         out.pose[ci] = lr.base_T_object;
         out.covariance[ci] = lr.covariance;
         out.arm_covariance[ci] = lr.arm_model_covariance;
@@ -326,7 +326,7 @@ class AlignmentStudy {
   void align_oru(int t, std::size_t ci, const TrialCameras& c, const ClickPoses& click_poses) {
     AlignmentComboStats& combo = combos_[ci];
     const Pose& clicks_pose = *click_poses.pose[ci];
-    acc_clicks_[ci].add(pose_error(clicks_pose, setup_.base_T_object));
+    acc_clicks_[ci].add(localization::pose_error(clicks_pose, setup_.base_T_object));
     std::vector<AlignView> sub, sub_cam_only;
     for (const int v : combo.views) {
       sub.push_back({c.bundle[v], c.views[v].frames, c.bundle_cov[v]});
@@ -337,14 +337,14 @@ class AlignmentStudy {
     ao.object_start_covariance = click_poses.covariance[ci];
     const AlignResult r0 = aligner_->align(sub_cam_only, clicks_pose, ao);
     if (r0.status != AlignStatus::Aligned) ++combo.aligned_cameras_only_refused;
-    acc_cam_only_[ci].add(pose_error(*r0.base_T_object, setup_.base_T_object));
+    acc_cam_only_[ci].add(localization::pose_error(*r0.base_T_object, setup_.base_T_object));
     AlignResult r = r0;
     int object_col = 0;  // the object's block in r.covariance
     if (opt_.arm_link_prior_m > 0.0) {
       ao.arm_link_delta_m = c.arm_delta;
       const AlignResult held = aligner_->align(sub, clicks_pose, ao);
       if (held.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
-      acc_held_[ci].add(pose_error(*held.base_T_object, setup_.base_T_object));
+      acc_held_[ci].add(localization::pose_error(*held.base_T_object, setup_.base_T_object));
       // The ORU with the views' cameras and the arm's links (step 6).
       AlignOptions jo = ao;
       jo.refine = Refine::Both;
@@ -352,12 +352,12 @@ class AlignmentStudy {
       r = aligner_->align(sub, clicks_pose, jo);
       object_col = 7 * static_cast<int>(sub.size());
     } else {
-      acc_held_[ci].add(pose_error(*r0.base_T_object, setup_.base_T_object));
+      acc_held_[ci].add(localization::pose_error(*r0.base_T_object, setup_.base_T_object));
       if (r0.status != AlignStatus::Aligned) ++combo.aligned_held_cameras_refused;
     }
     if (r.status != AlignStatus::Aligned) ++combo.aligned_refused;
     if (refused_for_disagreement(r)) ++combo.aligned_refused_disagreement;
-    acc_aligned_[ci].add(pose_error(*r.base_T_object, setup_.base_T_object));
+    acc_aligned_[ci].add(localization::pose_error(*r.base_T_object, setup_.base_T_object));
     const Eigen::Matrix3d Cp = r.covariance.rows() >= object_col + 6
                                    ? Eigen::Matrix3d(r.covariance.block<3, 3>(object_col + 3, object_col + 3))
                                    : Eigen::Matrix3d::Zero();
@@ -395,8 +395,8 @@ class AlignmentStudy {
                  aa.angle() * 180 / M_PI, std::sqrt(Cb(0, 0)) * 180 / M_PI, std::sqrt(Cb(1, 1)) * 180 / M_PI,
                  std::sqrt(Cb(2, 2)) * 180 / M_PI, std::sqrt(Ca(0, 0)) * 180 / M_PI, std::sqrt(Ca(1, 1)) * 180 / M_PI,
                  std::sqrt(Ca(2, 2)) * 180 / M_PI);
-    const auto ec = pose_error(clicks_pose, setup_.base_T_object);
-    const auto ea = pose_error(*r.base_T_object, setup_.base_T_object);
+    const auto ec = localization::pose_error(clicks_pose, setup_.base_T_object);
+    const auto ea = localization::pose_error(*r.base_T_object, setup_.base_T_object);
     std::fprintf(stderr,
                  "TRACE t%d %-8s %s '%s' clicks_err %.1f %.1f %.1f mm -> %.1f %.1f %.1f mm | score %.2f->%.2f res %.2f vis %d match %d it %d "
                  "| m %.1f p %.1f | change rot %.3f %.3f %.3f t %.1f %.1f %.1f mm | align sd t %.2f %.2f %.2f mm | worst axis %.2f z3 %.2f "
@@ -442,14 +442,14 @@ class AlignmentStudy {
   const ObjectModel& object_;
   const Scene& scene_;
   const AlignmentStudyOptions& opt_;
-  StudySetup setup_;
-  const std::vector<ArmCalibrationPose> poses_;
+  localization::StudySetup setup_;
+  const std::vector<localization::ArmCalibrationPose> poses_;
   int nv_ = 0, nls_ = 0;
   camera::Viewport vp_;
   AlignmentStudyResult res_;
   std::vector<std::vector<int>> view_poses_;
   std::vector<AlignmentComboStats> combos_;
-  std::vector<ErrorAccumulator> acc_clicks_, acc_aligned_, acc_held_, acc_cam_only_;
+  std::vector<localization::ErrorAccumulator> acc_clicks_, acc_aligned_, acc_held_, acc_cam_only_;
   std::vector<double> link_true2_, link_err2_, link_sig_;
   int link_trials_ = 0, good_ = 0;
   std::vector<Eigen::Vector3d> metric_points_;

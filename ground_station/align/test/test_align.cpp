@@ -413,7 +413,7 @@ TEST(Align, ArmLinkLengthsWithTheCameras) {
     segs.push_back(k);
   }
   const RobotModel truth_arm = w.model.with_link_lengths_changed(truth_delta);
-  const auto poses = arm_calibration_poses(w.model);
+  const auto poses = localization::arm_calibration_poses(w.model);
   std::vector<AlignView> views, nominal_only;
   std::vector<camera::Camera> truths;
   std::vector<std::unique_ptr<SyntheticCamera>> synths;
@@ -503,8 +503,8 @@ struct StudyTrial {
 
   StudyTrial(const std::vector<double>& true_delta, std::vector<double> estimated_delta, unsigned synth_seed)
       : arm_delta(std::move(estimated_delta)), truth_arm(w.model.with_link_lengths_changed(true_delta)) {
-    StudySetup setup = make_study_setup(w.scene, w.oru, {});
-    choose_calibration_points(setup, arm_calibration_poses(w.model));
+    localization::StudySetup setup = localization::make_study_setup(w.scene, w.oru, {});
+    localization::choose_calibration_points(setup, localization::arm_calibration_poses(w.model));
     arm_q = setup.arm_q;
     for (const auto& v : setup.views) {
       truth.push_back(v.truth);

@@ -49,7 +49,7 @@ struct EvalArgs {
   bool json = false;
 };
 
-void print_spread(const std::vector<StudyResult>& runs, const char* title) {
+void print_spread(const std::vector<localization::StudyResult>& runs, const char* title) {
   std::printf("\n%s: RMSE over %zu seeds x %d trials, mean +- sd over the seeds (ratio to the bound)\n", title,
               runs.size(), runs.front().trials);
   std::printf("%-9s %26s %26s %16s\n", "views", "two-step mm / deg", "joint mm / deg", "CRLB mm / deg");
@@ -68,12 +68,12 @@ void print_spread(const std::vector<StudyResult>& runs, const char* title) {
 }
 
 void print_tables(const session::LocalizationStudyRequest& a, const session::LocalizationStudy& study) {
-  const std::vector<StudyResult>& runs = study.runs;
-  const std::vector<StudyResult>& arm_runs = study.arm_runs;
+  const std::vector<localization::StudyResult>& runs = study.runs;
+  const std::vector<localization::StudyResult>& arm_runs = study.arm_runs;
   const bool arm_error = a.arm_error_mm > 0.0;
-  const StudyResult& r = runs.front();
+  const localization::StudyResult& r = runs.front();
   const double elapsed_s = study.elapsed_s;
-  const ComboStats& all = r.combos.back();
+  const localization::ComboStats& all = r.combos.back();
   const double pos_ratio = all.ours.position_rmse_m / all.crlb_position_m;
   const double rot_ratio = all.ours.rotation_rmse_rad / all.crlb_rotation_rad;
   const double jpos_ratio = all.ours_joint.position_rmse_m / all.crlb_position_m;
@@ -111,7 +111,7 @@ void print_tables(const session::LocalizationStudyRequest& a, const session::Loc
   std::printf("\nTable 4. RMSE beside the bound and the peers: position (mm) / rotation (deg)\n");
   std::printf("%-9s %15s %15s %15s %15s %15s %15s %15s\n", "views", "paper 2-step", "joint w/ prior", "CRLB",
               "CRLB known cam", "solvePnP SQPNP", "solvePnP ITER", "triang+Umeyama");
-  auto pr = [](const ErrorStats& s) {
+  auto pr = [](const localization::ErrorStats& s) {
     char b[40];
     if (s.n == 0) return std::string("              -");
     if (s.position_rmse_m > 10.0) {  // a peer whose failed trials dominate its RMSE
@@ -146,7 +146,7 @@ void print_tables(const session::LocalizationStudyRequest& a, const session::Loc
     char title[96];
     std::snprintf(title, sizeof title, "Arm-model error (link lengths off by %.1f mm sd)", a.arm_error_mm);
     print_spread(arm_runs, title);
-    const ComboStats& w = arm_runs.front().combos.back();
+    const localization::ComboStats& w = arm_runs.front().combos.back();
     std::printf("Four views with the arm-model error (seed %u): position RMSE %.3f mm (bound without it %.3f mm), "
                 "95%% alignment %.2f cm, depth %.2f cm.\n",
                 a.seed, w.ours.position_rmse_m * 1e3, w.crlb_position_m * 1e3, w.ours.alignment95_m * 100,

@@ -46,7 +46,7 @@ int run(const Options& o) {
     }
     Pose base_T_object;
     if (!o.object_pose.empty()) {
-      base_T_object = read_object_pose_json(o.object_pose);
+      base_T_object = localization::read_object_pose_json(o.object_pose);
       pose_source = o.object_pose;
     } else {
       base_T_object = Scene::from_file(o.scene).base_T_object;

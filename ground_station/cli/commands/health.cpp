@@ -99,7 +99,7 @@ int run_health(const HealthArgs& a) {
   std::optional<ObjectModel> object;
   std::optional<Pose> base_T_object;
   if (!a.object_pose.empty()) {
-    base_T_object = read_object_pose_json(a.object_pose);
+    base_T_object = localization::read_object_pose_json(a.object_pose);
     object = ObjectModel::from_file(a.object);
   }
   cv::VideoCapture cap(a.video);

@@ -30,7 +30,7 @@ struct LocalizeArgs {
 
 int run_localize(const LocalizeArgs& args) {
   const session::Localized l = session::localize_from_clicks(args.request);
-  const LocalizationResult& r = l.result;
+  const localization::LocalizationResult& r = l.result;
   const ObjectModel& object = l.object;
   const std::vector<std::string>& held = l.held_cameras;
   write_residual_plot(args.plot, l.points, r.residuals, plot_views(r.views, l.cameras), r.rms_px);

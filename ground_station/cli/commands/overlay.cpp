@@ -50,7 +50,7 @@ int run_overlay(const OverlayArgs& args) {
                         {"tip_px", vec_json(tip_uv)},
                         {"render_ms", render_ms},
                         {"total_ms", total_ms}};
-    if (o.object_drawn) j["base_T_object"] = pose_json(o.base_T_object);
+    if (o.object_drawn) j["base_T_object"] = localization::pose_json(o.base_T_object);
     std::cout << j.dump() << "\n";
   } else {
     std::printf("overlay: camera %s (%dx%d, f %.1f px), mode %s, %s back end\n", camera.name.c_str(),

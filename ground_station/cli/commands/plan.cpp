@@ -78,7 +78,7 @@ int run(const Args& a) {
   const ObjectModel object = ObjectModel::from_file(a.object);
   const Eigen::VectorXd q0 =
       !a.from.empty() ? parse_joints(a.from, "--from", robot) : parse_joints(a.from_deg, "--from-deg", robot, true);
-  const Pose base_T_object = read_object_pose_json(a.object_pose);
+  const Pose base_T_object = localization::read_object_pose_json(a.object_pose);
   const auto goals = parse_goals(a.to, object, base_T_object, q0);
 
   Plan plan;

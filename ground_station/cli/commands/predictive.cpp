@@ -49,7 +49,7 @@ int run_predictive(const PredictiveArgs& a) {
   ArmGeometry arm(renderer, model);
   preview::OverlayExtras extras;
   if (!a.object_pose.empty()) {
-    extras.base_T_object = read_object_pose_json(a.object_pose);
+    extras.base_T_object = localization::read_object_pose_json(a.object_pose);
     extras.object_body = add_object_body(renderer, ObjectModel::from_file(a.object));
   }
   preview::PredictiveOptions o;

@@ -47,7 +47,7 @@ nlohmann::json link_json(int k, const std::string& name, const Pose& T) {
           {"name", name},
           {"xyz_m", vec_json(T.translation())},
           {"rpy_deg", vec_json(rpy)},
-          {"base_T_link", pose_json(T)}};
+          {"base_T_link", localization::pose_json(T)}};
 }
 
 void print_pose_row(int k, const std::string& name, const Pose& T) {

@@ -41,7 +41,7 @@ int run_synth(const SynthArgs& args) {
                                 {"camera", camera.name},
                                 {"gl", to_string(f.backend)},
                                 {"joints_rad", vec_json(f.q)},
-                                {"base_T_camera", pose_json(camera.base_T_camera)},
+                                {"base_T_camera", localization::pose_json(camera.base_T_camera)},
                                 {"f_px", camera.f_px},
                                 {"arm_pixels", f.arm_pixels},
                                 {"object_pixels", f.object_pixels}}

@@ -40,7 +40,7 @@ int run(const Args& args) {
                                 {"seed", a.seed},
                                 {"views", views},
                                 {"arm_poses_rad", arm},
-                                {"true_base_T_object", pose_json(true_pose)}}
+                                {"true_base_T_object", localization::pose_json(true_pose)}}
                      .dump(2)
               << "\n";
     return kExitOk;

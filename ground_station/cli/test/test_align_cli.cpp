@@ -282,7 +282,7 @@ TEST(AlignCli, ArmLinkLengthsFromFramesOfSeveralCamerasAndPoses) {
   align::save_arm_links(truth_arm, truth, "config/robot.urdf", "2026-12-03T00:00:00Z");
   auto start = f.truth;
   std::string args;
-  const auto poses = arm_calibration_poses(f.model);
+  const auto poses = localization::arm_calibration_poses(f.model);
   int n = 0;
   for (const std::string name : {"side", "oblique", "overhead_zoom"}) {
     camera::Camera& c = start.at(name).camera;

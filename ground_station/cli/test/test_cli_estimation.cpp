@@ -185,14 +185,14 @@ TEST(CliCalibrate, ArmAsFixtureRows) {
   const auto jl = nlohmann::json::parse(rl.out);
   EXPECT_EQ(jl["arm_link_sigma_m"].get<double>(), 0.002);
   EXPECT_EQ(jl["held_camera_uncertainty"], nlohmann::json::array({"side"}));
-  LocalizationOptions lo;
+  localization::LocalizationOptions lo;
   const Eigen::Matrix3d R = lib.camera.base_T_camera.linear();
   lo.camera_covariance["side"] = calibration::camera_covariance_body_from_rpy(lib.covariance - lib.arm_model_covariance, R);
   lo.camera_link_sensitivity["side"] = lib.link_sensitivity;
   lo.arm_link_sigma_m = 0.002;
   const std::map<std::string, camera::Camera> cams = {{"side", lib.camera}};
   const auto oru_clicks = calibration::read_correspondences_csv(oru_pts);
-  const LocalizationResult with = localize_object(oru_clicks, cams, lo), exact = localize_object(oru_clicks, cams);
+  const localization::LocalizationResult with = localization::localize_object(oru_clicks, cams, lo), exact = localization::localize_object(oru_clicks, cams);
   for (int i = 0; i < 3; ++i) {
     const double sp = jl["sigma"]["position_m"][i];
     EXPECT_NEAR(sp, with.sigma_position_m[i], 1e-4 * sp) << i;
@@ -442,14 +442,14 @@ TEST(CliLocalize, CalibrateThenLocalizeWithCameraUncertainty) {
   EXPECT_EQ(jj["held_camera_uncertainty"], nlohmann::json::array());
   EXPECT_EQ(jp["arm_link_sigma_m"].get<double>(), 0.0);
   std::map<std::string, camera::Camera> calibrated;
-  LocalizationOptions held;
+  localization::LocalizationOptions held;
   for (const auto& [name, rec] : camera::load_cameras(cam_file)) {
     calibrated[name] = rec.camera;
     if (rec.calibration)
       held.camera_covariance[name] = calibration::camera_covariance_body_from_rpy(rec.calibration->covariance, rec.camera.base_T_camera.linear());
   }
   const auto clicks = calibration::read_correspondences_csv(pts);
-  const LocalizationResult exact = localize_object(clicks, calibrated), lib = localize_object(clicks, calibrated, held);
+  const localization::LocalizationResult exact = localization::localize_object(clicks, calibrated), lib = localization::localize_object(clicks, calibrated, held);
   for (int i = 0; i < 3; ++i) {
     const double sj = jj["sigma"]["position_m"][i], sp = jp["sigma"]["position_m"][i];
     EXPECT_NEAR(jp["position_m"][i].get<double>(), exact.position_m()[i], 1e-9) << i;

@@ -14,7 +14,7 @@
 #include "foresight/localization/localize.hpp"
 #include "foresight/localization/peers.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
   Eigen::Matrix<double, 6, 1> e;
@@ -348,4 +348,4 @@ StudyResult run_accuracy_study(const StudySetup& setup, const StudyOptions& opt)
   return res;
 }
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -15,7 +15,7 @@
 #include "foresight/calibration/outlier_flagging.hpp"
 #include "foresight/camera/projection.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 namespace {
 
@@ -583,4 +583,4 @@ LocalizationResult localize_object(const std::vector<calibration::Correspondence
   return res;
 }
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -5,7 +5,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
-namespace foresight {
+namespace foresight::localization {
 
 std::optional<Pose> solve_pnp_opencv(const std::vector<calibration::Correspondence>& points, const camera::Camera& camera,
                                      PnpMethod method) {
@@ -101,4 +101,4 @@ std::optional<Pose> triangulate_and_align(const std::vector<calibration::Corresp
   return T;
 }
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -8,7 +8,7 @@
 #include "foresight/common/error.hpp"
 #include "foresight/common/text_file.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 nlohmann::json pose_json(const Pose& T) {
   nlohmann::json rows = nlohmann::json::array();
@@ -89,4 +89,4 @@ ObjectPoseFile read_object_pose_file(const std::string& path) {
   return f;
 }
 
-}  // namespace foresight
+}  // namespace foresight::localization

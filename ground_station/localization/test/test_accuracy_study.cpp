@@ -21,16 +21,16 @@ std::vector<Eigen::Vector3d> workspace_points() {
   return pts;
 }
 
-StudySetup project_setup() {
+localization::StudySetup project_setup() {
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  return make_study_setup(scene, oru, workspace_points());
+  return localization::make_study_setup(scene, oru, workspace_points());
 }
 
 }  // namespace
 
 TEST(AccuracyStudy, SceneViewsSeeEnoughPoints) {
-  const StudySetup s = project_setup();
+  const localization::StudySetup s = project_setup();
   ASSERT_EQ(s.views.size(), 4u);
   for (const auto& v : s.views) {
     EXPECT_GE(v.calibration_points_base.size(), 15u) << v.truth.name;
@@ -39,21 +39,21 @@ TEST(AccuracyStudy, SceneViewsSeeEnoughPoints) {
 }
 
 TEST(AccuracyStudy, CramerRaoBoundIsConsistent) {
-  const StudySetup s = project_setup();
+  const localization::StudySetup s = project_setup();
   Eigen::Matrix<double, 6, 6> joint, known, joint2, known2;
-  cramer_rao_bound(s, {0, 1, 2, 3}, 1.0, joint, known);
+  localization::cramer_rao_bound(s, {0, 1, 2, 3}, 1.0, joint, known);
   // Knowing the cameras can only help; the bound scales with the noise.
   for (int i = 0; i < 6; ++i) EXPECT_LE(known(i, i), joint(i, i) * (1 + 1e-9));
-  cramer_rao_bound(s, {0, 1, 2, 3}, 2.0, joint2, known2);
+  localization::cramer_rao_bound(s, {0, 1, 2, 3}, 2.0, joint2, known2);
   EXPECT_NEAR((joint2 - 4.0 * joint).norm() / joint.norm(), 0.0, 1e-6);
   // More views never hurt.
   Eigen::Matrix<double, 6, 6> j1, k1;
-  cramer_rao_bound(s, {0}, 1.0, j1, k1);
+  localization::cramer_rao_bound(s, {0}, 1.0, j1, k1);
   EXPECT_LT(joint.trace(), j1.trace());
 }
 
 TEST(AccuracyStudy, PeersExactOnExactData) {
-  const StudySetup s = project_setup();
+  const localization::StudySetup s = project_setup();
   std::map<std::string, camera::Camera> cams;
   std::vector<calibration::Correspondence> all;
   for (const auto& v : s.views) {
@@ -68,20 +68,20 @@ TEST(AccuracyStudy, PeersExactOnExactData) {
       pts.push_back(c);
       all.push_back(c);
     }
-    for (const PnpMethod m : {PnpMethod::Iterative, PnpMethod::Sqpnp}) {
-      const auto T = solve_pnp_opencv(pts, v.truth, m);
+    for (const localization::PnpMethod m : {localization::PnpMethod::Iterative, localization::PnpMethod::Sqpnp}) {
+      const auto T = localization::solve_pnp_opencv(pts, v.truth, m);
       ASSERT_TRUE(T.has_value());
       EXPECT_LT((T->matrix() - s.base_T_object.matrix()).norm(), 1e-6) << v.truth.name << " " << static_cast<int>(m);
     }
   }
-  const auto T = triangulate_and_align(all, cams);
+  const auto T = localization::triangulate_and_align(all, cams);
   ASSERT_TRUE(T.has_value());
   EXPECT_LT((T->matrix() - s.base_T_object.matrix()).norm(), 1e-6);
 }
 
 TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
-  const StudySetup s = project_setup();
-  StudyOptions opt;
+  const localization::StudySetup s = project_setup();
+  localization::StudyOptions opt;
   opt.trials = 150;
   opt.noise_px = 1.0;
   int calls = 0;
@@ -89,7 +89,7 @@ TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
     ++calls;
     EXPECT_LE(done, total);
   };
-  const StudyResult r = run_accuracy_study(s, opt);
+  const localization::StudyResult r = localization::run_accuracy_study(s, opt);
   EXPECT_EQ(calls, 150);
   ASSERT_EQ(r.combos.size(), 15u);
   EXPECT_EQ(r.combos[0].label, "1");
@@ -114,7 +114,7 @@ TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
       EXPECT_GT(c.triangulation.n, 0) << c.label;
     }
   }
-  const ComboStats& all = r.combos.back();
+  const localization::ComboStats& all = r.combos.back();
   EXPECT_LT(all.ours.position_rmse_m, 1.25 * all.crlb_position_m);
   EXPECT_LT(all.ours.rotation_rmse_rad, 1.25 * all.crlb_rotation_rad);
 }
@@ -122,11 +122,11 @@ TEST(AccuracyStudy, MonteCarloNearTheBoundAndPeersAgree) {
 namespace {
 
 /// The CLI's set-up: the URDF arm at four poses as the calibration fixture.
-StudySetup arm_setup(const RobotModel& robot) {
+localization::StudySetup arm_setup(const RobotModel& robot) {
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
-  StudySetup s = make_study_setup(scene, oru, {});
-  choose_calibration_points(s, arm_calibration_poses(robot));
+  localization::StudySetup s = localization::make_study_setup(scene, oru, {});
+  localization::choose_calibration_points(s, localization::arm_calibration_poses(robot));
   return s;
 }
 
@@ -134,14 +134,14 @@ StudySetup arm_setup(const RobotModel& robot) {
 
 TEST(AccuracyStudy, OnTheUrdfArmBothMethodsNearTheBound) {
   const RobotModel robot = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  const StudySetup s = arm_setup(robot);
+  const localization::StudySetup s = arm_setup(robot);
   for (const auto& v : s.views) {
     EXPECT_GE(v.calibration_points_base.size(), 6u) << v.truth.name;
     EXPECT_EQ(v.calibration_features.size(), v.calibration_points_base.size()) << v.truth.name;
   }
-  StudyOptions opt;
+  localization::StudyOptions opt;
   opt.trials = 150;
-  const StudyResult r = run_accuracy_study(s, opt);
+  const localization::StudyResult r = localization::run_accuracy_study(s, opt);
   EXPECT_EQ(r.calibration_failures, 0);
   for (const auto& c : r.combos) {
     EXPECT_EQ(c.failures, 0) << c.label;
@@ -165,35 +165,35 @@ TEST(AccuracyStudy, OnTheUrdfArmBothMethodsNearTheBound) {
 
 TEST(AccuracyStudy, ArmModelErrorCostsAccuracyOnTheSameClicks) {
   const RobotModel robot = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
-  const StudySetup s = arm_setup(robot);
-  StudyOptions opt;
+  const localization::StudySetup s = arm_setup(robot);
+  localization::StudyOptions opt;
   opt.trials = 60;
   opt.seed = 5;
-  const StudyResult exact = run_accuracy_study(s, opt);
+  const localization::StudyResult exact = localization::run_accuracy_study(s, opt);
   opt.robot = &robot;
   opt.arm_link_error_m = 0.002;
-  const StudyResult wrong = run_accuracy_study(s, opt);
+  const localization::StudyResult wrong = localization::run_accuracy_study(s, opt);
   EXPECT_EQ(wrong.arm_link_error_m, 0.002);
-  const ComboStats& a = exact.combos.back();
-  const ComboStats& b = wrong.combos.back();
+  const localization::ComboStats& a = exact.combos.back();
+  const localization::ComboStats& b = wrong.combos.back();
   std::printf("four views: exact arm %.3f mm, 2 mm link-length error %.3f mm (bound %.3f mm)\n",
               1e3 * a.ours.position_rmse_m, 1e3 * b.ours.position_rmse_m, 1e3 * a.crlb_position_m);
   EXPECT_GT(b.ours.position_rmse_m, 1.05 * a.ours.position_rmse_m);
   EXPECT_GT(b.ours.position_rmse_m, 1.1 * b.crlb_position_m);  // beyond the click-noise bound
   EXPECT_LT(b.ours.position_rmse_m, 0.05);                      // but not lost
 
-  StudyOptions no_robot;
+  localization::StudyOptions no_robot;
   no_robot.trials = 1;
   no_robot.arm_link_error_m = 0.002;
   try {
-    run_accuracy_study(s, no_robot);
+    localization::run_accuracy_study(s, no_robot);
     ADD_FAILURE() << "no error";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "accuracy study: an arm-model error needs the robot model");
   }
   no_robot.robot = &robot;
   try {
-    run_accuracy_study(project_setup(), no_robot);  // random points: no arm features
+    localization::run_accuracy_study(project_setup(), no_robot);  // random points: no arm features
     ADD_FAILURE() << "no error";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "accuracy study: an arm-model error needs the arm's calibration features (view 'side' has "
@@ -202,8 +202,8 @@ TEST(AccuracyStudy, ArmModelErrorCostsAccuracyOnTheSameClicks) {
 }
 
 TEST(AccuracyStudy, SeedsGiveTheMonteCarloSpread) {
-  const StudySetup s = project_setup();
-  StudyOptions opt;
+  const localization::StudySetup s = project_setup();
+  localization::StudyOptions opt;
   opt.trials = 20;
   opt.seed = 7;
   int last = 0;
@@ -212,18 +212,18 @@ TEST(AccuracyStudy, SeedsGiveTheMonteCarloSpread) {
     EXPECT_EQ(done, last + 1);
     last = done;
   };
-  const std::vector<StudyResult> runs = run_accuracy_study_seeds(s, opt, 3);
+  const std::vector<localization::StudyResult> runs = localization::run_accuracy_study_seeds(s, opt, 3);
   ASSERT_EQ(runs.size(), 3u);
   EXPECT_EQ(last, 60);
   std::vector<double> four;
   for (const auto& r : runs) four.push_back(r.combos.back().ours.position_rmse_m);
   EXPECT_NE(four[0], four[1]);  // different seeds, different clicks
-  const Spread sp = spread_of(four);
+  const localization::Spread sp = localization::spread_of(four);
   EXPECT_EQ(sp.n, 3);
   EXPECT_NEAR(sp.mean, (four[0] + four[1] + four[2]) / 3.0, 1e-15);
   EXPECT_GT(sp.sd, 0.0);
-  const Spread known = spread_of({1.0, 2.0, 3.0});
+  const localization::Spread known = localization::spread_of({1.0, 2.0, 3.0});
   EXPECT_DOUBLE_EQ(known.mean, 2.0);
   EXPECT_DOUBLE_EQ(known.sd, 1.0);
-  EXPECT_THROW(run_accuracy_study_seeds(s, opt, 0), InputError);
+  EXPECT_THROW(localization::run_accuracy_study_seeds(s, opt, 0), InputError);
 }

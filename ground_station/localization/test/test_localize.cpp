@@ -67,10 +67,10 @@ Eigen::Matrix<double, 6, 1> pose_error(const Pose& est, const Pose& truth) {
 
 std::string error_of(const std::vector<calibration::Correspondence>& pts, const std::map<std::string, camera::Camera>& cams,
                      const std::vector<std::string>& views = {}) {
-  LocalizationOptions opt;
+  localization::LocalizationOptions opt;
   opt.views = views;
   try {
-    localize_object(pts, cams, opt);
+    localization::localize_object(pts, cams, opt);
   } catch (const Error& e) {  // EstimationInputError or EstimationError
     return e.what();
   }
@@ -85,13 +85,13 @@ TEST(Localize, NoiseFreeRecoversPoseFromOneToFourViews) {
     const int views = 1 + trial % 4;
     const bool planar = trial % 3 == 2;
     const Scenario s = make_setup(rng, views, 8, planar);
-    const LocalizationResult r = localize_object(s.exact, s.cameras);
+    const localization::LocalizationResult r = localization::localize_object(s.exact, s.cameras);
     const auto d = pose_error(r.base_T_object, s.base_T_object);
     EXPECT_LT(d.cwiseAbs().maxCoeff(), 1e-6) << "trial " << trial << " views " << views << " planar " << planar;
     EXPECT_LT(r.rms_px, 1e-6);
     EXPECT_EQ(static_cast<int>(r.views.size()), views);
     // The linear stage (eq. 7-8) alone is exact on exact data.
-    const auto dl = pose_error(localize_object_linear(s.exact, s.cameras), s.base_T_object);
+    const auto dl = pose_error(localization::localize_object_linear(s.exact, s.cameras), s.base_T_object);
     EXPECT_LT(dl.cwiseAbs().maxCoeff(), 1e-6) << "linear, trial " << trial;
   }
 }
@@ -104,9 +104,9 @@ TEST(Localize, NoisyWithinThreeSigmaAndSigmaMatchesSpread) {
     Eigen::Matrix<double, 6, 1> sum_sq = Eigen::Matrix<double, 6, 1>::Zero(), sum_sigma = sum_sq;
     int within = 0;
     for (int t = 0; t < trials; ++t) {
-      LocalizationOptions opt;
+      localization::LocalizationOptions opt;
       opt.outliers.enabled = false;
-      const LocalizationResult r = localize_object(noisy(rng, s.exact, 1.0), s.cameras, opt);
+      const localization::LocalizationResult r = localization::localize_object(noisy(rng, s.exact, 1.0), s.cameras, opt);
       const auto d = pose_error(r.base_T_object, s.base_T_object);
       Eigen::Matrix<double, 6, 1> sd;
       sd << r.sigma_rpy_rad, r.sigma_position_m;
@@ -130,13 +130,13 @@ TEST(Localize, PlantedOutliersFlaggedAndFitUnharmed) {
     if (i != 3 && i != 14) clean.push_back(pts[i]);
   pts[3].uv_px += Eigen::Vector2d(30.0, 0.0);
   pts[14].uv_px += Eigen::Vector2d(-12.0, 15.0);
-  const LocalizationResult r = localize_object(pts, s.cameras);
+  const localization::LocalizationResult r = localization::localize_object(pts, s.cameras);
   EXPECT_EQ(r.outliers, (std::vector<int>{pts[3].n, pts[14].n}));
   EXPECT_TRUE(r.residuals[3].outlier && r.residuals[14].outlier);
   EXPECT_GT(r.residuals[3].px, 25.0);
-  LocalizationOptions off;
+  localization::LocalizationOptions off;
   off.outliers.enabled = false;
-  const LocalizationResult ref = localize_object(clean, s.cameras, off);
+  const localization::LocalizationResult ref = localization::localize_object(clean, s.cameras, off);
   const auto d = pose_error(r.base_T_object, ref.base_T_object);
   EXPECT_LT(d.head<3>().cwiseAbs().maxCoeff(), 1e-3 * ref.sigma_rpy_rad.minCoeff());
   EXPECT_LT(d.tail<3>().cwiseAbs().maxCoeff(), 1e-3 * ref.sigma_position_m.minCoeff());
@@ -145,9 +145,9 @@ TEST(Localize, PlantedOutliersFlaggedAndFitUnharmed) {
 TEST(Localize, ViewSelection) {
   std::mt19937 rng(9);
   const Scenario s = make_setup(rng, 3, 8);
-  LocalizationOptions opt;
+  localization::LocalizationOptions opt;
   opt.views = {"cam3", "cam1"};
-  const LocalizationResult r = localize_object(s.exact, s.cameras, opt);
+  const localization::LocalizationResult r = localization::localize_object(s.exact, s.cameras, opt);
   EXPECT_EQ(r.views, (std::vector<std::string>{"cam1", "cam3"}));
   EXPECT_EQ(r.n_points, 16);
   EXPECT_LT(pose_error(r.base_T_object, s.base_T_object).cwiseAbs().maxCoeff(), 1e-6);
@@ -217,10 +217,10 @@ TEST(Localize, JointRefinementWithCameraPriors) {
   }
   // Noise-free: exact, with or without priors.
   {
-    LocalizationOptions opt;
+    localization::LocalizationOptions opt;
     for (const auto& [name, pts] : cal_exact)
       opt.camera_information[name] = calibration::calibrate_camera(pts, s.cameras.at(name).viewport, name).information;
-    const LocalizationResult r = localize_object(s.exact, s.cameras, opt);
+    const localization::LocalizationResult r = localization::localize_object(s.exact, s.cameras, opt);
     EXPECT_TRUE(r.camera_uncertainty);
     EXPECT_EQ(r.refined_cameras.size(), 3u);
     EXPECT_LT(pose_error(r.base_T_object, s.base_T_object).cwiseAbs().maxCoeff(), 1e-6);
@@ -229,7 +229,7 @@ TEST(Localize, JointRefinementWithCameraPriors) {
   Eigen::Matrix<double, 6, 1> sq_joint = Eigen::Matrix<double, 6, 1>::Zero(), sig_joint = sq_joint, sig_plain = sq_joint;
   for (int t = 0; t < trials; ++t) {
     std::map<std::string, camera::Camera> cams;
-    LocalizationOptions joint, plain;
+    localization::LocalizationOptions joint, plain;
     joint.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
       calibration::CalibrationOptions co;
@@ -239,8 +239,8 @@ TEST(Localize, JointRefinementWithCameraPriors) {
       joint.camera_information[name] = c.information;
     }
     const auto clicks = noisy(rng, s.exact, 1.0);
-    const LocalizationResult rj = localize_object(clicks, cams, joint);
-    const LocalizationResult rp = localize_object(clicks, cams, plain);
+    const localization::LocalizationResult rj = localization::localize_object(clicks, cams, joint);
+    const localization::LocalizationResult rp = localization::localize_object(clicks, cams, plain);
     sq_joint += pose_error(rj.base_T_object, s.base_T_object).cwiseAbs2();
     Eigen::Matrix<double, 6, 1> a, b;
     a << rj.sigma_rpy_rad, rj.sigma_position_m;
@@ -272,7 +272,7 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
   Eigen::Matrix<double, 6, 1> sq = Eigen::Matrix<double, 6, 1>::Zero(), sig = sq, sig_plain = sq;
   for (int t = 0; t < trials; ++t) {
     std::map<std::string, camera::Camera> cams;
-    LocalizationOptions held, plain;
+    localization::LocalizationOptions held, plain;
     held.outliers.enabled = plain.outliers.enabled = false;
     for (const auto& [name, pts] : cal_exact) {
       calibration::CalibrationOptions co;
@@ -282,8 +282,8 @@ TEST(Localize, HeldCamerasUncertaintyEntersTheTwoStepCovariance) {
       held.camera_covariance[name] = calibration::camera_covariance_body_from_rpy(c.covariance, c.camera.base_T_camera.linear());
     }
     const auto clicks = noisy(rng, s.exact, 1.0);
-    const LocalizationResult rh = localize_object(clicks, cams, held);
-    const LocalizationResult rp = localize_object(clicks, cams, plain);
+    const localization::LocalizationResult rh = localization::localize_object(clicks, cams, held);
+    const localization::LocalizationResult rp = localization::localize_object(clicks, cams, plain);
     ASSERT_TRUE(rh.base_T_object.isApprox(rp.base_T_object, 0.0));
     ASSERT_FALSE(rh.camera_uncertainty);
     ASSERT_TRUE(rp.held_cameras_covariance.isZero(0.0));
@@ -362,7 +362,7 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
     const RobotModel true_arm = arm.with_link_lengths_changed(delta);
     KinematicsWorkspace tws(true_arm);
     std::map<std::string, camera::Camera> cams;
-    LocalizationOptions alone, both;
+    localization::LocalizationOptions alone, both;
     alone.views = {"side"};
     alone.outliers.enabled = both.outliers.enabled = false;
     alone.arm_link_sigma_m = both.arm_link_sigma_m = co.arm_link_sigma_m;
@@ -392,12 +392,12 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
         oru.push_back(c);
       }
     }
-    const LocalizationOptions* with[2] = {&alone, &both};
+    const localization::LocalizationOptions* with[2] = {&alone, &both};
     for (int c = 0; c < 2; ++c) {
-      LocalizationOptions without = *with[c];
+      localization::LocalizationOptions without = *with[c];
       without.arm_link_sigma_m = 0.0;
-      const LocalizationResult r = localize_object(oru, cams, *with[c]);
-      const LocalizationResult r0 = localize_object(oru, cams, without);
+      const localization::LocalizationResult r = localization::localize_object(oru, cams, *with[c]);
+      const localization::LocalizationResult r0 = localization::localize_object(oru, cams, without);
       ASSERT_TRUE(r.base_T_object.isApprox(r0.base_T_object, 0.0));
       ASSERT_TRUE(r0.arm_model_covariance.isZero(0.0));
       const Eigen::Matrix<double, 6, 1> e = pose_error(r.base_T_object, base_T_oru);
@@ -437,15 +437,15 @@ TEST(LocalizeArmModel, TheOrusSpreadOverArmsIsWhatTheArmsTermClaims) {
 TEST(LocalizeBadInput, ArmModelOptionsAreChecked) {
   std::mt19937 rng(10);
   const Scenario s = make_setup(rng, 2, 8);
-  auto message = [&](const LocalizationOptions& opt) -> std::string {
+  auto message = [&](const localization::LocalizationOptions& opt) -> std::string {
     try {
-      localize_object(s.exact, s.cameras, opt);
+      localization::localize_object(s.exact, s.cameras, opt);
     } catch (const calibration::EstimationInputError& e) {
       return e.what();
     }
     return "(no error)";
   };
-  LocalizationOptions opt;
+  localization::LocalizationOptions opt;
   opt.arm_link_sigma_m = -0.002;
   EXPECT_EQ(message(opt), "arm link sigma must be a non-negative number of metres, got -0.002000");
   opt.arm_link_sigma_m = std::nan("");
@@ -470,5 +470,5 @@ TEST(LocalizeBadInput, ArmModelOptionsAreChecked) {
   opt.camera_link_sensitivity["cam1"] = Eigen::MatrixXd::Zero(7, 10);
   // Zero sensitivities: a valid request that adds nothing.
   opt.camera_link_sensitivity["cam2"] = Eigen::MatrixXd::Zero(7, 10);
-  EXPECT_TRUE(localize_object(s.exact, s.cameras, opt).arm_model_covariance.isZero(0.0));
+  EXPECT_TRUE(localization::localize_object(s.exact, s.cameras, opt).arm_model_covariance.isZero(0.0));
 }

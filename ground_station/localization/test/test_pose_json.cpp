@@ -18,7 +18,7 @@ namespace {
 
 std::string error_of(const std::string& text) {
   try {
-    parse_object_pose_json(text, "loc.json");
+    localization::parse_object_pose_json(text, "loc.json");
   } catch (const InputError& e) {
     return e.what();
   }
@@ -33,7 +33,7 @@ std::string with_pose(const std::string& rows) { return "{\"base_T_object\": " +
 
 TEST(PoseJson, WriterGivesFourRowsOfFourNumbers) {
   const Pose T = make_pose(Eigen::Vector3d(1.0, -2.0, 0.25), Eigen::Vector3d(0.0, 0.0, M_PI / 2));
-  const nlohmann::json j = object_pose_json(T);
+  const nlohmann::json j = localization::object_pose_json(T);
   ASSERT_TRUE(j.contains("base_T_object"));
   const nlohmann::json& m = j["base_T_object"];
   ASSERT_EQ(m.size(), 4u);
@@ -53,10 +53,10 @@ TEST(PoseJson, RoundTripThroughAFileIsExact) {
   std::uniform_real_distribution<double> a(-M_PI, M_PI), u(-3.0, 3.0);
   for (int k = 0; k < 50; ++k) {
     const Pose T = make_pose(Eigen::Vector3d(u(rng), u(rng), u(rng)), Eigen::Vector3d(a(rng), a(rng) / 2, a(rng)));
-    nlohmann::json j = object_pose_json(T);
+    nlohmann::json j = localization::object_pose_json(T);
     j["rms_px"] = 0.4;  // a localize result carries other keys beside the pose
     const std::string path = foresight::test::write_temp_file(j.dump(2), ".json");
-    const Pose back = read_object_pose_json(path);
+    const Pose back = localization::read_object_pose_json(path);
     std::remove(path.c_str());
     EXPECT_EQ((back.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 0.0) << k;  // 17 digits: exact
   }
@@ -89,7 +89,7 @@ TEST(PoseJson, BadInputNamesTheFileAndTheKey) {
 TEST(PoseJson, MissingFileIsInputErrorNamingIt) {
   const std::string path = foresight::test::temp_path(".json");
   try {
-    read_object_pose_json(path);
+    localization::read_object_pose_json(path);
     FAIL() << "no error";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), path + ": cannot open object pose file");

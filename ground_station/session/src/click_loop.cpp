@@ -204,7 +204,7 @@ class ClickLoop {
       } else {
         if (cameras_.empty()) throw InputError("the ORU fit needs the calibrated cameras (--cameras)");
         const auto all = session_->rows();
-        const LocalizationResult r = localize_object(all, cameras_);
+        const localization::LocalizationResult r = localization::localize_object(all, cameras_);
         fit_arrows_ = display::plot_points(all, r.residuals, a_.camera);
         const Eigen::Vector3d t = r.base_T_object.translation();
         char b[160];

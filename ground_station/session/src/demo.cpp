@@ -98,7 +98,7 @@ json ground_chain(const std::string& out) {
   where.cameras = out + "/cameras.yaml";
   const Localized l = localize_from_clicks(where);
   std::ofstream(out + "/localize.json") << localized_json(l).dump(2) << "\n";
-  const Pose est = read_object_pose_json(out + "/localize.json");
+  const Pose est = localization::read_object_pose_json(out + "/localize.json");
   const double dp = (est.translation() - scene.base_T_object.translation()).norm();
   const double dr =
       Eigen::AngleAxisd(est.linear().transpose() * scene.base_T_object.linear()).angle() * 180.0 / M_PI;

@@ -91,7 +91,7 @@ Inputs check_and_load(const DisplaySettings& a) {
   in.q_static = in.robot.mid_configuration();
   if (!a.joints.empty()) in.q_static = parse_joints(a.joints, "--joints", in.robot);
   if (!a.joints_deg.empty()) in.q_static = parse_joints(a.joints_deg, "--joints-deg", in.robot, true);
-  if (!a.object_pose.empty()) in.base_T_object = read_object_pose_json(a.object_pose);
+  if (!a.object_pose.empty()) in.base_T_object = localization::read_object_pose_json(a.object_pose);
   if (a.headless && in.frames == 0) {
     if (!in.trajectory) throw std::invalid_argument("--headless needs --frames N (or a --trajectory to play through)");
     in.frames = static_cast<int>(std::ceil((in.trajectory->duration_s() + a.delay_s) * a.fps)) + 1;

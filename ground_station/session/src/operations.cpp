@@ -87,7 +87,7 @@ std::ostringstream open_out(const std::string& path) {
 
 constexpr double kDeg = M_PI / 180.0;
 
-nlohmann::json stats_json(const ErrorStats& s) {
+nlohmann::json stats_json(const localization::ErrorStats& s) {
   return {{"n", s.n},
           {"mean_cm", vec_json(s.mean.head<3>() * 100.0)},
           {"mean_deg", vec_json(s.mean.tail<3>() / kDeg)},
@@ -99,7 +99,7 @@ nlohmann::json stats_json(const ErrorStats& s) {
           {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg}};
 }
 
-nlohmann::json alignment_summary_json(const ErrorStats& s) {
+nlohmann::json alignment_summary_json(const localization::ErrorStats& s) {
   return {{"n", s.n},
           {"position_rmse_m", s.position_rmse_m},
           {"rotation_rmse_deg", s.rotation_rmse_rad / kDeg},
@@ -111,24 +111,24 @@ nlohmann::json alignment_summary_json(const ErrorStats& s) {
 
 }  // namespace
 
-nlohmann::json localization_spread_json(const std::vector<StudyResult>& runs) {
+nlohmann::json localization_spread_json(const std::vector<localization::StudyResult>& runs) {
   nlohmann::json out = nlohmann::json::array();
   for (std::size_t ci = 0; ci < runs.front().combos.size(); ++ci) {
     std::vector<double> p, r, jp, jr;
     for (const auto& run : runs) {
-      const ComboStats& c = run.combos[ci];
+      const localization::ComboStats& c = run.combos[ci];
       p.push_back(c.ours.position_rmse_m * 1e3);
       r.push_back(c.ours.rotation_rmse_rad / kDeg);
       jp.push_back(c.ours_joint.position_rmse_m * 1e3);
       jr.push_back(c.ours_joint.rotation_rmse_rad / kDeg);
     }
-    const ComboStats& c0 = runs.front().combos[ci];
-    auto js = [](const Spread& s) { return nlohmann::json{{"mean", s.mean}, {"sd", s.sd}}; };
+    const localization::ComboStats& c0 = runs.front().combos[ci];
+    auto js = [](const localization::Spread& s) { return nlohmann::json{{"mean", s.mean}, {"sd", s.sd}}; };
     out.push_back({{"views", c0.label},
-                   {"position_rmse_mm", js(spread_of(p))},
-                   {"rotation_rmse_deg", js(spread_of(r))},
-                   {"joint_position_rmse_mm", js(spread_of(jp))},
-                   {"joint_rotation_rmse_deg", js(spread_of(jr))},
+                   {"position_rmse_mm", js(localization::spread_of(p))},
+                   {"rotation_rmse_deg", js(localization::spread_of(r))},
+                   {"joint_position_rmse_mm", js(localization::spread_of(jp))},
+                   {"joint_rotation_rmse_deg", js(localization::spread_of(jr))},
                    {"crlb_position_mm", c0.crlb_position_m * 1e3},
                    {"crlb_rotation_deg", c0.crlb_rotation_rad / kDeg}});
   }
@@ -150,10 +150,10 @@ LocalizationStudy study_localization(const LocalizationStudyRequest& a,
   const Scene scene = Scene::from_file(a.scene);
   const ObjectModel object = ObjectModel::from_file(a.object);
   const RobotModel robot = RobotModel::from_file(a.robot);
-  StudySetup setup = make_study_setup(scene, object, {});
-  choose_calibration_points(setup, arm_calibration_poses(robot));
+  localization::StudySetup setup = localization::make_study_setup(scene, object, {});
+  localization::choose_calibration_points(setup, localization::arm_calibration_poses(robot));
 
-  StudyOptions opt;
+  localization::StudyOptions opt;
   opt.trials = a.trials;
   opt.noise_px = a.noise_px;
   opt.seed = a.seed;
@@ -167,22 +167,22 @@ LocalizationStudy study_localization(const LocalizationStudyRequest& a,
     };
   const auto t0 = std::chrono::steady_clock::now();
   LocalizationStudy out;
-  std::vector<StudyResult>& runs = out.runs;
-  std::vector<StudyResult>& arm_runs = out.arm_runs;
+  std::vector<localization::StudyResult>& runs = out.runs;
+  std::vector<localization::StudyResult>& arm_runs = out.arm_runs;
   for (int k = 0; k < a.seeds; ++k, ++study) {
-    StudyOptions o = opt;
+    localization::StudyOptions o = opt;
     o.seed = a.seed + static_cast<unsigned>(k);
-    runs.push_back(run_accuracy_study(setup, o));
+    runs.push_back(localization::run_accuracy_study(setup, o));
   }
   if (arm_error)
     for (int k = 0; k < a.seeds; ++k, ++study) {
-      StudyOptions o = opt;
+      localization::StudyOptions o = opt;
       o.seed = a.seed + static_cast<unsigned>(k);
       o.arm_link_error_m = a.arm_error_mm * 1e-3;
-      arm_runs.push_back(run_accuracy_study(setup, o));
+      arm_runs.push_back(localization::run_accuracy_study(setup, o));
     }
   for (const auto* set : {&runs, &arm_runs})
-    for (const StudyResult& run : *set)
+    for (const localization::StudyResult& run : *set)
       if (run.calibration_failures >= run.trials)  // tables of zeros would look like perfect accuracy
         throw ComputationError("every one of the " + std::to_string(run.trials) +
                                " trials failed its calibration: no accuracy to report; is --noise-px " +
@@ -192,12 +192,12 @@ LocalizationStudy study_localization(const LocalizationStudyRequest& a,
 }
 
 nlohmann::json localization_study_json(const LocalizationStudyRequest& a, const LocalizationStudy& study) {
-  const std::vector<StudyResult>& runs = study.runs;
-  const std::vector<StudyResult>& arm_runs = study.arm_runs;
+  const std::vector<localization::StudyResult>& runs = study.runs;
+  const std::vector<localization::StudyResult>& arm_runs = study.arm_runs;
   const bool arm_error = a.arm_error_mm > 0.0;
   const double elapsed_s = study.elapsed_s;
-  const StudyResult& r = runs.front();
-  const ComboStats& all = r.combos.back();
+  const localization::StudyResult& r = runs.front();
+  const localization::ComboStats& all = r.combos.back();
   const double pos_ratio = all.ours.position_rmse_m / all.crlb_position_m;
   const double rot_ratio = all.ours.rotation_rmse_rad / all.crlb_rotation_rad;
   const double jpos_ratio = all.ours_joint.position_rmse_m / all.crlb_position_m;
@@ -258,7 +258,7 @@ nlohmann::json localization_study_json(const LocalizationStudyRequest& a, const 
                               {"joint_within_10_percent", jpos_ratio <= 1.1 && jrot_ratio <= 1.1}}}};
   j["over_seeds"] = localization_spread_json(runs);
   if (arm_error) {
-    const ComboStats& w = arm_runs.front().combos.back();
+    const localization::ComboStats& w = arm_runs.front().combos.back();
     j["with_arm_model_error"] = {{"link_length_sd_mm", a.arm_error_mm},
                                  {"calibration_failures", arm_runs.front().calibration_failures},
                                  {"four_view",
@@ -397,8 +397,8 @@ SynthClicks synth_clicks(const SynthClicksRequest& a) {
   const Scene scene = Scene::from_file(a.scene);
   const RobotModel robot = RobotModel::from_file(a.robot);
   const ObjectModel object = ObjectModel::from_file(a.object);
-  const StudySetup setup = make_study_setup(scene, object, {});
-  const std::vector<ArmCalibrationPose> poses = arm_calibration_poses(robot);
+  const localization::StudySetup setup = localization::make_study_setup(scene, object, {});
+  const std::vector<localization::ArmCalibrationPose> poses = localization::arm_calibration_poses(robot);
 
   std::mt19937 rng(a.seed);
   std::normal_distribution<double> noise(0.0, 1.0);
@@ -419,10 +419,10 @@ SynthClicks synth_clicks(const SynthClicksRequest& a) {
     obj << "n,cam,x,y,z,u,v\n";
   }
   int n_cal = 0, n_obj = 0;
-  for (const StudyView& v : setup.views) {
+  for (const localization::StudyView& v : setup.views) {
     int cal_here = 0, obj_here = 0;
-    for (const ArmCalibrationPose& pose : poses)
-      for (const ArmFeature& f : visible_features(v.truth, pose, a.per_pose)) {
+    for (const localization::ArmCalibrationPose& pose : poses)
+      for (const localization::ArmFeature& f : localization::visible_features(v.truth, pose, a.per_pose)) {
         const Eigen::Vector2d uv = click(v.truth, f.p_base);
         ++cal_here;
         if (a.calibration_out.empty()) continue;
@@ -490,7 +490,7 @@ nlohmann::json calibrated_json(const CalibrateRequest& a, const Calibrated& c) {
                       {"fovy_deg", r.camera.fovy_rad() / kDeg},
                       {"position_m", vec_json(r.position_m())},
                       {"rpy_deg", vec_json(r.rpy_rad() / kDeg)},
-                      {"base_T_camera", pose_json(r.camera.base_T_camera)},
+                      {"base_T_camera", localization::pose_json(r.camera.base_T_camera)},
                       {"rms_px", r.rms_px},
                       {"max_px", r.max_px},
                       {"linear_rms_px", r.linear_rms_px},
@@ -527,7 +527,7 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
   out.points = calibration::read_correspondences_csv(a.points);
   const std::vector<calibration::Correspondence>& pts = out.points;
   for (const auto& [name, camera] : out.cameras) calibration::check_in_viewport(calibration::select_camera(pts, name), camera.viewport, a.points);
-  LocalizationOptions opt;
+  localization::LocalizationOptions opt;
   if (!a.views.empty()) opt.views = split_views(a.views);
   const auto in_use = [&](const std::string& name) {
     return std::any_of(pts.begin(), pts.end(), [&](const calibration::Correspondence& c) { return c.cam == name; }) &&
@@ -567,14 +567,14 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
     out.held_cameras.push_back(name);
   }
   out.arm_link_sigma_m = opt.arm_link_sigma_m;
-  out.result = localize_object(pts, out.cameras, opt);
+  out.result = localization::localize_object(pts, out.cameras, opt);
   return out;
 }
 
 nlohmann::json localized_json(const Localized& l) {
-  const LocalizationResult& r = l.result;
+  const localization::LocalizationResult& r = l.result;
   nlohmann::json tags = nlohmann::json::object();
-  for (const auto& [name, oru_T_tag] : l.object.tags) tags[name] = pose_json(r.base_T_object * oru_T_tag);
+  for (const auto& [name, oru_T_tag] : l.object.tags) tags[name] = localization::pose_json(r.base_T_object * oru_T_tag);
   nlohmann::json residuals = nlohmann::json::array();
   nlohmann::json outlier_details = nlohmann::json::array();
   for (const auto& p : r.residuals) {
@@ -600,7 +600,7 @@ nlohmann::json localized_json(const Localized& l) {
                       {"held_camera_uncertainty", l.held_cameras},
                       {"arm_link_sigma_m", l.arm_link_sigma_m},
                       {"tags", tags}};
-  j.update(object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
+  j.update(localization::object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
   return j;
 }
 
@@ -654,7 +654,7 @@ Overlaid overlay_frame(const OverlayRequest& a) {
                            : parse_joints(a.joints, "--joints", model);
   std::optional<ObjectModel> object;
   if (!a.object_pose.empty()) {
-    out.base_T_object = read_object_pose_json(a.object_pose);
+    out.base_T_object = localization::read_object_pose_json(a.object_pose);
     object = ObjectModel::from_file(a.object);
   } else if (a.tags) {
     throw std::invalid_argument("--tags needs --object-pose (the tags are frames of the object)");
@@ -748,7 +748,7 @@ AlignedViews align_views(const AlignRequest& a) {
     // The click solution's uncertainty (`localize --json` writes it beside
     // the pose): with it the aligner refuses an ORU that moved or turned
     // further from the clicks than both uncertainties allow.
-    const ObjectPoseFile pose = read_object_pose_file(a.object_pose);
+    const localization::ObjectPoseFile pose = localization::read_object_pose_file(a.object_pose);
     base_T_object = pose.base_T_object;
     object = ObjectModel::from_file(a.object);
     if (pose.covariance) options.object_start_covariance = *pose.covariance;
@@ -797,7 +797,7 @@ AlignedViews align_views(const AlignRequest& a) {
     if (!a.arm_out.empty() && !r.arm_link_sigma_m.empty())
       save_arm_links(a.arm_out, {r.arm_link_delta_m, r.arm_link_sigma_m}, a.robot, utc_now());
     if (!a.object_out.empty() && r.base_T_object) {
-      nlohmann::json j = object_pose_json(*r.base_T_object);
+      nlohmann::json j = localization::object_pose_json(*r.base_T_object);
       j["source"] = "foresight align";
       write_file_atomic(a.object_out, j.dump(2) + "\n");
     }
@@ -816,7 +816,7 @@ nlohmann::json aligned_json(const AlignRequest& a, const AlignedViews& aligned) 
     const auto& d = r.camera_change[v];
     nlohmann::json c = {{"name", r.cameras[v].name},
                         {"f_px", r.cameras[v].f_px},
-                        {"base_T_camera", pose_json(r.cameras[v].base_T_camera)},
+                        {"base_T_camera", localization::pose_json(r.cameras[v].base_T_camera)},
                         {"change",
                          {{"rotation_deg", vec_json(d.head<3>() * 180.0 / M_PI)},
                           {"position_m", vec_json(d.segment<3>(3))},
@@ -843,7 +843,7 @@ nlohmann::json aligned_json(const AlignRequest& a, const AlignedViews& aligned) 
                       {"time_ms", r.time_ms},
                       {"covariance", matrix_rows(r.covariance)}};
   if (r.base_T_object) {
-    j["base_T_object"] = pose_json(*r.base_T_object);
+    j["base_T_object"] = localization::pose_json(*r.base_T_object);
     j["object_change"] = {{"rotation_deg", vec_json(r.object_change.head<3>() * 180.0 / M_PI)},
                           {"position_m", vec_json(r.object_change.tail<3>())}};
   }
@@ -898,7 +898,7 @@ Previewed preview_trajectory(const PreviewRequest& a) {
   preview::OverlayExtras extras;
   if (!a.object_pose.empty()) {
     const ObjectModel object = ObjectModel::from_file(a.object);
-    extras.base_T_object = read_object_pose_json(a.object_pose);
+    extras.base_T_object = localization::read_object_pose_json(a.object_pose);
     extras.object_body = add_object_body(renderer, object);
     if (a.tags)
       for (const auto& [name, oru_T_tag] : object.tags) extras.base_T_tags.push_back(extras.base_T_object * oru_T_tag);

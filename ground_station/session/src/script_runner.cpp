@@ -71,7 +71,7 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     base_T_object_ = scene_.base_T_object;
     pose_source_ = s_.scene + " (the work site's true pose)";
   } else if (!s_.object_pose.empty()) {
-    base_T_object_ = read_object_pose_json(s_.object_pose);
+    base_T_object_ = localization::read_object_pose_json(s_.object_pose);
     pose_source_ = s_.object_pose;
   }
   if (link_) {
@@ -208,7 +208,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       return done(s_.chain ? "the chain ended here: every command sent ahead has ended" : "nothing sent ahead", t0);
     case Op::Object:
       if (c.has("pose")) {
-        base_T_object_ = read_object_pose_json(c.text_or("pose", ""));
+        base_T_object_ = localization::read_object_pose_json(c.text_or("pose", ""));
         pose_source_ = c.text_or("pose", "");
       }
       return done("object " + c.positional[0].text + (pose_source_.empty() ? "" : ", pose from " + pose_source_), t0);
@@ -248,7 +248,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       } catch (const std::exception& e) {
         return failed(std::string("localize: ") + e.what(), t0);
       }
-      base_T_object_ = read_object_pose_json(out);
+      base_T_object_ = localization::read_object_pose_json(out);
       pose_source_ = out;
       const Eigen::Vector3d p = base_T_object_->translation();
       char buf[160];

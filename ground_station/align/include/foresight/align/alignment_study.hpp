@@ -81,10 +81,10 @@ struct AlignmentStudyOptions {
 struct AlignmentComboStats {
   std::vector<int> views;  ///< 0-based
   std::string label;       ///< "1+2+3+4"
-  ErrorStats clicks;       ///< clicks alone (calibrate, then localize)
-  ErrorStats aligned;      ///< clicks + alignment (cameras and arm, then the ORU over the views)
-  ErrorStats aligned_held_cameras;  ///< the ORU alone, the step-5 cameras held
-  ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
+  localization::ErrorStats clicks;       ///< clicks alone (calibrate, then localize)
+  localization::ErrorStats aligned;      ///< clicks + alignment (cameras and arm, then the ORU over the views)
+  localization::ErrorStats aligned_held_cameras;  ///< the ORU alone, the step-5 cameras held
+  localization::ErrorStats aligned_cameras_only;  ///< the cameras aligned to the nominal arm (no step 5)
   int clicks_failures = 0;
   int aligned_refused = 0;  ///< trials where the ORU alignment refused (clicks pose kept)
   /// of which: the ORU moved or turned from the clicks pose beyond the

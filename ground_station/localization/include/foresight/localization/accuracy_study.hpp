@@ -26,7 +26,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 /// A point fixed on an arm link that an operator can click in a camera
 /// image: a link origin or the centre of one of its visual shapes.
@@ -195,4 +195,4 @@ std::vector<StudyResult> run_accuracy_study_seeds(const StudySetup& setup, const
 void cramer_rao_bound(const StudySetup& setup, const std::vector<int>& views, double noise_px,
                       Eigen::Matrix<double, 6, 6>& joint, Eigen::Matrix<double, 6, 6>& known_cameras);
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -25,7 +25,7 @@
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/pose.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 struct LocalizationOptions {
   int max_iterations = 100;
@@ -107,4 +107,4 @@ LocalizationResult localize_object(const std::vector<calibration::Correspondence
 Pose localize_object_linear(const std::vector<calibration::Correspondence>& points, const std::map<std::string, camera::Camera>& cameras,
                             double rank_tolerance = 1e-9);
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -13,7 +13,7 @@
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/pose.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 enum class PnpMethod { Iterative, Sqpnp };
 
@@ -32,4 +32,4 @@ Eigen::Vector3d triangulate_dlt(const std::vector<const camera::Camera*>& camera
 std::optional<Pose> triangulate_and_align(const std::vector<calibration::Correspondence>& points,
                                           const std::map<std::string, camera::Camera>& cameras);
 
-}  // namespace foresight
+}  // namespace foresight::localization

@@ -18,7 +18,7 @@
 
 #include "foresight/common/pose.hpp"
 
-namespace foresight {
+namespace foresight::localization {
 
 /// The key of the object pose in the file.
 inline constexpr const char* kObjectPoseKey = "base_T_object";
@@ -58,4 +58,4 @@ struct ObjectPoseFile {
 /// non-finite or non-number entry too).
 ObjectPoseFile read_object_pose_file(const std::string& path);
 
-}  // namespace foresight
+}  // namespace foresight::localization

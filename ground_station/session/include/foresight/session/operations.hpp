@@ -76,8 +76,8 @@ struct LocalizationStudyRequest {
 };
 
 struct LocalizationStudy {
-  std::vector<StudyResult> runs;      ///< per seed, the exact arm model
-  std::vector<StudyResult> arm_runs;  ///< per seed, with the arm-model error (empty without it)
+  std::vector<localization::StudyResult> runs;      ///< per seed, the exact arm model
+  std::vector<localization::StudyResult> arm_runs;  ///< per seed, with the arm-model error (empty without it)
   double elapsed_s = 0.0;
 };
 
@@ -89,7 +89,7 @@ LocalizationStudy study_localization(const LocalizationStudyRequest& request,
                                      const std::function<void(int done, int total)>& progress = {});
 /// Per view combination, the spread over the seeds of the RMSEs (mean, sd)
 /// beside the bound (the --json "over_seeds").
-nlohmann::json localization_spread_json(const std::vector<StudyResult>& runs);
+nlohmann::json localization_spread_json(const std::vector<localization::StudyResult>& runs);
 /// `foresight eval localization --json`'s object.
 nlohmann::json localization_study_json(const LocalizationStudyRequest& request, const LocalizationStudy& study);
 
@@ -166,7 +166,7 @@ struct Localized {
   std::vector<calibration::Correspondence> points;
   std::vector<std::string> held_cameras;  ///< cameras whose calibration covariance entered the pose's
   double arm_link_sigma_m = 0.0;          ///< the arm model's link sigma that entered it
-  LocalizationResult result;
+  localization::LocalizationResult result;
 };
 
 Localized localize_from_clicks(const LocalizeRequest& request);
