@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "foresight/common/error.hpp"
 #include "foresight/session/config_path.hpp"
 
 namespace CLI {
@@ -149,10 +150,5 @@ inline void add_render_options(Command& sub, std::string& gl, std::string& robot
   sub.add_option("--object", object, "task object model")->capture_default_str();
   sub.add_flag("--json", json, "print one JSON object");
 }
-
-/// Exit statuses shared by all commands.
-constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;   ///< the computation failed (e.g. IK did not converge)
-constexpr int kExitBadInput = 2;  ///< bad arguments or input files
 
 }  // namespace foresight::cli

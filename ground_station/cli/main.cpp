@@ -97,6 +97,8 @@ bool Command::parsed() const { return impl_->parsed(); }
 
 int main(int argc, char** argv) {
   using namespace foresight::cli;
+  using foresight::kExitBadInput;
+  using foresight::kExitFailure;
   spdlog::set_pattern("[%^%l%$] %v");
   CLI::App app{"foresight: ground operator client for the Foresight telerobotic servicing system"};
   app.require_subcommand(1);

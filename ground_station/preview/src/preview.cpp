@@ -31,19 +31,6 @@ void append_extras(const OverlayExtras& extras, render::DrawList& list) {
 
 namespace {
 
-int fourcc_for(const std::string& path) {
-  auto ends_with = [&](const char* e) {
-    const std::string s(e);
-    return path.size() >= s.size() && std::equal(s.rbegin(), s.rend(), path.rbegin(), [](char a, char b) {
-             return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
-           });
-  };
-  if (ends_with(".mp4")) return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-  if (ends_with(".avi")) return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  if (ends_with(".webm")) return cv::VideoWriter::fourcc('V', 'P', '8', '0');
-  throw InputError(path, "unsupported video extension (use .mp4, .avi or .webm)");
-}
-
 void put_label(cv::Mat& img, const std::string& text, cv::Point at, double scale = 0.5) {
   int base = 0;
   const cv::Size sz = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
@@ -60,6 +47,15 @@ std::string seconds_text(double t) {
 
 }  // namespace
 
+int video_fourcc(const std::string& path, const std::string& for_what) {
+  std::string lower = path;
+  for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower.ends_with(".mp4")) return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  if (lower.ends_with(".avi")) return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  if (lower.ends_with(".webm")) return cv::VideoWriter::fourcc('V', 'P', '8', '0');
+  throw InputError(path, "unsupported video extension" + for_what + " (use .mp4, .avi or .webm)");
+}
+
 PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& arm, const camera::Camera& camera,
                              const cv::Mat& background, const Trajectory& tr, const OverlayExtras& extras,
                              const PreviewOptions& o, const std::string& video_path, const std::string& sheet_path) {
@@ -75,7 +71,7 @@ PreviewResult render_preview(render::Renderer& renderer, render::ArmGeometry& ar
       background.type() != CV_8UC3)
     throw std::invalid_argument("background frame must be 8-bit BGR of the camera's viewport");
 
-  const int fourcc = fourcc_for(video_path);
+  const int fourcc = video_fourcc(video_path);
   cv::VideoWriter writer(video_path, fourcc, o.fps, background.size());
   if (!writer.isOpened()) throw InputError(video_path, "cannot write video");
 

@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/format.hpp"
 #include "foresight/common/scene.hpp"
 #include "foresight/localization/pose_json.hpp"
 #include "foresight/protocol/loopback.hpp"
@@ -30,9 +31,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
-
-constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
@@ -247,7 +245,7 @@ EmulatedLink start_link(const DemoOptions& o, const std::string& emu_exe, const 
       const json j = json::parse(ready);
       link.ground_ns = j["ground_netns"].get<std::string>();
       link.remote_ns = j["remote_netns"].get<std::string>();
-      link.text = "link emulator, " + fmt("%.2f", o.rtt_s) + " s round trip (" + link.ground_ns + " <-> " + link.remote_ns + ")";
+      link.text = "link emulator, " + printf_text("%.2f", o.rtt_s) + " s round trip (" + link.ground_ns + " <-> " + link.remote_ns + ")";
     } else {
       std::string why = read_log(out + "/linkemu.log");
       while (!why.empty() && why.back() == '\n') why.pop_back();
@@ -354,7 +352,7 @@ int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
   if (!wait_for_line(out + "/remote.out", "foresight-remote: ready", remote, o.ready_timeout_s, &code, nullptr, interrupted)) {
     report["error"] = interrupted() ? std::string("interrupted")
                                          : "foresight-remote did not print its ready line within " +
-                                               fmt("%.0f", o.ready_timeout_s) + " s (exit " + std::to_string(code) +
+                                               printf_text("%.0f", o.ready_timeout_s) + " s (exit " + std::to_string(code) +
                                                "; log " + out + "/remote.log)";
     rc = kExitFailure;
   } else {
@@ -403,7 +401,7 @@ int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
     if (report.contains("error")) why += (why.empty() ? "" : "; ") + report["error"].get<std::string>();
     std::cerr << "foresight demo: failed: " << why << "\n";
   }
-  say("foresight demo: " + report["result"].get<std::string>() + " in " + fmt("%.0f", since(t0)) + " s; " + out +
+  say("foresight demo: " + report["result"].get<std::string>() + " in " + printf_text("%.0f", since(t0)) + " s; " + out +
       "/report.md");
   return rc;
 }

@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "foresight/common/format.hpp"
 #include "foresight/session/processes.hpp"
 
 namespace foresight::session {
@@ -22,7 +23,6 @@ using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-std::string read_text(const std::string& path) { return read_log(path); }
 
 std::string axis_label(double v) {
   char buf[32];
@@ -100,7 +100,7 @@ double percentile(std::vector<double> v, double p) {
 /// p99}; throws when there is nothing to draw or the PNG cannot be written.
 nlohmann::json draw_delay_plot(const std::string& csv, const std::string& png) {
   std::vector<std::pair<double, double>> pts;
-  std::istringstream in(read_text(csv));
+  std::istringstream in(read_log(csv));
   std::string line;
   std::getline(in, line);  // header
   while (std::getline(in, line)) {
@@ -259,7 +259,7 @@ void draw_timeline(const json& timing, const std::string& png) {
 /// The command ids the task script sent (run.jsonl rows with a command_id).
 std::set<std::uint64_t> script_command_ids(const std::string& out) {
   std::set<std::uint64_t> ids;
-  std::istringstream in(read_text(out + "/run.jsonl"));
+  std::istringstream in(read_log(out + "/run.jsonl"));
   for (std::string line; std::getline(in, line);) {
     const json j = json::parse(line, nullptr, false);
     if (!j.is_discarded() && j.contains("command_id") && j["command_id"].is_number_unsigned())
@@ -271,7 +271,7 @@ std::set<std::uint64_t> script_command_ids(const std::string& out) {
 /// The contact sheets from the runner's journal (run.jsonl), by script line.
 std::map<int, std::string> contact_sheets(const std::string& out) {
   std::map<int, std::string> sheets;
-  std::istringstream in(read_text(out + "/run.jsonl"));
+  std::istringstream in(read_log(out + "/run.jsonl"));
   for (std::string line; std::getline(in, line);) {
     const json j = json::parse(line, nullptr, false);
     if (!j.is_discarded() && j.contains("contact_sheet") && j.contains("line"))
@@ -285,17 +285,11 @@ json last_sim_truth(const std::string& remote_exe, const std::string& db, const 
                           out + "/remote_journal.log");
   if (wait_for(pid, 60.0) != 0) return nullptr;
   json truth = nullptr;
-  const json j = json::parse(read_text(out + "/remote_journal.json"), nullptr, false);
+  const json j = json::parse(read_log(out + "/remote_journal.json"), nullptr, false);
   if (j.is_discarded() || !j.contains("events")) return nullptr;
   for (const auto& e : j["events"])
     if (e.value("kind", "") == "sim_truth") truth = e["detail"];
   return truth;
-}
-
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
 }
 
 double num(const json& j, const char* key) {
@@ -310,20 +304,20 @@ void write_markdown(const json& r, const std::string& out) {
   if (r.contains("error")) md << "Error: " << r["error"].get<std::string>() << "\n\n";
   md << "## Calibration (the arm as the fixture, 1 px clicks)\n\n| camera | rms px | position error mm |\n|---|---|---|\n";
   for (const auto& c : r.value("calibration", json::array()))
-    md << "| " << c["camera"].get<std::string>() << " | " << fmt("%.3f", c["rms_px"].get<double>()) << " | "
-       << fmt("%.1f", c["position_error_m"].get<double>() * 1e3) << " |\n";
+    md << "| " << c["camera"].get<std::string>() << " | " << printf_text("%.3f", c["rms_px"].get<double>()) << " | "
+       << printf_text("%.1f", c["position_error_m"].get<double>() * 1e3) << " |\n";
   if (r.contains("localization")) {
     const auto& l = r["localization"];
     md << "\n## Localization\n\n" << l["views"].size() << " views: "
-       << fmt("%.2f", l["position_error_m"].get<double>() * 1e3) << " mm, "
-       << fmt("%.3f", l["rotation_error_deg"].get<double>())
+       << printf_text("%.2f", l["position_error_m"].get<double>() * 1e3) << " mm, "
+       << printf_text("%.3f", l["rotation_error_deg"].get<double>())
        << " deg from the true pose (docs/estimation.md: 2.49 mm / 0.425 deg RMSE at 1 px with four views).\n\n"
        << "![overlay](overlay_oblique.png)\n";
   }
   md << "\n## The changeout script\n\n| n | command | outcome | s | preview |\n|---|---|---|---|---|\n";
   for (const auto& s : r.value("steps", json::array())) {
     md << "| " << s["n"] << " | `" << s["command"].get<std::string>() << "` | " << s["outcome"].get<std::string>()
-       << " | " << fmt("%.1f", s["seconds"].get<double>()) << " | ";
+       << " | " << printf_text("%.1f", s["seconds"].get<double>()) << " | ";
     if (s.contains("contact_sheet")) md << "[sheet](" << s["contact_sheet"].get<std::string>() << ")";
     md << " |\n";
   }
@@ -333,9 +327,9 @@ void write_markdown(const json& r, const std::string& out) {
           "command received to the last final state; waiting = span - work (the remote idle for the link or "
           "the ground).\n\n| run | commands | work s | span s | waiting s | round trip s |\n|---|---|---|---|---|---|\n";
     const auto row = [&](const json& t, const std::string& name) {
-      md << "| " << name << " | " << t.value("commands", 0) << " | " << fmt("%.1f", num(t, "work_s")) << " | "
-         << fmt("%.1f", num(t, "remote_span_s")) << " | " << fmt("%.1f", num(t, "overhead_s")) << " | "
-         << fmt("%.2f", num(t, "rtt_s")) << " |\n";
+      md << "| " << name << " | " << t.value("commands", 0) << " | " << printf_text("%.1f", num(t, "work_s")) << " | "
+         << printf_text("%.1f", num(t, "remote_span_s")) << " | " << printf_text("%.1f", num(t, "overhead_s")) << " | "
+         << printf_text("%.2f", num(t, "rtt_s")) << " |\n";
     };
     const auto name = [](const json& t) { return std::string(t.value("chain", false) ? "chained (--chain)" : "step by step"); };
     row(r["timing"], "this run: " + name(r["timing"]));
@@ -344,20 +338,20 @@ void write_markdown(const json& r, const std::string& out) {
   }
   md << "\nFinal alignment of the re-inserted ORU against its slot (the simulator's truth): ";
   if (r["final_alignment_error_m"].is_number())
-    md << fmt("%.2f", r["final_alignment_error_m"].get<double>() * 1e3) << " mm";
+    md << printf_text("%.2f", r["final_alignment_error_m"].get<double>() * 1e3) << " mm";
   else
     md << "not reported";
   md << "\n\n## Delay (round trip measured by the ground's pings)\n\n| median s | p95 s | p99 s | max s | pings |\n"
         "|---|---|---|---|---|\n";
   const auto& d = r["rtt_s"];
-  md << "| " << fmt("%.3f", num(d, "median")) << " | " << fmt("%.3f", num(d, "p95")) << " | "
-     << fmt("%.3f", num(d, "p99")) << " | " << fmt("%.3f", num(d, "max")) << " | " << fmt("%.0f", num(d, "count"))
+  md << "| " << printf_text("%.3f", num(d, "median")) << " | " << printf_text("%.3f", num(d, "p95")) << " | "
+     << printf_text("%.3f", num(d, "p99")) << " | " << printf_text("%.3f", num(d, "max")) << " | " << printf_text("%.0f", num(d, "count"))
      << " |\n";
   if (r.contains("delay_plot") && r["delay_plot"].contains("file")) {
     const auto& p = r["delay_plot"];
     md << "\n![round trip over time, median and p99](" << p["file"].get<std::string>() << ")\n\n"
        << "[delay.png](" << p["file"].get<std::string>() << "): " << p["samples"] << " round trips over the run (delay.csv); "
-       << "median " << fmt("%.3f", p["median_s"].get<double>()) << " s, p99 " << fmt("%.3f", p["p99_s"].get<double>())
+       << "median " << printf_text("%.3f", p["median_s"].get<double>()) << " s, p99 " << printf_text("%.3f", p["p99_s"].get<double>())
        << " s.\n";
   } else if (r.contains("delay_plot")) {
     md << "\nNo delay plot: " << r["delay_plot"].value("error", std::string("?")) << "\n";

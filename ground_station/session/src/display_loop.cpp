@@ -35,19 +35,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr const char* kWindow = "foresight display";
 
-int fourcc_for(const std::string& path) {
-  auto ends = [&](const std::string& e) {
-    if (path.size() < e.size()) return false;
-    std::string tail = path.substr(path.size() - e.size());
-    for (auto& c : tail) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return tail == e;
-  };
-  if (ends(".mp4")) return cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-  if (ends(".avi")) return cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  if (ends(".webm")) return cv::VideoWriter::fourcc('V', 'P', '8', '0');
-  throw InputError(path, "unsupported video extension for --record (use .mp4, .avi or .webm)");
-}
-
 /// The loop's inputs, checked and loaded (nothing opened yet).
 struct Inputs {
   std::vector<camera::Camera> cameras;
@@ -98,7 +85,7 @@ Inputs check_and_load(const DisplaySettings& a) {
   }
   if (a.headless && a.record.empty() && a.snapshot.empty())
     throw std::invalid_argument("--headless shows nothing: give --record out.mp4 (or --snapshot)");
-  in.fourcc = a.record.empty() ? 0 : fourcc_for(a.record);
+  in.fourcc = a.record.empty() ? 0 : preview::video_fourcc(a.record, " for --record");
   if (!a.headless) {
     if (const std::string why = display::x_display_problem(); !why.empty())
       throw InputError("no display available (" + why + "): run with --headless to record without a window (--record out.mp4)");

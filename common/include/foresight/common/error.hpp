@@ -23,6 +23,11 @@
 
 namespace foresight {
 
+/// The programs' exit statuses: the branch of the exception that ended them.
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;   ///< the computation failed (ComputationError; e.g. IK did not converge)
+constexpr int kExitBadInput = 2;  ///< bad arguments or input files (InputError)
+
 /// The root of every Foresight exception.
 class Error : public std::runtime_error {
  public:

@@ -26,6 +26,11 @@ namespace foresight::preview {
 /// Joint angles at time t_s (linear between samples; clamped to the ends).
 Eigen::VectorXd sample_trajectory(const Trajectory& trajectory, double t_s);
 
+/// The OpenCV VideoWriter fourcc for a video file by its extension (.mp4,
+/// .avi, .webm, any case); InputError naming the file otherwise ("unsupported
+/// video extension<for_what> (use ...)", e.g. for_what " for --record").
+int video_fourcc(const std::string& path, const std::string& for_what = {});
+
 /// What is drawn besides the arm: the task object at its pose, tag triads.
 struct OverlayExtras {
   int object_body = -1;                       ///< from render::add_object_body, -1 for none

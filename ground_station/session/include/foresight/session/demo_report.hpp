@@ -73,8 +73,6 @@ nlohmann::json last_sim_truth(const std::string& remote_exe, const std::string& 
 /// OUT/report.md from the report object.
 void write_markdown(const nlohmann::json& report, const std::string& out);
 
-/// printf of one number ("%.3f").
-std::string fmt(const char* format, double v);
 /// j[key] when it is a number, else NaN.
 double num(const nlohmann::json& j, const char* key);
 
