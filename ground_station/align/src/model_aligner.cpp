@@ -186,6 +186,19 @@ inline bool bilinear(const cv::Mat& m, double u, double v, float& out) {
   return true;
 }
 
+/// An edge point `p` (base frame) running along `dir` through `cam`: its
+/// projection and the unit normal of its image, across which the edge is
+/// searched; false when the edge is seen end-on (no direction in the image).
+bool edge_normal(const camera::Camera& cam, const Eigen::Vector3d& p, const Eigen::Vector3d& dir,
+                 camera::Projection& pr, Eigen::Vector2d& n) {
+  pr = camera::project_with_jacobians(cam, p);
+  Eigen::Vector2d d2 = pr.d_point * dir;
+  if (d2.norm() < 1e-9) return false;
+  d2.normalize();
+  n = Eigen::Vector2d(-d2.y(), d2.x());
+  return true;
+}
+
 // The nearest strong gradient maximum along n within +-R of uv; the signed
 // offset along n (sub-pixel), or false when none.
 bool search_edge(const Gradient& g, const Eigen::Vector2d& uv, const Eigen::Vector2d& n, double R, double threshold,
@@ -572,11 +585,9 @@ void predict_bias(const AlignmentModel& m, AlignmentData& d, const camera::Camer
     Sample& s = out[i];
     const Eigen::Vector3d p = s.on_object ? Eigen::Vector3d(*base_T_object * s.p_local) : s.p_local;
     const Eigen::Vector3d dir = s.on_object ? Eigen::Vector3d(base_T_object->linear() * s.dir_local) : s.dir_local;
-    const camera::Projection pr = camera::project_with_jacobians(cam, p);
-    Eigen::Vector2d d2 = pr.d_point * dir;
-    if (d2.norm() < 1e-9) continue;
-    d2.normalize();
-    const Eigen::Vector2d n(-d2.y(), d2.x());
+    camera::Projection pr;
+    Eigen::Vector2d n;
+    if (!edge_normal(cam, p, dir, pr, n)) continue;
     double t = 0.0;
     // A shading bias is 0.1-0.3 px; a larger offset is another model edge
     // close by (the tool's small parts), not this edge's bias.
@@ -801,11 +812,9 @@ void evaluate(AlignmentData& d, const AlignInput& in, const std::vector<Sample>&
       dir = T.linear() * s.dir_link;
     }
     if (cam.to_camera(p).z() <= kNear_m) continue;
-    const camera::Projection pr = camera::project_with_jacobians(cam, p);
-    Eigen::Vector2d d2 = pr.d_point * dir;
-    if (d2.norm() < 1e-9) continue;
-    d2.normalize();
-    const Eigen::Vector2d n(-d2.y(), d2.x());
+    camera::Projection pr;
+    Eigen::Vector2d n;
+    if (!edge_normal(cam, p, dir, pr, n)) continue;
     double t = 0.0;
     const Gradient& g = gradient(d, d.frame(s.view, s.frame), level_index, L.blur_px);
     if (!search_edge(g, pr.uv_px, n, L.search_px, thr, t, L.blur_px <= 1.0)) continue;
