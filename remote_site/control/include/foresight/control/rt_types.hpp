@@ -14,6 +14,7 @@
 #include <cstring>
 #include <type_traits>
 
+#include "foresight/common/insert_capture.hpp"  // InsertParams: the ground computes its capture region
 #include "foresight/common/joints.hpp"
 #include "foresight/common/pose.hpp"
 #include "foresight/control/command.hpp"
@@ -66,32 +67,6 @@ struct GuardedMoveParams {
   double force_threshold_n = 10.0;  ///< success: contact force against the motion >= this
   double max_distance_m = 0.10;     ///< failure (Unreachable): travelled this far without contact
   double timeout_s = 0.0;           ///< 0: 2 x max_distance / speed + 2 s
-};
-
-struct InsertParams {
-  double depth_m = 0.06;               ///< success: tip advanced this far along the tool z axis from the start
-  double depth_tolerance_m = 0.002;    ///< bottoming out within this of depth_m counts as success
-  double speed_m_s = 0.005;            ///< axial reference speed when free
-  double contact_force_n = 15.0;       ///< axial push while in contact (force-limited advance)
-  double max_force_n = 80.0;           ///< failure (ForceLimit): |contact force| above this
-  double lateral_stiffness_n_m = 400.0;   ///< admittance across the axis (x, y of the tool) once entered
-  double search_stiffness_n_m = 5000.0;   ///< across the axis before entering (the spiral must not lag by friction)
-  double rotational_stiffness_nm_rad = 20.0;  ///< admittance about x, y of the tool (tilt)
-  double axial_stiffness_n_m = 2000.0;    ///< admittance along the axis
-  /// Admittance damping across the axis (x, y) and about it (tilt); 0: the
-  /// controller's (AdmittanceParams: 6000 N s/m, 20 N m s/rad). The loop stays
-  /// stable against a contact up to about damping / delay times a constant
-  /// (docs/hardware.md "Frame order and loop delay"): a long guide in a tight
-  /// bore (the ORU in its slot) wants more than the tool's insertion.
-  double lateral_damping_n_s_m = 0.0;
-  double rotational_damping_nm_s_rad = 0.0;
-  double stall_time_s = 0.3;           ///< pushing with < stall_progress_m progress this long: spiral search
-  double stall_progress_m = 0.0003;
-  double entered_progress_m = 0.002;   ///< past the contact depth by this: the tip has entered, spiral ends
-  double spiral_pitch_m = 0.0008;      ///< radial growth per turn of the Archimedean spiral r = pitch * theta / 2 pi
-  double spiral_speed_m_s = 0.004;     ///< tangential speed along the spiral
-  double spiral_max_radius_m = 0.005;  ///< failure (Unreachable): searched this far without entering
-  double timeout_s = 60.0;             ///< failure (Timeout)
 };
 
 struct PullOutParams {
