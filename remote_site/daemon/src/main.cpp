@@ -5,6 +5,9 @@
 //   foresight-remote journal [--db FILE] [--since T] [--json]
 //   foresight-remote check [--config FILE] [--sim] [--json] [--security DIR]
 //                    (fitness before first motion: check.hpp; exit 1 when unfit)
+//   foresight-remote simulate-insertions --batch FILE [--json] [--config FILE]
+//                    (the insert on the simulated plant, in-process, per trial:
+//                    simulate_insertions.hpp; the ground's `eval insertion`)
 //
 // Under systemd (remote_site/deploy/systemd/foresight-remote.service,
 // Type=notify): READY=1 when the ready line is printed, STOPPING=1 at
@@ -33,6 +36,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -47,6 +51,7 @@
 #include "foresight/daemon/daemon_config.hpp"
 #include "foresight/daemon/site.hpp"
 #include "foresight/daemon/sim_faults.hpp"
+#include "foresight/daemon/simulate_insertions.hpp"
 #include "foresight/daemon/supervisor.hpp"
 #include "foresight/daemon/tool_worker.hpp"
 #include "foresight/remote_link/remote_link.hpp"
@@ -496,6 +501,16 @@ int main(int argc, char** argv) {
   ccmd->add_option("--identity", check.security_identity, "this side's identity in it (default remote)");
   ccmd->add_option("--journal", check.journal_path, "journal database (overrides controller.journal.path)");
   ccmd->add_option("--rt-priority", check.rt_priority, "SCHED_FIFO priority to test (the loop's)")->check(CLI::Range(1, 99));
+  std::string batch_path;
+  std::string sim_config = default_config();
+  bool sim_json = false;
+  CLI::App* scmd = app.add_subcommand(
+      "simulate-insertions",
+      "run the insert algorithm (the controller's code) on the simulated plant in-process, faster than real time, "
+      "once per trial of a batch file (docs/control.md, \"Simulated insertions\")");
+  scmd->add_option("--batch", batch_path, "the batch file (JSON: object, tag, params, trials)")->required();
+  scmd->add_flag("--json", sim_json, "one JSON object");
+  scmd->add_option("--config", sim_config, "remote configuration (robot.urdf, oru.yaml, scene.yaml beside it)");
   app.add_option("--loop-cpu", o.loop_cpu, "pin the control loop thread to this CPU (an isolated one; -1: no)")
       ->check(CLI::Range(-1, 1023));
   app.add_option("--rt-priority", o.rt_priority, "the control loop's SCHED_FIFO priority (1-99, default 80)")
@@ -514,6 +529,11 @@ int main(int argc, char** argv) {
   }
   if (jcmd->parsed()) return foresight::journal::run_journal_command(q, std::cout, std::cerr);
   if (ccmd->parsed()) return foresight::daemon::run_check_command(check, check_json, std::cout);
+  if (scmd->parsed()) {
+    const std::string dir = std::filesystem::path(sim_config).parent_path().string();
+    return foresight::daemon::run_simulate_insertions_command(batch_path, dir.empty() ? "." : dir, sim_json,
+                                                              std::cout, std::cerr);
+  }
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;
