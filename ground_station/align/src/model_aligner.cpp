@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <map>
 #include <memory>
@@ -60,12 +61,17 @@ namespace {
 
 constexpr double kCreaseCos = 0.9063;  // cos 25 deg
 constexpr double kNear_m = 0.05;
+constexpr double kClear_px = 4.0;  // an object silhouette's clear view beyond it (the fine levels' search range)
 
 struct Edge {
   Eigen::Vector3d a, b;    // primitive frame (link or object)
-  Eigen::Vector3d n1, n2;  // outward face normals
+  Eigen::Vector3d n1, n2;  // outward face normals (surroundings: n1 the object's face, n2 theirs)
   bool two_faces = true;
   bool crease = false;
+  // Not a mesh edge: where the object's face n1 passes into a face n2 of
+  // its surroundings (the ORU's side entering the bay). The image has an
+  // edge there, the object on one side, the surroundings on the other.
+  bool surroundings = false;
 };
 
 // Primitive::link of the object's surroundings (ObjectModel::surroundings):
@@ -78,49 +84,65 @@ struct Primitive {
   int label = 0;  // 1..
   Eigen::Vector4d rgba = Eigen::Vector4d::Zero();
   std::vector<Edge> edges;
-  int first_edge = 0;  // the index of edges[0] over all primitives' edges
+  int first_edge = 0;  // the index of edges[0] over all primitives' edges (set once all are in)
 };
+
+// A mesh's triangles with their outward normals (towards the vertex
+// normals' side); degenerate ones left out.
+struct Triangle {
+  std::array<Eigen::Vector3d, 3> v;
+  Eigen::Vector3d n;
+};
+
+std::vector<Triangle> mesh_triangles(const render::Mesh& m) {
+  auto pos = [&](std::uint32_t i) {
+    const float* p = m.vertices[i].position;
+    return Eigen::Vector3d(p[0], p[1], p[2]);
+  };
+  std::vector<Triangle> out;
+  for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
+    const std::uint32_t v[3] = {m.triangles[t], m.triangles[t + 1], m.triangles[t + 2]};
+    Triangle tri{{pos(v[0]), pos(v[1]), pos(v[2])}, Eigen::Vector3d::Zero()};
+    Eigen::Vector3d n = (tri.v[1] - tri.v[0]).cross(tri.v[2] - tri.v[0]);
+    if (n.norm() < 1e-12) continue;
+    n.normalize();
+    Eigen::Vector3d vn = Eigen::Vector3d::Zero();
+    for (auto i : v) vn += Eigen::Vector3d(m.vertices[i].normal[0], m.vertices[i].normal[1], m.vertices[i].normal[2]);
+    tri.n = n.dot(vn) < 0.0 ? Eigen::Vector3d(-n) : n;
+    out.push_back(tri);
+  }
+  return out;
+}
 
 // Mesh edges with their adjacent face normals (vertices are duplicated per
 // face in the meshes, so adjacency goes by position). Coplanar edges (a face's
 // diagonal, a cap's spokes) are dropped: they never show.
 std::vector<Edge> mesh_edges(const render::Mesh& m) {
   using Key = std::array<long long, 3>;
-  auto key = [&](std::uint32_t i) {
-    const float* p = m.vertices[i].position;
+  auto key = [](const Eigen::Vector3d& p) {
     return Key{std::llround(p[0] * 1e5), std::llround(p[1] * 1e5), std::llround(p[2] * 1e5)};
-  };
-  auto pos = [&](std::uint32_t i) {
-    const float* p = m.vertices[i].position;
-    return Eigen::Vector3d(p[0], p[1], p[2]);
   };
   struct Entry {
     Eigen::Vector3d a, b;
     std::vector<Eigen::Vector3d> normals;
   };
   std::map<std::pair<Key, Key>, Entry> map;
-  for (std::size_t t = 0; t + 2 < m.triangles.size(); t += 3) {
-    const std::uint32_t v[3] = {m.triangles[t], m.triangles[t + 1], m.triangles[t + 2]};
-    Eigen::Vector3d n = (pos(v[1]) - pos(v[0])).cross(pos(v[2]) - pos(v[0]));
-    if (n.norm() < 1e-12) continue;
-    n.normalize();
-    Eigen::Vector3d vn = Eigen::Vector3d::Zero();
-    for (auto i : v) vn += Eigen::Vector3d(m.vertices[i].normal[0], m.vertices[i].normal[1], m.vertices[i].normal[2]);
-    if (n.dot(vn) < 0.0) n = -n;
+  for (const Triangle& tri : mesh_triangles(m)) {
     for (int e = 0; e < 3; ++e) {
-      std::uint32_t i = v[e], j = v[(e + 1) % 3];
-      Key ki = key(i), kj = key(j);
+      const Eigen::Vector3d* pi = &tri.v[e];
+      const Eigen::Vector3d* pj = &tri.v[(e + 1) % 3];
+      Key ki = key(*pi), kj = key(*pj);
       if (ki == kj) continue;
       if (kj < ki) {
         std::swap(ki, kj);
-        std::swap(i, j);
+        std::swap(pi, pj);
       }
       auto& entry = map[{ki, kj}];
       if (entry.normals.empty()) {
-        entry.a = pos(i);
-        entry.b = pos(j);
+        entry.a = *pi;
+        entry.b = *pj;
       }
-      entry.normals.push_back(n);
+      entry.normals.push_back(tri.n);
     }
   }
   std::vector<Edge> out;
@@ -139,6 +161,82 @@ std::vector<Edge> mesh_edges(const render::Mesh& m) {
       edge.n2 = -edge.n1;
     }
     out.push_back(edge);
+  }
+  return out;
+}
+
+// Where triangle `t` crosses the plane of `o` (through o.v[0], normal o.n):
+// its points on that plane as an interval [lo, hi] along `dir` from `p0`;
+// false when it does not reach the plane.
+bool crossing_interval(const Triangle& t, const Triangle& o, const Eigen::Vector3d& p0, const Eigen::Vector3d& dir,
+                       double& lo, double& hi) {
+  constexpr double kOn = 1e-9;  // m: a vertex this close is on the plane
+  std::array<double, 3> dist;
+  for (int i = 0; i < 3; ++i) dist[i] = o.n.dot(t.v[i] - o.v[0]);
+  lo = std::numeric_limits<double>::infinity();
+  hi = -lo;
+  auto add = [&](const Eigen::Vector3d& p) {
+    const double s = dir.dot(p - p0);
+    lo = std::min(lo, s);
+    hi = std::max(hi, s);
+  };
+  for (int i = 0; i < 3; ++i) {
+    const int j = (i + 1) % 3;
+    if (std::abs(dist[i]) <= kOn) add(t.v[i]);
+    if ((dist[i] > kOn && dist[j] < -kOn) || (dist[i] < -kOn && dist[j] > kOn))
+      add(t.v[i] + dist[i] / (dist[i] - dist[j]) * (t.v[j] - t.v[i]));
+  }
+  return lo <= hi;
+}
+
+// The intersection of an object primitive's surface with a surrounding
+// one's (both in the object frame): the segments where a face of the
+// object passes through a face of the surroundings, each with the object's
+// face normal (n1) and the surroundings' (n2); the pieces a triangulation
+// cuts one line into joined. Coplanar faces meet in no edge of their own.
+std::vector<Edge> surroundings_edges(const render::Mesh& object, const render::Mesh& surroundings) {
+  const std::vector<Triangle> os = mesh_triangles(object), ss = mesh_triangles(surroundings);
+  std::vector<Edge> out;
+  for (const Triangle& t : os)
+    for (const Triangle& u : ss) {
+      Eigen::Vector3d dir = t.n.cross(u.n);
+      if (dir.norm() < 1e-6) continue;  // parallel or coplanar
+      dir.normalize();
+      // A point on both planes: the closest to t.v[0] on their line.
+      const Eigen::Vector3d p0 =
+          t.v[0] - u.n.dot(t.v[0] - u.v[0]) / u.n.dot(u.n - t.n * t.n.dot(u.n)) * (u.n - t.n * t.n.dot(u.n));
+      double lo1, hi1, lo2, hi2;
+      if (!crossing_interval(t, u, p0, dir, lo1, hi1) || !crossing_interval(u, t, p0, dir, lo2, hi2)) continue;
+      const double lo = std::max(lo1, lo2), hi = std::min(hi1, hi2);
+      if (hi - lo < 1e-6) continue;
+      Edge e;
+      e.a = p0 + lo * dir;
+      e.b = p0 + hi * dir;
+      e.n1 = t.n;
+      e.n2 = u.n;
+      e.surroundings = true;
+      out.push_back(e);
+    }
+  // Join the collinear pieces of one line between the same two faces.
+  for (bool joined = true; joined;) {
+    joined = false;
+    for (std::size_t i = 0; i < out.size() && !joined; ++i)
+      for (std::size_t j = i + 1; j < out.size() && !joined; ++j) {
+        Edge& a = out[i];
+        const Edge& b = out[j];
+        if (a.n1.dot(b.n1) < 1.0 - 1e-9 || a.n2.dot(b.n2) < 1.0 - 1e-9) continue;
+        const Eigen::Vector3d d = (a.b - a.a).normalized();
+        auto off_line = [&](const Eigen::Vector3d& p) { return ((p - a.a) - d * d.dot(p - a.a)).norm() > 1e-6; };
+        if (off_line(b.a) || off_line(b.b)) continue;
+        const double sa = 0.0, ea = d.dot(a.b - a.a), sb = d.dot(b.a - a.a), eb = d.dot(b.b - a.a);
+        if (std::max(sb, eb) < sa - 1e-6 || std::min(sb, eb) > ea + 1e-6) continue;  // apart
+        const double lo = std::min({sa, sb, eb}), hi = std::max({ea, sb, eb});
+        const Eigen::Vector3d origin = a.a;
+        a.a = origin + lo * d;
+        a.b = origin + hi * d;
+        out.erase(out.begin() + static_cast<std::ptrdiff_t>(j));
+        joined = true;
+      }
   }
   return out;
 }
@@ -331,8 +429,16 @@ struct AlignmentModel {
       add(-1, render::make_box(object->size_m, object->oru_T_box, object->rgba), object->rgba);
       for (const auto& shape : object->visuals) add(-1, render::make_shape(shape), shape.rgba);
       for (const auto& shape : object->surroundings) add(kSurroundings, render::make_shape(shape), shape.rgba);
+      // The object's edges with its surroundings, each its primitive's.
+      for (std::size_t i = 0; i < prims.size(); ++i)
+        for (std::size_t j = 0; j < prims.size(); ++j)
+          if (prims[i].link == -1 && prims[j].link == kSurroundings)
+            for (Edge& e : surroundings_edges(meshes[i], meshes[j])) prims[i].edges.push_back(e);
     }
-    total_edges = prims.empty() ? 0 : prims.back().first_edge + static_cast<int>(prims.back().edges.size());
+    for (auto& p : prims) {
+      p.first_edge = total_edges;
+      total_edges += static_cast<int>(p.edges.size());
+    }
   }
 
   const RobotModel& arm;
@@ -349,7 +455,6 @@ struct AlignmentModel {
     p.label = static_cast<int>(prims.size()) + 1;
     p.rgba = rgba;
     p.edges = mesh_edges(mesh);
-    p.first_edge = prims.empty() ? 0 : prims.back().first_edge + static_cast<int>(prims.back().edges.size());
     prims.push_back(std::move(p));
     meshes.push_back(std::move(mesh));
   }
@@ -622,6 +727,7 @@ void sample(const AlignmentModel& m, AlignmentData& d, const camera::Camera& cam
     Eigen::Vector3d a, b;
     Eigen::Vector2d ua, ub;
     bool silhouette;
+    bool surroundings;  // Edge::surroundings
     int edge;  // over all primitives' edges
   };
   std::vector<Candidate> cands;
@@ -636,13 +742,15 @@ void sample(const AlignmentModel& m, AlignmentData& d, const camera::Camera& cam
       const Eigen::Vector3d a = T * e.a, b = T * e.b, m = 0.5 * (a + b);
       const bool f1 = (T.linear() * e.n1).dot(C - m) > 0.0;
       const bool f2 = e.two_faces ? (T.linear() * e.n2).dot(C - m) > 0.0 : false;
-      const bool silhouette = f1 != f2;
-      if (!silhouette && !(e.crease && f1 && f2)) continue;
+      // An edge with the surroundings is a boundary of the object's image
+      // like a silhouette; it shows where both its faces do.
+      const bool silhouette = e.surroundings || f1 != f2;
+      if (e.surroundings ? !(f1 && f2) : !silhouette && !(e.crease && f1 && f2)) continue;
       if (cam.to_camera(a).z() <= kNear_m || cam.to_camera(b).z() <= kNear_m) continue;
       const Eigen::Vector2d ua = cam.project(a), ub = cam.project(b);
       const double len = (ub - ua).norm();
       if (len < 1.0) continue;
-      cands.push_back({&p, a, b, ua, ub, silhouette, p.first_edge + static_cast<int>(&e - p.edges.data())});
+      cands.push_back({&p, a, b, ua, ub, silhouette, e.surroundings, p.first_edge + static_cast<int>(&e - p.edges.data())});
       total_len += len;
     }
   }
@@ -667,7 +775,19 @@ void sample(const AlignmentModel& m, AlignmentData& d, const camera::Camera& cam
       if (c.silhouette) {
         const int other = lp == id ? lm : lm == id ? lp : -1;
         visible = (lp == id) != (lm == id) && other >= 0;
+        // An edge with the surroundings: the surroundings on its other side.
+        if (visible && c.surroundings) visible = other > 0 && m.prims[other - 1].link == kSurroundings;
         if (visible && other > 0 && (m.prims[other - 1].rgba - c.prim->rgba).norm() < 0.02) visible = false;
+        // The object's silhouette with what lies beyond it unchanged for
+        // kClear_px: another boundary there (seen: the bay's far edge 2 px
+        // beyond the side view's ORU, bay against sky, stronger than the
+        // ORU's dark face against the bay) is the edge the search takes,
+        // and the few edges that decide the object follow it (4 mm). The
+        // arm's many edges over its frames outvote such a capture (the
+        // rule on them too: noise-free camera recovery 0.028 -> 0.034 px).
+        const Eigen::Vector2d beyond = lp == id ? Eigen::Vector2d(-n) : n;
+        if (visible && c.prim->link < 0)
+          for (double k = 2.0; k <= kClear_px && visible; k += 0.5) visible = label_at(d.layer, uv + k * beyond) == other;
       } else {
         visible = lp == id && lm == id;
       }
@@ -958,9 +1078,12 @@ bool gauss_newton_step(const AlignmentModel& m, AlignmentData& d, const AlignInp
   Eigen::VectorXd& delta = d.delta;
   delta = d.ldlt.compute(A).solve(g);
   if (!delta.allFinite()) return false;
-  // Limit the step to the search range (predicted pixel motion).
+  // Limit the step to the search range (predicted pixel motion), over
+  // every sample: every 7th made the steps depend on where a frame's
+  // samples start in the list (the same frame given twice stopped an
+  // iteration apart).
   double max_move = 0.0;
-  for (std::size_t i = 0; i < d.samples.size(); i += 7) {
+  for (std::size_t i = 0; i < d.samples.size(); ++i) {
     jacobian_row(d, d.e, i, row);
     max_move = std::max(max_move, std::abs(row.dot(delta)));
   }

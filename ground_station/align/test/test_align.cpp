@@ -573,7 +573,12 @@ void expect_refused_keeping_the_clicks(const AlignResult& r, const Pose& clicks,
 
 }  // namespace
 
-TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
+// Since the ORU's edges with the bay are sampled and its silhouettes need a
+// clear view beyond them (issue 30 item 6), this view no longer slides: it
+// lands within a millimetre of the truth, 28 mm from the clicks, and the
+// start check keeps it (the refusal itself: SingleViewOruTurnedAwayFrom
+// TheClicksIsRefused).
+TEST(Align, SingleViewOruThatSlidFromTheClicksNowFindsTheTruth) {
   Seed2Trial0 t;
   const camera::Camera oblique = camera_from(
       scene_camera(t.w.scene, "oblique"), 640.17115357376872,
@@ -597,27 +602,29 @@ TEST(Align, SingleViewOruFarFromTheClicksIsRefused) {
   const double clicks_error = position_error_m(clicks, truth);
 
   // Without the clicks' covariance, and the matched-fraction limit a little
-  // lower (29% matched here; the study's first run had 30.1% and passed):
-  // accepted, and far off the truth. This is the silent wrong answer.
+  // lower (29% matched here before; the study's first run had 30.1% and
+  // passed): it was accepted 0.17 m off the truth, the silent wrong answer.
   AlignOptions loose = o;
   loose.min_matched_fraction = 0.25;
-  const AlignResult wrong = aligner.align({view}, clicks, loose);
-  ASSERT_EQ(wrong.status, AlignStatus::Aligned) << wrong.reason;
-  const double wrong_error = position_error_m(*wrong.base_T_object, truth);
-  const double wrong_sd = std::sqrt(wrong.covariance.block<3, 3>(3, 3).trace());
+  const AlignResult free = aligner.align({view}, clicks, loose);
+  ASSERT_EQ(free.status, AlignStatus::Aligned) << free.reason;
+  const double error = position_error_m(*free.base_T_object, truth);
+  const double sd = std::sqrt(free.covariance.block<3, 3>(3, 3).trace());
   std::printf("seed 2 trial 0 oblique alone: clicks %.1f mm off; the alignment %.1f mm off claiming %.1f mm (sd, 3-D)\n",
-              clicks_error * 1e3, wrong_error * 1e3, wrong_sd * 1e3);
-  EXPECT_GT(wrong_error, 0.1);
-  EXPECT_LT(wrong_sd, 0.01);
+              clicks_error * 1e3, error * 1e3, sd * 1e3);
+  EXPECT_GT(clicks_error, 0.02);
+  EXPECT_LT(error, 0.002);
+  EXPECT_LT(error, 3.0 * sd);
 
-  // With the clicks' position covariance: refused for the disagreement, the
-  // clicks pose kept.
+  // With the clicks' position covariance: kept, the same pose.
   o.object_start_covariance = loose_rotation(clicks_cov);
   loose.object_start_covariance = loose_rotation(clicks_cov);
   for (const AlignOptions& opt : {o, loose}) {
     const AlignResult r = aligner.align({view}, clicks, opt);
-    std::printf("  refused: %s\n", r.reason.c_str());
-    expect_refused_keeping_the_clicks(r, clicks, "1[0-9][0-9]", "[0-9]+\\.[0-9]");
+    std::printf("  %s, %.1f sigma from the clicks %s\n", to_string(r.status), r.start_disagreement_sigma, r.reason.c_str());
+    ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
+    EXPECT_LT(r.start_disagreement_sigma, 5.0);
+    EXPECT_LT(position_error_m(*r.base_T_object, truth), 0.002);
   }
 }
 
@@ -660,6 +667,10 @@ TEST(Align, SingleViewOruCloseToTheClicksIsKept) {
 // conflict: with the clicks' whole pose covariance (the two-step pose's, the
 // held cameras' and the arm's links in it) the check over rotation and
 // position refuses it. Rebuilt from the study's inputs (FORESIGHT_STUDY_DUMP=17).
+// Since the ORU's edges with the bay are sampled (issue 30 item 6) the
+// alignment from these clicks moves 52 mm (39 mm off the truth, turned 5.7
+// deg) and its position alone is 5.1 sigma: the turn is still the larger
+// conflict (10.8 sigma over the whole pose).
 TEST(Align, SingleViewOruTurnedAwayFromTheClicksIsRefused) {
   StudyTrial t({-0.00041637129767616536, -0.0015760898634493599, -0.0029757657020349094, -0.0039120912000619682,
                 2.6611863171437961e-05, 0.0032462125011682801, -0.0030708336867237345, -0.0026865029726198266,
@@ -722,13 +733,13 @@ TEST(Align, SingleViewOruTurnedAwayFromTheClicksIsRefused) {
   EXPECT_GT(wrong_error, 0.025);
   EXPECT_GT(wrong_error, 5.0 * wrong_sd);  // 36.5 mm off claiming 5.1 mm (3-D sd)
   // With it: refused for the turn, the clicks pose kept. The position alone
-  // is within the limit (the old rule's metric).
+  // (the old rule's metric) says less.
   o.object_start_covariance = clicks_cov;
   const AlignResult r = aligner.align({view}, clicks, o);
   std::printf("  refused: %s (position alone %.1f sigma)\n", r.reason.c_str(), r.start_position_disagreement_sigma);
-  expect_refused_keeping_the_clicks(r, clicks, "[23][0-9]", "[5-7]\\.[0-9]");
+  expect_refused_keeping_the_clicks(r, clicks, "[2-5][0-9]", "[5-7]\\.[0-9]");
   EXPECT_GT(r.start_disagreement_sigma, 8.0);
-  EXPECT_LT(r.start_position_disagreement_sigma, 5.0);
+  EXPECT_LT(r.start_position_disagreement_sigma, 0.6 * r.start_disagreement_sigma);
 }
 
 // `eval alignment` seed 4, trial 2, all four views: with the cameras held
@@ -871,6 +882,52 @@ TEST(Align, HeldCameraUncertaintyEntersTheObjectCovariance) {
     FAIL() << "no throw";
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "camera 'side': its covariance is not a finite symmetric matrix with a non-negative diagonal");
+  }
+}
+
+// Issue 30 item 6: from the side the ORU shows a thin sliver of its front
+// face and the 5 cm strip of its side in front of the bay. The strip's far
+// edge, where the ORU enters the bay, is no edge of the ORU's mesh but its
+// intersection with the bay's front face: sampled now (the ORU's label on one
+// side, the bay's on the other), it holds the ORU along its hole axis. And
+// the front face's far silhouette lies 2 px from the bay's far edge (bay
+// against sky, the stronger edge), which the search took: dropped now (an
+// object silhouette needs kClear_px of one label beyond it). Before, the
+// ORU ended 2.4 mm (image horizontal) and 4.0-4.2 mm (line of sight) off with
+// a 0.49-0.50 px inlier residual from every start, the truth included. The
+// true camera and arm, a noise-free frame, three starts: the error against
+// the truth in the camera's axes (x image horizontal, y vertical, z line of
+// sight). Measured 0.01-0.07 mm, 0.18 px.
+TEST(Align, TheSideViewsOruIsHeldByItsEdgeWithTheBay) {
+  World w;
+  const Eigen::VectorXd q = w.approach_q();
+  const camera::Camera side = scene_camera(w.scene, "side");
+  SyntheticCamera synth(*w.ctx, w.model, w.oru, w.scene, side.viewport, options(0.0));
+  const AlignView view{side, {{synth.render(side, q).image_bgr, q}}};
+  ModelAligner aligner(*w.ctx, w.model, &w.oru, side.viewport);
+  AlignOptions o;
+  o.refine = Refine::Object;
+  const Pose& truth = w.scene.base_T_object;
+  const Eigen::Matrix3d base_R_camera = side.base_T_camera.linear();
+  // Starts: 5.4 mm and 5.4 mm off, turned 0.32 deg; the truth itself.
+  const std::array<Eigen::Vector3d, 3> offsets{
+      Eigen::Vector3d(0.003, -0.002, 0.004), Eigen::Vector3d(-0.004, 0.003, -0.002), Eigen::Vector3d(0.0, 0.0, 0.0)};
+  for (std::size_t k = 0; k < offsets.size(); ++k) {
+    Pose start = truth;
+    start.translation() += offsets[k];
+    start.linear() = start.linear() * camera::exp_so3(Eigen::Vector3d(0.004, -0.003, 0.002) * (k < 2 ? 1.0 : 0.0));
+    const AlignResult r = aligner.align({view}, start, o);
+    ASSERT_EQ(r.status, AlignStatus::Aligned) << r.reason;
+    const Eigen::Vector3d err =
+        base_R_camera.transpose() * (r.base_T_object->translation() - truth.translation());
+    const double turn =
+        Eigen::AngleAxisd(truth.linear().transpose() * r.base_T_object->linear()).angle() * 180.0 / M_PI;
+    std::printf("side view ORU from start %zu: %.2f mm horizontal, %.2f mm vertical, %.2f mm line of sight, %.3f deg; "
+                "inlier residual %.3f px, %d of %d samples within 1 px\n",
+                k, err.x() * 1e3, err.y() * 1e3, err.z() * 1e3, turn, r.residual_rms_px, r.matched_samples,
+                r.visible_samples);
+    EXPECT_LT(err.norm(), 0.001);
+    EXPECT_LT(r.residual_rms_px, 0.25);
   }
 }
 

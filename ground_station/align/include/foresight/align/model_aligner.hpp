@@ -9,10 +9,14 @@
 //     edge behind another part never pulls.
 //  2. Model edges: every mesh edge that is a silhouette from this camera (one
 //     adjacent face towards the camera, one away) or a crease (dihedral angle
-//     > 25 deg) with a face towards the camera; sampled every ~4 px along its
-//     projection; a sample is kept when the label image shows its primitive
-//     on the inner side (and something of another colour on the outer side
-//     of a silhouette).
+//     > 25 deg) with a face towards the camera, and the object's edges with
+//     its surroundings (where its faces pass into theirs: the ORU's sides
+//     entering the bay; no mesh has them) with both faces towards it;
+//     sampled every ~4 px along its projection; a sample is kept when the
+//     label image shows its primitive on the inner side (and something of
+//     another colour on the outer side of a silhouette: the surroundings for
+//     an edge with them; for the object's, the same for 4 px beyond, so
+//     that no other boundary there takes the search).
 //  3. Edge-normal search: along the projected edge normal, within +-R px, the
 //     nearest strong maximum of the image gradient (Sobel of the blurred grey
 //     image) with sub-pixel parabola; the residual is the signed distance.
@@ -82,9 +86,9 @@ struct AlignOptions {
   double edge_offset_sd_px = 0.1;
   /// The sd (px) of each model edge's own offset, independent between
   /// edges (the model's and the appearance's error along one edge: seen,
-  /// the side view's ORU, whose edge with the satellite's bay is not a
-  /// mesh edge, 4 mm off along its line of sight claiming 0.3 mm): added
-  /// to the covariance as the parameters' response to it. 0: none.
+  /// the side view's ORU 4 mm off along its line of sight claiming 0.3 mm,
+  /// before its edge with the satellite's bay was sampled): added to the
+  /// covariance as the parameters' response to it. 0: none.
   double edge_model_sd_px = 0.2;
   /// Arm-model self-calibration (a bundle adjustment over the cameras and
   /// the arm's link lengths): when > 0 and the cameras are refined, the
