@@ -27,7 +27,9 @@ InsertCapture insert_capture(const InsertParams& p, const InsertGeometry& g) {
   if (g.required_depth_m > g.hole_depth_m)
     throw std::invalid_argument("capture region: required_depth_m " + std::to_string(g.required_depth_m) +
                                 " is deeper than the hole (" + std::to_string(g.hole_depth_m) + " m)");
-  c.lateral_m = p.spiral_max_radius_m + c.clearance_m;
+  if (!(std::isfinite(g.lead_in_m) && g.lead_in_m >= 0.0))
+    throw std::invalid_argument("capture region: lead_in_m must be >= 0 (got " + std::to_string(g.lead_in_m) + ")");
+  c.lateral_m = p.spiral_max_radius_m + c.clearance_m + g.lead_in_m;
   c.tilt_rad = std::asin(c.clearance_m / (0.5 * g.socket_diameter_m));
   c.axial_min_m = g.required_depth_m - p.depth_m;
   c.axial_max_m = 0.0;

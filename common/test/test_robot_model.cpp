@@ -153,7 +153,7 @@ TEST(RobotModel, OruTagsAreReachableWithMarginToLimits) {
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
   const Scene scene = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml");
   KinematicsWorkspace ws(m);
-  ASSERT_EQ(oru.tags.size(), 6u);
+  ASSERT_EQ(oru.tags.size(), 7u);
   const Eigen::VectorXd seed = m.mid_configuration();
   IkOptions options;
   options.centre_joints = true;

@@ -248,6 +248,9 @@ const bool registered = register_command(
        sub.add_option("--image", o->settings.image, "video frame for previews (default: the synthetic camera)");
        sub.add_option("--object-pose", o->settings.object_pose,
                       "the object's pose: localize JSON, or 'scene' for the work site's true pose");
+       sub.add_option("--override-check", o->settings.override_checks,
+                      "go on past a no_go of this CHECK step (insert), journaled as the operator's override")
+           ->check(check::IsMember({"insert"}));
        sub.add_flag("--no-preview", o->no_preview, "do not render previews (tests only: nothing should be sent unseen)");
        sub.add_option("--preview-speed", o->settings.preview_speed, "preview playback speed")
            ->check(check::PositiveNumber)

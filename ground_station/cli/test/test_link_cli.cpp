@@ -47,7 +47,7 @@ TEST(LinkCli, BadArgumentsExit2BeforeConnecting) {
   expect_bad_input("goto --joints 0,0.1", "foresight goto: error: --joints has 2 values but the arm has 7 joints\n");
   expect_bad_input("goto --tag nowhere",
                    "foresight goto: error: --tag: unknown tag 'nowhere' (tags of oru: approach_20cm, hole_entrance, "
-                   "pulled_out_5cm, stow, tool_inserted, withdrawn_15cm)\n");
+                   "insert_start, pulled_out_5cm, stow, tool_inserted, withdrawn_15cm)\n");
   expect_bad_input("send /nonexistent/traj.csv --run", "foresight send: error: /nonexistent/traj.csv: cannot open trajectory file\n");
 }
 
@@ -209,7 +209,7 @@ TEST(RunCli, ScriptErrorsNameLineAndColumn) {
   const std::string bad = write_temp_file("VIDEO side\n\nTRAJECTORY to=approach_20cm,hole_entance:linear\n", ".task");
   expect_bad_input("run " + bad + " --auto",
                    "foresight run: error: " + bad +
-                       ":3:29: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, pulled_out_5cm, stow, "
+                       ":3:29: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, insert_start, pulled_out_5cm, stow, "
                        "tool_inserted, withdrawn_15cm)\n");
   const std::string syntax = write_temp_file("GRAPHICS hidden\nINVOKE_ALGORITHM insert depth_m=6cm\n", ".task");
   expect_bad_input("run " + syntax + " --auto",

@@ -80,7 +80,7 @@ TEST_F(OperatorChain, PlanBadInputs) {
   const std::string out = temp_path(".csv");
   auto r = run_foresight("plan --object-pose " + loc_ + " --from $(cat " + q_ + ") --to nowhere --out " + out);
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find("--to: unknown goal 'nowhere' (tags of oru: approach_20cm, hole_entrance, pulled_out_5cm, "
+  EXPECT_NE(r.err.find("--to: unknown goal 'nowhere' (tags of oru: approach_20cm, hole_entrance, insert_start, pulled_out_5cm, "
                        "stow, tool_inserted, withdrawn_15cm; or start)"),
             std::string::npos)
       << r.err;

@@ -66,7 +66,7 @@ InsertCapture capture() { return insert_capture(InsertParams{}, InsertGeometry{}
 TEST(InsertCapture, FromTheInsertsParameters) {
   const InsertCapture c = capture();
   EXPECT_NEAR(c.clearance_m, 0.001, 1e-12);              // 30 mm hole, 28 mm socket
-  EXPECT_NEAR(c.lateral_m, 0.005 + 0.001, 1e-12);        // spiral out to 5 mm + the clearance
+  EXPECT_NEAR(c.lateral_m, 0.005 + 0.001 + 0.0015, 1e-12);  // spiral out to 5 mm + the clearance + the rim's lead-in
   EXPECT_NEAR(c.tilt_rad, std::asin(1.0 / 14.0), 1e-12);
   EXPECT_NEAR(c.axial_min_m, 0.05 - 0.06, 1e-12);        // 6 cm of travel, the latch needs 5 cm
   EXPECT_EQ(c.axial_max_m, 0.0);

@@ -533,6 +533,7 @@ class Localizer {
       const Eigen::Matrix<double, 6, 6> arm_body = var_links_ * arm_D_ * arm_D_.transpose();
       C_body += arm_body;
       res_.arm_model_covariance = G * arm_body * G.transpose();
+      res_.arm_link_sensitivity = G * arm_D_;
     }
     res_.covariance = G * C_body * G.transpose();
     const Eigen::Matrix<double, 6, 1> sd = res_.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();

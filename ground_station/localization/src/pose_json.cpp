@@ -69,23 +69,47 @@ Pose read_object_pose_json(const std::string& path) {
   return parse_object_pose_json(read_text_file(path, "cannot open object pose file"), path);  // bounded size
 }
 
+namespace {
+
+/// The matrix at j[key]: `rows` rows (0: any number) of `cols` numbers (0:
+/// any, the same in every row). InputError "<path>: <key> must be <what>".
+Eigen::MatrixXd matrix_at(const nlohmann::json& j, const char* key, int rows, int cols, const std::string& path,
+                          const std::string& what) {
+  const nlohmann::json& c = j.at(key);
+  const InputError bad(path, std::string(key) + " must be " + what);
+  if (!c.is_array() || c.empty() || (rows > 0 && c.size() != static_cast<std::size_t>(rows))) throw bad;
+  const std::size_t n = cols > 0 ? static_cast<std::size_t>(cols) : (c[0].is_array() ? c[0].size() : 0);
+  if (n == 0) throw bad;
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(c.size()), static_cast<Eigen::Index>(n));
+  for (std::size_t r = 0; r < c.size(); ++r) {
+    if (!c[r].is_array() || c[r].size() != n) throw bad;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!c[r][k].is_number() || !std::isfinite(c[r][k].get<double>())) throw bad;
+      M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(k)) = c[r][k].get<double>();
+    }
+  }
+  return M;
+}
+
+}  // namespace
+
 ObjectPoseFile read_object_pose_file(const std::string& path) {
   const nlohmann::json j = parse_json(read_text_file(path, "cannot open object pose file"), path);
   ObjectPoseFile f;
   f.base_T_object = object_pose_of(j, path);
+  if (j.contains("views") && j.at("views").is_array())
+    for (const auto& v : j.at("views"))
+      if (v.is_string()) f.views.push_back(v.get<std::string>());
+  f.aligned = j.contains("source") && j.at("source") == "foresight align";
   if (!j.contains("covariance")) return f;
-  const nlohmann::json& c = j.at("covariance");
-  const InputError bad(path, "covariance must be 6 rows of 6 numbers");
-  if (!c.is_array() || c.size() != 6) throw bad;
-  Eigen::Matrix<double, 6, 6> C;
-  for (int r = 0; r < 6; ++r) {
-    if (!c[r].is_array() || c[r].size() != 6) throw bad;
-    for (int k = 0; k < 6; ++k) {
-      if (!c[r][k].is_number() || !std::isfinite(c[r][k].get<double>())) throw bad;
-      C(r, k) = c[r][k].get<double>();
-    }
+  f.covariance = matrix_at(j, "covariance", 6, 6, path, "6 rows of 6 numbers");
+  if (j.contains("arm_link_sensitivity")) {
+    f.arm_link_sensitivity = matrix_at(j, "arm_link_sensitivity", 6, 0, path, "6 rows of one number per link");
+    const nlohmann::json& s = j.contains("arm_link_sigma_m") ? j.at("arm_link_sigma_m") : nlohmann::json();
+    if (!s.is_number() || !(s.get<double>() >= 0.0) || !std::isfinite(s.get<double>()))
+      throw InputError(path, "arm_link_sensitivity needs arm_link_sigma_m, a number >= 0");
+    f.arm_link_sigma_m = s.get<double>();
   }
-  f.covariance = C;
   return f;
 }
 

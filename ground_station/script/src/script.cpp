@@ -61,6 +61,15 @@ const std::vector<OpSpec>& specs() {
         {"dwell_s", Type::Number}}},
       {Op::Calibrate, "CALIBRATE", false, {}, {{"cameras", Type::Names}, {"points", Type::Path}}},
       {Op::Localize, "LOCALIZE", false, {}, {{"views", Type::Names}, {"points", Type::Path}}},
+      {Op::Check,
+       "CHECK",
+       false,
+       {{"step", Type::Choice, {"insert"}, true}},
+       {{"tag", Type::Name},
+        {"hole", Type::Name},
+        {"min_p", Type::Fraction},
+        {"depth_m", Type::Positive},
+        {"spiral_max_radius_m", Type::Positive}}},
       {Op::Trajectory,
        "TRAJECTORY",
        true,
@@ -459,6 +468,10 @@ void check_script(const Script& script, const ScriptContext& ctx) {
         break;
       case Op::GotoCart:
         if (c.has("tag")) tag(c, c.named.at("tag").text, c.named.at("tag").column);
+        break;
+      case Op::Check:
+        for (const char* key : {"tag", "hole"})
+          if (c.has(key)) tag(c, c.named.at(key).text, c.named.at(key).column);
         break;
       case Op::Object:
         if (!in(ctx.objects, c.positional[0].text))

@@ -91,7 +91,7 @@ TEST(ScriptParser, ParsesCommandsValuesNotesAndColumns) {
 TEST(ScriptParser, SyntaxErrorsNameLineAndColumn) {
   EXPECT_EQ(error_of("VIDEO side\n  TRAJECTRY to=stow\n"),
             "t.task:2:3: unknown command 'TRAJECTRY' (commands: GRAPHICS, VIDEO, OBJECT, FRAME, TAG, GRAB, RELEASE, WAIT, "
-            "PREVIEW, CALIBRATE, LOCALIZE, TRAJECTORY, INVOKE_ALGORITHM, REQUEST, CAMERA, GOTO_JOINT, GOTO_CART)");
+            "PREVIEW, CALIBRATE, LOCALIZE, CHECK, TRAJECTORY, INVOKE_ALGORITHM, REQUEST, CAMERA, GOTO_JOINT, GOTO_CART)");
   EXPECT_EQ(error_of("TRAJECTORY to=stow sped=0.1\n"),
             "t.task:1:20: TRAJECTORY: unknown key 'sped' (keys: to, compliant, speed_m_s, limit, dwell_s)");
   EXPECT_EQ(error_of("TRAJECTORY compliant=yes\n"), "t.task:1:25: TRAJECTORY: missing to=");
@@ -174,7 +174,7 @@ ScriptContext project_context() {
 TEST(ScriptCheck, NamesAndJointsAgainstTheConfiguration) {
   const ScriptContext ctx = project_context();
   EXPECT_EQ(error_of("TRAJECTORY to=approach_20cm,hole_entance:linear\n", &ctx),
-            "t.task:1:29: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, pulled_out_5cm, stow, "
+            "t.task:1:29: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, insert_start, pulled_out_5cm, stow, "
             "tool_inserted, withdrawn_15cm)");
   EXPECT_EQ(error_of("\nVIDEO front\n", &ctx),
             "t.task:2:7: unknown camera 'front' (cameras: oblique, overhead_wide, overhead_zoom, side)");
@@ -182,8 +182,12 @@ TEST(ScriptCheck, NamesAndJointsAgainstTheConfiguration) {
             "t.task:1:24: unknown camera 'top' (cameras: oblique, overhead_wide, overhead_zoom, side)");
   EXPECT_EQ(error_of("OBJECT satellite\n", &ctx), "t.task:1:8: unknown object 'satellite' (objects: oru)");
   EXPECT_EQ(error_of("GOTO_CART tag=nowhere\n", &ctx),
-            "t.task:1:15: unknown tag 'nowhere' (tags: approach_20cm, hole_entrance, pulled_out_5cm, stow, "
+            "t.task:1:15: unknown tag 'nowhere' (tags: approach_20cm, hole_entrance, insert_start, pulled_out_5cm, stow, "
             "tool_inserted, withdrawn_15cm)");
+  EXPECT_EQ(error_of("CHECK insert hole=hole_entance\n", &ctx),
+            "t.task:1:19: unknown tag 'hole_entance' (tags: approach_20cm, hole_entrance, insert_start, pulled_out_5cm, stow, "
+            "tool_inserted, withdrawn_15cm)");
+  EXPECT_EQ(error_of("CHECK insert tag=insert_start hole=hole_entrance min_p=0.995 depth_m=0.065\n", &ctx), "(no error)");
   EXPECT_EQ(error_of("GOTO_JOINT q=0,0,0\n", &ctx), "t.task:1:14: q has 3 values but the arm has 7 joints");
   EXPECT_EQ(error_of("GOTO_JOINT q_deg=0,0,0,500,0,0,0\n", &ctx),
             "t.task:1:24: q_deg: joint4 = 500 deg is outside its limits [" +

@@ -63,7 +63,7 @@ GroundLinkFile load_ground_link_file(const std::string& path) {
   if (!std::filesystem::exists(path, ec)) return f;
   const YAML::Node root = yaml::parse(read_text_file(path, "cannot open the ground configuration"), path);
   const yaml::MapReader top(root, path, "");
-  top.check_keys({"link"});
+  top.check_keys({"link", "contact_check"});  // contact_check: contact_check/config.hpp
   if (!top["link"]) return f;
   const yaml::MapReader link = top.map("link");
   link.check_keys({"security", "identity", "network"});

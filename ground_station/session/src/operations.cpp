@@ -1,5 +1,6 @@
 // The ground's file-to-file operations (operations.hpp).
 #include "foresight/session/operations.hpp"
+#include "foresight/session/insert_check.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -521,7 +522,7 @@ void add_camera(const std::string& cameras_yaml, const std::string& camera, cons
 }
 
 Localized localize_from_clicks(const LocalizeRequest& a) {
-  Localized out{ObjectModel::from_file(a.object), {}, {}, {}, 0.0, {}};
+  Localized out{ObjectModel::from_file(a.object), {}, {}, {}, 0.0, {}, {}};
   const auto records = camera::load_cameras(a.cameras);
   for (const auto& [name, rec] : records) out.cameras[name] = rec.camera;
   out.points = calibration::read_correspondences_csv(a.points);
@@ -568,6 +569,11 @@ Localized localize_from_clicks(const LocalizeRequest& a) {
   }
   out.arm_link_sigma_m = opt.arm_link_sigma_m;
   out.result = localization::localize_object(pts, out.cameras, opt);
+  contact_check::ContactCheckConfig check = contact_check::load_contact_check_config(a.ground);
+  if (opt.arm_link_sigma_m > 0.0) check.arm_link_sigma_m = opt.arm_link_sigma_m;
+  const std::optional<RobotModel> robot = a.robot.empty() ? std::nullopt : std::optional<RobotModel>(RobotModel::from_file(a.robot));
+  out.tag_uncertainty =
+      tag_uncertainty_json(out.object, out.result.base_T_object, out.result.covariance, robot ? &*robot : nullptr, check);
   return out;
 }
 
@@ -599,7 +605,9 @@ nlohmann::json localized_json(const Localized& l) {
                       {"camera_uncertainty", r.camera_uncertainty},
                       {"held_camera_uncertainty", l.held_cameras},
                       {"arm_link_sigma_m", l.arm_link_sigma_m},
-                      {"tags", tags}};
+                      {"tags", tags},
+                      {"tag_uncertainty", l.tag_uncertainty}};
+  if (r.arm_link_sensitivity.size() > 0) j["arm_link_sensitivity"] = matrix_rows(r.arm_link_sensitivity);
   j.update(localization::object_pose_json(r.base_T_object));  // base_T_object: the object pose file's one writer
   return j;
 }

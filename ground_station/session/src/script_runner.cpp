@@ -1,5 +1,7 @@
 // `foresight run`'s command runner (script_runner.hpp). Registers no command.
 #include "foresight/session/script_runner.hpp"
+
+#include "foresight/session/insert_check.hpp"
 #include "foresight/common/json_text.hpp"
 #include "foresight/common/atomic_file.hpp"
 
@@ -72,7 +74,7 @@ ScriptRunner::ScriptRunner(RunSettings settings, std::unique_ptr<ground_link::Gr
     pose_source_ = s_.scene + " (the work site's true pose)";
   } else if (!s_.object_pose.empty()) {
     base_T_object_ = localization::read_object_pose_json(s_.object_pose);
-    pose_source_ = s_.object_pose;
+    pose_source_ = pose_file_ = s_.object_pose;
   }
   if (link_) {
     for (const auto kind : {protocol::CommandKind::TakeControl, protocol::CommandKind::Recover}) {
@@ -204,12 +206,13 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
     case Op::Tag: tag_ = c.positional[0].text; return done("tag " + tag_ + " selected", t0);
     case Op::Grab: grabbed_ = true; return done("the object's graphics move with the tool", t0);
     case Op::Release: grabbed_ = false; return done("the object's graphics stay where they are", t0);
+    case Op::Check: return check(c);
     case Op::Wait:  // drive() settled every command sent ahead before this one
       return done(s_.chain ? "the chain ended here: every command sent ahead has ended" : "nothing sent ahead", t0);
     case Op::Object:
       if (c.has("pose")) {
         base_T_object_ = localization::read_object_pose_json(c.text_or("pose", ""));
-        pose_source_ = c.text_or("pose", "");
+        pose_source_ = pose_file_ = c.text_or("pose", "");
       }
       return done("object " + c.positional[0].text + (pose_source_.empty() ? "" : ", pose from " + pose_source_), t0);
     case Op::Calibrate: {
@@ -249,7 +252,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
         return failed(std::string("localize: ") + e.what(), t0);
       }
       base_T_object_ = localization::read_object_pose_json(out);
-      pose_source_ = out;
+      pose_source_ = pose_file_ = out;
       const Eigen::Vector3d p = base_T_object_->translation();
       char buf[160];
       std::snprintf(buf, sizeof buf, "object at %.4f %.4f %.4f m (base) -> %s", p.x(), p.y(), p.z(), out.c_str());
@@ -258,6 +261,52 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
     default:
       return failed(std::string("not a local command: ") + script::to_string(c.op), t0);
   }
+}
+
+Outcome ScriptRunner::check(const script::Command& c) {
+  const auto t0 = Clock::now();
+  if (!base_T_object_) return failed("no object pose: LOCALIZE first, OBJECT oru pose=FILE, or --object-pose", t0);
+  contact_check::ObjectEstimate est;
+  est.base_T_object = *base_T_object_;
+  InsertCheckContext ctx;
+  if (!pose_file_.empty()) {  // the scene's true pose: no estimation error
+    const localization::ObjectPoseFile f = localization::read_object_pose_file(pose_file_);
+    if (!f.covariance) return failed("CHECK insert: the object pose " + pose_file_ + " has no covariance (LOCALIZE writes it)", t0);
+    est.covariance = *f.covariance;
+    est.arm_link_sensitivity = f.arm_link_sensitivity;
+    est.arm_link_sigma_m = f.arm_link_sigma_m;
+    ctx.views_used = f.views;
+    ctx.aligned = f.aligned;
+  }
+  ctx.object = &object_;
+  ctx.robot = &model_;
+  ctx.config = contact_check::load_contact_check_config(s_.ground.empty() ? default_config("ground.yaml") : s_.ground);
+  if (c.has("min_p")) ctx.config.min_p_success = c.number_or("min_p", ctx.config.min_p_success);
+  if (!s_.cameras.empty() && std::filesystem::exists(s_.cameras))
+    for (const auto& [name, rec] : camera::load_cameras(s_.cameras)) ctx.cameras[name] = rec.camera;
+  InsertStep step;
+  step.tag = c.text_or("tag", step.tag);
+  step.hole_tag = c.text_or("hole", step.hole_tag);
+  step.params.depth_m = c.number_or("depth_m", step.params.depth_m);
+  step.params.spiral_max_radius_m = c.number_or("spiral_max_radius_m", step.params.spiral_max_radius_m);
+  const InsertCheck r = check_insert(est, step, ctx);
+  const contact_check::InsertPrediction& p = r.prediction;
+  pending_journal_["check"] = insert_check_json(r);
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "CHECK insert: %s, P(success) %.4f %s %.4f (95%%: lateral %.1f mm, axial %.1f mm, tilt %.2f deg)%s",
+                contact_check::verdict(p), p.p_success, p.go ? ">=" : "<", p.min_p_success, p.lateral95_m * 1e3,
+                p.axial95_m * 1e3, p.tilt95_deg, pose_file_.empty() ? " (the true pose: no estimation error)" : "");
+  if (p.go) return done(buf, t0);
+  std::string advice;
+  for (const std::string& a : r.advice) advice += "; " + a;
+  const bool overridden =
+      std::find(s_.override_checks.begin(), s_.override_checks.end(), "insert") != s_.override_checks.end();
+  pending_journal_["overridden"] = overridden;
+  if (overridden) {
+    say(std::string(buf) + advice);
+    return done(std::string(buf) + ": OVERRIDDEN by the operator (--override-check insert)", t0);
+  }
+  return failed(std::string(buf) + advice + " (to go on anyway: --override-check insert)", t0);
 }
 
 Outcome ScriptRunner::trajectory(const script::Command& c, bool send, const std::function<bool()>& interrupted) {

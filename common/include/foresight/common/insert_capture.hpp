@@ -48,15 +48,22 @@ struct InsertGeometry {
   double hole_depth_m = 0.080;
   double socket_diameter_m = 0.028;
   double required_depth_m = 0.05;
+  /// The rim's lead-in: how far beyond the clearance an end face landing on
+  /// the rim is still guided in by the lateral compliance (a chamfer's
+  /// width; for the sharp rim of config/oru.yaml with the insert's default
+  /// compliance, measured with `foresight-remote simulate-insertions`:
+  /// 3.25 mm enter without a search, 7.5 mm with it, docs/control.md).
+  double lead_in_m = 0.0015;
 };
 
 /// Tool-tip start errors, in the hole's frame (z along the hole axis into
 /// the object, origin at the entrance), from which the insert succeeds:
-///  - lateral: the tip's distance from the axis, at most lateral_m. Inside
-///    the radial clearance the socket enters directly; beyond it the end
-///    face lands on the face, stalls, and the spiral search (centred on the
-///    start, out to spiral_max_radius_m) enters wherever it passes within
-///    the clearance of the axis: lateral_m = spiral_max_radius + clearance.
+///  - lateral: the tip's distance from the axis, at most lateral_m. Within
+///    the clearance plus the rim's lead-in the socket enters directly;
+///    beyond it the end face lands on the face, stalls, and the spiral
+///    search (centred on the start, out to spiral_max_radius_m) enters
+///    wherever it passes that close to the axis:
+///    lateral_m = spiral_max_radius + clearance + lead_in.
 ///  - tilt: the tool axis within tilt_rad of the hole axis: the tilt at
 ///    which the socket's leading rim, centred, still clears the wall,
 ///    asin(clearance / socket radius); the rotational admittance aligns the
@@ -76,7 +83,8 @@ struct InsertCapture {
 /// The capture region of `params` in `geometry`. Throws std::invalid_argument
 /// naming the input when a size is not positive and finite (the socket must
 /// be smaller than the hole; depth_m must exceed required_depth_m; the
-/// spiral radius > 0) or required_depth_m + 0 exceeds the hole's depth.
+/// spiral radius > 0; lead_in_m >= 0) or required_depth_m exceeds the
+/// hole's depth.
 InsertCapture insert_capture(const InsertParams& params, const InsertGeometry& geometry);
 
 }  // namespace foresight

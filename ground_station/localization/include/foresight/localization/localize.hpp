@@ -71,6 +71,12 @@ struct LocalizationResult {
   /// The arm model's part of `covariance` (same parameters; zero without
   /// LocalizationOptions::arm_link_sigma_m and camera_link_sensitivity).
   Eigen::Matrix<double, 6, 6> arm_model_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  /// The pose's response to the arm model's link lengths: d(roll, pitch,
+  /// yaw, x, y, z) per metre of each link's error (6 x links, the links of
+  /// camera_link_sensitivity); arm_model_covariance = arm_link_sigma_m^2 D D^T.
+  /// The tool, sent by the same model, moves with the same errors
+  /// (contact_check::tip_error_at_hole). Empty without the arm term.
+  Eigen::MatrixXd arm_link_sensitivity;
   /// The held cameras' part of `covariance` (LocalizationOptions::camera_covariance).
   Eigen::Matrix<double, 6, 6> held_cameras_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Vector3d sigma_rpy_rad = Eigen::Vector3d::Zero();

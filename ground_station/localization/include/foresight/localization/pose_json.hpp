@@ -15,6 +15,7 @@
 #include <nlohmann/json_fwd.hpp>  // callers of pose_json include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "foresight/common/pose.hpp"
 
@@ -51,11 +52,20 @@ Pose read_object_pose_json(const std::string& path);
 struct ObjectPoseFile {
   Pose base_T_object;
   std::optional<Eigen::Matrix<double, 6, 6>> covariance;
+  /// The arm model's correlated term, where the file has it
+  /// ("arm_link_sensitivity": 6 rows of one number per link, with
+  /// "arm_link_sigma_m"); empty otherwise.
+  Eigen::MatrixXd arm_link_sensitivity;
+  double arm_link_sigma_m = 0.0;
+  std::vector<std::string> views;  ///< "views": the cameras the pose came from
+  bool aligned = false;            ///< "source": "foresight align" (align --object-out)
 };
 
 /// read_object_pose_json and the covariance, from one read of `path`; also
 /// InputError "<path>: covariance must be 6 rows of 6 numbers" (any
-/// non-finite or non-number entry too).
+/// non-finite or non-number entry too), "<path>: arm_link_sensitivity must
+/// be 6 rows of one number per link", "<path>: arm_link_sensitivity needs
+/// arm_link_sigma_m, a number >= 0".
 ObjectPoseFile read_object_pose_file(const std::string& path);
 
 }  // namespace foresight::localization

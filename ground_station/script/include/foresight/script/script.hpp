@@ -58,6 +58,7 @@ enum class Op {
   Calibrate,  ///< CALIBRATE [cameras=a,b] [points=arm.csv]
   Localize,   ///< LOCALIZE [views=a,b] [points=oru.csv]
   Wait,       ///< WAIT: the end of a chain (`run --chain`): every command sent ahead has ended before the next
+  Check,      ///< CHECK insert [tag=] [hole=] [min_p=] [depth_m=] [spiral_max_radius_m=]: the go/no-go before contact
   // remote: sent to the robot; each waits for its final acknowledgement, or with
   // `run --chain` TRAJECTORY, INVOKE_ALGORITHM and the GOTOs are sent ahead as a chain
   Trajectory,       ///< TRAJECTORY to=GOALS [compliant=yes] [speed_m_s=] [limit=] [dwell_s=]: plan, preview, send, run

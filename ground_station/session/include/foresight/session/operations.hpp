@@ -158,6 +158,10 @@ struct LocalizeRequest {
   std::string object = default_config("oru.yaml");
   std::string views;                  ///< comma-separated camera names ("": every camera in the file)
   bool camera_uncertainty = false;    ///< refine the cameras under their calibration covariance
+  /// For each tag's tool-tip uncertainty ("": none): the arm model and
+  /// ground.yaml (contact_check: encoder and link sigmas).
+  std::string robot = default_config("robot.urdf");
+  std::string ground = default_config("ground.yaml");
 };
 
 struct Localized {
@@ -167,6 +171,9 @@ struct Localized {
   std::vector<std::string> held_cameras;  ///< cameras whose calibration covariance entered the pose's
   double arm_link_sigma_m = 0.0;          ///< the arm model's link sigma that entered it
   localization::LocalizationResult result;
+  /// Per tag: its pose's covariance in base and the tool tip's positioning
+  /// uncertainty there (session::tag_uncertainty_json).
+  nlohmann::json tag_uncertainty;
 };
 
 Localized localize_from_clicks(const LocalizeRequest& request);

@@ -39,6 +39,10 @@ struct RunSettings {
   bool quiet = false;             ///< --json: progress goes to stderr
   bool recover = false;           ///< send RECOVER after taking control (drives on, hold)
   bool chain = false;             ///< --chain: motions sent ahead as a chain (after_command_id), not waited for
+  /// CHECK steps the operator overrides by name (`run --override-check
+  /// insert`): a no_go is journaled as overridden and the run goes on.
+  std::vector<std::string> override_checks;
+  std::string ground;             ///< ground.yaml (CHECK: its contact_check section)
 };
 
 class ScriptRunner : public script::CommandRunner {
@@ -94,6 +98,10 @@ class ScriptRunner : public script::CommandRunner {
   Eigen::VectorXd q_, q_start_;
   std::optional<Pose> base_T_object_;
   std::string pose_source_;
+  /// The object pose file base_T_object_ came from ("": the scene's true
+  /// pose, known exactly): CHECK reads its covariance.
+  std::string pose_file_;
+  script::Outcome check(const script::Command& c);
   std::string video_camera_, graphics_ = "hidden", frame_ = "world", tag_;
   bool grabbed_ = false;
   bool recover_before_next_ = false;  ///< a cancel stopped the arm (category 2): RECOVER before moving again
