@@ -1,5 +1,6 @@
 #include "foresight/common/insert_capture.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -33,6 +34,7 @@ InsertCapture insert_capture(const InsertParams& p, const InsertGeometry& g) {
   c.tilt_rad = std::asin(c.clearance_m / (0.5 * g.socket_diameter_m));
   c.axial_min_m = g.required_depth_m - p.depth_m;
   c.axial_max_m = 0.0;
+  c.axial_max_in_hole_m = std::max(0.0, g.hole_depth_m - p.depth_m + p.depth_tolerance_m);
   require_positive(c.axial_max_m - c.axial_min_m, "axial window (insert depth_m - required_depth_m)");
   return c;
 }

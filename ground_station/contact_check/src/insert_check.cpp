@@ -1,6 +1,7 @@
 #include "foresight/contact_check/insert_check.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -80,8 +81,14 @@ InsertPrediction predict_insert(const LocalCovariance& tip, const InsertCapture&
   const double z = tip.mean[5], sz = std::sqrt(std::max(tip.covariance(5, 5), 0.0));
   p.p_lateral = gaussian_mass_in_disc(lat_mean, lat_cov, capture.lateral_m);
   p.p_tilt = gaussian_mass_in_disc(tilt_mean, tilt_cov, capture.tilt_rad);
-  p.p_axial = mass_in_interval(z, sz, capture.axial_min_m, capture.axial_max_m);
-  p.p_success = p.p_lateral * p.p_tilt * p.p_axial;
+  // The axial window is wider for a tip within the clearance (it is in the
+  // hole already): the lateral disc splits in two.
+  const double p_in_hole = std::min(p.p_lateral, gaussian_mass_in_disc(lat_mean, lat_cov, capture.clearance_m));
+  const double p_axial_face = mass_in_interval(z, sz, capture.axial_min_m, capture.axial_max_m);
+  const double p_axial_hole = mass_in_interval(z, sz, capture.axial_min_m, std::max(capture.axial_max_m, capture.axial_max_in_hole_m));
+  const double p_lateral_and_axial = p_in_hole * p_axial_hole + (p.p_lateral - p_in_hole) * p_axial_face;
+  p.p_axial = p.p_lateral > 0.0 ? p_lateral_and_axial / p.p_lateral : p_axial_face;  // given the lateral is captured
+  p.p_success = p_lateral_and_axial * p.p_tilt;
   // The 95% errors about the planned start (the mean is the plan's offset).
   p.lateral95_m = disc_radius_holding(Eigen::Vector2d::Zero(), lat_cov, 0.95);
   p.tilt95_deg = disc_radius_holding(Eigen::Vector2d::Zero(), tilt_cov, 0.95) * 180.0 / std::numbers::pi;

@@ -70,6 +70,7 @@ TEST(InsertCapture, FromTheInsertsParameters) {
   EXPECT_NEAR(c.tilt_rad, std::asin(1.0 / 14.0), 1e-12);
   EXPECT_NEAR(c.axial_min_m, 0.05 - 0.06, 1e-12);        // 6 cm of travel, the latch needs 5 cm
   EXPECT_EQ(c.axial_max_m, 0.0);
+  EXPECT_NEAR(c.axial_max_in_hole_m, 0.080 - 0.06 + 0.002, 1e-12);  // in the hole already: on to its bottom
 }
 
 TEST(InsertCapture, RefusesNonPositiveSizesNamingThem) {
@@ -99,7 +100,7 @@ TEST(InsertCapture, RefusesNonPositiveSizesNamingThem) {
       std::invalid_argument);
 }
 
-TEST(PredictInsert, IsTheProductOfTheThreeMarginals) {
+TEST(PredictInsert, IsTheTiltTimesTheLateralAndAxialZones) {
   const InsertCapture c = capture();
   LocalCovariance tip;
   tip.mean[5] = -0.005;  // 5 mm stand-off
@@ -108,11 +109,16 @@ TEST(PredictInsert, IsTheProductOfTheThreeMarginals) {
   const InsertPrediction p = predict_insert(tip, c, 0.99);
   const double p_lat = 1.0 - std::exp(-c.lateral_m * c.lateral_m / (2 * sl * sl));
   const double p_tilt = 1.0 - std::exp(-c.tilt_rad * c.tilt_rad / (2 * st * st));
-  const double p_ax = normal_cdf((0.0 + 0.005) / sz) - normal_cdf((c.axial_min_m + 0.005) / sz);
+  // Within the 1 mm clearance the approach may end in the hole (z up to
+  // 22 mm); elsewhere in the disc it must end in front of the face (z <= 0).
+  const double p_in = 1.0 - std::exp(-c.clearance_m * c.clearance_m / (2 * sl * sl));
+  const double p_face = normal_cdf((0.0 + 0.005) / sz) - normal_cdf((c.axial_min_m + 0.005) / sz);
+  const double p_hole = normal_cdf((c.axial_max_in_hole_m + 0.005) / sz) - normal_cdf((c.axial_min_m + 0.005) / sz);
+  const double p_lat_ax = p_in * p_hole + (p_lat - p_in) * p_face;
   EXPECT_NEAR(p.p_lateral, p_lat, 1e-9);
   EXPECT_NEAR(p.p_tilt, p_tilt, 1e-9);
-  EXPECT_NEAR(p.p_axial, p_ax, 1e-12);
-  EXPECT_NEAR(p.p_success, p_lat * p_tilt * p_ax, 1e-9);
+  EXPECT_NEAR(p.p_axial, p_lat_ax / p_lat, 1e-9);
+  EXPECT_NEAR(p.p_success, p_lat_ax * p_tilt, 1e-9);
   EXPECT_NEAR(p.lateral95_m, sl * std::sqrt(-2.0 * std::log(0.05)), 1e-8);
   EXPECT_NEAR(p.axial95_m, 1.959964 * sz, 1e-12);
   EXPECT_NEAR(p.tilt95_deg, st * std::sqrt(-2.0 * std::log(0.05)) * 180 / std::numbers::pi, 1e-6);

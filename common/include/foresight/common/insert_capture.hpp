@@ -71,12 +71,16 @@ struct InsertGeometry {
 ///  - axial: the tip's start depth z in [axial_min_m, axial_max_m]: far
 ///    enough in that advancing depth_m reaches required_depth_m
 ///    (axial_min_m = required_depth - depth), and not past the face
-///    (axial_max_m = 0: a start inside the face is a collision).
+///    (axial_max_m = 0: an approach that ends inside the face is a
+///    collision) -- unless the tip is within the clearance of the axis: the
+///    approach then ends in the hole, and the insert goes on to the bottom
+///    (axial_max_in_hole_m = hole depth - depth_m + depth_tolerance).
 struct InsertCapture {
   double lateral_m = 0.0;
   double tilt_rad = 0.0;
   double axial_min_m = 0.0;
   double axial_max_m = 0.0;
+  double axial_max_in_hole_m = 0.0;  ///< the axial limit for a tip within the clearance of the axis
   double clearance_m = 0.0;  ///< radial: (hole - socket) / 2
 };
 

@@ -3,7 +3,8 @@
 // that the insert succeeds is the probability mass of the tip's error
 // (tip_error.hpp) inside the insert's capture region (common/insert_capture.hpp):
 //
-//   p_success = P(lateral in the capture disc) x P(tilt in its cone) x P(axial in its window)
+//   p_success = P(tilt in its cone) x [P(lateral within the clearance) x P(axial in the hole's window)
+//               + P(lateral in the rest of the capture disc) x P(axial in the face's window)]
 //
 // each term the exact mass of the error's Gaussian marginal (2-D lateral:
 // the integral over directions of the radial mass between the ray's entry
@@ -34,7 +35,8 @@ inline constexpr double kDefaultMinPSuccess = 0.99;
 
 struct InsertPrediction {
   double p_success = 0.0;
-  double p_lateral = 0.0, p_tilt = 0.0, p_axial = 0.0;
+  double p_lateral = 0.0, p_tilt = 0.0;
+  double p_axial = 0.0;  ///< given the lateral is captured: p_success = p_lateral p_axial p_tilt
   // The 95% errors about the planned start (the tip's mean error is the
   // plan's own offset from the hole, e.g. a stand-off):
   double lateral95_m = 0.0;  ///< radius of the disc holding 95% of the lateral error
