@@ -166,10 +166,21 @@ InsertionReport simulate_insertions(const InsertionBatch& batch) {
   for (const InsertionTrial& trial : batch.trials) {
     InsertionResult r;
     r.id = trial.id;
-    const std::optional<Eigen::VectorXd> q0 = world.start_joints(base_T_tag * trial.tag_T_tip);
+    const Pose base_T_start = base_T_tag * trial.tag_T_tip;
+    const std::optional<Eigen::VectorXd> q0 = world.start_joints(base_T_start);
+    // The start is where the approach ends: a stiff position-controlled
+    // motion that ends inside the ORU pressed into it on the way. The
+    // contact at the start, at rest, above the insert's force limit: the
+    // approach would have been stopped by the force check before the insert.
+    const sim::ContactResult start_contact = world.plant->tool_contact_model().compute(base_T_start, world.base_T_oru);
     if (!q0) {
       r.reason = "unreachable_start";
       r.text = "no joints put the tool tip at the start pose (IK)";
+    } else if (start_contact.force_base_n.norm() > spec.params.max_force_n) {
+      r.reason = "approach_collision";
+      r.peak_force_n = start_contact.force_base_n.norm();
+      r.text = "the approach ends " + std::to_string(start_contact.max_penetration_m * 1e3) +
+               " mm inside the ORU: its contact force " + std::to_string(r.peak_force_n) + " N is above max_force_n";
     } else {
       const sim_insertion::Outcome o = sim_insertion::run_insertion(world, *q0, spec);
       r.success = o.success();

@@ -127,9 +127,20 @@ TEST(SimulateInsertions, RunsEachTrialToItsEnd) {
   b.trials = {{7, Pose(Eigen::Translation3d(0.0, 0.0, -0.01))},
               {8, Pose(Eigen::Translation3d(0.0045, 0.0, -0.01))},
               {9, Pose(Eigen::Translation3d(0.012, 0.0, -0.01))},
-              {10, Pose(Eigen::Translation3d(0.0, 0.0, -5.0))}};
+              {10, Pose(Eigen::Translation3d(0.0, 0.0, -5.0))},
+              // The approach ends 2 mm into the face, 40 mm off the axis (the
+              // whole end face on it): 2e5 N/m x 2 mm = 400 N, above 80 N.
+              {11, Pose(Eigen::Translation3d(0.040, 0.0, 0.002))},
+              // 2 mm into the hole, within the clearance: in the hole already.
+              {12, Pose(Eigen::Translation3d(0.0005, 0.0, 0.002))}};
   const daemon::InsertionReport r = daemon::simulate_insertions(b);
-  ASSERT_EQ(r.results.size(), 4u);
+  ASSERT_EQ(r.results.size(), 6u);
+  EXPECT_EQ(r.results[4].reason, "approach_collision");
+  EXPECT_FALSE(r.results[4].success);
+  EXPECT_NEAR(r.results[4].peak_force_n, 400.0, 1.0);
+  EXPECT_EQ(r.results[4].text.rfind("the approach ends 2.0", 0), 0u) << r.results[4].text;
+  EXPECT_DOUBLE_EQ(r.results[4].sim_s, 0.0);
+  EXPECT_TRUE(r.results[5].success) << r.results[5].text;
   EXPECT_EQ(r.results[0].id, 7);
   EXPECT_TRUE(r.results[0].success);
   EXPECT_EQ(r.results[0].reason, "none");
@@ -149,7 +160,7 @@ TEST(SimulateInsertions, RunsEachTrialToItsEnd) {
   EXPECT_FALSE(r.results[3].success);
   EXPECT_EQ(r.results[3].reason, "unreachable_start");
   EXPECT_DOUBLE_EQ(r.results[3].sim_s, 0.0);
-  EXPECT_DOUBLE_EQ(r.success_rate, 0.5);
+  EXPECT_DOUBLE_EQ(r.success_rate, 0.5);  // 7, 8, 12 of six
   EXPECT_GT(r.compute_s, 0.0);
 }
 
