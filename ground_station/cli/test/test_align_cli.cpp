@@ -151,6 +151,40 @@ TEST(AlignCli, MalformedObjectPoseCovarianceIsBadInput) {
   EXPECT_FALSE(std::filesystem::exists(out));
 }
 
+// An aligned ORU carries its covariance on: align --json's per-tag
+// uncertainty, and --object-out a pose file check-insert takes (it says the
+// pose came from align, so its advice does not send the operator to align).
+TEST(AlignCli, TheAlignedObjectsCovarianceGoesToTheTagsAndTheGoNoGo) {
+  auto& f = fixture();
+  const std::string pose = temp_path(".json"), out = temp_path(".json");
+  nlohmann::json j;
+  const Pose T = f.scene.base_T_object * Pose(Eigen::Translation3d(0.002, -0.001, 0.0));
+  for (int r = 0; r < 4; ++r) j["base_T_object"].push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  for (int r = 0; r < 6; ++r) {
+    j["covariance"].push_back(nlohmann::json::array());
+    for (int c = 0; c < 6; ++c) j["covariance"][r].push_back(r == c ? (r < 3 ? 1e-4 : 1e-5) : 0.0);
+  }
+  std::ofstream(pose) << j.dump();
+  const auto r = run_foresight("align --cameras " + f.truth_yaml + " --camera side --image " + f.frame + " --joints " +
+                               f.q_text + " --object-pose " + pose + " --refine object --object-out " + out + " --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto a = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(a.contains("object_covariance")) << r.out;
+  const auto& tag = a["tag_uncertainty"]["insert_start"];
+  EXPECT_EQ(tag["covariance"].size(), 6u);
+  EXPECT_GT(tag["sigma_position_m"][0].get<double>(), 0.0);
+  EXPECT_LT(tag["sigma_position_m"][0].get<double>(), 0.003);  // sharper than the 3 mm start
+  EXPECT_EQ(tag["tool_tip"]["frame"], "tag");
+  const auto pose_file = nlohmann::json::parse(test::read_file(out));
+  EXPECT_EQ(pose_file["source"], "foresight align");
+  EXPECT_EQ(pose_file["covariance"], a["object_covariance"]);
+  const auto c = run_foresight("check-insert --object-pose " + out + " --json");
+  ASSERT_TRUE(c.status == 0 || c.status == 1) << c.err;
+  const auto k = nlohmann::json::parse(c.out);
+  EXPECT_GT(k["p_success"].get<double>(), 0.0);
+  for (const auto& advice : k["advice"]) EXPECT_EQ(advice.get<std::string>().find("foresight align"), std::string::npos);
+}
+
 TEST(AlignCli, UnknownCameraIsBadInput) {
   auto& f = fixture();
   const std::string out = temp_path(".yaml");

@@ -693,6 +693,22 @@ Overlaid overlay_frame(const OverlayRequest& a) {
   return out;
 }
 
+namespace {
+
+/// The ORU's block of an alignment's covariance (after the refined cameras'
+/// blocks of 7), from its body rotation increment to the object pose file's
+/// (roll, pitch, yaw, x, y, z); none when the object was not refined.
+std::optional<Eigen::Matrix<double, 6, 6>> aligned_object_covariance(const align::AlignResult& r, bool cameras_refined) {
+  if (!r.base_T_object) return std::nullopt;
+  const Eigen::Index at = cameras_refined ? 7 * static_cast<Eigen::Index>(r.cameras.size()) : 0;
+  if (r.covariance.rows() < at + 6 || r.covariance.cols() < at + 6) return std::nullopt;
+  Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Identity();
+  G.topLeftCorner<3, 3>() = calibration::rpy_rate_matrix(rpy_from_rotation(r.base_T_object->linear())).inverse();
+  return G * r.covariance.block<6, 6>(at, at) * G.transpose();
+}
+
+}  // namespace
+
 AlignedViews align_views(const AlignRequest& a) {
   using namespace foresight::render;
   using namespace foresight::align;
@@ -807,6 +823,10 @@ AlignedViews align_views(const AlignRequest& a) {
     if (!a.object_out.empty() && r.base_T_object) {
       nlohmann::json j = localization::object_pose_json(*r.base_T_object);
       j["source"] = "foresight align";
+      if (const auto C = aligned_object_covariance(r, out.cameras_refined)) j["covariance"] = matrix_rows(*C);
+      std::vector<std::string> views;
+      for (const auto& cam : r.cameras) views.push_back(cam.name);
+      j["views"] = views;
       write_file_atomic(a.object_out, j.dump(2) + "\n");
     }
   }
@@ -854,6 +874,12 @@ nlohmann::json aligned_json(const AlignRequest& a, const AlignedViews& aligned) 
     j["base_T_object"] = localization::pose_json(*r.base_T_object);
     j["object_change"] = {{"rotation_deg", vec_json(r.object_change.head<3>() * 180.0 / M_PI)},
                           {"position_m", vec_json(r.object_change.tail<3>())}};
+  }
+  if (const auto C = aligned_object_covariance(r, cam_refined)) {
+    j["object_covariance"] = matrix_rows(*C);  // roll, pitch, yaw, x, y, z: the object pose file's
+    const RobotModel robot = RobotModel::from_file(a.robot);
+    j["tag_uncertainty"] = tag_uncertainty_json(ObjectModel::from_file(a.object), *r.base_T_object, *C, &robot,
+                                                contact_check::load_contact_check_config(default_config("ground.yaml")));
   }
   if (!r.arm_link_delta_m.empty()) j["arm_link_delta_m"] = r.arm_link_delta_m;
   if (!r.arm_link_sigma_m.empty()) j["arm_link_sigma_m"] = r.arm_link_sigma_m;
