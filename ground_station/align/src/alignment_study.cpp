@@ -95,11 +95,7 @@ class AlignmentStudy {
     // arm's; the same every trial): the click calibration's covariance
     // carries the arm model's uncertainty (arm_link_prior_m), which the
     // residuals cannot show.
-    calibration_dp_dlinks_.resize(nv_);
-    calibration::LinkLengthSensitivity sensitivity(robot);
-    for (int v = 0; v < nv_; ++v)
-      for (const localization::ArmFeature& f : setup_.views[v].calibration_features)
-        calibration_dp_dlinks_[v].push_back(sensitivity.at(setup_.arm_q.at(f.pose), f.link, f.p_link));
+    calibration_dp_dlinks_ = localization::calibration_link_sensitivities(setup_, robot);
     calibration_options_.arm_link_sigma_m = opt.arm_link_prior_m;
     aligner_ = std::make_unique<ModelAligner>(ctx, robot, &object, vp_);
   }
@@ -171,30 +167,20 @@ class AlignmentStudy {
   }
 
   bool click_calibration(const RobotModel& truth_arm, Clicks& clicks) {
-    KinematicsWorkspace tws(truth_arm);
-    bool ok = true;
-    for (int v = 0; v < nv_ && ok; ++v) {
-      const localization::StudyView& view = setup_.views[v];
-      std::vector<Eigen::Vector3d> true_base;
-      for (const localization::ArmFeature& f : view.calibration_features)
-        true_base.push_back(forward_kinematics(truth_arm, tws, setup_.arm_q.at(f.pose), f.link) * f.p_link);
-      localization::ViewClicks vc = localization::simulate_view_clicks(view, view.calibration_points_base, true_base, setup_.base_T_object,
-                                           [&] { return noise_(rng_); });
-      for (std::size_t i = 0; i < vc.calibration.size(); ++i) vc.calibration[i].dp_dlinks = calibration_dp_dlinks_[v][i];
-      try {
-        const calibration::CalibrationResult cr = calibration::calibrate_camera(vc.calibration, vp_, view.truth.name, calibration_options_);
-        clicks.cams[view.truth.name] = cr.camera;
-        clicks.link_sensitivity[view.truth.name] = cr.link_sensitivity;
-        clicks.covariance[view.truth.name] =
-            calibration::camera_covariance_body_from_rpy(cr.covariance, cr.camera.base_T_camera.linear());
-        clicks.noise_covariance[view.truth.name] =
-            calibration::camera_covariance_body_from_rpy(cr.covariance - cr.arm_model_covariance, cr.camera.base_T_camera.linear());
-      } catch (const Error&) {
-        ok = false;
-      }
-      clicks.oru.insert(clicks.oru.end(), vc.object.begin(), vc.object.end());
+    std::vector<int> views(static_cast<std::size_t>(nv_));
+    for (int v = 0; v < nv_; ++v) views[static_cast<std::size_t>(v)] = v;
+    try {
+      localization::ClickCalibration c = localization::calibrate_from_arm_clicks(
+          setup_, views, truth_arm, calibration_dp_dlinks_, calibration_options_, [&] { return noise_(rng_); });
+      clicks.cams = std::move(c.cameras);
+      clicks.link_sensitivity = std::move(c.link_sensitivity);
+      clicks.covariance = std::move(c.covariance);
+      clicks.noise_covariance = std::move(c.noise_covariance);
+      clicks.oru = std::move(c.object);
+    } catch (const Error&) {
+      return false;
     }
-    return ok;
+    return true;
   }
 
   /// The clicks' localization per combination. Its uncertainty serves the

@@ -39,6 +39,7 @@
 namespace foresight::cli {
 
 std::function<int()> setup_eval_alignment(Command& eval);  // eval_alignment.cpp
+std::function<int()> setup_eval_insertion(Command& eval);  // eval_insertion.cpp
 
 namespace {
 
@@ -195,14 +196,16 @@ std::function<int()> setup(Command& sub) {
   loc->add_option("--robot", a->robot, "robot URDF (the calibration fixture)")->capture_default_str();
   loc->add_flag("--json", args->json, "print one JSON object");
   auto alignment = setup_eval_alignment(sub);
-  return [args, loc, alignment] {
+  auto insertion = setup_eval_insertion(sub);
+  return [args, loc, alignment, insertion] {
     if (loc->parsed()) return run_eval(*args);
     if (const int rc = alignment(); rc >= 0) return rc;
-    throw std::invalid_argument("eval: choose a study (localization, alignment)");
+    if (const int rc = insertion(); rc >= 0) return rc;
+    throw std::invalid_argument("eval: choose a study (localization, alignment, insertion)");
   };
 }
 
-const bool registered = register_command({"eval", "accuracy studies (eval localization, eval alignment)", setup});
+const bool registered = register_command({"eval", "accuracy studies (eval localization, eval alignment, eval insertion)", setup});
 
 }  // namespace
 }  // namespace foresight::cli

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "foresight/calibration/calibrate.hpp"
+#include "foresight/calibration/robot_points.hpp"
 #include "foresight/camera/projection.hpp"
 #include "foresight/common/kinematics.hpp"
 #include "foresight/localization/localize.hpp"
@@ -64,6 +65,44 @@ ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::
     c.p_m = view.object_points[i];
     c.uv_px = view.truth.project(base_T_object * c.p_m) + Eigen::Vector2d(noise(), noise());
     out.object.push_back(c);
+  }
+  return out;
+}
+
+std::vector<std::vector<Eigen::Matrix3Xd>> calibration_link_sensitivities(const StudySetup& setup, const RobotModel& robot) {
+  std::vector<std::vector<Eigen::Matrix3Xd>> out(setup.views.size());
+  calibration::LinkLengthSensitivity sensitivity(robot);
+  for (std::size_t v = 0; v < setup.views.size(); ++v)
+    for (const ArmFeature& f : setup.views[v].calibration_features)
+      out[v].push_back(sensitivity.at(setup.arm_q.at(f.pose), f.link, f.p_link));
+  return out;
+}
+
+ClickCalibration calibrate_from_arm_clicks(const StudySetup& setup, const std::vector<int>& views, const RobotModel& true_arm,
+                                           const std::vector<std::vector<Eigen::Matrix3Xd>>& dp_dlinks,
+                                           const calibration::CalibrationOptions& options,
+                                           const std::function<double()>& noise) {
+  KinematicsWorkspace ws(true_arm);
+  ClickCalibration out;
+  for (const int v : views) {
+    const StudyView& view = setup.views.at(static_cast<std::size_t>(v));
+    std::vector<Eigen::Vector3d> true_base;
+    for (const ArmFeature& f : view.calibration_features)
+      true_base.push_back(forward_kinematics(true_arm, ws, setup.arm_q.at(f.pose), f.link) * f.p_link);
+    ViewClicks vc = simulate_view_clicks(view, view.calibration_points_base, true_base, setup.base_T_object, noise);
+    if (!dp_dlinks.empty())
+      for (std::size_t i = 0; i < vc.calibration.size(); ++i) vc.calibration[i].dp_dlinks = dp_dlinks.at(v).at(i);
+    const calibration::CalibrationResult cr =
+        calibration::calibrate_camera(vc.calibration, view.truth.viewport, view.truth.name, options);
+    const std::string& name = view.truth.name;
+    const Eigen::Matrix3d R = cr.camera.base_T_camera.linear();
+    out.cameras[name] = cr.camera;
+    out.covariance[name] = calibration::camera_covariance_body_from_rpy(cr.covariance, R);
+    out.noise_covariance[name] = calibration::camera_covariance_body_from_rpy(cr.covariance - cr.arm_model_covariance, R);
+    out.information[name] = cr.information;
+    out.link_sensitivity[name] = cr.link_sensitivity;
+    out.rms_px[name] = cr.rms_px;
+    out.object.insert(out.object.end(), vc.object.begin(), vc.object.end());
   }
   return out;
 }

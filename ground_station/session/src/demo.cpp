@@ -34,8 +34,6 @@ using nlohmann::json;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-std::string exe_dir() { return fs::read_symlink("/proc/self/exe").parent_path().string(); }
-
 void say(const std::string& line) { std::cout << line << "\n" << std::flush; }
 
 /// Drives the task script's commands to the remote in auto mode; Ctrl-C aborts.
@@ -326,7 +324,7 @@ int run_demo(DemoOptions& o, const std::function<bool()>& interrupted) {
   fs::remove(out + "/run.jsonl");
   fs::remove(out + "/ground.json");
 
-  const std::string bin = exe_dir();
+  const std::string bin = executable_dir();
   const std::string remote_exe = bin + "/foresight-remote", emu_exe = bin + "/foresight-linkemu";
   const std::string self = bin + "/foresight";
   const std::string db = out + "/remote_journal.db";

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -19,6 +20,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
+
+std::string executable_dir() { return std::filesystem::read_symlink("/proc/self/exe").parent_path().string(); }
 
 std::string read_log(const std::string& path) {
   std::ifstream in(path);

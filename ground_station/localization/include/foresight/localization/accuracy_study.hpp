@@ -16,9 +16,11 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "foresight/calibration/calibrate.hpp"
 #include "foresight/calibration/correspondence.hpp"
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/object_model.hpp"
@@ -123,6 +125,37 @@ struct ViewClicks {
 ViewClicks simulate_view_clicks(const StudyView& view, const std::vector<Eigen::Vector3d>& believed_base,
                                 const std::vector<Eigen::Vector3d>& true_base, const Pose& base_T_object,
                                 const std::function<double()>& noise);
+
+/// The arm as the fixture, per view and calibration point: the point's
+/// response to the arm model's link lengths at its arm pose (the nominal
+/// arm `robot`'s; calibration::Correspondence::dp_dlinks), for a calibration
+/// that carries the arm model's uncertainty (CalibrationOptions::
+/// arm_link_sigma_m). Needs a setup from choose_calibration_points.
+std::vector<std::vector<Eigen::Matrix3Xd>> calibration_link_sensitivities(const StudySetup& setup, const RobotModel& robot);
+
+/// One trial's click calibration of some views (the alignment study's and
+/// `eval insertion`'s): the clicks show the true arm `true_arm` at the
+/// setup's calibration poses, the believed points are the nominal arm's
+/// (the view's calibration_points_base); each camera calibrated from them
+/// with `options`, with the points' link sensitivities (`dp_dlinks`, from
+/// calibration_link_sensitivities; ignored when empty). Noise is drawn view
+/// by view in `views`' order as simulate_view_clicks draws it.
+struct ClickCalibration {
+  std::map<std::string, camera::Camera> cameras;
+  /// Per camera, body rotation (calibration::camera_covariance_body_from_rpy):
+  /// the whole covariance, and its noise part (less the arm model's).
+  std::map<std::string, Eigen::Matrix<double, 7, 7>> covariance, noise_covariance;
+  std::map<std::string, Eigen::Matrix<double, 7, 7>> information;
+  std::map<std::string, Eigen::MatrixXd> link_sensitivity;  ///< CalibrationResult::link_sensitivity
+  std::map<std::string, double> rms_px;
+  std::vector<calibration::Correspondence> object;  ///< the object's clicks of every view
+};
+/// Throws the calibration's Error (input or computation) when a camera's
+/// calibration fails; the views after it are not clicked.
+ClickCalibration calibrate_from_arm_clicks(const StudySetup& setup, const std::vector<int>& views, const RobotModel& true_arm,
+                                           const std::vector<std::vector<Eigen::Matrix3Xd>>& dp_dlinks,
+                                           const calibration::CalibrationOptions& options,
+                                           const std::function<double()>& noise);
 
 struct ComboStats {
   std::vector<int> views;  ///< 0-based view indices

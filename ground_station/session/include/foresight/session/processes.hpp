@@ -33,6 +33,10 @@ int stop_child(pid_t pid, double grace_s);
 bool wait_for_line(const std::string& path, const std::string& needle, pid_t pid, double timeout_s, int* exit_code,
                    std::string* line_found = nullptr, const std::function<bool()>& interrupted = {});
 
+/// The directory of this executable: where its sibling programs
+/// (foresight-remote, foresight-linkemu) are installed and built.
+std::string executable_dir();
+
 /// The whole file ("" when it cannot be read): for logs and the children's outputs.
 std::string read_log(const std::string& path);
 
