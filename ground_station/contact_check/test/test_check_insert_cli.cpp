@@ -84,7 +84,7 @@ TEST(CheckInsertCli, BadInputsExit2NamingTheInput) {
              "pulled_out_5cm, stow, tool_inserted, withdrawn_15cm)");
   expect_bad("--object-pose " + site().no_covariance,
              site().no_covariance + ": the object pose has no covariance (localize --json or align --json write it)");
-  expect_bad(pose + " --spiral-max-radius-m 0", "capture region: insert spiral_max_radius_m must be > 0 (got 0.000000)");
+  expect_bad(pose + " --spiral-max-radius-m 0", "insert.spiral_max_radius_m must be a positive number");
   expect_bad(pose + " --min-p 1", "min_p_success must be in (0, 1) (got 1.000000)");
   expect_bad(pose + " --min-p 0", "min_p_success must be in (0, 1) (got 0.000000)");
 }

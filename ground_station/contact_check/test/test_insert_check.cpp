@@ -81,7 +81,7 @@ TEST(InsertCapture, RefusesNonPositiveSizesNamingThem) {
         try {
           insert_capture(p, InsertGeometry{});
         } catch (const std::invalid_argument& e) {
-          EXPECT_STREQ(e.what(), "capture region: insert spiral_max_radius_m must be > 0 (got 0.000000)");
+          EXPECT_STREQ(e.what(), "insert.spiral_max_radius_m must be a positive number");
           throw;
         }
       },
@@ -93,7 +93,7 @@ TEST(InsertCapture, RefusesNonPositiveSizesNamingThem) {
         try {
           insert_capture(InsertParams{}, g);
         } catch (const std::invalid_argument& e) {
-          EXPECT_STREQ(e.what(), "capture region: radial clearance (hole diameter_m - socket_diameter_m) / 2 must be > 0 (got -0.000500)");
+          EXPECT_STREQ(e.what(), "capture region: the socket (0.031000 m) must be narrower than the hole (0.030000 m)");
           throw;
         }
       },
@@ -126,6 +126,25 @@ TEST(PredictInsert, IsTheTiltTimesTheLateralAndAxialZones) {
   EXPECT_STREQ(verdict(p), "no_go");
   tip.covariance *= 0.1;
   EXPECT_TRUE(predict_insert(tip, c, 0.99).go);
+}
+
+TEST(PredictInsert, LateralAndAxialErrorsThatMoveTogetherAreIntegratedTogether) {
+  // One view's error along its line of sight: z = x, all spread along x.
+  // The start 5 mm before the face: x in [-5, 5] mm succeeds (beyond 5 mm
+  // the tip ends past the face outside the clearance, before -5 mm it starts
+  // too far out for 6 cm of travel to reach 5 cm), nothing else counts.
+  const InsertCapture c = capture();
+  LocalCovariance tip;
+  tip.mean[5] = -0.005;
+  const double s = 4e-3;
+  tip.covariance(3, 3) = tip.covariance(5, 5) = tip.covariance(3, 5) = tip.covariance(5, 3) = s * s;
+  tip.covariance(0, 0) = tip.covariance(1, 1) = 1e-8;  // the tilt: captured
+  const InsertPrediction p = predict_insert(tip, c, 0.99);
+  EXPECT_NEAR(p.p_success, normal_cdf(0.005 / s) - normal_cdf(-0.005 / s), 1e-6);
+  // Taken apart, lateral and axial would say less: the product is not it.
+  const double product = (normal_cdf(c.lateral_m / s) - normal_cdf(-c.lateral_m / s)) *
+                         (normal_cdf(0.005 / s) - normal_cdf(-0.005 / s));
+  EXPECT_GT(p.p_success - product, 0.04);
 }
 
 TEST(PredictInsert, RefusesAThresholdOutsideTheOpenUnitInterval) {

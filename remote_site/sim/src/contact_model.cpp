@@ -7,7 +7,7 @@
 
 #include "foresight/common/error.hpp"
 #include "foresight/common/yaml_util.hpp"
-#include "param_checks.hpp"
+#include "foresight/common/param_checks.hpp"
 
 namespace foresight::sim {
 

@@ -10,7 +10,7 @@
 #include "foresight/common/yaml_util.hpp"
 #include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/lst_server.hpp"
-#include "param_checks.hpp"
+#include "foresight/common/param_checks.hpp"
 
 namespace foresight::sim {
 

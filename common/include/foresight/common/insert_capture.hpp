@@ -85,10 +85,10 @@ struct InsertCapture {
 };
 
 /// The capture region of `params` in `geometry`. Throws std::invalid_argument
-/// naming the input when a size is not positive and finite (the socket must
-/// be smaller than the hole; depth_m must exceed required_depth_m; the
-/// spiral radius > 0; lead_in_m >= 0) or required_depth_m exceeds the
-/// hole's depth.
+/// naming the setting: "<section>.<name> must be a positive number" (hole.,
+/// insert., contact_check. sizes; lead_in_m non-negative), and "capture
+/// region: ..." for a socket not narrower than the hole, a required depth
+/// past the hole's bottom, a depth_m not beyond the required depth.
 InsertCapture insert_capture(const InsertParams& params, const InsertGeometry& geometry);
 
 }  // namespace foresight

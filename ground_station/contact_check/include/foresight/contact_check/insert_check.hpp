@@ -3,14 +3,14 @@
 // that the insert succeeds is the probability mass of the tip's error
 // (tip_error.hpp) inside the insert's capture region (common/insert_capture.hpp):
 //
-//   p_success = P(tilt in its cone) x [P(lateral within the clearance) x P(axial in the hole's window)
-//               + P(lateral in the rest of the capture disc) x P(axial in the face's window)]
+//   p_success = P(tilt in its cone) x P((lateral, axial) in their region)
 //
-// each term the exact mass of the error's Gaussian marginal (2-D lateral:
-// the integral over directions of the radial mass between the ray's entry
-// and exit of the disc, in the whitened coordinates; 2-D tilt the same; 1-D
-// axial by erf). The three are taken as independent (the cross terms of the
-// covariance between them are left out; docs/estimation.md says how large).
+// The lateral and axial errors together (one view's errors along and across
+// its line of sight are correlated): within the clearance of the axis the
+// approach may end in the hole (the wider axial window), elsewhere in the
+// capture disc it must end before the face; the mass by quadrature in the
+// whitened lateral plane, the axial error's conditional normal in closed form.
+// The tilt's mass (2-D, exact per ray) is taken as independent of them.
 // Set-up code.
 
 #include <string>

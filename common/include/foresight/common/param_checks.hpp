@@ -1,12 +1,12 @@
 #pragma once
-// Range checks of the simulation parameters (contact model, screw model),
-// private to foresight_sim. Messages name the setting: "<section>.<name> ...".
+// Range checks of model parameters (the simulated contact and screw, the
+// insert's capture region). Messages name the setting: "<section>.<name> ...".
 
 #include <cmath>
 #include <stdexcept>
 #include <string>
 
-namespace foresight::sim {
+namespace foresight {
 
 /// std::invalid_argument "<section>.<name> must be a positive number" unless v is finite and > 0.
 inline void require_positive(double v, const char* section, const char* name) {
@@ -20,4 +20,4 @@ inline void require_non_negative(double v, const char* section, const char* name
     throw std::invalid_argument(std::string(section) + "." + name + " must be a non-negative number");
 }
 
-}  // namespace foresight::sim
+}  // namespace foresight
