@@ -1,7 +1,7 @@
 // foresight eval insertion: is the go/no-go before the insert honest?
 // (issue 30 item 5)
 //
-//   foresight eval insertion [--trials N] [--seed K] [--noise-px S] [--arm-error-mm E]
+//   foresight eval insertion [--trials N] [--seed K] [--noise-px S] [--arm-error-mm E] [--arm-error-max-mm M]
 //                            [--arm-sigma-mm B] [--encoder-sigma-rad R] [--min-p P] [--bins M]
 //                            [--scene F] [--object F] [--robot F] [--remote PATH] [--work-dir DIR] [--json]
 //
@@ -74,6 +74,9 @@ std::function<int()> setup_eval_insertion(Command& eval) {
   sub->add_option("--seed", a->seed, "random seed (non-negative)")->capture_default_str();
   sub->add_option("--noise-px", a->noise_px, "click noise standard deviation (px)")->capture_default_str();
   sub->add_option("--arm-error-mm", a->arm_error_mm, "the true arm's link-length errors (mm, sd)")->capture_default_str();
+  sub->add_option("--arm-error-max-mm", a->arm_error_max_mm,
+                  "> 0: each trial's link sd drawn log-uniform in [--arm-error-mm, this], believed as drawn")
+      ->capture_default_str();
   sub->add_option("--arm-sigma-mm", a->arm_sigma_mm, "the ground's belief of them (mm, sd; calibration and prediction)")
       ->capture_default_str();
   sub->add_option("--encoder-sigma-rad", a->encoder_sigma_rad, "the joints' encoder error (rad, sd)")->capture_default_str();

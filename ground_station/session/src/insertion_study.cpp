@@ -51,6 +51,8 @@ void check_request(const InsertionStudyRequest& a) {
     throw std::invalid_argument("--arm-error-mm must be a number in [0, 50]");
   if (!(a.arm_sigma_mm >= 0.0 && a.arm_sigma_mm <= 50.0))
     throw std::invalid_argument("--arm-sigma-mm must be a number in [0, 50]");
+  if (!(a.arm_error_max_mm == 0.0 || (a.arm_error_max_mm <= 50.0 && a.arm_error_mm > 0.0 && a.arm_error_max_mm > a.arm_error_mm)))
+    throw std::invalid_argument("--arm-error-max-mm must be 0 (off) or in (--arm-error-mm, 50]");
   if (!(a.encoder_sigma_rad >= 0.0 && a.encoder_sigma_rad <= 0.01))
     throw std::invalid_argument("--encoder-sigma-rad must be a number in [0, 0.01]");
   if (!(a.min_p_success > 0.0 && a.min_p_success < 1.0))
@@ -111,20 +113,25 @@ bool draw_trial(const Site& site, const InsertionStudyRequest& a, int id, int at
   std::shuffle(all.begin(), all.end(), rng);
   std::vector<int> views(all.begin(), all.begin() + k);
   std::sort(views.begin(), views.end());
-  // The true arm.
-  std::normal_distribution<double> link_error(0.0, a.arm_error_mm * 1e-3);
+  // The true arm, and what the ground believes of it.
+  double error_mm = a.arm_error_mm, sigma_mm = a.arm_sigma_mm;
+  if (a.arm_error_max_mm > 0.0)
+    sigma_mm = error_mm =
+        std::exp(std::uniform_real_distribution<double>(std::log(a.arm_error_mm), std::log(a.arm_error_max_mm))(rng));
+  out.record.arm_error_mm = error_mm;
+  std::normal_distribution<double> link_error(0.0, error_mm * 1e-3);
   std::vector<double> delta(static_cast<std::size_t>(site.robot.segment_count()), 0.0);
   double link2 = 0.0;
   const std::vector<int> links = site.robot.offset_segments();
   for (const int s : links) {
-    delta[static_cast<std::size_t>(s)] = a.arm_error_mm > 0.0 ? link_error(rng) : 0.0;
+    delta[static_cast<std::size_t>(s)] = error_mm > 0.0 ? link_error(rng) : 0.0;
     link2 += delta[static_cast<std::size_t>(s)] * delta[static_cast<std::size_t>(s)];
   }
   const RobotModel true_arm = site.robot.with_link_lengths_changed(delta);
   // Clicks, calibration (the nominal arm believed, its link sigma), localization.
   std::normal_distribution<double> noise(0.0, a.noise_px);
   calibration::CalibrationOptions co;
-  co.arm_link_sigma_m = a.arm_sigma_mm * 1e-3;
+  co.arm_link_sigma_m = sigma_mm * 1e-3;
   localization::LocalizationResult lr;
   try {
     const localization::ClickCalibration cc = localization::calibrate_from_arm_clicks(
@@ -147,7 +154,7 @@ bool draw_trial(const Site& site, const InsertionStudyRequest& a, int id, int at
   est.covariance = lr.covariance;
   est.arm_link_sensitivity = lr.arm_link_sensitivity;
   est.arm_link_sigma_m = lr.arm_link_sensitivity.size() > 0 ? co.arm_link_sigma_m : 0.0;
-  const contact_check::ArmUncertainty arm{a.arm_sigma_mm * 1e-3, a.encoder_sigma_rad};
+  const contact_check::ArmUncertainty arm{sigma_mm * 1e-3, a.encoder_sigma_rad};
   contact_check::ToolTip tool;
   try {
     tool = contact_check::tool_tip_uncertainty(site.robot, est.base_T_object * site.object_T_start, arm);
@@ -449,6 +456,7 @@ nlohmann::json insertion_study_json(const InsertionStudyRequest& a, const Insert
   for (const auto& r : s.records)
     records.push_back({{"id", r.id},
                        {"views", r.views},
+                       {"arm_error_mm", r.arm_error_mm},
                        {"p_success", r.p_success},
                        {"p_lateral", r.p_lateral},
                        {"p_tilt", r.p_tilt},
@@ -496,6 +504,7 @@ nlohmann::json insertion_study_json(const InsertionStudyRequest& a, const Insert
             {"noise_px", a.noise_px},
             {"arm_error_mm", a.arm_error_mm},
             {"arm_sigma_mm", a.arm_sigma_mm},
+            {"arm_error_max_mm", a.arm_error_max_mm},
             {"encoder_sigma_rad", a.encoder_sigma_rad},
             {"min_p_success", a.min_p_success},
             {"depth_m", a.depth_m},

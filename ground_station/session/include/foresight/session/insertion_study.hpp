@@ -27,8 +27,13 @@ struct InsertionStudyRequest {
   int trials = 400;
   std::int64_t seed = 1;
   double noise_px = 1.0;             ///< click noise (sd)
-  double arm_error_mm = 2.0;         ///< the true arm's link-length errors (sd)
-  double arm_sigma_mm = 2.0;         ///< the ground's belief of them (calibration, prediction)
+  double arm_error_mm = 0.2;         ///< the true arm's link-length errors (sd; the range's low end)
+  double arm_sigma_mm = 2.0;         ///< the ground's belief of them (calibration, prediction) when not drawn
+  /// > 0: work sites with arms known better and worse: each trial's link sd
+  /// drawn log-uniform in [arm_error_mm, arm_error_max_mm], and the ground
+  /// believes the drawn sd (arm_sigma_mm unused). 0: every arm off by
+  /// arm_error_mm, believed arm_sigma_mm.
+  double arm_error_max_mm = 2.0;
   double encoder_sigma_rad = 2e-5;   ///< the joints' encoder error (drawn, and believed)
   double min_p_success = 0.99;       ///< go when p_success >= this
   int bins = 10;                     ///< equal-width bins of p_predicted over [0, 1]
@@ -46,6 +51,7 @@ struct InsertionStudyRequest {
 struct InsertionTrialRecord {
   int id = 0;
   std::vector<int> views;            ///< 0-based scene camera indices
+  double arm_error_mm = 0.0;         ///< the arm's link-length sd this trial (true and believed)
   double p_success = 0.0, p_lateral = 0.0, p_tilt = 0.0, p_axial = 0.0;
   double lateral95_m = 0.0, axial95_m = 0.0, tilt95_deg = 0.0;
   bool go = false;
