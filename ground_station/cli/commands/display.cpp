@@ -11,7 +11,7 @@
 //                     [--object-pose localize.json] [--mode wire|solid|hidden|ghost] [--no-overlay] [--no-text]
 //                     [--record out.mp4] [--headless] [--frames N] [--fps F] [--retry-s S]
 //                     [--snapshot shown.png] [--scene scene.yaml] [--gl osmesa|egl]
-//                     [--health [--health-every N]] [--json]
+//                     [--health [--health-every N]] [--check-insert [--ground ground.yaml]] [--json]
 //
 // Keys: w s h g render mode (wire, solid, hidden-line, ghost), o overlay on/off,
 // c next camera (of cameras.yaml; with --remote the remote's video switch is
@@ -33,6 +33,11 @@
 // (align::HealthMonitor; its baseline restarts when the camera changes).
 // --json then has health{scored, camera_moved, warnings[{frame, camera,
 // reason}], last{matched_fraction, score_px, iou}}.
+// --check-insert: the insert's go/no-go with the overlay (needs --object-pose
+// with its covariance, as localize/align --json write it): the hole's 95%
+// ellipse and the tool tip at insert_start with its own, green go / red no_go,
+// "insert: go P=0.997" beside them (docs/display.md). --json then has
+// insert_check{verdict, p_success, label, hole{in_view, ellipse95}, tip{...}}.
 
 #include <cstdio>
 #include <iostream>
@@ -60,6 +65,7 @@ int show(const session::DisplaySettings& a) {
     if (!a.record.empty()) j["record"] = a.record;
     if (!s.health.is_null()) j["health"] = s.health;
     if (!s.remote.is_null()) j["remote"] = s.remote;
+    if (!s.insert_check.is_null()) j["insert_check"] = s.insert_check;
     std::cout << j.dump() << "\n";
   } else {
     std::printf("display: camera %s, video %s: %d frame(s) shown, %d from the source, %d with a video problem",
@@ -93,6 +99,10 @@ const bool registered = register_command(
        sub.add_flag("--remote", a->remote, "the actual arm, round trip, controller state and faults from foresight-remote over DDS");
        add_link_options(sub, a->link, false);
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json`: draw the ORU and its tag frames");
+       sub.add_flag("--check-insert", a->check_insert,
+                    "draw the insert's go/no-go: the hole's 95% ellipse and the tool tip at insert_start, green go / red no_go "
+                    "(needs --object-pose with its covariance)");
+       sub.add_option("--ground", a->ground, "ground.yaml (its contact_check section, for --check-insert)")->capture_default_str();
        sub.add_option("--mode", a->mode, "render mode of the actual arm: wire | solid | hidden | ghost")->capture_default_str();
        sub.add_option("--alpha", a->alpha, "ghost opacity")->capture_default_str();
        sub.add_flag("--no-overlay", a->no_overlay, "start with the overlay off (key o)");

@@ -3,13 +3,18 @@
 //
 //   foresight overlay --cameras cameras.yaml --camera NAME --image IN
 //                     --joints q1,...,qN (rad) | --joints-deg q1,...,qN
-//                     [--object-pose localize.json] [--tags]
+//                     [--object-pose localize.json] [--tags] [--check-insert [--ground ground.yaml]]
 //                     --mode wire|solid|hidden|ghost [--alpha 0.5]
 //                     --out OUT.png [--frame K] [--scale-image]
 //                     [--gl osmesa|egl] [--robot robot.urdf] [--object oru.yaml] [--json]
 // IN is an image or a video file (frame K, default 0). Exit: 0 ok, 2 bad
 // input (missing image, size mismatch, unknown camera, wrong joint count),
 // 1 the GL context or framebuffer could not be created.
+// --check-insert: the insert's go/no-go on the picture (needs --object-pose
+// with its covariance): the hole's 95% ellipse and the tool tip at
+// insert_start with its own, green go / red no_go, "insert: go P=0.997"
+// (docs/display.md); --json adds insert_check{verdict, p_success, label,
+// hole{in_view, ellipse95{centre_px, semi_major_px, semi_minor_px, angle_deg}}, tip{...}}.
 
 #include <cstdio>
 #include <iostream>
@@ -51,6 +56,7 @@ int run_overlay(const OverlayArgs& args) {
                         {"render_ms", render_ms},
                         {"total_ms", total_ms}};
     if (o.object_drawn) j["base_T_object"] = localization::pose_json(o.base_T_object);
+    if (!o.insert_check.is_null()) j["insert_check"] = o.insert_check;
     std::cout << j.dump() << "\n";
   } else {
     std::printf("overlay: camera %s (%dx%d, f %.1f px), mode %s, %s back end\n", camera.name.c_str(),
@@ -59,6 +65,15 @@ int run_overlay(const OverlayArgs& args) {
     for (int i = 0; i < q.size(); ++i) std::printf(" %.4f", q[i]);
     std::printf("\n  tool tip at pixel (%.1f, %.1f)%s\n", tip_uv.x(), tip_uv.y(),
                 o.object_drawn ? ", task object drawn from the localized pose" : "");
+    if (!o.insert_check.is_null()) {
+      const nlohmann::json& h = o.insert_check["hole"]["ellipse95"];
+      std::printf("  %s", o.insert_check["label"].get<std::string>().c_str());
+      if (!h.is_null())
+        std::printf(": the hole's 95%% ellipse %.1f x %.1f px (semi-axes) at (%.1f, %.1f)",
+                    h["semi_major_px"].get<double>(), h["semi_minor_px"].get<double>(), h["centre_px"][0].get<double>(),
+                    h["centre_px"][1].get<double>());
+      std::printf("\n");
+    }
     std::printf("  %d triangles, render+composite %.1f ms; wrote %s\n", triangles, render_ms, a.out.c_str());
   }
   return kExitOk;
@@ -75,6 +90,10 @@ const bool registered = register_command(
        sub.add_option("--joints-deg", a->joints_deg, "arm joint angles in degrees (instead of --joints)");
        sub.add_option("--object-pose", a->object_pose, "JSON from `foresight localize --json` (key base_T_object)");
        sub.add_flag("--tags", a->tags, "draw the object's tag frames as axis triads (needs --object-pose)");
+       sub.add_flag("--check-insert", a->check_insert,
+                    "draw the insert's go/no-go: the hole's 95% ellipse and the tool tip at insert_start, green go / red no_go "
+                    "(needs --object-pose with its covariance)");
+       sub.add_option("--ground", a->ground, "ground.yaml (its contact_check section, for --check-insert)")->capture_default_str();
        sub.add_option("--mode", a->mode, "wire | solid | hidden | ghost")->capture_default_str();
        sub.add_option("--alpha", a->alpha, "ghost opacity in [0, 1]")->capture_default_str();
        sub.add_option("--out", a->out, "output image (PNG)")->required();

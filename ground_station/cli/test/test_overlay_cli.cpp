@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -210,6 +211,85 @@ TEST_F(OverlayCli, ViewportBeyondTheGlLimit) {
   EXPECT_EQ(r.rc, 1);
   EXPECT_EQ(r.err.rfind("foresight overlay: error: viewport 20000x486 cannot be rendered: the osmesa GL limit is ", 0), 0u)
       << r.err;
+}
+
+// The insert's go/no-go on the picture (overlay --check-insert): the ORU
+// localized from seed 3's clicks in all four views (a go) and in the side view
+// alone (a no_go), drawn over the side camera's frame. Where the picture
+// differs from the same overlay without --check-insert, around the hole's
+// projection, the marks are green for the go and red for the no_go.
+TEST_F(OverlayCli, CheckInsertDrawsTheHolesEllipseGreenForGoRedForNoGo) {
+  ASSERT_EQ(run("synth-clicks --calibration-out " + dir_ + "/arm.csv --object-out " + dir_ + "/oru.csv --seed 3").rc, 0);
+  for (const std::string cam : {"side", "oblique", "overhead_wide", "overhead_zoom"}) {
+    const CliRun c = run("calibrate " + dir_ + "/arm.csv --camera " + cam + " --out " + dir_ + "/cams_fit.yaml");
+    ASSERT_EQ(c.rc, 0) << c.err;
+  }
+  for (const std::string views : {"", " --views side"}) {
+    const CliRun l = run("localize " + dir_ + "/oru.csv --cameras " + dir_ + "/cams_fit.yaml" + views + " --json");
+    ASSERT_EQ(l.rc, 0) << l.err;
+    std::ofstream(dir_ + (views.empty() ? "/four.json" : "/side.json")) << l.out;
+  }
+  for (const bool go : {true, false}) {
+    const std::string pose = dir_ + (go ? "/four.json" : "/side.json"), out = dir_ + (go ? "/check_go.png" : "/check_no_go.png");
+    // The marks are where the picture differs from the plain overlay of this pose.
+    const CliRun q = run(overlay_args("--mode wire --object-pose " + pose + " --out " + dir_ + "/check_ref.png"));
+    ASSERT_EQ(q.rc, 0) << q.err;
+    const CliRun r = run(overlay_args("--mode wire --object-pose " + pose + " --check-insert --out " + out + " --json"));
+    ASSERT_EQ(r.rc, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out)["insert_check"];
+    EXPECT_EQ(j["verdict"], go ? "go" : "no_go");
+    EXPECT_EQ(go, j["p_success"].get<double>() >= 0.99);
+    EXPECT_EQ(j["label"].get<std::string>().rfind(go ? "insert: go P=" : "insert: no_go P=", 0), 0u) << j["label"];
+    ASSERT_TRUE(j["hole"]["in_view"].get<bool>());
+    const auto& e = j["hole"]["ellipse95"];
+    const double cu = e["centre_px"][0], cv_ = e["centre_px"][1], a = e["semi_major_px"], b = e["semi_minor_px"];
+    std::printf("%s: P %.4f, hole's 95%% ellipse at (%.1f, %.1f) semi-axes %.2f x %.2f px at %.1f deg; tip's %.2f x %.2f px\n",
+                go ? "four views" : "side view", j["p_success"].get<double>(), cu, cv_, a, b, e["angle_deg"].get<double>(),
+                j["tip"]["ellipse95"]["semi_major_px"].get<double>(), j["tip"]["ellipse95"]["semi_minor_px"].get<double>());
+    EXPECT_GE(a, b);
+    EXPECT_GT(b, 0.0);
+    const cv::Mat img = cv::imread(out), ref = cv::imread(dir_ + "/check_ref.png");
+    ASSERT_FALSE(img.empty());
+    ASSERT_EQ(img.size(), ref.size());
+    // The changed pixels within the cross-hair's reach (semi-major + 11 px).
+    const int h = static_cast<int>(std::ceil(std::max(a, 1.5) + 12.0));
+    const cv::Rect box = cv::Rect(static_cast<int>(cu) - h, static_cast<int>(cv_) - h, 2 * h + 1, 2 * h + 1) &
+                         cv::Rect(0, 0, img.cols, img.rows);
+    int green = 0, red = 0, changed = 0;
+    for (int y = box.y; y < box.y + box.height; ++y)
+      for (int x = box.x; x < box.x + box.width; ++x) {
+        const cv::Vec3b c = img.at<cv::Vec3b>(y, x), o = ref.at<cv::Vec3b>(y, x);
+        if (c == o) continue;
+        ++changed;
+        // Pixels that turned green (red): the arm's wire-frame is green already.
+        const auto is_green = [](const cv::Vec3b& p) { return p[1] >= 150 && p[1] - p[2] >= 80 && p[1] - p[0] >= 80; };
+        const auto is_red = [](const cv::Vec3b& p) { return p[2] >= 150 && p[2] - p[1] >= 80 && p[2] - p[0] >= 80; };
+        green += is_green(c) && !is_green(o);
+        red += is_red(c) && !is_red(o);
+      }
+    std::printf("  %d changed pixels around the hole: %d green, %d red\n", changed, green, red);
+    EXPECT_GT(go ? green : red, 25);
+    EXPECT_EQ(go ? red : green, 0);
+    // The ellipse itself: the pixels at its ends on the major axis are in the verdict's colour.
+    const double ang = e["angle_deg"].get<double>() * M_PI / 180.0;
+    for (const double s : {-1.0, 1.0}) {
+      const double u = cu + s * std::max(a, 1.5) * std::cos(ang), v = cv_ + s * std::max(a, 1.5) * std::sin(ang);
+      const cv::Vec3b c = img.at<cv::Vec3b>(static_cast<int>(std::floor(v)), static_cast<int>(std::floor(u)));
+      if (go) EXPECT_GT(c[1] - std::max(c[0], c[2]), 60) << "(" << u << ", " << v << ")";
+      else EXPECT_GT(c[2] - std::max(c[0], c[1]), 60) << "(" << u << ", " << v << ")";
+    }
+  }
+}
+
+// --check-insert needs a pose with its covariance, and a pose at all.
+TEST_F(OverlayCli, CheckInsertWithoutACovarianceNamesTheFile) {
+  CliRun r = run(overlay_args("--mode wire --object-pose " + dir_ + "/localize.json --check-insert --out " + dir_ + "/x.png"));
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_EQ(r.err, "foresight overlay: error: " + dir_ +
+                       "/localize.json: the object pose has no covariance (localize --json or align --json write it)\n");
+  r = run(overlay_args("--mode wire --check-insert --out " + dir_ + "/x.png"));
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_EQ(r.err, "foresight overlay: error: --check-insert needs --object-pose (the object pose with its covariance)\n");
 }
 
 TEST_F(OverlayCli, PreviewWritesVideoAndContactSheet) {

@@ -126,3 +126,50 @@ TEST(DisplayFrame, TextSaysTheVideoProblemAndTheFault) {
   cv::Mat wrong(10, 10, CV_8UC3);
   EXPECT_THROW(composer.compose(cam, wrong, s), std::invalid_argument);
 }
+
+// display --check-insert: the composer draws the go/no-go with the overlay
+// (draw_go_no_go, the same drawing as `overlay --check-insert`) and not
+// without it: green where the hole's 95% ellipse is for a go, red for a no_go.
+TEST(DisplayFrame, GoNoGoIsDrawnWithTheOverlay) {
+  World w;
+  const camera::Camera cam = render::scene_camera(w.scene, "side");
+  DisplayComposer composer(*w.gl, w.model, &w.oru, w.scene.base_T_object);
+  DisplayState s;
+  s.q_actual = w.model.mid_configuration();
+  s.text = false;
+  s.mode = render::RenderMode::Wire;
+  const cv::Mat video(cam.viewport.height_px, cam.viewport.width_px, CV_8UC3, cv::Scalar(40, 40, 40));
+  const cv::Mat plain = composer.compose(cam, video, s);
+  GoNoGoMarks m;
+  m.base_T_hole = w.scene.base_T_object * w.oru.tags.at("hole_entrance");
+  m.base_T_tag = w.scene.base_T_object * w.oru.tags.at("insert_start");
+  m.hole_position_covariance = Eigen::Vector3d(4e-6, 4e-6, 1e-5).asDiagonal();  // 2 mm across
+  m.tip_position_covariance = 2.0 * m.hole_position_covariance;
+  const Eigen::Vector2d hole = cam.project(m.base_T_hole.translation());
+  for (const bool go : {true, false}) {
+    m.go = go;
+    m.p_success = go ? 0.999 : 0.4;
+    s.go_no_go = m;
+    const cv::Mat shown = composer.compose(cam, video, s);
+    const ImageEllipse e = project_position_ellipse(cam, m.base_T_hole.translation(), m.hole_position_covariance);
+    const int h = static_cast<int>(std::ceil(e.semi_major_px + 12.0));
+    int green = 0, red = 0;
+    for (int y = static_cast<int>(hole.y()) - h; y <= static_cast<int>(hole.y()) + h; ++y)
+      for (int x = static_cast<int>(hole.x()) - h; x <= static_cast<int>(hole.x()) + h; ++x) {
+        // Pixels that turned green (red): the tag triads' axes are green and red already.
+        const auto is_green = [](const cv::Vec3b& c) { return c[1] >= 150 && c[1] - c[2] >= 80 && c[1] - c[0] >= 80; };
+        const auto is_red = [](const cv::Vec3b& c) { return c[2] >= 150 && c[2] - c[1] >= 80 && c[2] - c[0] >= 80; };
+        const cv::Vec3b c = shown.at<cv::Vec3b>(y, x), o = plain.at<cv::Vec3b>(y, x);
+        green += is_green(c) && !is_green(o);
+        red += is_red(c) && !is_red(o);
+      }
+    std::printf("display go/no-go (%s): hole's ellipse %.2f x %.2f px, %d green, %d red pixels around it\n",
+                go ? "go" : "no_go", e.semi_major_px, e.semi_minor_px, green, red);
+    EXPECT_GT(go ? green : red, 25);
+    EXPECT_EQ(go ? red : green, 0);
+    // Overlay off: nothing of it.
+    s.overlay = false;
+    EXPECT_EQ(cv::countNonZero(changed(composer.compose(cam, video, s), video, 0)), 0);
+    s.overlay = true;
+  }
+}

@@ -27,6 +27,7 @@
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
 #include "foresight/render/video_frame.hpp"
+#include "go_no_go_marks.hpp"
 
 namespace foresight::session {
 
@@ -47,6 +48,7 @@ struct Inputs {
   int frames = 0;
   int fourcc = 0;
   std::optional<Scene> scene;  ///< --video synthetic
+  std::optional<display::GoNoGoMarks> go_no_go;  ///< --check-insert
 };
 
 Inputs check_and_load(const DisplaySettings& a) {
@@ -68,7 +70,7 @@ Inputs check_and_load(const DisplaySettings& a) {
     throw InputError(a.cameras, "no camera '" + a.camera + "'");
   }
   Inputs in{std::move(cameras), cam_index, RobotModel::from_file(a.robot), ObjectModel::from_file(a.object),
-            std::nullopt, {}, std::nullopt, a.frames, 0, std::nullopt};
+            std::nullopt, {}, std::nullopt, a.frames, 0, std::nullopt, std::nullopt};
   if (!a.trajectory.empty()) {
     in.trajectory = read_trajectory_csv(a.trajectory);
     if (in.trajectory->joints() != in.robot.dof())
@@ -79,6 +81,11 @@ Inputs check_and_load(const DisplaySettings& a) {
   if (!a.joints.empty()) in.q_static = parse_joints(a.joints, "--joints", in.robot);
   if (!a.joints_deg.empty()) in.q_static = parse_joints(a.joints_deg, "--joints-deg", in.robot, true);
   if (!a.object_pose.empty()) in.base_T_object = localization::read_object_pose_json(a.object_pose);
+  if (a.check_insert) {
+    if (a.object_pose.empty())
+      throw std::invalid_argument("--check-insert needs --object-pose (the object pose with its covariance)");
+    in.go_no_go = load_go_no_go_marks(a.object_pose, a.object, a.robot, a.ground);
+  }
   if (a.headless && in.frames == 0) {
     if (!in.trajectory) throw std::invalid_argument("--headless needs --frames N (or a --trajectory to play through)");
     in.frames = static_cast<int>(std::ceil((in.trajectory->duration_s() + a.delay_s) * a.fps)) + 1;
@@ -125,6 +132,7 @@ class DisplayLoop {
     state_.overlay = !a.no_overlay;
     state_.text = !a.no_text;
     state_.ghost_alpha = a.alpha;
+    state_.go_no_go = in_.go_no_go;
   }
 
   DisplaySummary run() {
@@ -339,6 +347,8 @@ class DisplayLoop {
                   {"camera_moved", camera_moved_},
                   {"warnings", health_warnings_},
                   {"last", health_last_}};
+    if (in_.go_no_go)
+      s.insert_check = go_no_go_json(*in_.go_no_go, display::project_go_no_go(in_.cameras[cam_index_], *in_.go_no_go));
     if (link_) {
       const auto stats = link_->delay().stats();
       s.remote = {{"controller", state_.controller_text},

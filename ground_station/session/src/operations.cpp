@@ -34,6 +34,7 @@
 #include "foresight/render/scene_geometry.hpp"
 #include "foresight/render/synthetic_camera.hpp"
 #include "foresight/render/video_frame.hpp"
+#include "go_no_go_marks.hpp"
 
 namespace foresight::session {
 
@@ -667,6 +668,12 @@ Overlaid overlay_frame(const OverlayRequest& a) {
   } else if (a.tags) {
     throw std::invalid_argument("--tags needs --object-pose (the tags are frames of the object)");
   }
+  std::optional<display::GoNoGoMarks> go_no_go;
+  if (a.check_insert) {
+    if (a.object_pose.empty())
+      throw std::invalid_argument("--check-insert needs --object-pose (the object pose with its covariance)");
+    go_no_go = load_go_no_go_marks(a.object_pose, a.object, a.robot, a.ground);
+  }
   out.object_drawn = object.has_value();
   auto context = GlContext::create(out.backend);
   Renderer renderer(*context, camera.viewport);
@@ -686,6 +693,7 @@ Overlaid overlay_frame(const OverlayRequest& a) {
   out.triangles = renderer.render(camera, list, settings, layer);
   out.opacity = mode_opacity(out.mode, a.alpha);
   composite(layer, out.opacity, video);
+  if (go_no_go) out.insert_check = go_no_go_json(*go_no_go, display::draw_go_no_go(video, camera, *go_no_go));
   out.render_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_render).count();
   write_image(a.out, video);
   out.total_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_start).count();

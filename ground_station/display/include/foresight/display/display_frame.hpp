@@ -20,6 +20,7 @@
 #include "foresight/camera/camera.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
+#include "foresight/display/go_no_go.hpp"
 #include "foresight/render/gl_context.hpp"
 #include "foresight/render/renderer.hpp"
 
@@ -41,6 +42,9 @@ struct DisplayState {
   bool health_warning = false;
   std::string video_problem;                 ///< empty: video fine (drawn red, centred otherwise)
   std::string footer;                        ///< e.g. "frame 12  t 0.40 s"
+  /// The insert's go/no-go (`display --check-insert`): drawn with the overlay
+  /// (draw_go_no_go, go_no_go.hpp); none: not drawn.
+  std::optional<GoNoGoMarks> go_no_go;
   bool text = true;                          ///< draw the text at all
 };
 

@@ -31,10 +31,14 @@ struct DisplaySettings {
   std::string scene = default_config("scene.yaml");
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
+  std::string ground = default_config("ground.yaml");  ///< its contact_check section (check_insert)
   double delay_s = 1.0, fps = 15.0, retry_s = 1.0, alpha = 0.45;
   int frames = 0;                     ///< 0: until q (headless: the trajectory's length)
   int health_every = 5;
   bool remote = false, headless = false, no_overlay = false, no_text = false, health = false;
+  /// The insert's go/no-go drawn with the overlay (display/go_no_go.hpp):
+  /// needs object_pose with its covariance.
+  bool check_insert = false;
   LinkOptions link;                   ///< with `remote`
 };
 
@@ -50,6 +54,9 @@ struct DisplaySummary {
   /// With a remote, what the last frame showed: {controller, fault,
   /// q_actual_rad, rtt_median_s (null before a measurement), alive, camera_problem}.
   nlohmann::json remote;
+  /// With check_insert: {verdict, p_success, label, hole{in_view, ellipse95}, tip{...}}
+  /// through the camera shown last; null otherwise.
+  nlohmann::json insert_check;
 };
 
 /// Checks the settings (bad input before any window or GL work:

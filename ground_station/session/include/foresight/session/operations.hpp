@@ -220,8 +220,13 @@ struct OverlayRequest {
   std::string out;                    ///< PNG
   std::string robot = default_config("robot.urdf");
   std::string object = default_config("oru.yaml");
+  std::string ground = default_config("ground.yaml");  ///< its contact_check section (check_insert)
   double alpha = 0.5;
   bool scale_image = false, tags = false;
+  /// The insert's go/no-go on the picture (display/go_no_go.hpp): the hole's
+  /// 95% ellipse and the tool tip at insert_start, green go / red no_go. Needs
+  /// object_pose with its covariance.
+  bool check_insert = false;
 };
 
 struct Overlaid {
@@ -235,6 +240,9 @@ struct Overlaid {
   int triangles = 0;
   Eigen::Vector2d tip_px = Eigen::Vector2d::Zero();
   double render_ms = 0.0, total_ms = 0.0;
+  /// With check_insert: {verdict, p_success, label, hole{in_view, ellipse95{centre_px,
+  /// semi_major_px, semi_minor_px, angle_deg}}, tip{...}}; null otherwise.
+  nlohmann::json insert_check;
 };
 
 /// The arm (and the localized object) through the calibrated camera over the
