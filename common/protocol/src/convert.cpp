@@ -14,6 +14,7 @@
 #include "foresight/protocol/codec.hpp"
 #include "foresight/protocol/commands.hpp"
 #include "foresight/protocol/trajectory_upload.hpp"
+#include "foresight/common/format.hpp"
 
 namespace foresight::protocol {
 
@@ -247,8 +248,7 @@ template <class T>
 const T& payload_as(const Payload& payload, CommandKind kind) {
   const T* p = std::get_if<T>(&payload);
   if (p == nullptr) {
-    std::string name = std::string("CMD_") + to_string(kind);  // the IDL's name, as the wire knows it
-    for (char& ch : name) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    const std::string name = upper(std::string("CMD_") + to_string(kind));  // the IDL's name, as the wire knows it
     throw std::invalid_argument("command " + name + ": the payload is of another kind");
   }
   return *p;

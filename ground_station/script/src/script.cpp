@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include "foresight/common/format.hpp"
 
 namespace foresight::script {
 namespace {
@@ -125,11 +126,6 @@ std::string join(const std::vector<std::string>& items, const char* sep = ", ") 
   std::string out;
   for (const auto& i : items) out += (out.empty() ? "" : sep) + i;
   return out;
-}
-
-std::string upper(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
 }
 
 bool is_name(const std::string& s) {

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/format.hpp"
 
 namespace foresight::teleop {
 
@@ -30,11 +31,6 @@ constexpr AbsName kAbsNames[] = {
     {ABS_RUDDER, "ABS_RUDDER"}, {ABS_WHEEL, "ABS_WHEEL"}, {ABS_GAS, "ABS_GAS"},   {ABS_BRAKE, "ABS_BRAKE"},
     {ABS_HAT0X, "ABS_HAT0X"}, {ABS_HAT0Y, "ABS_HAT0Y"}, {ABS_HAT1X, "ABS_HAT1X"}, {ABS_HAT1Y, "ABS_HAT1Y"},
 };
-
-std::string upper(std::string s) {
-  for (auto& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
 
 }  // namespace
 

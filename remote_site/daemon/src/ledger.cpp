@@ -9,6 +9,7 @@
 
 #include "foresight/common/json_text.hpp"
 #include "foresight/control/command.hpp"
+#include "foresight/common/format.hpp"
 
 namespace foresight::daemon {
 
@@ -18,12 +19,6 @@ using protocol::Reason;
 namespace {
 
 constexpr std::size_t kAckMemory = 1024;  // commands whose last ack is kept (duplicates, chains)
-
-std::string upper(const char* s) {
-  std::string out(s);
-  for (auto& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return out;
-}
 
 /// The payload as JSON, for the RECEIVED row.
 nlohmann::json payload_json(const protocol::Command& c) {

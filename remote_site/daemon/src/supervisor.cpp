@@ -296,24 +296,23 @@ void Supervisor::start_next() {
       continue;
     }
     Reason code = Reason::None;
-    if (const std::string why = start(job, &code); !why.empty()) {
+    if (const std::string why = start(*job, &code); !why.empty()) {
       jobs_.fail(*job, code, why);  // a job that cannot start fails, and so does the rest of its chain
       continue;
     }
-    jobs_.set_running(std::move(job));
-    if (jobs_.running()->kind == JobKind::ToolStep) return;
+    jobs_.set_running(std::move(job));  // pop_startable gives nothing more while it runs
   }
 }
 
-std::string Supervisor::start(std::unique_ptr<Job>& job, Reason* code) {
-  if (job->kind != JobKind::Recover) {
+std::string Supervisor::start(Job& job, Reason* code) {
+  if (job.kind != JobKind::Recover) {
     if (std::string why = check_can_move(code); !why.empty()) return why;
   }
   std::string reason;
-  if (job->kind == JobKind::Goto && !job->prepared &&
-      !factory_.plan_goto(*job, bridge_.latest().q_cmd, code, &reason))
+  if (job.kind == JobKind::Goto && !job.prepared &&
+      !factory_.plan_goto(job, bridge_.latest().q_cmd, code, &reason))
     return reason;
-  if (job->kind == JobKind::ToolStep) {
+  if (job.kind == JobKind::ToolStep) {
     // The arm holds its position stiffly while the tool latches or turns:
     // when the screw comes free the ORU's weight moves onto the tool, and a
     // compliant hold would let it sag into its slot's walls. (Tare afterwards
@@ -323,27 +322,27 @@ std::string Supervisor::start(std::unique_ptr<Job>& job, Reason* code) {
     hold.kind = MotionCommandKind::Hold;
     hold.compliant = false;
     (void)p_.loop->send(hold);
-    if (!p_.tool->start_step(job->tool_step)) {
+    if (!p_.tool->start_step(job.tool_step)) {
       *code = Reason::Busy;
       return "the tool is busy";
     }
-    job->executing = true;
-    ledger_.ack(job->command, AckState::Executing);
+    job.executing = true;
+    ledger_.ack(job.command, AckState::Executing);
     return {};
   }
   MotionCommand mc;
-  mc.command_id = job->loop_id = internal_id();
-  switch (job->kind) {
+  mc.command_id = job.loop_id = internal_id();
+  switch (job.kind) {
     case JobKind::Trajectory:
     case JobKind::Goto:
       mc.kind = MotionCommandKind::RunTrajectory;
-      mc.trajectory = job->prepared.get();
-      mc.compliant = job->compliant;
-      mc.start_tolerance_rad = job->start_tolerance_rad;
+      mc.trajectory = job.prepared.get();
+      mc.compliant = job.compliant;
+      mc.start_tolerance_rad = job.start_tolerance_rad;
       break;
     case JobKind::Algorithm:
       mc.kind = MotionCommandKind::RunAlgorithm;
-      mc.algorithm = job->algorithm;
+      mc.algorithm = job.algorithm;
       break;
     case JobKind::Recover:
       mc.kind = bridge_.latest().mode == ControllerMode::Disabled ? MotionCommandKind::Enable
@@ -351,7 +350,7 @@ std::string Supervisor::start(std::unique_ptr<Job>& job, Reason* code) {
       break;
     case JobKind::Tare:
       mc.kind = MotionCommandKind::Tare;
-      mc.tare_samples = job->tare_samples;
+      mc.tare_samples = job.tare_samples;
       break;
     case JobKind::Report:
     case JobKind::ToolStep:
@@ -565,9 +564,7 @@ void Supervisor::handle(const remote_link::UploadEvent& e) {
   row.trajectory_id = e.trajectory_id;
   static constexpr const char* kStates[] = {"ASSEMBLING", "COMMITTED", "REJECTED", "DISCARDED"};
   row.state = kStates[static_cast<int>(e.state)];
-  std::string code = control::to_string(e.code);
-  std::transform(code.begin(), code.end(), code.begin(), [](unsigned char ch) { return std::toupper(ch); });
-  row.code = code;
+  row.code = upper(control::to_string(e.code));
   row.reason = e.reason;
   row.hash_hex = to_hex(e.hash);
   if (e.trajectory) {

@@ -1,6 +1,8 @@
 #pragma once
-// Number formatting for text meant for a person (the CLI's lines, reasons).
+// Formatting of text meant for a person (the CLI's lines, reasons, journal
+// codes): numbers, and names in capitals.
 
+#include <cctype>
 #include <cstdio>
 #include <string>
 
@@ -20,6 +22,12 @@ inline std::string printf_text(const char* format, double a, double b = 0.0, dou
   char buf[256];
   std::snprintf(buf, sizeof buf, format, a, b, c);
   return buf;
+}
+
+/// `s` in capitals (ASCII): "insert" -> "INSERT", a code as the journal and the wire spell it.
+inline std::string upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
 }
 
 }  // namespace foresight

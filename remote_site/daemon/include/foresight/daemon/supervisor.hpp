@@ -132,7 +132,7 @@ class Supervisor {
   void enqueue(std::unique_ptr<Job> job, const std::string& note = {});
   void start_next();
   /// Start `job` on the loop or the tool; "" when started, else why not (the code in *code).
-  std::string start(std::unique_ptr<Job>& job, protocol::Reason* code);
+  std::string start(Job& job, protocol::Reason* code);
   void finish_running(protocol::AckState state, protocol::Reason code, const std::string& reason,
                       std::vector<double> final_q);
 
