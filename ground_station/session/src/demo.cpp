@@ -32,8 +32,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
 void say(const std::string& line) { std::cout << line << "\n" << std::flush; }
 
 /// Drives the task script's commands to the remote in auto mode; Ctrl-C aborts.

@@ -35,8 +35,6 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
 constexpr int kMaxTrials = 10000;  // the runner's batch limit (simulate_insertions.hpp)
 constexpr int kMaxRedraws = 50;    // draws of one trial before the study gives up
 

@@ -18,7 +18,6 @@ namespace foresight::session {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
 
 std::string executable_dir() { return std::filesystem::read_symlink("/proc/self/exe").parent_path().string(); }

@@ -17,6 +17,7 @@
 #include "foresight/localization/pose_json.hpp"
 #include "foresight/common/format.hpp"
 #include "foresight/session/link_session.hpp"
+#include "foresight/session/processes.hpp"
 #include "foresight/session/operations.hpp"
 
 namespace foresight::session {
@@ -27,8 +28,6 @@ using Clock = std::chrono::steady_clock;
 using script::CommandState;
 using script::Op;
 using script::Outcome;
-
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 std::string joints_text(const Eigen::VectorXd& q) {
   std::string out;

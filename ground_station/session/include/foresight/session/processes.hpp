@@ -6,11 +6,17 @@
 
 #include <sys/types.h>
 
+#include <chrono>
 #include <functional>
 #include <string>
 #include <vector>
 
 namespace foresight::session {
+
+/// Seconds since t0 on the steady clock (the orchestration's timings).
+inline double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
 
 /// Starts `args` (args[0] an executable path); stdout/stderr to the files
 /// ("" = inherited). std::runtime_error when fork fails.
