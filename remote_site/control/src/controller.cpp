@@ -50,6 +50,8 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (!finite_pos(config.force_limit_n)) throw std::invalid_argument("force_limit_n must be > 0");
   if (!finite_pos(config.torque_limit_nm)) throw std::invalid_argument("torque_limit_nm must be > 0");
   if (!finite_pos(config.stop_decel_fraction)) throw std::invalid_argument("stop_decel_fraction must be > 0");
+  if (!finite_pos(config.stop_cart_decel_m_s2)) throw std::invalid_argument("stop_cart_decel_m_s2 must be > 0");
+  if (!finite_pos(config.stop_cart_decel_rad_s2)) throw std::invalid_argument("stop_cart_decel_rad_s2 must be > 0");
   if (config.estop_category == StopCategory::None) throw std::invalid_argument("estop_category must be 0, 1 or 2");
   if (config.sensor_fault_cycles < 1) throw std::invalid_argument("sensor_fault_cycles must be >= 1");
   if (!finite_pos(config.velocity_filter_hz)) throw std::invalid_argument("velocity_filter_hz must be > 0");
@@ -175,6 +177,7 @@ void Controller::command(const MotionCommand& cmd) noexcept {
         adm_.configure(algo_.last().admittance);
         adm_.reset();
         base_T_hold_ = commanded_tip_now();
+        algo_ref_ = algo_ref_prev_ = base_T_hold_;
         active_ = Active::Algorithm;
         mode_ = ControllerMode::Algorithm;
       }
@@ -329,17 +332,27 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   const Reason code = cause == StopCause::Command ? Reason::Aborted : Reason::Faulted;
   const std::uint64_t running_id =
       (active_ == Active::Trajectory || active_ == Active::Algorithm) ? active_id_ : 0;
-  // A controlled stop of a trajectory stays on its path (path_stop_step),
-  // unless the trajectory's own command is what broke a limit.
-  const bool on_path = cat != StopCategory::Cat0 && active_ == Active::Trajectory && traj_ != nullptr &&
-                       cause != StopCause::JointPositionLimit && cause != StopCause::JointVelocityLimit;
-  if (on_path) {
-    if (!stop_on_path_) path_scale_ = 1.0;
-    stop_on_path_ = true;
+  // A controlled stop of a trajectory stays on its path (path_stop_step), and
+  // one of an algorithm on its reference's line (cartesian_stop_step), unless
+  // the motion's own command is what broke a limit.
+  const bool controlled = cat != StopCategory::Cat0 && cause != StopCause::JointPositionLimit &&
+                          cause != StopCause::JointVelocityLimit;
+  const bool on_path = controlled && active_ == Active::Trajectory && traj_ != nullptr;
+  const bool on_reference = controlled && active_ == Active::Algorithm;
+  if (on_path || on_reference) {
+    if (!stop_on_path_ && !stop_cartesian_) {
+      path_scale_ = 1.0;
+      if (on_reference) {
+        stop_twist_ = pose_error(algo_ref_prev_, algo_ref_) / dt_;
+        stop_dq_ = v_cmd_;
+      }
+    }
+    stop_on_path_ = on_path;
+    stop_cartesian_ = on_reference;
     path_cancel_code_ = code;
     set_text(path_cancel_text_, text);
   } else {
-    stop_on_path_ = false;
+    stop_on_path_ = stop_cartesian_ = false;
     finish_active(MotionEventKind::Canceled, code, text);
   }
   if (active_ == Active::Disable || active_ == Active::Enable || active_ == Active::Recover) {
@@ -404,13 +417,39 @@ void Controller::path_stop_step() noexcept {
   traj_t_ = std::min(traj_t_ + path_scale_ * dt_, traj_->duration_s());
   follow_trajectory_at(traj_t_);
   for (std::size_t j = 0; j < dof_; ++j) v_cmd_[j] = (q_cmd_[j] - q_cmd_prev_[j]) / dt_;
-  if (path_scale_ == 0.0 || traj_t_ >= traj_->duration_s()) {
-    stop_on_path_ = false;
-    const std::array<char, 96> text = path_cancel_text_;
-    finish_active(MotionEventKind::Canceled, path_cancel_code_, text.data());  // at rest, on the path
-    v_cmd_ = JointArray{};
-    stop_at_rest();
+  if (path_scale_ == 0.0 || traj_t_ >= traj_->duration_s()) cancel_at_rest();
+}
+
+void Controller::cartesian_stop_step() noexcept {
+  // The reference keeps moving along the twist it had, scaled by path_scale_,
+  // which falls as fast as the Cartesian limits and the joint nearest its
+  // acceleration limit allow (the joints' velocities scale with the twist).
+  const double v = stop_twist_.head<3>().norm(), w = stop_twist_.tail<3>().norm();
+  double rate = 1.0 / dt_;
+  if (v > 1e-12) rate = std::min(rate, config_.stop_cart_decel_m_s2 / v);
+  if (w > 1e-12) rate = std::min(rate, config_.stop_cart_decel_rad_s2 / w);
+  for (std::size_t j = 0; j < dof_; ++j) {
+    const double dq = std::abs(stop_dq_[j]);
+    if (dq > 1e-9) rate = std::min(rate, amax_[j] / dq);
   }
+  path_scale_ = std::max(0.0, path_scale_ - rate * dt_);
+  algo_ref_prev_ = algo_ref_;
+  algo_ref_.translation() += path_scale_ * dt_ * stop_twist_.head<3>();
+  const double angle = path_scale_ * dt_ * w;
+  if (angle > 0.0)
+    algo_ref_.linear() =
+        Eigen::AngleAxisd(angle, stop_twist_.tail<3>() / w).toRotationMatrix() * algo_ref_prev_.linear();
+  compliant_offset_to_joints(algo_ref_, q_cmd_prev_, true);
+  for (std::size_t j = 0; j < dof_; ++j) v_cmd_[j] = (q_cmd_[j] - q_cmd_prev_[j]) / dt_;
+  if (path_scale_ == 0.0) cancel_at_rest();
+}
+
+void Controller::cancel_at_rest() noexcept {
+  stop_on_path_ = stop_cartesian_ = false;
+  const std::array<char, 96> text = path_cancel_text_;
+  finish_active(MotionEventKind::Canceled, path_cancel_code_, text.data());  // at rest, on the path
+  v_cmd_ = JointArray{};
+  stop_at_rest();
 }
 
 void Controller::power_off() noexcept {
@@ -761,6 +800,8 @@ void Controller::generate_motion() noexcept {
     case ControllerMode::Stopping:
       if (stop_on_path_ && traj_ != nullptr)
         path_stop_step();
+      else if (stop_cartesian_)
+        cartesian_stop_step();
       else
         controlled_stop_step();
       break;
@@ -783,7 +824,9 @@ void Controller::step_trajectory() noexcept {
 
 void Controller::step_algorithm() noexcept {
   const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
+  algo_ref_prev_ = algo_ref_;
   if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
+    algo_ref_ = s.base_T_ref;
     const AdmittanceParams& now = adm_.params();
     if (s.admittance.stiffness != now.stiffness || s.admittance.damping != now.damping) adm_.configure(s.admittance);
     compliant_offset_to_joints(s.base_T_ref, q_cmd_prev_, true);

@@ -688,6 +688,75 @@ TEST_F(ControllerFaults, ACategory2StopHalfWayThroughAStraightLineLeavesTheToolO
   for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(b.out.q_cmd[j], rest[j]) << j;
 }
 
+// Issue 25, item 2: a controlled stop of an algorithm decelerates its
+// Cartesian reference along the line it was moving on (the joints together,
+// compliance on top), then holds (cat 2) or powers off at rest (cat 1).
+TEST_F(ControllerFaults, AControlledStopOfAnAlgorithmDeceleratesItsReferenceOnTheLine) {
+  for (const StopCategory cat : {StopCategory::Cat2, StopCategory::Cat1}) {
+    SCOPED_TRACE(to_string(cat));
+    Bench b(home_q());
+    b.enable();
+    const Pose start = b.tip(home_q());
+    const Eigen::Vector3d u(0.3, 0.4, -0.866);
+    AlgorithmParams p;
+    p.kind = AlgorithmKind::GuardedMove;
+    p.guarded_move.frame = TaskFrame::Base;
+    p.guarded_move.direction = {u.x(), u.y(), u.z()};
+    p.guarded_move.speed_m_s = 0.1;
+    p.guarded_move.max_distance_m = 0.3;
+    MotionCommand c;
+    c.kind = MotionCommandKind::RunAlgorithm;
+    c.algorithm = p;
+    const std::uint64_t id = b.send(c);
+    const Eigen::Vector3d dir = u.normalized();
+    double along = 0.0;
+    for (int k = 0; k < 5000 && along < 0.05; ++k) {
+      b.step();
+      along = (b.tip(b.out.q_cmd).translation() - start.translation()).dot(dir);
+    }
+    ASSERT_GE(along, 0.05);
+    MotionCommand stop;
+    stop.kind = MotionCommandKind::Stop;
+    stop.category = cat;
+    b.send(stop);
+    double worst = 0.0, worst_rot = 0.0, last_along = along;
+    bool canceled_before_rest = false;
+    int k = 0;
+    const ControllerMode rest_mode = cat == StopCategory::Cat2 ? ControllerMode::Stopped : ControllerMode::Fault;
+    for (; k < 5000 && b.ctl->mode() != rest_mode; ++k) {
+      b.step();
+      const Pose tip = b.tip(b.out.q_cmd);
+      const Eigen::Vector3d d = tip.translation() - start.translation();
+      worst = std::max(worst, (d - d.dot(dir) * dir).norm());
+      worst_rot = std::max(worst_rot, Eigen::AngleAxisd(tip.linear() * start.linear().transpose()).angle());
+      last_along = d.dot(dir);
+      for (const auto& e : b.events)
+        if (e.command_id == id && e.kind == MotionEventKind::Canceled && b.ctl->mode() == ControllerMode::Stopping)
+          canceled_before_rest = true;
+    }
+    ASSERT_EQ(b.ctl->mode(), rest_mode);
+    std::printf("algorithm stop (%s): %d cycles to rest, %.2f mm further along, off the line by %.4f mm and "
+                "%.4f mrad at most\n",
+                to_string(cat), k, 1e3 * (last_along - along), 1e3 * worst, 1e3 * worst_rot);
+    EXPECT_LT(worst, 0.05e-3);
+    EXPECT_LT(worst_rot, 0.05e-3);
+    // 0.1 m/s at 1 m/s^2: v^2 / 2a = 5 mm on the line, (plus the DLS tracking's lag).
+    EXPECT_GT(last_along - along, 0.004);
+    EXPECT_LT(last_along - along, 0.008);
+    EXPECT_GE(k, 45);  // 0.1 m/s / 1 m/s^2 = 50 cycles
+    EXPECT_FALSE(canceled_before_rest);
+    bool canceled = false;
+    for (const auto& e : b.events) canceled = canceled || (e.command_id == id && e.kind == MotionEventKind::Canceled);
+    EXPECT_TRUE(canceled);
+    EXPECT_EQ(b.power_offs, cat == StopCategory::Cat1 ? 1 : 0);
+    const JointArray rest = b.out.q_cmd;
+    for (int i = 0; i < 50; ++i) b.step();
+    if (cat == StopCategory::Cat2) {
+      for (std::size_t j = 0; j < 7; ++j) EXPECT_EQ(b.out.q_cmd[j], rest[j]) << j;
+    }
+  }
+}
+
 // Issue 25: a compliant hold backs off from a force over the limit; a force
 // that does not relent (here a constant 200 N the admittance cannot escape)
 // is Cat1 200 ms after the back-off began.

@@ -157,6 +157,18 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
     c.algorithm.guarded_move.max_distance_m = 0.05;
   });
   run("guarded_move then hold", 10000);
+  // A controlled stop of an algorithm: its reference decelerates on its line.
+  command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {
+    c.algorithm.kind = AlgorithmKind::GuardedMove;
+    c.algorithm.guarded_move.direction = {0.0, 0.0, -1.0};  // away from the face
+    c.algorithm.guarded_move.speed_m_s = 0.05;
+    c.algorithm.guarded_move.max_distance_m = 0.03;
+  });
+  run("guarded_move away", 100);
+  command(MotionCommandKind::Stop, [](MotionCommand& c) { c.category = StopCategory::Cat2; });
+  run("algorithm stopping on its reference, stopped", 1000);
+  command(MotionCommandKind::Recover, none);
+  run("recovered", 10);
   // Rejections format text (snprintf) in the cycle thread too.
   command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) { c.trajectory = &traj; });
   command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) { c.algorithm.insert.depth_m = -1; c.algorithm.kind = AlgorithmKind::Insert; });
@@ -172,7 +184,7 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
   command(MotionCommandKind::Recover, none);
   run("recovered", 100);
   EXPECT_EQ(b.ctl->mode(), ControllerMode::Idle);
-  EXPECT_EQ(b.stops.size(), 2u);
+  EXPECT_EQ(b.stops.size(), 3u);
   if (HasFailure()) {
     for (const auto& s : b.stops) std::printf("stop %s %s at %llu\n", to_string(s.cause), s.text.data(), static_cast<unsigned long long>(s.cycle));
     for (const auto& e : b.events)

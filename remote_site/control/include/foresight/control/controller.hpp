@@ -14,9 +14,11 @@
 //               the trajectory's time scaling ramps to zero, as fast as the
 //               joint closest to its acceleration limit allows, so the joints
 //               decelerate together along the planned path and the motion's
-//               Canceled event comes at rest. Otherwise every joint
-//               decelerates at stop_decel_fraction of its URDF acceleration
-//               limit to rest
+//               Canceled event comes at rest. During an algorithm its
+//               Cartesian reference decelerates along the twist it had
+//               (stop_cart_decel_*, the joints' limits; compliance on top),
+//               Canceled at rest. Otherwise every joint decelerates at
+//               stop_decel_fraction of its URDF acceleration limit to rest
 //     Stopped   after a Cat2 stop: holding, powered; leaves only on Recover
 //     Fault     after a Cat0/Cat1 stop: drives disabled; leaves only on Recover
 //
@@ -76,6 +78,11 @@ struct ControllerConfig {
   double force_limit_n = 150.0;            ///< |F| of the compensated contact force
   double torque_limit_nm = 15.0;           ///< |T| about the tip
   double stop_decel_fraction = 1.0;        ///< controlled stops: of the URDF acceleration limits
+  /// A controlled stop of an algorithm decelerates its Cartesian reference
+  /// along the direction it was moving, at most this fast (and no joint faster
+  /// than its stop_decel_fraction of the URDF limit).
+  double stop_cart_decel_m_s2 = 1.0;
+  double stop_cart_decel_rad_s2 = 2.0;
   /// The rate limiter (rate_limiter.hpp) on every command of a stiff motion
   /// or hold (trajectories, GOTOs, the stiff hold; not inside the force loop
   /// of compliant modes): acceleration at most this multiple of the URDF
@@ -193,6 +200,11 @@ class Controller {
   void controlled_stop_step() noexcept;
   /// A stop on the trajectory's path: the time scaling ramps to zero.
   void path_stop_step() noexcept;
+  /// A stop of an algorithm: its Cartesian reference decelerates along its
+  /// own twist (the same scaling ramp), compliance on top.
+  void cartesian_stop_step() noexcept;
+  /// The running motion's CANCELED, deferred to rest by a stop on the path.
+  void cancel_at_rest() noexcept;
   /// A force or torque limit in a compliant mode: the running motion FAILS
   /// (ForceLimit) and the arm holds compliantly at the measured tip pose; if the
   /// contact is still over the limit kBackoffTimeS later, Cat1.
@@ -265,7 +277,12 @@ class Controller {
   bool backoff_active_ = false;  // back_off(): waiting for the contact to fall below the limit
   int backoff_cycles_ = 0;
   bool stop_on_path_ = false;   // Stopping along traj_ (path_stop_step)
-  double path_scale_ = 1.0;     // d(trajectory time)/dt, ramping 1 -> 0
+  bool stop_cartesian_ = false; // Stopping along the algorithm's reference (cartesian_stop_step)
+  double path_scale_ = 1.0;     // d(trajectory time)/dt or of the reference's twist, ramping 1 -> 0
+  Pose algo_ref_ = Pose::Identity();       // the algorithm's reference tip pose, this cycle
+  Pose algo_ref_prev_ = Pose::Identity();  // and the cycle before (its twist)
+  Vector6 stop_twist_ = Vector6::Zero();   // the reference's twist when the stop began (base; v, w)
+  JointArray stop_dq_{};                   // the joints' commanded velocity then
   Reason path_cancel_code_ = Reason::Aborted;
   std::array<char, 96> path_cancel_text_{};  // the Canceled event's text, sent at rest
 
