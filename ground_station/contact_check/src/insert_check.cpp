@@ -184,6 +184,6 @@ InsertPrediction predict_insert(const LocalCovariance& tip, const InsertCapture&
   return p;
 }
 
-const char* verdict(const InsertPrediction& p) noexcept { return p.go ? "go" : "no_go"; }
+const char* verdict(bool go) noexcept { return go ? "go" : "no_go"; }
 
 }  // namespace foresight::contact_check

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "foresight/common/json_text.hpp"
-#include "foresight/contact_check/config.hpp"
+#include "foresight/contact_check/insert_check.hpp"
 #include "foresight/display/go_no_go.hpp"
 #include "foresight/session/insert_check.hpp"
 
@@ -31,7 +31,7 @@ inline display::GoNoGoMarks load_go_no_go_marks(const std::string& object_pose, 
   m.base_T_tag = c.base_T_tag;
   m.hole_position_covariance = c.hole_position_covariance;
   m.tip_position_covariance = c.tip_position_covariance;
-  m.socket_diameter_m = contact_check::load_contact_check_config(ground).socket_diameter_m;
+  m.socket_diameter_m = c.socket_diameter_m;
   m.go = c.prediction.go;
   m.p_success = c.prediction.p_success;
   return m;
@@ -47,7 +47,7 @@ inline nlohmann::json image_ellipse_json(const display::ImageEllipse& e) {
 /// {verdict, p_success, label, hole{in_view, ellipse95}, tip{in_view, ellipse95}}
 /// (ellipse95 null behind the camera).
 inline nlohmann::json go_no_go_json(const display::GoNoGoMarks& m, const display::GoNoGoDrawn& d) {
-  return {{"verdict", m.go ? "go" : "no_go"},
+  return {{"verdict", contact_check::verdict(m.go)},
           {"p_success", m.p_success},
           {"label", d.label},
           {"hole", {{"in_view", d.hole_in_view},

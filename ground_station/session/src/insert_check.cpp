@@ -62,9 +62,16 @@ std::optional<Matrix6> with_view(const contact_check::ObjectEstimate& est, const
   return G * combined * G.transpose();
 }
 
+/// The arm's uncertainty: the links' sigma the estimate's sensitivity was
+/// computed for (the same error moves cameras and tool), else ground.yaml's.
+contact_check::ArmUncertainty arm_of(const contact_check::ObjectEstimate& est, const InsertCheckContext& ctx) {
+  return {est.arm_link_sensitivity.size() > 0 ? est.arm_link_sigma_m : ctx.config.arm_link_sigma_m,
+          ctx.config.encoder_sigma_rad};
+}
+
 contact_check::InsertPrediction predict(const contact_check::ObjectEstimate& est, const InsertStep& step,
                                         const InsertCheckContext& ctx, contact_check::LocalCovariance* tip_out,
-                                        const contact_check::ToolTip& tool) {
+                                        const contact_check::ToolTip& tool, const contact_check::ArmUncertainty& arm) {
   const ObjectModel& object = *ctx.object;
   InsertGeometry geometry;
   geometry.hole_diameter_m = object.hole_diameter_m;
@@ -73,8 +80,6 @@ contact_check::InsertPrediction predict(const contact_check::ObjectEstimate& est
   geometry.required_depth_m = ctx.config.required_depth_m;
   geometry.lead_in_m = ctx.config.lead_in_m;
   const InsertCapture capture = insert_capture(step.params, geometry);
-  const contact_check::ArmUncertainty arm{est.arm_link_sensitivity.size() > 0 ? est.arm_link_sigma_m : ctx.config.arm_link_sigma_m,
-                                          ctx.config.encoder_sigma_rad};
   const contact_check::LocalCovariance tip =
       contact_check::tip_error_at_hole(est, tag_of(object, step.hole_tag), tag_of(object, step.tag), tool, arm);
   if (tip_out) *tip_out = tip;
@@ -89,13 +94,13 @@ InsertCheck check_insert(const contact_check::ObjectEstimate& est, const InsertS
   if (!ctx.object || !ctx.robot) throw std::logic_error("check_insert: no object or robot model");
   InsertCheck out;
   out.step = step;
+  out.socket_diameter_m = ctx.config.socket_diameter_m;
   const ObjectModel& object = *ctx.object;
   out.base_T_hole = est.base_T_object * tag_of(object, step.hole_tag);
   out.base_T_tag = est.base_T_object * tag_of(object, step.tag);
-  const contact_check::ArmUncertainty arm{est.arm_link_sensitivity.size() > 0 ? est.arm_link_sigma_m : ctx.config.arm_link_sigma_m,
-                                          ctx.config.encoder_sigma_rad};
+  const contact_check::ArmUncertainty arm = arm_of(est, ctx);
   const contact_check::ToolTip tool = contact_check::tool_tip_uncertainty(*ctx.robot, out.base_T_tag, arm);
-  out.prediction = predict(est, step, ctx, &out.tip_error, tool);
+  out.prediction = predict(est, step, ctx, &out.tip_error, tool, arm);
   const Eigen::Matrix3d R = out.base_T_hole.linear();
   out.hole_position_covariance = contact_check::tag_covariance_base(est.base_T_object, est.covariance, tag_of(object, step.hole_tag))
                                      .bottomRightCorner<3, 3>();
@@ -134,7 +139,7 @@ InsertCheck check_insert(const contact_check::ObjectEstimate& est, const InsertS
       const double shrink = std::min(1.0, std::sqrt(C->trace() / std::max(arm_part.trace(), 1e-300)));
       more.arm_link_sensitivity *= shrink;
     }
-    const double pv = predict(more, step, ctx, nullptr, tool).p_success;
+    const double pv = predict(more, step, ctx, nullptr, tool, arm).p_success;
     if (pv > best_p) best_p = pv, best = name;
   }
   if (!best.empty())
@@ -146,19 +151,10 @@ InsertCheck check_insert(const contact_check::ObjectEstimate& est, const InsertS
   return out;
 }
 
-InsertCheck check_insert(const CheckInsertRequest& r) {
-  const localization::ObjectPoseFile file = localization::read_object_pose_file(r.object_pose);
+contact_check::ObjectEstimate estimate_of(const std::string& object_pose_file, InsertCheckContext& ctx) {
+  const localization::ObjectPoseFile file = localization::read_object_pose_file(object_pose_file);
   if (!file.covariance)
-    throw InputError(r.object_pose, "the object pose has no covariance (localize --json or align --json write it)");
-  const ObjectModel object = ObjectModel::from_file(r.object);
-  const RobotModel robot = RobotModel::from_file(r.robot);
-  InsertCheckContext ctx;
-  ctx.object = &object;
-  ctx.robot = &robot;
-  ctx.config = contact_check::load_contact_check_config(r.ground);
-  if (r.min_p_success) ctx.config.min_p_success = *r.min_p_success;
-  if (!r.cameras.empty())
-    for (const auto& [name, rec] : camera::load_cameras(r.cameras)) ctx.cameras[name] = rec.camera;
+    throw InputError(object_pose_file, "the object pose has no covariance (localize --json or align --json write it)");
   ctx.views_used = file.views;
   ctx.aligned = file.aligned;
   contact_check::ObjectEstimate est;
@@ -166,6 +162,20 @@ InsertCheck check_insert(const CheckInsertRequest& r) {
   est.covariance = *file.covariance;
   est.arm_link_sensitivity = file.arm_link_sensitivity;
   est.arm_link_sigma_m = file.arm_link_sigma_m;
+  return est;
+}
+
+InsertCheck check_insert(const CheckInsertRequest& r) {
+  InsertCheckContext ctx;
+  const contact_check::ObjectEstimate est = estimate_of(r.object_pose, ctx);
+  const ObjectModel object = ObjectModel::from_file(r.object);
+  const RobotModel robot = RobotModel::from_file(r.robot);
+  ctx.object = &object;
+  ctx.robot = &robot;
+  ctx.config = contact_check::load_contact_check_config(r.ground);
+  if (r.min_p_success) ctx.config.min_p_success = *r.min_p_success;
+  if (!r.cameras.empty())
+    for (const auto& [name, rec] : camera::load_cameras(r.cameras)) ctx.cameras[name] = rec.camera;
   return check_insert(est, r.step, ctx);
 }
 

@@ -162,9 +162,9 @@ bool draw_trial(const Site& site, const InsertionStudyRequest& a, int id, int at
   const contact_check::LocalCovariance tip =
       contact_check::tip_error_at_hole(est, site.object_T_hole, site.object_T_start, tool, arm);
   const contact_check::InsertPrediction p = contact_check::predict_insert(tip, site.capture, a.min_p_success);
-  // A diagnostic beside p: the joint mass of the same Gaussian in the same
-  // region by sampling, the cross terms between lateral, tilt and axial
-  // kept (predict_insert takes the three as independent).
+  // A diagnostic beside p: the mass of the same Gaussian in the same region
+  // by sampling, every cross term kept (predict_insert integrates lateral
+  // and axial jointly but takes the tilt as independent of them).
   double p_joint = 0.0;
   {
     const Eigen::LLT<contact_check::Matrix6> llt(tip.covariance + 1e-18 * contact_check::Matrix6::Identity());

@@ -265,18 +265,16 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
 Outcome ScriptRunner::check(const script::Command& c) {
   const auto t0 = Clock::now();
   if (!base_T_object_) return failed("no object pose: LOCALIZE first, OBJECT oru pose=FILE, or --object-pose", t0);
-  contact_check::ObjectEstimate est;
-  est.base_T_object = *base_T_object_;
   InsertCheckContext ctx;
-  if (!pose_file_.empty()) {  // the scene's true pose: no estimation error
-    const localization::ObjectPoseFile f = localization::read_object_pose_file(pose_file_);
-    if (!f.covariance) return failed("CHECK insert: the object pose " + pose_file_ + " has no covariance (LOCALIZE writes it)", t0);
-    est.covariance = *f.covariance;
-    est.arm_link_sensitivity = f.arm_link_sensitivity;
-    est.arm_link_sigma_m = f.arm_link_sigma_m;
-    ctx.views_used = f.views;
-    ctx.aligned = f.aligned;
+  contact_check::ObjectEstimate est;
+  if (!pose_file_.empty()) {  // else the scene's true pose: no estimation error
+    try {
+      est = estimate_of(pose_file_, ctx);
+    } catch (const InputError& e) {
+      return failed(std::string("CHECK insert: ") + e.what(), t0);
+    }
   }
+  est.base_T_object = *base_T_object_;
   ctx.object = &object_;
   ctx.robot = &model_;
   ctx.config = contact_check::load_contact_check_config(s_.ground.empty() ? default_config("ground.yaml") : s_.ground);

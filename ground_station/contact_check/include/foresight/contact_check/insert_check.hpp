@@ -52,6 +52,7 @@ struct InsertPrediction {
 /// in (0, 1) or the covariance is not symmetric positive semi-definite.
 InsertPrediction predict_insert(const LocalCovariance& tip, const InsertCapture& capture, double min_p_success);
 
-const char* verdict(const InsertPrediction& p) noexcept;  ///< "go" or "no_go"
+const char* verdict(bool go) noexcept;  ///< "go" or "no_go"
+inline const char* verdict(const InsertPrediction& p) noexcept { return verdict(p.go); }
 
 }  // namespace foresight::contact_check

@@ -57,6 +57,7 @@ struct InsertCheck {
   Eigen::Matrix3d hole_position_covariance = Eigen::Matrix3d::Zero();  ///< of the hole's position, in base
   Eigen::Matrix3d tip_position_covariance = Eigen::Matrix3d::Zero();   ///< of the tip relative to the hole, in base
   std::vector<std::string> advice;
+  double socket_diameter_m = 0.0;  ///< the tool's socket (ground.yaml contact_check), for drawing its rim
 };
 
 /// The prediction for `step` with the object at `estimate`. Throws InputError
@@ -65,6 +66,12 @@ struct InsertCheck {
 /// region with a non-positive size, a threshold outside (0, 1); and
 /// std::runtime_error when the arm cannot reach the tag.
 InsertCheck check_insert(const contact_check::ObjectEstimate& estimate, const InsertStep& step, const InsertCheckContext& context);
+
+/// The estimate an object pose file holds (pose, covariance, the arm links'
+/// sensitivity), and where it came from (its views, aligned or not) into
+/// `context`. InputError "<file>: the object pose has no covariance
+/// (localize --json or align --json write it)" when it has none.
+contact_check::ObjectEstimate estimate_of(const std::string& object_pose_file, InsertCheckContext& context);
 
 /// `foresight check-insert`'s inputs.
 struct CheckInsertRequest {
