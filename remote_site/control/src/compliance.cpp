@@ -4,6 +4,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -158,6 +159,7 @@ bool Admittance::configure(const AdmittanceParams& params) noexcept {
 }
 
 void Admittance::step(const Vector6& w) noexcept {
+  x_before_ = x_;
   for (int i = 0; i < 6; ++i) {
     const auto k = static_cast<std::size_t>(i);
     const double f = std::isfinite(w(i)) ? w(i) : 0.0;
@@ -180,6 +182,23 @@ void Admittance::step(const Vector6& w) noexcept {
 void Admittance::reset() noexcept {
   x_.setZero();
   v_.setZero();
+  x_before_.setZero();
+}
+
+void Admittance::take_back(const Vector6& achieved) noexcept {
+  for (int i = 0; i < 6; ++i) {
+    const double a = achieved(i), from = x_before_(i);
+    if (!std::isfinite(a)) continue;
+    double x = x_(i);
+    if (x > from)
+      x = std::max(from, std::min(x, a));
+    else if (x < from)
+      x = std::min(from, std::max(x, a));
+    if (x != x_(i)) {
+      x_(i) = x;
+      v_(i) = (x - from) / dt_;
+    }
+  }
 }
 
 // ---- kinematics helpers -----------------------------------------------------------------

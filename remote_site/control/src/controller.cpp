@@ -62,6 +62,10 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (!finite_pos(config.rate_limit_jerk_per_s) || config.rate_limit_jerk_per_s < 10.0 ||
       config.rate_limit_jerk_per_s > 100000.0)
     throw std::invalid_argument("rate_limit_jerk_per_s must be in [10, 100000] 1/s");
+  if (!(config.rate_limit_compliant_acceleration_fraction >= config.rate_limit_acceleration_fraction) ||
+      !(config.rate_limit_compliant_acceleration_fraction <= 100.0))
+    throw std::invalid_argument(
+        "rate_limit_compliant_acceleration_fraction must be in [rate_limit_acceleration_fraction, 100]");
   dt_ = 1.0 / config.cycle_rate_hz;
   RateLimits rl;
   for (std::size_t j = 0; j < dof_; ++j) {
@@ -75,6 +79,7 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
     rl.jerk[j] = l.acceleration_rad_s2 * config.rate_limit_jerk_per_s;
   }
   limiter_.configure(dof_, rl, dt_);
+  compliant_scale_ = config.rate_limit_compliant_acceleration_fraction / config.rate_limit_acceleration_fraction;
   qv_.resize(static_cast<Eigen::Index>(dof_));
   qv2_.resize(static_cast<Eigen::Index>(dof_));
   dqv_.resize(static_cast<Eigen::Index>(dof_));
@@ -515,6 +520,7 @@ void Controller::record_evidence(const CycleInputs& in) noexcept {
 
 void Controller::compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointArray& q_seed,
                                             bool tracking) noexcept {
+  compliant_ref_ = base_T_ref_tip;
   const Eigen::Matrix3d R_ref = base_T_ref_tip.linear();
   const Eigen::Matrix3d R_frame = adm_.params().frame == TaskFrame::Tool ? R_ref : Eigen::Matrix3d::Identity();
   // Wrench into the admittance frame (from the measured tip frame).
@@ -851,20 +857,27 @@ void Controller::step_algorithm() noexcept {
   }
 }
 
-// The rate limiter: what a stiff motion or hold commands, limited in
-// acceleration and jerk. Not inside the force loop: an algorithm, a
-// compliant trajectory or hold is shaped by its admittance (its virtual
-// mass and damping), and a limiter there, lagging behind the admittance at
-// the bus's 3-cycle loop delay, made the contact unstable (docs/control.md,
-// "The rate limiter"). Controlled stops shape their own ramp.
+// The rate limiter: every powered motion's command, limited in acceleration
+// and jerk. Inside the force loop (an algorithm, a compliant trajectory or
+// hold) at the looser compliant limits, with anti-windup: a limiter there at
+// the stiff limits, lagging behind the admittance at the bus's 3-cycle loop
+// delay, made the contact unstable (docs/control.md, "The rate limiter").
+// Controlled stops shape their own ramp.
 std::uint32_t Controller::limit_rate(const CycleInputs& in) noexcept {
   limiter_applied_ = false;
   std::uint32_t limited = 0;
   const bool stiff_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && !hold_compliant_) ||
                             (mode_ == ControllerMode::Trajectory && !traj_compliant_);
+  const bool compliant_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && hold_compliant_) ||
+                                mode_ == ControllerMode::Algorithm ||
+                                (mode_ == ControllerMode::Trajectory && traj_compliant_);
   if (stiff_motion) {
     limited = limiter_.apply(q_cmd_, q_cmd_);
     limiter_applied_ = true;
+  } else if (compliant_motion) {
+    limited = limiter_.apply(q_cmd_, q_cmd_, compliant_scale_);
+    limiter_applied_ = true;
+    if (limited != 0 && limiter_.too_fast() == 0) take_back_limited();
   }
 
   record_evidence(in);
@@ -888,6 +901,19 @@ std::uint32_t Controller::limit_rate(const CycleInputs& in) noexcept {
       if ((limited >> j) & 1u) ++rate_limited_joint_cycles_[j];
   }
   return limited;
+}
+
+void Controller::take_back_limited() noexcept {
+  // The admittance does not run ahead of what the arm is commanded, so it
+  // has nothing to snap back when the limiter lets go.
+  for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = q_cmd_[j];
+  const Vector6 e = pose_error(compliant_ref_, forward_kinematics(model_, ws_, qv2_, tip_link_));
+  const Eigen::Matrix3d R_frame = adm_.params().frame == TaskFrame::Tool ? Eigen::Matrix3d(compliant_ref_.linear())
+                                                                       : Eigen::Matrix3d::Identity();
+  Vector6 achieved;
+  achieved.head<3>() = R_frame.transpose() * e.head<3>();
+  achieved.tail<3>() = R_frame.transpose() * e.tail<3>();
+  adm_.take_back(achieved);
 }
 
 void Controller::write_outputs(const CycleInputs& in, CycleOutputs& out, bool joints_ok, std::uint32_t limited) noexcept {

@@ -56,7 +56,7 @@ void JointRateLimiter::follow(const JointArray& command) noexcept {
   engaged_ = 0;
 }
 
-std::uint32_t JointRateLimiter::apply(const JointArray& target, JointArray& command) noexcept {
+std::uint32_t JointRateLimiter::apply(const JointArray& target, JointArray& command, double scale) noexcept {
   if (!have_state_) reset(target);
   constexpr double kSlack = 1.0 + 1e-9;
   std::uint32_t limited = 0;
@@ -67,7 +67,7 @@ std::uint32_t JointRateLimiter::apply(const JointArray& target, JointArray& comm
       command[j] = t;
       continue;
     }
-    const double V = lim_.velocity[j], A = lim_.acceleration[j], J = lim_.jerk[j];
+    const double V = lim_.velocity[j], A = lim_.acceleration[j] * scale, J = lim_.jerk[j] * scale;
     const std::uint32_t bit = std::uint32_t{1} << j;
     const double v_des = (t - q_[j]) / dt_;
     const double a_des = (v_des - v_[j]) / dt_;

@@ -164,7 +164,9 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
     c.algorithm.guarded_move.speed_m_s = 0.05;
     c.algorithm.guarded_move.max_distance_m = 0.03;
   });
-  run("guarded_move away", 100);
+  const std::uint64_t limited_before = b.out.telemetry.rate_limited_cycles;
+  run("guarded_move away (its start is rate limited, the admittance takes it back)", 100);
+  EXPECT_GT(b.out.telemetry.rate_limited_cycles, limited_before);
   command(MotionCommandKind::Stop, [](MotionCommand& c) { c.category = StopCategory::Cat2; });
   run("algorithm stopping on its reference, stopped", 1000);
   command(MotionCommandKind::Recover, none);

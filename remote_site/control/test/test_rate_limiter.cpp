@@ -194,5 +194,61 @@ TEST(RateLimiter, APlannedTrajectoryIsNotTouched) {
   EXPECT_EQ(b.out.telemetry.rate_limited_cycles, 0u);
 }
 
+TEST(RateLimiter, ACompliantHoldIsLimitedInsideItsForceLoopWithoutWindup) {
+  // A compliant hold hit by a torque step about the tool axis: the admittance
+  // (20 N m s/rad) asks the wrist for 0.4 rad/s within a few cycles, many
+  // times its acceleration limit. The limiter cuts it; the admittance
+  // takes back what the command did not carry, so its offset stays the
+  // command's (no windup to snap back), and the hold returns when the
+  // torque goes. At the stiff motions' 1.5x, so that it limits for a while.
+  ControllerConfig config;
+  config.rate_limit_compliant_acceleration_fraction = config.rate_limit_acceleration_fraction;
+  Bench b(home_q(), config);
+  b.enable();
+  MotionCommand h;
+  h.kind = MotionCommandKind::Hold;
+  h.compliant = true;
+  b.send(h);
+  for (int k = 0; k < 20; ++k) b.step();
+  const Pose hold = b.tip(b.out.q_cmd);
+  const double frac = b.config.rate_limit_compliant_acceleration_fraction;
+  JointArray q_prev = b.out.q_cmd, v_prev{};
+  double worst_ratio = 0.0, worst_gap = 0.0, worst_release_gap = 0.0, peak = 0.0;
+  for (int k = 0; k < 1600; ++k) {
+    b.extra_ft = {};
+    if (k < 150) b.extra_ft[5] = 8.0;
+    b.step();
+    for (std::size_t j = 0; j < 7; ++j) {
+      const double v = (b.out.q_cmd[j] - q_prev[j]) / kDt;
+      worst_ratio = std::max(worst_ratio, std::abs(v - v_prev[j]) / kDt / (frac * robot().limits()[j].acceleration_rad_s2));
+      v_prev[j] = v;
+    }
+    q_prev = b.out.q_cmd;
+    // The commanded rotation about the tool axis against the admittance's offset.
+    const Eigen::AngleAxisd turn(hold.linear().transpose() * b.tip(b.out.q_cmd).linear());
+    const double about_z = turn.angle() * turn.axis().z();
+    const double gap = std::abs(about_z - b.ctl->admittance().offset()(5));
+    (k < 150 ? worst_gap : worst_release_gap) = std::max(k < 150 ? worst_gap : worst_release_gap, gap);
+    peak = std::max(peak, std::abs(about_z));
+  }
+  std::printf("compliant hold, 8 N m step: %llu cycles limited, peak acceleration %.2f of the limit, peak turn %.4f rad, "
+              "offset vs command %.2e rad at most while pushed, %.2e rad when released\n",
+              static_cast<unsigned long long>(b.out.telemetry.rate_limited_cycles), worst_ratio, peak, worst_gap,
+              worst_release_gap);
+  EXPECT_TRUE(b.stops.empty());
+  EXPECT_GT(b.out.telemetry.rate_limited_cycles, 0u) << "the limiter acted inside the force loop";
+  EXPECT_LE(worst_ratio, 1.0 + 1e-6);
+  EXPECT_GT(peak, 0.05);
+  EXPECT_LT(worst_gap, 2e-4) << "the admittance's state is what was commanded";
+  // Released, the admittance stops at once; the command brakes at its limit
+  // (joint 7: 1.5 x 6 rad/s^2) and runs on by at most v^2 / 2a (0.38 rad/s: 8 mrad).
+  EXPECT_LT(worst_release_gap, 0.38 * 0.38 / (2.0 * 1.5 * 6.0));
+  EXPECT_LT(peak, b.config.admittance.max_offset[5] + 0.38 * 0.38 / (2.0 * 1.5 * 6.0));
+  // Released: back to the hold (20 N m/rad, 1 s time constant: 3 s in, e^-3).
+  const Eigen::AngleAxisd back(hold.linear().transpose() * b.tip(b.out.q_cmd).linear());
+  EXPECT_LT(back.angle(), 0.06 * peak);
+  EXPECT_EQ(b.out.telemetry.rate_limited_mask, 0u);
+}
+
 }  // namespace
 }  // namespace foresight::control::test

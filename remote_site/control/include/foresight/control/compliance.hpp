@@ -121,6 +121,12 @@ class Admittance {
   /// Advance one cycle with the wrench w (in params().frame, about the tip). RT-safe.
   void step(const Vector6& w) noexcept;
   void reset() noexcept;  ///< offset and velocity to zero. RT-safe.
+  /// Anti-windup when the rate limiter cut the command: `achieved` is the
+  /// offset from the reference the command carries. Per axis, the last step()
+  /// advances the offset at most up to it (never back behind where it was:
+  /// a cut caused by the reference's own jump is not the admittance's), and
+  /// the velocity is what the offset then moved. RT-safe.
+  void take_back(const Vector6& achieved) noexcept;
 
   const Vector6& offset() const noexcept { return x_; }
   const Vector6& velocity() const noexcept { return v_; }
@@ -134,6 +140,7 @@ class Admittance {
   std::array<Eigen::Vector2d, 6> gamma_{};
   Vector6 x_ = Vector6::Zero();
   Vector6 v_ = Vector6::Zero();
+  Vector6 x_before_ = Vector6::Zero();  ///< the offset before the last step()
 };
 
 /// 6-vector pose error (linear m, rotation vector rad; base frame) taking

@@ -84,8 +84,8 @@ struct ControllerConfig {
   double stop_cart_decel_m_s2 = 1.0;
   double stop_cart_decel_rad_s2 = 2.0;
   /// The rate limiter (rate_limiter.hpp) on every command of a stiff motion
-  /// or hold (trajectories, GOTOs, the stiff hold; not inside the force loop
-  /// of compliant modes): acceleration at most this multiple of the URDF
+  /// or hold (trajectories, GOTOs, the stiff hold; compliant modes below):
+  /// acceleration at most this multiple of the URDF
   /// (planning) limit (a planned trajectory's C1 interpolant reaches 1.35x
   /// between samples and passes untouched), jerk at most
   /// rate_limit_jerk_per_s x the URDF acceleration limit (1000/s: the
@@ -93,6 +93,12 @@ struct ControllerConfig {
   /// velocity at most the velocity limit.
   double rate_limit_acceleration_fraction = 1.5;
   double rate_limit_jerk_per_s = 1000.0;
+  /// The same limiter inside the force loop of compliant modes (algorithms,
+  /// compliant trajectories and holds), at this multiple of the URDF
+  /// acceleration limit (jerk scaled alike; at least the stiff fraction), with
+  /// anti-windup: what the limited command achieves becomes the admittance's
+  /// state (Admittance::take_back).
+  double rate_limit_compliant_acceleration_fraction = 10.0;
   StopCategory estop_category = StopCategory::Cat0;
   LinkLossPolicy link_loss = LinkLossPolicy::FinishThenHold;
   int sensor_fault_cycles = 5;             ///< F/T saturated or faulty this many cycles in a row: Cat1
@@ -220,6 +226,9 @@ class Controller {
   /// step from the previous command towards reference + offset; otherwise
   /// q_seed (the reference joints) + DLS(J(q_seed)) x offset.
   void compliant_offset_to_joints(const Pose& base_T_ref_tip, const JointArray& q_seed, bool tracking) noexcept;
+  /// Anti-windup after the limiter cut a compliant command: the offset from
+  /// compliant_ref_ that the command carries bounds the admittance's step.
+  void take_back_limited() noexcept;
   void record_evidence(const CycleInputs& in) noexcept;
 
   // The cycle's steps (step() calls them in this order).
@@ -293,6 +302,7 @@ class Controller {
   bool tip_cmd_valid_ = false;
   Pose sensor_T_tip_ = Pose::Identity();  // from the model (fixed joints)
   Pose base_T_hold_ = Pose::Identity();  // reference tip pose of a compliant hold
+  Pose compliant_ref_ = Pose::Identity();  // the reference the admittance's offset was added to this cycle
   JointVector qv_, qv2_, dqv_;
   Jacobian J_;
 
@@ -300,6 +310,7 @@ class Controller {
   Admittance adm_;
   JointRateLimiter limiter_;
   bool limiter_applied_ = false;  // this cycle's command came out of limiter_.apply()
+  double compliant_scale_ = 1.0;  // the compliant modes' limits over the stiff ones
   std::uint64_t rate_limited_cycles_ = 0;
   std::array<std::uint32_t, kMaxJoints> rate_limited_joint_cycles_{};
   AlgorithmRunner algo_;

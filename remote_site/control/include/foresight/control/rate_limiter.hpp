@@ -41,7 +41,9 @@ class JointRateLimiter {
   void follow(const JointArray& command) noexcept;
   /// The target of this cycle in, the command to send out (may alias).
   /// Returns the joints limited this cycle (bit j = joint j + 1).
-  std::uint32_t apply(const JointArray& target, JointArray& command) noexcept;
+  /// `scale` multiplies the acceleration and jerk limits (>= 1: a looser set,
+  /// e.g. for the force loop of compliant modes).
+  std::uint32_t apply(const JointArray& target, JointArray& command, double scale = 1.0) noexcept;
 
   /// The joints whose target of the last apply() moved faster than the
   /// velocity limit (passed on unlimited), and that target speed per joint.
