@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "foresight/common/format.hpp"
 #include "foresight/common/text_file.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/common/yaml_util.hpp"
@@ -52,11 +53,18 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
     // The ranges the controller takes (ControllerConfig); below 1x the limiter
     // would act on every planned motion.
     const yaml::MapReader rl = s.map("rate_limit");
-    rl.check_keys({"acceleration_fraction", "jerk_per_s"});
+    rl.check_keys({"acceleration_fraction", "jerk_per_s", "compliant_acceleration_fraction"});
     c.rate_limit_acceleration_fraction = rl.get_or_in("acceleration_fraction", c.rate_limit_acceleration_fraction, 1.0,
                                                       10.0, "x the URDF acceleration limit");
     c.rate_limit_jerk_per_s =
         rl.get_or_in("jerk_per_s", c.rate_limit_jerk_per_s, 10.0, 100000.0, "1/s (x the URDF acceleration limit)");
+    c.rate_limit_compliant_acceleration_fraction =
+        rl.get_or_in("compliant_acceleration_fraction", c.rate_limit_compliant_acceleration_fraction, 1.0, 100.0,
+                     "x the URDF acceleration limit");
+    if (c.rate_limit_compliant_acceleration_fraction < c.rate_limit_acceleration_fraction)
+      rl.fail_key("compliant_acceleration_fraction",
+                  "below acceleration_fraction (" + fixed(c.rate_limit_acceleration_fraction, 2) +
+                      "): the force loop would be limited harder than stiff motion");
   }
   if (s["link"]) {
     const yaml::MapReader link = s.map("link");

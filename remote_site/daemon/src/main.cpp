@@ -204,6 +204,7 @@ control::ControllerConfig controller_config(const daemon::DaemonConfig& config, 
   cc.start_tolerance_rad = config.start_tolerance_rad;
   cc.rate_limit_acceleration_fraction = config.rate_limit_acceleration_fraction;
   cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
+  cc.rate_limit_compliant_acceleration_fraction = config.rate_limit_compliant_acceleration_fraction;
   cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
   cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;

@@ -91,6 +91,9 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  rate_limit: {acceleration_fraction: 0.5}\n"),
             "r.yaml:2: controller.rate_limit.acceleration_fraction: 0.5 is outside [1, 10] x the URDF acceleration "
             "limit");
+  EXPECT_EQ(error_of("controller:\n  rate_limit: {compliant_acceleration_fraction: 1.2}\n"),
+            "r.yaml:2: controller.rate_limit.compliant_acceleration_fraction: below acceleration_fraction (1.50): the "
+            "force loop would be limited harder than stiff motion");
   EXPECT_EQ(error_of("controller:\n  rate_limit: {jerk_per_s: .nan}\n"),
             "r.yaml:2: controller.rate_limit.jerk_per_s: nan is outside [10, 100000] 1/s (x the URDF acceleration "
             "limit)");

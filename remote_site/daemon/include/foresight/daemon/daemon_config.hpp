@@ -65,6 +65,9 @@ struct DaemonConfig {
   /// URDF limit, jerk as a multiple of it per second.
   double rate_limit_acceleration_fraction = 1.5;
   double rate_limit_jerk_per_s = 1000.0;
+  /// Inside the force loop of compliant modes (with anti-windup), at least
+  /// the stiff fraction.
+  double rate_limit_compliant_acceleration_fraction = 10.0;
   /// Commands the remote holds at once (running + queued; the status lists
   /// them all: at most the IDL's MAX_QUEUE), and the longest chain of
   /// commands following each other (after_command_id).
