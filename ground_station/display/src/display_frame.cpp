@@ -101,7 +101,7 @@ cv::Mat DisplayComposer::compose(const camera::Camera& camera, const cv::Mat& vi
       p.renderer->render(camera, list, st, impl_->layer);
       render::composite(impl_->layer, s.ghost_alpha, out);
     }
-    if (s.go_no_go) draw_go_no_go(out, camera, *s.go_no_go);
+    if (s.go_no_go) draw_go_no_go(out, camera, *s.go_no_go, s.text);  // its label is text
   }
   if (s.text) {
     const cv::Scalar white(255, 255, 255), red(60, 60, 255), cyan(255, 220, 90);

@@ -122,7 +122,7 @@ GoNoGoDrawn project_go_no_go(const camera::Camera& camera, const GoNoGoMarks& m)
   return out;
 }
 
-GoNoGoDrawn draw_go_no_go(cv::Mat& img, const camera::Camera& camera, const GoNoGoMarks& m) {
+GoNoGoDrawn draw_go_no_go(cv::Mat& img, const camera::Camera& camera, const GoNoGoMarks& m, bool label) {
   if (img.type() != CV_8UC3) throw std::invalid_argument("draw_go_no_go: the picture must be 8-bit BGR");
   const GoNoGoDrawn out = project_go_no_go(camera, m);
   const cv::Scalar colour = go_no_go_colour(m.go);
@@ -176,7 +176,7 @@ GoNoGoDrawn draw_go_no_go(cv::Mat& img, const camera::Camera& camera, const GoNo
   }
 
   // The label to the right of the marks (to their left near the image's edge).
-  if (anchored) {
+  if (anchored && label) {
     int base = 0;
     const double scale = 0.5;
     const cv::Size sz = cv::getTextSize(out.label, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);

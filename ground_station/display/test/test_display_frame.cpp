@@ -167,6 +167,27 @@ TEST(DisplayFrame, GoNoGoIsDrawnWithTheOverlay) {
                 go ? "go" : "no_go", e.semi_major_px, e.semi_minor_px, green, red);
     EXPECT_GT(go ? green : red, 25);
     EXPECT_EQ(go ? red : green, 0);
+    // With the text on, its label is drawn too (beside the marks, in the
+    // same colour); off, the marks alone.
+    s.text = true;
+    const cv::Mat labelled = composer.compose(cam, video, s);
+    s.go_no_go.reset();
+    const cv::Mat text_only = composer.compose(cam, video, s);
+    s.go_no_go = m;
+    s.text = false;
+    const auto coloured = [&](const cv::Mat& img, const cv::Mat& base) {
+      int n = 0;
+      for (int y = 0; y < img.rows; ++y)
+        for (int x = 0; x < img.cols; ++x) {
+          const cv::Vec3b c = img.at<cv::Vec3b>(y, x);
+          const bool col = go ? (c[1] >= 150 && c[1] - c[2] >= 80) : (c[2] >= 150 && c[2] - c[1] >= 80);
+          n += col && c != base.at<cv::Vec3b>(y, x);
+        }
+      return n;
+    };
+    const int with_label = coloured(labelled, text_only), without = coloured(shown, plain);
+    std::printf("  %d %s pixels with the text on, %d with it off (the label)\n", with_label, go ? "green" : "red", without);
+    EXPECT_GT(with_label, without + 40);
     // Overlay off: nothing of it.
     s.overlay = false;
     EXPECT_EQ(cv::countNonZero(changed(composer.compose(cam, video, s), video, 0)), 0);

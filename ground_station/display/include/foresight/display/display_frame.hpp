@@ -43,7 +43,7 @@ struct DisplayState {
   std::string video_problem;                 ///< empty: video fine (drawn red, centred otherwise)
   std::string footer;                        ///< e.g. "frame 12  t 0.40 s"
   /// The insert's go/no-go (`display --check-insert`): drawn with the overlay
-  /// (draw_go_no_go, go_no_go.hpp); none: not drawn.
+  /// (draw_go_no_go, go_no_go.hpp), its label only with the text; none: not drawn.
   std::optional<GoNoGoMarks> go_no_go;
   bool text = true;                          ///< draw the text at all
 };

@@ -87,7 +87,8 @@ cv::Scalar go_no_go_colour(bool go);
 /// (4 cm back along -z) at base_T_tag, the tip's 95% ellipse (1 px), and the
 /// label beside them; all in go_no_go_colour. An ellipse under 1.5 px is drawn
 /// with a 1.5 px semi-axis so that it shows (GoNoGoDrawn has its true size).
-/// Parts behind the camera are left out.
-GoNoGoDrawn draw_go_no_go(cv::Mat& bgr, const camera::Camera& camera, const GoNoGoMarks& marks);
+/// Parts behind the camera are left out; the label too when `label` is false
+/// (the display with its text hidden).
+GoNoGoDrawn draw_go_no_go(cv::Mat& bgr, const camera::Camera& camera, const GoNoGoMarks& marks, bool label = true);
 
 }  // namespace foresight::display
