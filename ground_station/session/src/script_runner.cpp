@@ -116,6 +116,8 @@ script::ScriptContext ScriptRunner::context_for(const RobotModel& model, const O
 
 std::string ScriptRunner::path(const std::string& name) const { return s_.work_dir + "/" + name; }
 
+std::string ScriptRunner::ground_yaml() const { return s_.ground.empty() ? default_config("ground.yaml") : s_.ground; }
+
 void ScriptRunner::say(const std::string& line) const { (s_.quiet ? std::cerr : std::cout) << "    " << line << "\n"; }
 
 void ScriptRunner::journal(const script::Command& c, const Outcome& o, nlohmann::json extra) {
@@ -219,6 +221,11 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
       if (cams.empty()) cams = scene_.camera_order;
       const std::string points = c.text_or("points", path("arm_clicks.csv"));
       const std::string out = s_.cameras.empty() ? path("cameras.yaml") : s_.cameras;
+      // One belief about the arm model: the link sigma CHECK insert uses
+      // (ground.yaml contact_check) enters the calibration too, so the
+      // cameras carry their sensitivity to the links and the check sees the
+      // same link error move cameras and tool together.
+      const double arm_link_sigma_m = contact_check::load_contact_check_config(ground_yaml()).arm_link_sigma_m;
       for (const auto& cam : cams) {
         if (interrupted && interrupted()) return {CommandState::Canceled, "calibration of " + cam + " interrupted", since(t0)};
         CalibrateRequest request;
@@ -226,6 +233,7 @@ Outcome ScriptRunner::local(const script::Command& c, const std::function<bool()
         request.camera = cam;
         request.out = out;
         request.robot = s_.robot;
+        request.arm_link_sigma_m = arm_link_sigma_m;
         try {
           add_camera(out, cam, calibrate_from_clicks(request));
         } catch (const std::exception& e) {
@@ -277,7 +285,7 @@ Outcome ScriptRunner::check(const script::Command& c) {
   est.base_T_object = *base_T_object_;
   ctx.object = &object_;
   ctx.robot = &model_;
-  ctx.config = contact_check::load_contact_check_config(s_.ground.empty() ? default_config("ground.yaml") : s_.ground);
+  ctx.config = contact_check::load_contact_check_config(ground_yaml());
   if (c.has("min_p")) ctx.config.min_p_success = c.number_or("min_p", ctx.config.min_p_success);
   if (!s_.cameras.empty() && std::filesystem::exists(s_.cameras))
     for (const auto& [name, rec] : camera::load_cameras(s_.cameras)) ctx.cameras[name] = rec.camera;

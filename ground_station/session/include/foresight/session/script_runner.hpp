@@ -86,6 +86,8 @@ class ScriptRunner : public script::CommandRunner {
   nlohmann::json update_arm(const std::vector<double>& reported, const Eigen::VectorXd& predicted,
                             bool completed = true);
   std::string path(const std::string& name) const;
+  /// The ground.yaml in use (--ground, else the shipped one).
+  std::string ground_yaml() const;
   void say(const std::string& line) const;
   void journal(const script::Command& c, const script::Outcome& o, nlohmann::json extra);
 
