@@ -13,14 +13,17 @@
 // heartbeat and SYNC keep going, and the drives stay disabled (mode Disabled)
 // until an Enable/Recover command.
 //
-// Drive power (DriveSystem::enable()/disable() are set-up calls that run
-// their own cycles): when the Controller asks for them (CycleOutputs::
-// drive_request), the loop thread runs them itself in a non-real-time phase
-// between two cycles. They keep cycling the bus (heartbeat and SYNC continue),
-// take up to enable_timeout_ms; a failure (HwError) becomes the command's
-// Failed event with the error text. With require_realtime, Enable fails
-// without touching the drives unless SCHED_FIFO and mlockall were granted. Overruns are not counted for that phase,
-// and the period grid restarts after it. Commands queue meanwhile.
+// Drive power: when the Controller asks (CycleOutputs::drive_request), the
+// loop begins the drives' power state machine (DriveSystem::begin_enable /
+// begin_disable) after the step; the following cycle_writes step it (one
+// controlword per drive per cycle, target = actual position) and each
+// cycle_read judges it (CycleStatus::power); when it ends, the loop reports
+// to Controller::drive_request_done() before that cycle's step. Nothing
+// blocks or allocates: the period grid goes on, and the controller's step
+// (E-stop, safe torque off, link, every other check) runs every cycle of the
+// change. A failure becomes the command's Failed event naming the drive
+// (DriveSystem::describe_power_failure). With require_realtime, Enable fails
+// without touching the drives unless SCHED_FIFO and mlockall were granted.
 //
 // Overruns: a cycle that ends after the next deadline skips to the grid; the
 // periods it skipped count as missed. max_missed_cycles missed in a row (a
@@ -95,6 +98,10 @@ struct LoopStats {
   bool realtime = false;               ///< SCHED_FIFO was granted
   bool memory_locked = false;          ///< mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
   std::uint64_t missed_streak_max = 0; ///< the most periods missed in a row
+  /// The longest gap between two cycle wake-ups while a power change ran (us).
+  double power_change_gap_us_max = 0.0;
+  /// Cycles the last power change took (CycleStatus::power.cycles when it ended).
+  std::uint32_t power_change_cycles_last = 0;
   /// Percentile (0..1) of a histogram in us (the upper edge of its bin: a
   /// bound, resolution 10 us below 320 us, 19% above).
   static double percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept;
@@ -146,7 +153,11 @@ class ControlLoop {
  private:
   void run() noexcept;
   void setup_thread() noexcept;
-  void perform(DriveRequest request) noexcept;
+  /// After the step: begin the drives' power change the controller asked for
+  /// (or report at once why it cannot begin).
+  void begin_power_change(DriveRequest request) noexcept;
+  /// Before the step: a power change that ended in this read, to the controller.
+  void finish_power_change(const hw::CycleStatus& status) noexcept;
   void cycle(std::int64_t stamp_ns) noexcept;
 
   hw::DriveSystem& drives_;
@@ -178,6 +189,10 @@ class ControlLoop {
   std::atomic<bool> memory_locked_{false};
   std::atomic<std::uint64_t> missed_streak_max_{0};
   std::uint32_t missed_streak_ = 0;  ///< loop thread: periods missed in a row so far
+  DriveRequest power_request_ = DriveRequest::None;  ///< loop thread: the power change running
+  std::int64_t last_wake_ns_ = 0;
+  std::atomic<double> power_gap_max_{0.0};
+  std::atomic<std::uint32_t> power_cycles_last_{0};
 
   // cycle scratch (loop thread only)
   hw::JointFeedback fb_{};

@@ -215,6 +215,9 @@ class Controller {
   Pose measure(const CycleInputs& in, bool joints_ok) noexcept;
   /// No power-up while the E-stop is pressed.
   void refuse_enable_in_estop(const CycleInputs& in) noexcept;
+  /// An enable the loop steps: the E-stop (category 0) or the link (policy
+  /// Stop) aborts it; its command then fails with why.
+  void watch_power_change(const CycleInputs& in) noexcept;
   /// Tare: ask, then wait for the decoder to finish.
   void step_tare(const CycleInputs& in, CycleOutputs& out, const Pose& base_T_sensor) noexcept;
   /// The mode's command (q_cmd_).
@@ -256,6 +259,8 @@ class Controller {
   bool estop_ = false;
   bool power_off_now_ = false;
   bool drive_request_issued_ = false;
+  bool enable_aborted_ = false;                 // watch_power_change: the enable's answer is this failure
+  std::array<char, 96> enable_abort_text_{};
 
   const PreparedTrajectory* traj_ = nullptr;
   double traj_t_ = 0.0;

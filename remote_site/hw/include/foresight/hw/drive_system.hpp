@@ -133,7 +133,23 @@ enum class HwFault : std::uint8_t {
                       ///< refused before it reaches the drive, previous target kept (stop)
   EmergencyWarning,   ///< EMCY with a code but an empty error register (CiA 301: no error
                       ///< is present, a warning); code = error code (notice, not a stop)
+  // The power state machine stepped by the cycle (begin_enable/begin_disable):
+  PowerStateChanged,  ///< a drive's CiA 402 state changed during an enable or disable;
+                      ///< code = new state, detail = previous state (kUnknownState: none seen yet) (notice)
+  PowerStepTimeout,   ///< a drive stayed in one state longer than the step deadline
+                      ///< (power_step_timeout_ms), or the whole change took longer than
+                      ///< enable_timeout_ms (detail bit 16); code = its state (kUnknownState:
+                      ///< it never answered), detail low 16 bits = statusword (stop)
+  FaultAfterReset,    ///< a drive in Fault again after this enable's one fault reset;
+                      ///< code = its last EMCY code, detail = statusword (stop)
+  PowerChangeAborted, ///< an enable ended by a category 0 power off (request_power_off) (notice)
+  NodeUnconfigured,   ///< an enable refused: the node rebooted or left NMT operational since
+                      ///< configure(): configure_nodes() first (code = the NMT state seen) (stop)
 };
+/// PowerStepTimeout / PowerStateChanged: no state seen.
+inline constexpr std::uint32_t kUnknownState = 0xFF;
+/// PowerStepTimeout's detail bit: the overall deadline (enable_timeout_ms), not a step's.
+inline constexpr std::uint32_t kOverallDeadline = 1u << 16;
 const char* to_string(HwFault f) noexcept;
 /// True for faults that require the controller to stop the arm.
 bool requires_stop(HwFault f) noexcept;
@@ -145,6 +161,26 @@ struct HwEvent {
   std::int8_t joint = -1;  ///< joint index, -1 when not a drive (F/T, bus)
   std::uint32_t code = 0;
   std::uint32_t detail = 0;
+};
+
+/// The power state machine stepped by the cycle (DriveSystem::begin_enable,
+/// begin_disable): where it is.
+enum class PowerPhase : std::uint8_t {
+  Idle,       ///< no change asked since configure()
+  Enabling,   ///< stepping every drive toward Operation enabled
+  Disabling,  ///< Disable Voltage to every drive until each confirms a state without power
+  Enabled,    ///< the last enable succeeded
+  Disabled,   ///< the last disable succeeded
+  Failed,     ///< the last change failed: `cause` says why
+};
+const char* to_string(PowerPhase p) noexcept;
+
+struct PowerStatus {
+  PowerPhase phase = PowerPhase::Idle;
+  bool finished = false;     ///< the change ended in this cycle_read (Enabled, Disabled or Failed)
+  bool was_enable = false;   ///< the change that is running or ended was an enable
+  std::uint32_t cycles = 0;  ///< cycles since it began
+  HwEvent cause{};           ///< Failed: the drive and why (a PowerStepTimeout, FaultAfterReset, ... event)
 };
 
 /// Result of one cycle_read. Events are edges (reported once, when they
@@ -167,6 +203,8 @@ struct CycleStatus {
   /// torque off input is active (the cabinet's E-stop circuit is open).
   bool safe_torque_off = false;
   std::int8_t sto_joint = -1;  ///< the first joint reporting it (0-based)
+  /// The power state machine (begin_enable / begin_disable), after this read.
+  PowerStatus power{};
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
 
@@ -187,6 +225,8 @@ class EventQueue {
   /// Forget the queued events (configure(): set-up's events are not the
   /// cycle's); the drop count is still reported by the next take().
   void discard() noexcept { count_ = 0; }
+  std::size_t size() const noexcept { return count_; }
+  const HwEvent& operator[](std::size_t i) const noexcept { return events_[i]; }
 
  private:
   std::array<HwEvent, CycleStatus::kMaxEvents> events_{};
@@ -225,10 +265,9 @@ class DriveSystem {
   /// (see docs/hardware.md for the sequence). Throws HwError/SdoError naming
   /// the bus, node and joint. Drives stay disabled.
   void configure();
-  /// Set-up: run cycles at the configured rate, stepping every drive's power
-  /// state machine (fault reset, shutdown, switch on, enable operation) while
-  /// holding target = actual position, until all are Operation enabled.
-  /// Throws HwError naming each drive that did not get there, and its state.
+  /// Set-up: begin_enable(), then cycles at the configured rate until the
+  /// change ends (the same stepper as the control loop's). Throws HwError
+  /// naming each drive that did not get there, and its state.
   void enable();
   /// Set-up, after configure() and before the CSP enable(): homing for every
   /// drive with a `homing:` block (incremental encoders), all at once: mode 6
@@ -244,17 +283,48 @@ class DriveSystem {
   /// positions at enable time, then the last cycle_write). The controller's
   /// first cycle_write starts from these, so nothing jumps.
   void held_targets(JointTargets& out) const noexcept;
-  /// Set-up: power off every drive (Disable Voltage: Switch on disabled),
-  /// holding the actual positions as targets. Succeeds only when every drive
-  /// reports a state without power (canopen::power_enabled false); throws
-  /// HwError naming each drive still powered, with its state and statusword,
-  /// or silent, after enable_timeout_s.
+  /// Set-up: begin_disable(), then cycles until every drive reports a state
+  /// without power (canopen::power_enabled false); throws HwError naming
+  /// each drive still powered, with its state and statusword, or silent,
+  /// after enable_timeout_s.
   void disable();
   /// Set-up: send an NMT command to every configured node (e.g. Stop after
   /// disable(); EnterPreOperational for SDO-only service). The heartbeat
   /// consumer then reports nodes leaving operational as NodeNotOperational;
   /// configure() is needed to start again.
   void nmt_all(canopen::NmtCommand cmd);
+
+  // ---- drive power, stepped by the cycle (real-time: noexcept, no allocation) --------
+  /// Enable as a state machine the cycle steps: from the next cycle_write,
+  /// every drive is stepped once per cycle through the CiA 402 sequence
+  /// (fault reset, shutdown, switch on, enable operation) holding target =
+  /// actual position (the targets given to cycle_write are not taken
+  /// meanwhile); cycle_read judges the drives' answers and reports in
+  /// CycleStatus::power: Enabled once every drive reports Operation enabled,
+  /// Failed on a drive in one state beyond the step deadline
+  /// (power_step_timeout_ms) or the whole past enable_timeout_ms
+  /// (PowerStepTimeout), a drive in Fault again after this enable's one fault
+  /// reset (FaultAfterReset: a drive gets one fault reset per enable), a node
+  /// lost (heartbeat, boot-up, NMT state, bus) or request_power_off()
+  /// (PowerChangeAborted). Every state change is an event (PowerStateChanged).
+  /// Clears the category 0 and quick stop latches. Refused (false, `*refused`
+  /// the reason as an event) before configure(), while a node is not
+  /// configured (NodeUnconfigured: it rebooted or left NMT operational;
+  /// configure() again) or silent (HeartbeatLost): nothing is sent then.
+  bool begin_enable(HwEvent* refused = nullptr) noexcept;
+  /// Disable as a state machine the cycle steps: Disable Voltage to every
+  /// drive (holding the actual positions) until each reports a state without
+  /// power; Failed (PowerStepTimeout) after enable_timeout_ms. False before configure().
+  bool begin_disable() noexcept;
+  /// The state machine as the last cycle_read left it.
+  const PowerStatus& power_status() const noexcept { return power_; }
+  /// A failed or refused change's cause as one line for a command's answer,
+  /// into `buf` (snprintf; no allocation): "joint3 (node 3): in Fault again
+  /// after its fault reset, EMCY 0x2310 (statusword 0x0008)".
+  void describe_power_failure(const HwEvent& cause, char* buf, std::size_t size) const noexcept;
+  /// Nodes that rebooted or left NMT operational since configure() (NodeRebooted,
+  /// NodeNotOperational): begin_enable() refuses until they are configured again.
+  std::size_t unconfigured_nodes() const noexcept;
 
   // ---- real-time cycle -------------------------------------------------------
   /// The cycle's SYNC on every bus, sent by the control loop right after it
@@ -347,6 +417,11 @@ class DriveSystem {
   void supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first, FtReading& ft_out) noexcept;
   void supervise_buses(std::uint8_t& active, HwEvent& first) noexcept;
   void push_event(const HwEvent& e) noexcept { events_.push(e); }
+  /// cycle_read's last step: judge the drives' answers to a power change.
+  void judge_power() noexcept;
+  void end_power(PowerPhase phase, const HwEvent& cause) noexcept;
+  /// enable()/disable(): cycles until the change ends; throws its failure.
+  void run_power_change(const char* verb);
   void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
   void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
   std::string node_label(std::size_t bus, std::uint8_t node) const;
@@ -376,6 +451,9 @@ class DriveSystem {
   bool configured_ = false;
   bool enabled_ = false;
   bool sync_sent_this_cycle_ = false;  ///< send_sync() ran since the last cycle_write
+  PowerStatus power_{};
+  std::uint32_t step_cycles_ = 1;     ///< power_step_timeout_ms in cycles
+  std::uint32_t overall_cycles_ = 1;  ///< enable_timeout_ms in cycles
   void write_sync(std::size_t bus) noexcept;
   std::atomic<bool> quick_stop_{false};
   std::atomic<bool> power_off_{false};
