@@ -491,7 +491,11 @@ void DriveSystem::describe_power_failure(const HwEvent& e, char* buf, std::size_
                     joint, e.node, e.code, e.detail & 0xFFFF);
       break;
     case HwFault::PowerStepTimeout:
-      if (e.detail & kOverallDeadline)
+      if (e.code == kUnknownState)
+        std::snprintf(buf, size, "%s (node %u): no answer for %d ms (%s)", joint, e.node,
+                      static_cast<int>(((e.detail & kOverallDeadline) ? config_.enable_timeout_s : config_.power_step_timeout_s) * 1000),
+                      (e.detail & kOverallDeadline) ? "enable_timeout_ms" : "power_step_timeout_ms");
+      else if (e.detail & kOverallDeadline)
         std::snprintf(buf, size, "%s (node %u): in '%s' after %d ms (enable_timeout_ms)", joint, e.node,
                       state_name(e.code), static_cast<int>(config_.enable_timeout_s * 1000));
       else
