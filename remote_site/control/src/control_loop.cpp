@@ -154,6 +154,7 @@ LoopStats ControlLoop::stats() const noexcept {
   s.overruns = overruns_.load(std::memory_order_relaxed);
   s.events_dropped = events_dropped_.load(std::memory_order_relaxed);
   s.telemetry_dropped = telemetry_dropped_.load(std::memory_order_relaxed);
+  s.drive_events_dropped = drive_events_dropped_.load(std::memory_order_relaxed);
   s.compute_us_max = compute_max_.load(std::memory_order_relaxed);
   s.sync_after_wake_us_max = sync_after_wake_max_.load(std::memory_order_relaxed);
   s.wakeup_latency_us_max = latency_max_.load(std::memory_order_relaxed);
@@ -259,6 +260,10 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
   const double sync_us = static_cast<double>(now_ns() - stamp_ns) * 1e-3;
   if (sync_us > sync_after_wake_max_.load(std::memory_order_relaxed))
     sync_after_wake_max_.store(sync_us, std::memory_order_relaxed);
+  for (std::size_t i = 0; i < status.event_count; ++i)
+    if (!drive_events_.try_push({status.events[i], status.cycle, stamp_ns}))
+      drive_events_dropped_.fetch_add(1, std::memory_order_relaxed);
+  if (status.events_dropped > 0) drive_events_dropped_.fetch_add(status.events_dropped, std::memory_order_relaxed);
   finish_power_change(status);  // before the step: it sees the drives' new state
   fill_cycle_inputs(status, fb_, ft_, in_);
   in_.stamp_ns = stamp_ns;

@@ -633,6 +633,7 @@ void Supervisor::handle(const remote_link::LinkEvent& e) {
 
 void Supervisor::poll_loop() {
   bridge_.drain_telemetry(running_command_id());
+  bridge_.drain_drive_events();
   control::StopEvent s;
   while (bridge_.next_stop(jobs_.running(), s)) {
     jobs_.cancel_all(std::string("the controller stopped: ") + s.text.data());

@@ -57,6 +57,15 @@ namespace foresight::control {
 void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& joints, const hw::FtReading& ft,
                        CycleInputs& in) noexcept;
 
+/// A drive event (hw::CycleStatus::events: EMCY, state changes during a
+/// power change, timeouts, faults, nodes and buses) as the loop read it, for
+/// the daemon's journal.
+struct DriveEventRecord {
+  hw::HwEvent event{};
+  std::uint64_t cycle = 0;
+  std::int64_t stamp_ns = 0;  ///< CLOCK_MONOTONIC of the cycle that read it
+};
+
 struct LoopOptions {
   int rt_priority = 80;            ///< SCHED_FIFO priority (1-99)
   int cpu = -1;                    ///< pin the loop to this CPU; -1: do not pin
@@ -86,6 +95,7 @@ struct LoopStats {
   std::uint64_t overruns = 0;          ///< cycles whose work ended after the next deadline (periods skipped)
   std::uint64_t events_dropped = 0;    ///< event/stop rings full
   std::uint64_t telemetry_dropped = 0;
+  std::uint64_t drive_events_dropped = 0;  ///< drive event ring full (poll_drive_event)
   double compute_us_max = 0.0;         ///< read + step + write
   /// From the wake-up to the cycle's SYNC (the read alone; the computation
   /// comes after it): what the drives see of the loop's timing.
@@ -113,6 +123,7 @@ class ControlLoop {
   static constexpr std::size_t kEventCapacity = 256;
   static constexpr std::size_t kStopCapacity = 16;
   static constexpr std::size_t kTelemetryCapacity = 1024;
+  static constexpr std::size_t kDriveEventCapacity = 512;
 
   /// Set-up. `drives` configured (configure() done), not enabled, and not
   /// cycled by anyone else while the loop runs; outlives the loop. Throws
@@ -137,6 +148,11 @@ class ControlLoop {
   bool poll_event(MotionEvent& out) noexcept { return events_.try_pop(out); }
   bool poll_stop(StopEvent& out) noexcept { return stops_.try_pop(out); }
   bool poll_telemetry(TelemetrySample& out) noexcept { return telemetry_.try_pop(out); }
+  /// Every event of every cycle_read, in order (drive_events_dropped counts
+  /// those lost to a full ring).
+  bool poll_drive_event(DriveEventRecord& out) noexcept { return drive_events_.try_pop(out); }
+  /// The drive system, for describing its events (DriveSystem::describe) off the loop thread.
+  const hw::DriveSystem& drives() const noexcept { return drives_; }
 
   /// Inputs, any thread.
   void set_estop(bool pressed) noexcept { estop_.store(pressed, std::memory_order_release); }
@@ -169,6 +185,7 @@ class ControlLoop {
   SpscRing<MotionEvent> events_{kEventCapacity};
   SpscRing<StopEvent> stops_{kStopCapacity};
   SpscRing<TelemetrySample> telemetry_{kTelemetryCapacity};
+  SpscRing<DriveEventRecord> drive_events_{kDriveEventCapacity};
 
   std::atomic<bool> estop_{false};
   std::atomic<bool> link_lost_{false};
@@ -181,6 +198,7 @@ class ControlLoop {
 
   // statistics (written by the loop thread only)
   std::atomic<std::uint64_t> cycles_{0}, overruns_{0}, events_dropped_{0}, telemetry_dropped_{0};
+  std::atomic<std::uint64_t> drive_events_dropped_{0};
   std::atomic<double> compute_max_{0.0}, compute_sum_{0.0}, latency_max_{0.0}, latency_sum_{0.0};
   std::atomic<double> sync_after_wake_max_{0.0};
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> compute_hist_{};
