@@ -3,6 +3,7 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cinttypes>
 #include <cstdio>
@@ -126,6 +127,7 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
         [this, bi](const can_frame& f) { handle_frame(bi, f, Clock::now()); },
         [this, bi](std::uint8_t node) { return node_label(bi, node); }));
   for (BusState& b : bus_state_) b.router.add_master(config_.master_node_id);
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) reconfig_.push_back(std::make_unique<Reconfig>());
   // Every node, drives first: the set-up steps that treat them all alike
   // (NMT, boot-up, heartbeat) in this order. drives_ is not resized again.
   for (Cia402Drive& d : drives_) nodes_.push_back(&d);
@@ -236,6 +238,7 @@ void DriveSystem::configure() {
   drain_buses();
   for (auto& c : sdo_) c->clear_notices();
   for (CanNode* n : nodes_) n->booted = n->unconfigured = false;
+  unconfigured_mask_.store(0);
   configured_ = false;
   power_ = PowerStatus{};
   enabled_ = false;
@@ -520,8 +523,93 @@ void DriveSystem::describe_power_failure(const HwEvent& e, char* buf, std::size_
 }
 
 std::size_t DriveSystem::unconfigured_nodes() const noexcept {
-  return static_cast<std::size_t>(
-      std::count_if(nodes_.begin(), nodes_.end(), [](const CanNode* n) { return n->unconfigured; }));
+  return static_cast<std::size_t>(std::popcount(unconfigured_mask_.load(std::memory_order_acquire)));
+}
+
+void DriveSystem::take_back_reconfigured(Clock::time_point now) noexcept {
+  for (std::size_t bi = 0; bi < reconfig_.size(); ++bi) {
+    Reconfig& rc = *reconfig_[bi];
+    if (!rc.restart.load(std::memory_order_acquire)) continue;
+    const std::uint8_t rn = rc.node.load(std::memory_order_relaxed);
+    for (Cia402Drive& d : drives_)
+      if (d.bus == bi && d.node == rn) {
+        d.restart(now);  // TPDOs and heartbeat supervised again, state unknown until a TPDO
+        d.unconfigured = false;
+      }
+    if (ft_ && ft_->bus == bi && ft_->node == rn) {
+      ft_->start_monitoring(now);
+      ft_->unconfigured = false;
+    }
+    rc.restart.store(false, std::memory_order_relaxed);
+    rc.node.store(0, std::memory_order_release);
+  }
+}
+
+std::size_t DriveSystem::configure_nodes() {
+  if (!configured_) throw HwError("configure_nodes(): configure() has not succeeded");
+  const std::uint32_t mask = unconfigured_mask_.load(std::memory_order_acquire);
+  const auto ms = [](double s) { return std::to_string(static_cast<int>(std::lround(s * 1000))); };
+  // Polls what the cycle reports, with a deadline.
+  const auto wait_for = [](const std::atomic<bool>& flag, Clock::time_point deadline) {
+    while (!flag.load(std::memory_order_acquire)) {
+      if (Clock::now() > deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return true;
+  };
+  const auto secs = [](double s) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  };
+  std::size_t done = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    if (!(mask & (1u << i))) continue;
+    const CanNode& n = *nodes_[i];
+    const std::size_t b = n.bus;
+    const std::string label = node_label(b, n.node);
+    Reconfig& rc = *reconfig_[b];
+    can_frame stale{};
+    while (rc.inbox.try_pop(stale)) {
+    }
+    rc.booted.store(false);
+    rc.operational.store(false);
+    rc.restart.store(false);
+    rc.node.store(n.node, std::memory_order_release);
+    struct Release {  // whatever happens, the cycle stops handing this node's frames over
+      Reconfig& rc;
+      ~Release() {
+        if (rc.restart.load(std::memory_order_acquire)) return;  // the cycle clears it
+        rc.node.store(0, std::memory_order_release);
+      }
+    } release{rc};
+    nmt(b, NmtCommand::ResetNode, n.node);
+    if (!wait_for(rc.booted, Clock::now() + secs(config_.enable_timeout_s)))
+      throw HwError("configure_nodes(): no boot-up message after NMT reset node within " + ms(config_.enable_timeout_s) +
+                    " ms from " + label);
+    SdoClient client(*buses_[b], config_.buses[b].name, config_.sdo_timeout_s, {},
+                     [this, b](std::uint8_t node) { return node_label(b, node); });
+    client.receive_from(&rc.inbox);
+    NodeConfigurator nc(client, [this, b](std::uint8_t node) { return node_label(b, node); });
+    if (n.joint >= 0) {
+      const auto j = static_cast<std::size_t>(n.joint);
+      // The node is pre-operational (no TPDO): the cycle does not read its info meanwhile.
+      drives_[j].info = nc.configure_drive(drive_setup(j));
+    } else {
+      nc.configure_ft(n.node, static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3)));
+    }
+    nmt(b, NmtCommand::Start, n.node);
+    if (!wait_for(rc.operational, Clock::now() + heartbeat_timeout_))
+      throw HwError("configure_nodes(): no heartbeat reporting NMT operational within " +
+                    ms(config_.heartbeat_consumer_s) + " ms after NMT start from " + label);
+    rc.restart.store(true, std::memory_order_release);
+    const auto deadline = Clock::now() + std::chrono::seconds(1);
+    while (rc.node.load(std::memory_order_acquire) != 0) {
+      if (Clock::now() > deadline)
+        throw HwError("configure_nodes(): " + label + " configured, but no cycle took it back within 1 s (is the loop cycling?)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ++done;
+  }
+  return done;
 }
 
 std::size_t DriveSystem::home() {
@@ -724,6 +812,20 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
     push_event({HwFault::MalformedFrame, bus8, node_of(id), -1, id, f.can_dlc});
     return;
   }
+  // A node configure_nodes() is configuring again: its SDO answers are that
+  // thread's, its boot-up and heartbeat tell it how far the node is.
+  Reconfig& rc = *reconfig_[bi];
+  if (const std::uint8_t rn = rc.node.load(std::memory_order_acquire); rn != 0) {
+    if (id == kSdoTxBase + rn) {
+      (void)rc.inbox.try_push(f);  // full: the transfer times out and says so
+      return;
+    }
+    if (id == kHeartbeatBase + rn && f.can_dlc == 1) {
+      const auto state = static_cast<NmtState>(f.data[0] & 0x7F);
+      if (state == NmtState::BootUp) rc.booted.store(true, std::memory_order_release);
+      if (state == NmtState::Operational) rc.operational.store(true, std::memory_order_release);
+    }
+  }
   if (id == kSync) {  // our own SYNC, looped back by the controller (or the simulator): a marker in the stream
     bs.sync_echo_active = true;
     bs.sync_seen = f.can_dlc >= 1 && config_.sync_counter_overflow > 0 ? f.data[0] : static_cast<std::uint8_t>(bs.sync_seen + 1);
@@ -776,12 +878,17 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   if (const int tare = tare_request_.exchange(0, std::memory_order_acq_rel); tare > 0 && ft_)
     ft_->decoder.request_tare(tare);
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) read_bus(bi, now);
+  take_back_reconfigured(now);
   std::uint8_t active = 0;
   HwEvent first_active{};
   supervise_drives(now, active, first_active);
   supervise_ft(now, active, first_active, ft_out);
   supervise_buses(active, first_active);
   judge_power();
+  std::uint32_t mask = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i]->unconfigured) mask |= 1u << i;
+  unconfigured_mask_.store(mask, std::memory_order_release);
 
   joints.count = drives_.size();
   for (std::size_t j = 0; j < drives_.size(); ++j) drives_[j].feedback(joints.joints[j]);

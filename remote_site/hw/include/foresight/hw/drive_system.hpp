@@ -323,8 +323,22 @@ class DriveSystem {
   /// after its fault reset, EMCY 0x2310 (statusword 0x0008)".
   void describe_power_failure(const HwEvent& cause, char* buf, std::size_t size) const noexcept;
   /// Nodes that rebooted or left NMT operational since configure() (NodeRebooted,
-  /// NodeNotOperational): begin_enable() refuses until they are configured again.
+  /// NodeNotOperational): begin_enable() refuses until they are configured
+  /// again. Any thread (as the last cycle_read saw them).
   std::size_t unconfigured_nodes() const noexcept;
+  /// NOT real-time (blocking SDO, allocates, throws HwError/SdoError naming
+  /// the node): configure again every node unconfigured_nodes() counts, from
+  /// its configuration file, while the cycle goes on in another thread (the
+  /// control loop: heartbeat, SYNC and the other drives' supervision do not
+  /// stop). Per node, one at a time: NMT reset node, its boot-up, the SDO
+  /// configuration configure() writes (node_config.hpp; the cycle hands the
+  /// node's SDO answers over instead of reading them as unexpected), NMT
+  /// start, its heartbeat saying operational; then the cycle takes it back
+  /// (TPDO and heartbeat supervision restart, state unknown until its next
+  /// TPDO). Returns the nodes configured. Call it from one thread, with no
+  /// power change running and the drives not enabled (a RECOVER from a stop),
+  /// and only while something calls cycle_read.
+  std::size_t configure_nodes();
 
   // ---- real-time cycle -------------------------------------------------------
   /// The cycle's SYNC on every bus, sent by the control loop right after it
@@ -444,6 +458,20 @@ class DriveSystem {
   std::chrono::nanoseconds heartbeat_timeout_;
   std::chrono::nanoseconds master_hb_period_;
   Clock::time_point last_master_hb_{};
+
+  /// configure_nodes(): the node of a bus being configured again while the
+  /// cycle runs (0: none), what the cycle saw of it, and its SDO answers.
+  struct Reconfig {
+    std::atomic<std::uint8_t> node{0};
+    std::atomic<bool> booted{false};       ///< boot-up seen since the NMT reset
+    std::atomic<bool> operational{false};  ///< a heartbeat saying operational since the NMT start
+    std::atomic<bool> restart{false};      ///< configured: the cycle restarts its supervision, then node = 0
+    SpscRing<can_frame> inbox{64};         ///< the cycle's read -> the SDO client
+  };
+  std::vector<std::unique_ptr<Reconfig>> reconfig_;  ///< per bus
+  std::atomic<std::uint32_t> unconfigured_mask_{0};  ///< bit i: nodes_[i]->unconfigured (the last cycle_read)
+  /// cycle_read: nodes configure_nodes() finished, back under supervision.
+  void take_back_reconfigured(Clock::time_point now) noexcept;
 
   EventQueue events_;
   std::uint16_t frames_this_cycle_ = 0;
