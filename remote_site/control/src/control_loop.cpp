@@ -274,7 +274,9 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
 
   MotionCommand cmd;
   for (std::size_t i = 0; i < kCommandCapacity && commands_.try_pop(cmd); ++i) controller_->command(cmd);
-  if (shutdown_requested_.load(std::memory_order_acquire) && !shutdown_issued_) {
+  // The shutdown's stop waits for a power change running to end (a stop
+  // of an arm still enabling would find it unpowered and do nothing).
+  if (shutdown_requested_.load(std::memory_order_acquire) && !shutdown_issued_ && power_request_ == DriveRequest::None) {
     shutdown_issued_ = true;
     MotionCommand stop_cmd;
     stop_cmd.kind = MotionCommandKind::Stop;

@@ -185,14 +185,26 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
 // (mock CAN), fill_cycle_inputs, command hand-over through the ring, step,
 // cycle_write, events and telemetry into their rings. The simulated drives
 // answer between cycles from this thread, unarmed.
+/// The real DriveSystem configured against the simulated drives (started on
+/// their own thread for the bring-up).
+struct CanMaster {
+  std::unique_ptr<sim::CanSimulator> simulator;
+  std::unique_ptr<hw::DriveSystem> drives;
+  CanMaster() {
+    hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+    config.tpdo_miss_limit = 1000;
+    auto buses = sim::make_mock_buses(config);
+    simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
+    simulator->start();
+    drives = std::make_unique<hw::DriveSystem>(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
+    drives->configure();
+  }
+};
+
 TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
-  hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
-  config.tpdo_miss_limit = 1000;
-  auto buses = sim::make_mock_buses(config);
-  auto simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
-  simulator->start();
-  hw::DriveSystem drives(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
-  drives.configure();
+  CanMaster master;
+  hw::DriveSystem& drives = *master.drives;
+  sim::CanSimulator* simulator = master.simulator.get();
   drives.enable();
   simulator->stop();
   simulator->process(5);
@@ -257,25 +269,15 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
   EXPECT_GE(popped, 3u);  // enable started + completed, trajectory started
 }
 
-}  // namespace
-}  // namespace foresight::control::test
-
-namespace foresight::control::test {
-namespace {
-
 // Issue 25, item 5: the power changes run in the cycle. The loop body as
 // ControlLoop runs it with the drives configured but off: Enable (the
 // CiA 402 sequence stepped by cycle_write, judged by cycle_read, reported
 // to the controller), Disable, and Enable again with a drive in Fault (its
 // one fault reset), every cycle armed: no allocation anywhere on the way.
 TEST(ControlNoAlloc, PowerChangesSteppedByTheCycle) {
-  hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
-  config.tpdo_miss_limit = 1000;
-  auto buses = sim::make_mock_buses(config);
-  auto simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
-  simulator->start();
-  hw::DriveSystem drives(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
-  drives.configure();
+  CanMaster master;
+  hw::DriveSystem& drives = *master.drives;
+  sim::CanSimulator* simulator = master.simulator.get();
   simulator->stop();
   simulator->process(5);
   Controller ctl(robot(), ControllerConfig{});

@@ -41,8 +41,11 @@
 // (ControlLoop, or a test) performs it and reports back with
 // drive_request_done(). Cat0, and Cat1 once the arm is at rest, additionally
 // set CycleOutputs::power_off for the drive system's request_power_off():
-// Disable Voltage goes to every drive in the same cycle, before the blocking
-// disable() confirms it.
+// Disable Voltage goes to every drive in the same cycle, before the stepped
+// disable confirms it. The loop steps an Enable in its own cycles, so step()
+// runs during it: the E-stop or the drives' safe torque off abort it into
+// category 0, a lost link with policy Stop leaves the drives off; its
+// command then fails with why (watch_power_change).
 //
 // Set-up (allocates, throws std::invalid_argument naming the field): the
 // constructor. Real-time (noexcept, no allocation, no locks, no logging):

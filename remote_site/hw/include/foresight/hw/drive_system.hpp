@@ -15,8 +15,10 @@
 //  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
 //      constructor (validates the config and bus load; sends nothing),
 //      configure() (NMT reset, boot-up, SDO: device type, PDO mapping, mode,
-//      periods, limits, heartbeat; NMT start), enable() (power state machine
-//      to Operation enabled), disable(), sdo_read()/sdo_write().
+//      periods, limits, heartbeat; NMT start), configure_nodes() (the same
+//      for a node that rebooted, while another thread cycles), enable() and
+//      disable() (the cycle's power state machine, with their own cycles),
+//      sdo_read()/sdo_write().
 //  * real-time cycle (noexcept, no allocation, no locks, no blocking):
 //      cycle_read() then cycle_write() once per period, from one thread:
 //        cycle_read:  drain every bus; TPDOs -> feedback; heartbeats, EMCY,
@@ -27,6 +29,8 @@
 //                     (0x700 + heartbeat.master_node_id) every producer period,
 //                     which the drives consume (0x1016): a master that stops
 //                     cycling faults the drives (EMCY 0x8130).
+//      begin_enable()/begin_disable(): the power state machine, stepped by the
+//      following cycle_writes, judged by each cycle_read (CycleStatus::power).
 //      request_power_off(), request_quick_stop() and request_tare() may be
 //      called from any thread.
 // Stops as the drives see them (docs/control.md, the stop table):
@@ -34,7 +38,7 @@
 //                        gets Disable Voltage (controlword 0x0000) and goes to
 //                        Switch on disabled at the next SYNC: no torque, never
 //                        Quick stop active. Latched until enable().
-//   disable()            power off after a controlled stop (category 1), the
+//   begin_disable()      power off after a controlled stop (category 1), the
 //                        same command, confirmed: every drive must report a
 //                        state without power (canopen::power_enabled false).
 //   request_quick_stop() the drives' own ramp (0x605A, which must be 1 or 2:
