@@ -60,18 +60,6 @@ const char* to_string(HwFault f) noexcept {
   return "?";
 }
 
-const char* to_string(PowerPhase p) noexcept {
-  switch (p) {
-    case PowerPhase::Idle: return "idle";
-    case PowerPhase::Enabling: return "enabling";
-    case PowerPhase::Disabling: return "disabling";
-    case PowerPhase::Enabled: return "enabled";
-    case PowerPhase::Disabled: return "disabled";
-    case PowerPhase::Failed: return "failed";
-  }
-  return "?";
-}
-
 bool requires_stop(HwFault f) noexcept {
   switch (f) {
     case HwFault::None:
@@ -999,7 +987,9 @@ void DriveSystem::supervise_buses(std::uint8_t& active, HwEvent& first_active) n
 
 std::string DriveSystem::describe(const HwEvent& e) const {
   std::string who;
-  if (e.joint >= 0)
+  if (e.fault == HwFault::PowerChangeAborted)
+    who = "drives";
+  else if (e.joint >= 0)
     who = node_label(drives_[static_cast<std::size_t>(e.joint)].bus, e.node);
   else if (e.node != 0 && e.bus < buses_.size())
     who = node_label(e.bus, e.node);

@@ -177,7 +177,6 @@ enum class PowerPhase : std::uint8_t {
   Disabled,   ///< the last disable succeeded
   Failed,     ///< the last change failed: `cause` says why
 };
-const char* to_string(PowerPhase p) noexcept;
 
 struct PowerStatus {
   PowerPhase phase = PowerPhase::Idle;
