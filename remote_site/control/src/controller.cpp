@@ -743,8 +743,8 @@ void Controller::watch_power_change(const CycleInputs& in) noexcept {
     return;
   }
   set_text(enable_abort_text_, in.estop ? "E-stop pressed during the enable: drives powered off (category 0)"
-                                        : "E-stop: safe torque off reported by the drives during the enable: "
-                                          "drives powered off (category 0)");
+                                        : "E-stop: safe torque off reported during the enable: drives powered off "
+                                          "(category 0)");
   // Category 0 whatever the mode: nothing moved yet, and whatever had
   // switched on is powered off in this cycle's RPDOs.
   pending_stop_category_ = StopCategory::None;

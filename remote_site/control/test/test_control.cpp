@@ -1011,8 +1011,8 @@ TEST(ControllerPower, AnEnableRunningOverCyclesIsAbortedByTheEStopOrTheLink) {
     ASSERT_NE(done, nullptr);
     EXPECT_EQ(done->kind, MotionEventKind::Failed);
     EXPECT_STREQ(done->text.data(), link ? "link lost during the enable (policy stop): drives left off"
-                                         : "E-stop: safe torque off reported by the drives during the enable: drives "
-                                           "powered off (category 0)");
+                                         : "E-stop: safe torque off reported during the enable: drives powered off "
+                                           "(category 0)");
     EXPECT_NE(b.ctl->mode(), ControllerMode::Idle);
   }
 }
