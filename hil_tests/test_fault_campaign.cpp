@@ -267,6 +267,33 @@ TEST_F(FaultCampaign, TheEStopCircuitAsTheDrivesReportItIsACategoryZeroStop) {
   expect_motion_completes();
 }
 
+// Issue 25, item 5: a drive that reboots mid-motion (a brown-out: its
+// configuration, PDO mapping included, is gone) is a category 0 stop naming
+// it; RECOVER configures it again from its configuration file before the
+// enable (journaled), and the task goes on. Every drive event on the way
+// (the reboot, the enable's state changes) is in the journal.
+TEST_F(FaultCampaign, ADriveThatRebootsIsConfiguredAgainByRecover) {
+  drive_side_fault("drive_reboot_4", {"node rebooted (boot-up while operational) node 4 joint 4",
+                                      "TPDO missing node 4 joint 4", "node left NMT operational node 4 joint 4"});
+  const nlohmann::json journal = journal_json();
+  std::vector<std::string> configured, drive_events;
+  for (const auto& e : journal["events"]) {
+    if (e["kind"] == "drive_configured") configured.push_back(e["text"].get<std::string>());
+    if (e["kind"] == "drive_event") drive_events.push_back(e["text"].get<std::string>());
+  }
+  ASSERT_FALSE(configured.empty()) << nlohmann::json(configured).dump();
+  EXPECT_EQ(configured.front().rfind("1 node(s) configured again from ", 0), 0u) << configured.front();
+  std::printf("RECOVER after the reboot: %s\n", configured.front().c_str());
+  const auto has = [&](const std::string& text) {
+    return std::any_of(drive_events.begin(), drive_events.end(),
+                       [&](const std::string& t) { return t.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(has("joint4 (bus arm_a node 4): node rebooted (boot-up while operational)"))
+      << nlohmann::json(drive_events).dump();
+  EXPECT_TRUE(has("joint4 (bus arm_a node 4): power state changed: 'Switched on' -> 'Operation enabled'"))
+      << nlohmann::json(drive_events).dump();
+}
+
 TEST_F(FaultCampaign, ABusLosingEveryFrameMidMotionIsACategoryZeroStop) {
   // The F/T sensor shares the bus: its heartbeat, lost during the outage,
   // is cleared by RECOVER once heard again (it used to stay lost: a stop

@@ -154,6 +154,7 @@ LoopStats ControlLoop::stats() const noexcept {
   s.overruns = overruns_.load(std::memory_order_relaxed);
   s.events_dropped = events_dropped_.load(std::memory_order_relaxed);
   s.telemetry_dropped = telemetry_dropped_.load(std::memory_order_relaxed);
+  s.drive_events_dropped = drive_events_dropped_.load(std::memory_order_relaxed);
   s.compute_us_max = compute_max_.load(std::memory_order_relaxed);
   s.sync_after_wake_us_max = sync_after_wake_max_.load(std::memory_order_relaxed);
   s.wakeup_latency_us_max = latency_max_.load(std::memory_order_relaxed);
@@ -167,6 +168,8 @@ LoopStats ControlLoop::stats() const noexcept {
   s.realtime = realtime_.load(std::memory_order_relaxed);
   s.memory_locked = memory_locked_.load(std::memory_order_relaxed);
   s.missed_streak_max = missed_streak_max_.load(std::memory_order_relaxed);
+  s.power_change_gap_us_max = power_gap_max_.load(std::memory_order_relaxed);
+  s.power_change_cycles_last = power_cycles_last_.load(std::memory_order_relaxed);
   return s;
 }
 
@@ -205,32 +208,47 @@ void ControlLoop::setup_thread() noexcept {
   setup_done_.store(true, std::memory_order_release);
 }
 
-void ControlLoop::perform(DriveRequest request) noexcept {
-  // Non-real-time phase: enable()/disable() run their own cycles (heartbeat
-  // and SYNC continue) and may throw.
-  bool ok = true;
+void ControlLoop::begin_power_change(DriveRequest request) noexcept {
+  // The drives' state machine, stepped by this and the next cycles
+  // (DriveSystem::begin_enable): the controller's step runs every cycle meanwhile.
   char text[96] = "";
-  try {
+  bool ok = true;
+  if (request == DriveRequest::Enable) {
     const bool fifo = realtime_.load(std::memory_order_relaxed), locked = memory_locked_.load(std::memory_order_relaxed);
-    if (request == DriveRequest::Enable && options_.require_realtime && !(fifo && locked)) {
+    hw::HwEvent refused;
+    if (options_.require_realtime && !(fifo && locked)) {
       ok = false;  // the drives are not touched
       std::snprintf(text, sizeof text, "not real time (%s%s%s): drives stay off; see --allow-non-rt",
                     fifo ? "" : "no SCHED_FIFO", fifo || locked ? "" : ", ", locked ? "" : "no mlockall");
-    } else if (request == DriveRequest::Enable)
-      drives_.enable();
-    else if (request == DriveRequest::Disable)
-      drives_.disable();
-  } catch (const std::exception& e) {
+    } else if (!drives_.begin_enable(&refused)) {
+      ok = false;
+      drives_.describe_power_failure(refused, text, sizeof text);
+    }
+  } else if (request == DriveRequest::Disable && !drives_.begin_disable()) {
     ok = false;
-    std::snprintf(text, sizeof text, "%s", e.what());
-  } catch (...) {
-    ok = false;
-    std::snprintf(text, sizeof text, "unknown error");
+    std::snprintf(text, sizeof text, "the drives are not configured");
+  }
+  if (ok) {
+    power_request_ = request;
+    return;
   }
   drives_.held_targets(targets_);
   JointArray held{};
   for (std::size_t j = 0; j < dof_; ++j) held[j] = targets_.position_rad[j];
-  controller_->drive_request_done(request, ok, text, held);
+  controller_->drive_request_done(request, false, text, held);
+}
+
+void ControlLoop::finish_power_change(const hw::CycleStatus& status) noexcept {
+  if (power_request_ == DriveRequest::None || !status.power.finished) return;
+  const bool ok = status.power.phase != hw::PowerPhase::Failed;
+  char text[96] = "";
+  if (!ok) drives_.describe_power_failure(status.power.cause, text, sizeof text);
+  drives_.held_targets(targets_);
+  JointArray held{};
+  for (std::size_t j = 0; j < dof_; ++j) held[j] = targets_.position_rad[j];
+  power_cycles_last_.store(status.power.cycles, std::memory_order_relaxed);
+  controller_->drive_request_done(power_request_, ok, text, held);
+  power_request_ = DriveRequest::None;
 }
 
 void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
@@ -242,6 +260,11 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
   const double sync_us = static_cast<double>(now_ns() - stamp_ns) * 1e-3;
   if (sync_us > sync_after_wake_max_.load(std::memory_order_relaxed))
     sync_after_wake_max_.store(sync_us, std::memory_order_relaxed);
+  for (std::size_t i = 0; i < status.event_count; ++i)
+    if (!drive_events_.try_push({status.events[i], status.cycle, stamp_ns}))
+      drive_events_dropped_.fetch_add(1, std::memory_order_relaxed);
+  if (status.events_dropped > 0) drive_events_dropped_.fetch_add(status.events_dropped, std::memory_order_relaxed);
+  finish_power_change(status);  // before the step: it sees the drives' new state
   fill_cycle_inputs(status, fb_, ft_, in_);
   in_.stamp_ns = stamp_ns;
   in_.estop = estop_.load(std::memory_order_acquire);
@@ -251,7 +274,9 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
 
   MotionCommand cmd;
   for (std::size_t i = 0; i < kCommandCapacity && commands_.try_pop(cmd); ++i) controller_->command(cmd);
-  if (shutdown_requested_.load(std::memory_order_acquire) && !shutdown_issued_) {
+  // The shutdown's stop waits for a power change running to end (a stop
+  // of an arm still enabling would find it unpowered and do nothing).
+  if (shutdown_requested_.load(std::memory_order_acquire) && !shutdown_issued_ && power_request_ == DriveRequest::None) {
     shutdown_issued_ = true;
     MotionCommand stop_cmd;
     stop_cmd.kind = MotionCommandKind::Stop;
@@ -263,6 +288,7 @@ void ControlLoop::cycle(std::int64_t stamp_ns) noexcept {
 
   if (out_.power_off) drives_.request_power_off();
   if (out_.tare_samples > 0) drives_.request_tare(out_.tare_samples);
+  if (out_.drive_request != DriveRequest::None) begin_power_change(out_.drive_request);
   for (std::size_t j = 0; j < dof_; ++j) targets_.position_rad[j] = out_.q_cmd[j];
   drives_.cycle_write(targets_);
 
@@ -288,6 +314,13 @@ void ControlLoop::run() noexcept {
     for (int i = 0; i < 100 && clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR; ++i) {
     }
     const std::int64_t wake = now_ns();
+    // The longest gap between two wake-ups while the drives' power changes
+    // (the enable used to stop the cycle for its whole length).
+    if (power_request_ != DriveRequest::None && last_wake_ns_ != 0) {
+      const double gap_us = static_cast<double>(wake - last_wake_ns_) * 1e-3;
+      if (gap_us > power_gap_max_.load(std::memory_order_relaxed)) power_gap_max_.store(gap_us, std::memory_order_relaxed);
+    }
+    last_wake_ns_ = wake;
     cycle(wake);
     const std::int64_t end = now_ns();
 
@@ -313,15 +346,10 @@ void ControlLoop::run() noexcept {
       missed_streak_ = 0;
     }
 
-    if (out_.drive_request != DriveRequest::None) {
-      perform(out_.drive_request);
-      next = now_ns();  // restart the grid after the non-real-time phase
-      missed_streak_ = 0;
-    }
     if (shutdown_issued_) {
       const ControllerMode m = controller_->mode();
       if ((m == ControllerMode::Disabled || m == ControllerMode::Fault) && out_.drive_request == DriveRequest::None &&
-          !in_.drives_enabled)
+          power_request_ == DriveRequest::None && !in_.drives_enabled)
         break;
     }
   }

@@ -295,6 +295,11 @@ void Controller::drive_request_done(DriveRequest request, bool ok, const char* t
   drive_request_pending_ = false;
   drive_request_issued_ = false;  // a request made before the next step (RECOVER) is issued then
   pending_request_ = DriveRequest::None;
+  if (enable_aborted_ && request == DriveRequest::Enable) {
+    enable_aborted_ = false;
+    ok = false;
+    text = enable_abort_text_.data();
+  }
   const bool command_owned = active_ == Active::Enable || active_ == Active::Recover || active_ == Active::Disable;
   if (request == DriveRequest::Enable) {
     if (ok) {
@@ -716,6 +721,7 @@ void Controller::step(const CycleInputs& in, CycleOutputs& out) noexcept {
   const bool joints_ok = in.joints == dof_;
   const Pose base_T_sensor = measure(in, joints_ok);
   refuse_enable_in_estop(in);
+  watch_power_change(in);
   step_tare(in, out, base_T_sensor);
   const WrenchCompensator::Output& w = comp_.update(in.wrench_ft, base_T_sensor.linear(), in.ft_fresh);
   wrench_tool_ = w.filtered_tool;
@@ -765,6 +771,31 @@ void Controller::refuse_enable_in_estop(const CycleInputs& in) noexcept {
     active_ = Active::None;
     active_id_ = 0;
   }
+}
+
+void Controller::watch_power_change(const CycleInputs& in) noexcept {
+  // The drives' enable runs in the cycle (the loop steps it): the E-stop, the
+  // drives' safe torque off and the link are checked every cycle meanwhile.
+  if (!drive_request_pending_ || !drive_request_issued_ || pending_request_ != DriveRequest::Enable ||
+      enable_aborted_)
+    return;
+  const bool link = in.link_lost && config_.link_loss == LinkLossPolicy::Stop;
+  if (!in.estop && !in.safe_torque_off && !link) return;
+  enable_aborted_ = true;
+  if (link) {
+    set_text(enable_abort_text_, "link lost during the enable (policy stop): drives left off");
+    power_off_now_ = true;  // Disable Voltage to every drive this cycle; the enable then fails
+    return;
+  }
+  set_text(enable_abort_text_, in.estop ? "E-stop pressed during the enable: drives powered off (category 0)"
+                                        : "E-stop: safe torque off reported during the enable: drives powered off "
+                                          "(category 0)");
+  // Category 0 whatever the mode: nothing moved yet, and whatever had
+  // switched on is powered off in this cycle's RPDOs.
+  pending_stop_category_ = StopCategory::None;
+  begin_stop(StopCause::EStop, StopCategory::Cat0, in.estop ? -1 : in.sto_joint, 1.0, 0.0,
+             in.estop ? "E-stop pressed during the enable" : "E-stop: safe torque off reported during the enable");
+  power_off_now_ = true;
 }
 
 void Controller::step_tare(const CycleInputs& in, CycleOutputs& out, const Pose& base_T_sensor) noexcept {

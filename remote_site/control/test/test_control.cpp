@@ -1029,5 +1029,62 @@ TEST(Controller, TelemetryVelocityIsTheDrivesWhileFreshElseDifferentiated) {
   }
 }
 
+// Issue 25, item 5: the loop steps an Enable over many cycles and the
+// controller's step runs in each (here: the loop's part played by hand, the
+// enable kept running). The drives' safe torque off aborts it into category
+// 0 (a stop event, power_off in that very cycle) and the command fails with
+// why once the drives report the change ended; a lost link with policy Stop
+// leaves the drives off the same way, without a stop event.
+TEST(ControllerPower, AnEnableRunningOverCyclesIsAbortedByTheEStopOrTheLink) {
+  for (const bool link : {false, true}) {
+    ControllerConfig cc;
+    cc.link_loss = LinkLossPolicy::Stop;
+    Bench b(home_q(), cc);
+    b.ctl->step(b.in, b.out);
+    MotionCommand en;
+    en.command_id = 7;
+    en.kind = MotionCommandKind::Enable;
+    b.ctl->command(en);
+    b.ctl->step(b.in, b.out);
+    ASSERT_EQ(b.out.drive_request, DriveRequest::Enable);  // the loop begins it
+    for (int k = 0; k < 5; ++k) {  // enabling: nothing new asked, no power off
+      b.ctl->step(b.in, b.out);
+      EXPECT_EQ(b.out.drive_request, DriveRequest::None);
+      EXPECT_FALSE(b.out.power_off);
+    }
+    if (link) {
+      b.in.link_lost = true;
+    } else {
+      b.in.safe_torque_off = true;
+      b.in.sto_joint = 2;
+    }
+    b.ctl->step(b.in, b.out);
+    EXPECT_TRUE(b.out.power_off);
+    if (link) {
+      EXPECT_EQ(b.out.stop, nullptr);
+    } else {
+      ASSERT_NE(b.out.stop, nullptr);
+      EXPECT_EQ(b.out.stop->cause, StopCause::EStop);
+      EXPECT_EQ(b.out.stop->category, StopCategory::Cat0);
+      EXPECT_EQ(b.out.stop->joint, 2);
+      EXPECT_EQ(b.ctl->mode(), ControllerMode::Fault);
+    }
+    b.ctl->step(b.in, b.out);
+    EXPECT_FALSE(b.out.power_off);  // once; the drive system latches it
+    // The drives report the enable ended (aborted by the power off).
+    b.ctl->drive_request_done(DriveRequest::Enable, false, "enable aborted by a category 0 power off", b.q_arm);
+    b.ctl->step(b.in, b.out);
+    const MotionEvent* done = nullptr;
+    for (std::size_t i = 0; i < b.out.event_count; ++i)
+      if (b.out.events[i].command_id == 7 && is_final(b.out.events[i].kind)) done = &b.out.events[i];
+    ASSERT_NE(done, nullptr);
+    EXPECT_EQ(done->kind, MotionEventKind::Failed);
+    EXPECT_STREQ(done->text.data(), link ? "link lost during the enable (policy stop): drives left off"
+                                         : "E-stop: safe torque off reported during the enable: drives powered off "
+                                           "(category 0)");
+    EXPECT_NE(b.ctl->mode(), ControllerMode::Idle);
+  }
+}
+
 }  // namespace
 }  // namespace foresight::control::test

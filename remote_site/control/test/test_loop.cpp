@@ -228,6 +228,99 @@ TEST(ControlLoop, RequiringRealTimeAnEnableWithoutItFailsAndNoDrivePowersUp) {
   }
 }
 
+// Issue 25, item 5: power changes are part of the cycle. The enable and the
+// disable are stepped by the loop's own cycles (the period grid goes on: the
+// longest gap between two cycles while enabling is measured), every drive
+// event on the way reaches the drive event ring (what the daemon journals),
+// and the E-stop, read every cycle, aborts an enable into category 0: the
+// drives' own record shows every drive unpowered within the category 0
+// deadline of the loop reading it.
+TEST(ControlLoop, PowerChangesRunInTheCycleAndAnEStopDuringAnEnableIsCategoryZero) {
+  hw::RemoteConfig config = loop_test_config();
+  foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()));
+  rig.drives->configure();
+  ControllerConfig cc;
+  cc.cycle_rate_hz = config.cycle_rate_hz;
+  cc.tool.mass_kg = 0.0;
+  auto loop = std::make_unique<ControlLoop>(*rig.drives, robot(), cc);
+  loop->start();
+  Collector col(*loop);
+  auto send = [&](std::uint64_t id, MotionCommandKind kind) {
+    MotionCommand c;
+    c.command_id = id;
+    c.kind = kind;
+    ASSERT_TRUE(loop->send(c));
+    ASSERT_TRUE(eventually([&] { return col.final_of(id) != nullptr; }, 15.0));
+  };
+
+  send(1, MotionCommandKind::Enable);
+  ASSERT_EQ(col.final_of(1)->kind, MotionEventKind::Completed) << col.final_of(1)->text.data();
+  const LoopStats st = loop->stats();
+  std::printf("enable through the loop: %u cycles; the longest gap between two cycles while enabling %.0f us "
+              "(period %.0f us); missed periods in a row at most %llu\n",
+              st.power_change_cycles_last, st.power_change_gap_us_max, 1e6 / config.cycle_rate_hz,
+              static_cast<unsigned long long>(st.missed_streak_max));
+  EXPECT_GE(st.power_change_cycles_last, 9u);  // the sequence's four steps, each answered
+  EXPECT_GT(st.power_change_gap_us_max, 0.0);
+  // The cycle went on: no stall of the enable's length (it was one phase
+  // of ~25 ms without a controller step); a loaded test machine may delay
+  // a wake-up by a few periods.
+  EXPECT_LT(st.power_change_gap_us_max, 10 * 1e6 / config.cycle_rate_hz);
+  // Every drive's way to Operation enabled, as events in the ring.
+  std::array<std::vector<std::uint32_t>, 7> chain;
+  DriveEventRecord r;
+  while (loop->poll_drive_event(r))
+    if (r.event.fault == hw::HwFault::PowerStateChanged && r.event.joint >= 0)
+      chain[static_cast<std::size_t>(r.event.joint)].push_back(r.event.code);
+  for (std::size_t j = 0; j < 7; ++j) {
+    ASSERT_FALSE(chain[j].empty()) << "joint " << j + 1;
+    EXPECT_EQ(chain[j].back(), static_cast<std::uint32_t>(hw::canopen::PowerState::OperationEnabled)) << j;
+  }
+
+  send(2, MotionCommandKind::Disable);
+  ASSERT_EQ(col.final_of(2)->kind, MotionEventKind::Completed) << col.final_of(2)->text.data();
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+
+  // Joint 7 stops answering: the enable waits for it (up to the step
+  // deadline) while the other six reach Operation enabled; then the E-stop.
+  rig.sim->drive(6).stop_answering(true);
+  for (std::size_t j = 0; j < 7; ++j) rig.sim->drive(j).clear_power_record();
+  MotionCommand en;
+  en.command_id = 3;
+  en.kind = MotionCommandKind::Enable;
+  ASSERT_TRUE(loop->send(en));
+  ASSERT_TRUE(eventually([&] {
+    for (std::size_t j = 0; j < 6; ++j)
+      if (rig.sim->drive(j).power_state() != hw::canopen::PowerState::OperationEnabled) return false;
+    return true;
+  }, 5.0));
+  ASSERT_EQ(col.final_of(3), nullptr);  // still enabling
+  const std::uint64_t sync_at_estop = rig.sim->drive(0).sync_count();
+  loop->set_estop(true);
+  ASSERT_TRUE(eventually([&] { return col.final_of(3) != nullptr; }, 5.0));
+  EXPECT_EQ(col.final_of(3)->kind, MotionEventKind::Failed);
+  EXPECT_STREQ(col.final_of(3)->text.data(), "E-stop pressed during the enable: drives powered off (category 0)");
+  ASSERT_EQ(col.stops.size(), 1u);
+  EXPECT_EQ(col.stops[0].cause, StopCause::EStop);
+  EXPECT_EQ(col.stops[0].category, StopCategory::Cat0);
+  EXPECT_STREQ(col.stops[0].text.data(), "E-stop pressed during the enable");
+  // The loop reads the input at its next cycle k and sends Disable Voltage
+  // in it; the drives latch it at SYNC k+1 (one more when the simulator had
+  // not yet taken the SYNC the test counted from).
+  for (std::size_t j = 0; j < 6; ++j) {
+    const sim::DrivePowerRecord p = rig.sim->drive(j).power_record();
+    EXPECT_FALSE(p.powered) << j;
+    EXPECT_LE(p.power_off_sync - sync_at_estop, 3u) << j;
+  }
+  EXPECT_FALSE(rig.sim->drive(6).power_record().powered);
+  ASSERT_TRUE(eventually([&] { col.drain(); return col.last.mode == ControllerMode::Fault; }, 5.0));
+  loop->set_estop(false);
+  rig.sim->drive(6).stop_answering(false);
+  loop->stop();
+  EXPECT_EQ(loop->controller().mode(), ControllerMode::Fault);
+  EXPECT_EQ(loop->stats().drive_events_dropped, 0u);
+}
+
 // The whole chain: the insert algorithm in the loop thread, the simulated
 // drives (second-order position loops) on the mock CAN buses, the contact
 // model feeding the simulated F/T node, read back through the CAN decoder.

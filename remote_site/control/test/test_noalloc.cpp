@@ -199,14 +199,26 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
 // (mock CAN), fill_cycle_inputs, command hand-over through the ring, step,
 // cycle_write, events and telemetry into their rings. The simulated drives
 // answer between cycles from this thread, unarmed.
+/// The real DriveSystem configured against the simulated drives (started on
+/// their own thread for the bring-up).
+struct CanMaster {
+  std::unique_ptr<sim::CanSimulator> simulator;
+  std::unique_ptr<hw::DriveSystem> drives;
+  CanMaster() {
+    hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+    config.tpdo_miss_limit = 1000;
+    auto buses = sim::make_mock_buses(config);
+    simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
+    simulator->start();
+    drives = std::make_unique<hw::DriveSystem>(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
+    drives->configure();
+  }
+};
+
 TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
-  hw::RemoteConfig config = hw::load_remote_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
-  config.tpdo_miss_limit = 1000;
-  auto buses = sim::make_mock_buses(config);
-  auto simulator = sim::CanSimulator::from_config(config, std::move(buses.far));
-  simulator->start();
-  hw::DriveSystem drives(config, std::move(buses.master), hw::joint_limits_by_name(robot()));
-  drives.configure();
+  CanMaster master;
+  hw::DriveSystem& drives = *master.drives;
+  sim::CanSimulator* simulator = master.simulator.get();
   drives.enable();
   simulator->stop();
   simulator->process(5);
@@ -269,6 +281,79 @@ TEST(ControlNoAlloc, LoopBodyWithTheCanMaster) {
   }
   EXPECT_EQ(ctl.mode(), ControllerMode::Trajectory);
   EXPECT_GE(popped, 3u);  // enable started + completed, trajectory started
+}
+
+// Issue 25, item 5: the power changes run in the cycle. The loop body as
+// ControlLoop runs it with the drives configured but off: Enable (the
+// CiA 402 sequence stepped by cycle_write, judged by cycle_read, reported
+// to the controller), Disable, and Enable again with a drive in Fault (its
+// one fault reset), every cycle armed: no allocation anywhere on the way.
+TEST(ControlNoAlloc, PowerChangesSteppedByTheCycle) {
+  CanMaster master;
+  hw::DriveSystem& drives = *master.drives;
+  sim::CanSimulator* simulator = master.simulator.get();
+  simulator->stop();
+  simulator->process(5);
+  Controller ctl(robot(), ControllerConfig{});
+  hw::JointFeedback fb;
+  hw::FtReading ft;
+  hw::JointTargets targets;
+  drives.held_targets(targets);
+  CycleInputs in;
+  CycleOutputs out;
+  DriveRequest running = DriveRequest::None;
+  int finished = 0;
+  std::uint64_t id = 0;
+  auto command = [&](MotionCommandKind kind) {
+    MotionCommand c;
+    c.command_id = ++id;
+    c.kind = kind;
+    return c;
+  };
+  reset_counter();
+  for (int k = 0; k < 600; ++k) {
+    simulator->process(0);
+    if (k == 300) simulator->drive(2).inject_fault(0x2310);
+    std::optional<MotionCommand> c;
+    if (k == 0 || k == 350) c = command(MotionCommandKind::Enable);
+    if (k == 200) c = command(MotionCommandKind::Disable);
+    arm(true);
+    const hw::CycleStatus s = drives.cycle_read(fb, ft);
+    drives.send_sync();
+    if (running != DriveRequest::None && s.power.finished) {  // ControlLoop::finish_power_change
+      char text[96] = "";
+      const bool ok = s.power.phase != hw::PowerPhase::Failed;
+      if (!ok) drives.describe_power_failure(s.power.cause, text, sizeof text);
+      drives.held_targets(targets);
+      JointArray held{};
+      for (std::size_t j = 0; j < 7; ++j) held[j] = targets.position_rad[j];
+      ctl.drive_request_done(running, ok, text, held);
+      running = DriveRequest::None;
+      ++finished;
+    }
+    fill_cycle_inputs(s, fb, ft, in);
+    if (c) ctl.command(*c);
+    ctl.step(in, out);
+    if (out.drive_request == DriveRequest::Enable) {  // ControlLoop::begin_power_change
+      hw::HwEvent refused;
+      if (drives.begin_enable(&refused)) running = DriveRequest::Enable;
+    } else if (out.drive_request == DriveRequest::Disable && drives.begin_disable()) {
+      running = DriveRequest::Disable;
+    }
+    for (std::size_t j = 0; j < 7; ++j) targets.position_rad[j] = out.q_cmd[j];
+    drives.cycle_write(targets);
+    arm(false);
+    ASSERT_EQ(allocations(), 0) << "cycle " << k;
+    if (k == 150) {
+      ASSERT_EQ(ctl.mode(), ControllerMode::Idle);
+    }
+    if (k == 300) {
+      ASSERT_EQ(ctl.mode(), ControllerMode::Disabled);
+    }
+  }
+  EXPECT_EQ(finished, 3);
+  EXPECT_EQ(ctl.mode(), ControllerMode::Idle);
+  EXPECT_EQ(simulator->drive(2).power_state(), hw::canopen::PowerState::OperationEnabled);
 }
 
 }  // namespace

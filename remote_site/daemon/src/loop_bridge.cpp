@@ -70,6 +70,31 @@ void LoopBridge::drain_telemetry(std::uint64_t command_id) {
   }
 }
 
+void LoopBridge::drain_drive_events() {
+  control::DriveEventRecord r;
+  while (loop_.poll_drive_event(r)) {
+    const hw::HwEvent& e = r.event;
+    nlohmann::json d;
+    d["cycle"] = r.cycle;
+    d["stamp_ns"] = to_wall_ns(r.stamp_ns);
+    d["fault"] = hw::to_string(e.fault);
+    d["hw_fault"] = static_cast<int>(e.fault);
+    d["bus"] = e.bus;
+    d["node"] = e.node;
+    d["joint"] = e.joint + 1;  // 1-based; 0: not a drive
+    d["code"] = e.code;
+    d["detail"] = e.detail;
+    d["stop"] = hw::requires_stop(e.fault);
+    ledger_.event("drive_event", loop_.drives().describe(e), d.dump());
+  }
+  const std::uint64_t dropped = loop_.stats().drive_events_dropped;
+  if (dropped != drive_events_dropped_) {
+    ledger_.event("drive_event", std::to_string(dropped - drive_events_dropped_) +
+                                     " drive events lost (the loop's ring or a cycle's event queue was full)");
+    drive_events_dropped_ = dropped;
+  }
+}
+
 bool LoopBridge::next_stop(const Job* running, control::StopEvent& s) {
   if (!loop_.poll_stop(s)) return false;
   last_stop_ = s;

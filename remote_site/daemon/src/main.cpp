@@ -398,6 +398,7 @@ int run_daemon(Options o) {
   parts.config = config;
   if (!config.security_dir.empty()) parts.identities = protocol::known_identities(config.security_dir);
   parts.loop = &loop;
+  parts.drives = site.drives.get();
   parts.journal = &journal;
   parts.tool = &tool;
   parts.camera = camera.get();

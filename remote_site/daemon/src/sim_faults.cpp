@@ -23,6 +23,7 @@ SimFaultWatcher::SimFaultWatcher(Site& site, std::string dir) : site_(site), dir
   fs::create_directories(dir_);
   emcy_present_.assign(site_.simulated->can->drive_count(), false);
   silent_present_.assign(site_.simulated->can->drive_count(), false);
+  reboot_present_.assign(site_.simulated->can->drive_count(), false);
   bus_loss_present_.assign(site_.hw_config.buses.size(), false);
   q_.assign(site_.simulated->can->drive_count(), 0.0);
   site_.simulated->can->joint_positions_rad(q_);
@@ -84,6 +85,15 @@ void SimFaultWatcher::run() {
       silent_present_[j] = now;
       spdlog::warn("simulated fault: joint {} heartbeat {}", j + 1, now ? "silent" : "back");
       sim.can->drive(j).silence_heartbeat(now);
+    }
+    for (std::size_t j = 0; j < reboot_present_.size(); ++j) {
+      std::error_code ec;
+      const bool now = fs::exists(fs::path(dir_) / ("drive_reboot_" + std::to_string(j + 1)), ec);
+      if (now && !reboot_present_[j]) {
+        spdlog::warn("simulated fault: joint {} reboots", j + 1);
+        sim.can->drive(j).inject_reboot();
+      }
+      reboot_present_[j] = now;
     }
     for (std::size_t b = 0; b < bus_loss_present_.size(); ++b) {
       std::error_code ec;

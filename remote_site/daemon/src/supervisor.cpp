@@ -345,6 +345,10 @@ std::string Supervisor::start(Job& job, Reason* code) {
       mc.algorithm = job.algorithm;
       break;
     case JobKind::Recover:
+      if (std::string why = configure_nodes_again(); !why.empty()) {
+        *code = Reason::Faulted;
+        return why;
+      }
       mc.kind = bridge_.latest().mode == ControllerMode::Disabled ? MotionCommandKind::Enable
                                                                   : MotionCommandKind::Recover;
       break;
@@ -361,6 +365,29 @@ std::string Supervisor::start(Job& job, Reason* code) {
     return "the control loop's command ring is full";
   }
   return {};
+}
+
+std::string Supervisor::configure_nodes_again() {
+  if (p_.drives == nullptr || p_.drives->unconfigured_nodes() == 0) return {};
+  // Blocking SDO on this thread (a few hundred ms a node): the loop cycles
+  // on meanwhile (heartbeat, SYNC, supervision); nothing is enabled yet.
+  const std::size_t n = p_.drives->unconfigured_nodes();
+  const auto t0 = Clock::now();
+  try {
+    const std::size_t done = p_.drives->configure_nodes();
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    const std::string text = std::to_string(done) + " node(s) configured again from " +
+                             p_.drives->config().source + " (rebooted or left NMT operational) in " +
+                             printf_text("%.0f ms", ms);
+    ledger_.event("drive_configured", text);
+    spdlog::info("RECOVER: {}", text);
+    return {};
+  } catch (const std::exception& e) {
+    const std::string text = std::string("RECOVER: configuring again ") + std::to_string(n) + " node(s) failed: " + e.what();
+    ledger_.event("drive_configured", text);
+    spdlog::error("{}", text);
+    return text;
+  }
 }
 
 void Supervisor::finish_running(AckState state, Reason code, const std::string& reason, std::vector<double> final_q) {
@@ -633,6 +660,7 @@ void Supervisor::handle(const remote_link::LinkEvent& e) {
 
 void Supervisor::poll_loop() {
   bridge_.drain_telemetry(running_command_id());
+  bridge_.drain_drive_events();
   control::StopEvent s;
   while (bridge_.next_stop(jobs_.running(), s)) {
     jobs_.cancel_all(std::string("the controller stopped: ") + s.text.data());

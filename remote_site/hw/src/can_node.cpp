@@ -23,12 +23,17 @@ CanNode::Rx CanNode::on_heartbeat(const can_frame& f, const RxContext& ctx, Even
   last_hb = ctx.now;
   if (state == NmtState::BootUp) {
     booted = true;
-    if (ctx.configured) events.push(event(HwFault::NodeRebooted, 0, 0));
+    if (ctx.configured) {
+      events.push(event(HwFault::NodeRebooted, 0, 0));
+      unconfigured = true;
+    }
     nmt = NmtState::PreOperational;
     return Rx::Taken;
   }
-  if (ctx.configured && state != NmtState::Operational && nmt == NmtState::Operational)
+  if (ctx.configured && state != NmtState::Operational && nmt == NmtState::Operational) {
     events.push(event(HwFault::NodeNotOperational, static_cast<std::uint32_t>(state), 0));
+    unconfigured = true;
+  }
   nmt = state;
   return Rx::Taken;
 }

@@ -67,6 +67,9 @@ class CanNode {
   std::int8_t joint = -1;  ///< joint index, -1 when not a drive
   canopen::NmtState nmt = canopen::NmtState::PreOperational;
   bool booted = false;  ///< boot-up message seen (configure() waits for it)
+  /// Rebooted (boot-up) or left NMT operational since configure(): its
+  /// configuration is lost or in doubt; no enable until it is configured again.
+  bool unconfigured = false;
   bool heartbeat_lost = false;
   std::uint16_t last_emcy = 0;  ///< last EMCY error code (0: none / reset)
   Clock::time_point last_hb{};

@@ -113,12 +113,30 @@ void Cia402Drive::restart(Clock::time_point now) noexcept {
   st.state_known = false;
 }
 
+void Cia402Drive::begin_power_change() noexcept {
+  have_actual = false;  // decide on states answering this change's SYNCs only
+  run_seen = false;
+  state_cycles = 0;
+  reset_sent = false;
+  left_fault = false;
+}
+
 void Cia402Drive::step_to_enabled() noexcept {
   if (!have_actual) return;  // keep the last controlword until the drive reports
   if (st.state != PowerState::OperationEnabled) target_counts = st.position_counts;  // hold
   switch (st.state) {
     case PowerState::Fault:
-      controlword = (controlword & controlword::kFaultReset) ? controlword::kDisableVoltage : controlword::kFaultReset;
+      // One fault reset per change: a rising edge of bit 7 (from a
+      // controlword without it), then bit 7 held while the TPDOs still say
+      // Fault, so no second edge. A drive that faults again stays in Fault.
+      if (!reset_sent) {
+        if (controlword & controlword::kFaultReset) {
+          controlword = controlword::kDisableVoltage;
+        } else {
+          controlword = controlword::kFaultReset;
+          reset_sent = true;
+        }
+      }
       break;
     case PowerState::FaultReactionActive:
     case PowerState::NotReadyToSwitchOn:
@@ -133,6 +151,23 @@ void Cia402Drive::step_to_enabled() noexcept {
 void Cia402Drive::step_to_disabled() noexcept {
   controlword = controlword::kDisableVoltage;
   if (have_actual) target_counts = st.position_counts;
+}
+
+void Cia402Drive::note_power_state(EventQueue& events) noexcept {
+  if (!have_actual) {
+    ++state_cycles;
+    return;
+  }
+  if (run_seen && st.state == run_state) {
+    ++state_cycles;
+    return;
+  }
+  events.push(event(HwFault::PowerStateChanged, static_cast<std::uint32_t>(st.state),
+                    run_seen ? static_cast<std::uint32_t>(run_state) : kUnknownState));
+  run_seen = true;
+  run_state = st.state;
+  state_cycles = 0;
+  if (reset_sent && st.state != PowerState::Fault && st.state != PowerState::FaultReactionActive) left_fault = true;
 }
 
 }  // namespace foresight::hw

@@ -49,12 +49,18 @@ class Cia402Drive : public CanNode {
   /// configure(): NMT start sent; TPDOs and heartbeat supervised from now,
   /// power commanded off, state unknown until a TPDO arrives.
   void restart(Clock::time_point now) noexcept;
-  /// One step of enable(): once the drive has reported (have_actual), hold
+  /// A power change begins: fresh states only, no fault reset sent yet.
+  void begin_power_change() noexcept;
+  /// One cycle of an enable: once the drive has reported (have_actual), hold
   /// the actual position as target and command the transition from its state
-  /// towards Operation enabled (a fault reset is a rising edge of bit 7).
+  /// towards Operation enabled. A drive in Fault gets one fault reset per
+  /// change (a rising edge of bit 7, held until it leaves Fault).
   void step_to_enabled() noexcept;
-  /// One step of disable(): Disable Voltage, holding the actual position.
+  /// One cycle of a disable: Disable Voltage, holding the actual position.
   void step_to_disabled() noexcept;
+  /// After the cycle's frames, during a change: a state change as an event
+  /// (PowerStateChanged), counting the cycles in the present state.
+  void note_power_state(EventQueue& events) noexcept;
   /// The target held now, radians.
   double held_target_rad() const noexcept { return cfg.to_rad(target_counts); }
   bool enabled() const noexcept { return have_actual && st.state == canopen::PowerState::OperationEnabled; }
@@ -68,6 +74,12 @@ class Cia402Drive : public CanNode {
   /// are kept by CanNode (shared with the F/T node); feedback() fills them in.
   JointState st;
   bool have_actual = false;  ///< a TPDO arrived since the set-up step began
+  // The power change running (DriveSystem::begin_enable / begin_disable):
+  bool run_seen = false;      ///< a state was seen in this change
+  canopen::PowerState run_state = canopen::PowerState::NotReadyToSwitchOn;  ///< the last one
+  std::uint32_t state_cycles = 0;  ///< cycles in it (or without an answer)
+  bool reset_sent = false;    ///< this change's one fault reset went out
+  bool left_fault = false;    ///< and the drive left Fault after it
   std::int64_t fe_counts = 0;  ///< following-error window, counts
 
  private:

@@ -3,9 +3,11 @@
 #include <poll.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cinttypes>
 #include <cstdio>
+#include <cstring>
 #include <thread>
 
 #include "cia402_drive.hpp"
@@ -49,6 +51,11 @@ const char* to_string(HwFault f) noexcept {
     case HwFault::UnexpectedSdo: return "unexpected SDO frame";
     case HwFault::InvalidTarget: return "invalid joint target (not finite or out of range)";
     case HwFault::EmergencyWarning: return "emergency message, a warning (EMCY, error register 0)";
+    case HwFault::PowerStateChanged: return "power state changed";
+    case HwFault::PowerStepTimeout: return "power state machine timed out";
+    case HwFault::FaultAfterReset: return "in Fault again after its fault reset";
+    case HwFault::PowerChangeAborted: return "enable aborted by a category 0 power off";
+    case HwFault::NodeUnconfigured: return "not configured (rebooted or left NMT operational since configure)";
   }
   return "?";
 }
@@ -65,6 +72,8 @@ bool requires_stop(HwFault f) noexcept {
     case HwFault::MalformedFrame:
     case HwFault::UnknownCobId:
     case HwFault::UnexpectedSdo:
+    case HwFault::PowerStateChanged:
+    case HwFault::PowerChangeAborted:
       return false;
     default:
       return true;
@@ -106,12 +115,15 @@ DriveSystem::DriveSystem(RemoteConfig config, std::vector<std::unique_ptr<CanBus
         [this, bi](const can_frame& f) { handle_frame(bi, f, Clock::now()); },
         [this, bi](std::uint8_t node) { return node_label(bi, node); }));
   for (BusState& b : bus_state_) b.router.add_master(config_.master_node_id);
+  for (std::size_t bi = 0; bi < buses_.size(); ++bi) reconfig_.push_back(std::make_unique<Reconfig>());
   // Every node, drives first: the set-up steps that treat them all alike
   // (NMT, boot-up, heartbeat) in this order. drives_ is not resized again.
   for (Cia402Drive& d : drives_) nodes_.push_back(&d);
   if (ft_) nodes_.push_back(ft_.get());
   heartbeat_timeout_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_consumer_s * 1e9));
   master_hb_period_ = std::chrono::nanoseconds(static_cast<std::int64_t>(config_.heartbeat_producer_s * 1e9));
+  overall_cycles_ = static_cast<std::uint32_t>(std::max(1L, std::lround(config_.enable_timeout_s * config_.cycle_rate_hz)));
+  step_cycles_ = static_cast<std::uint32_t>(std::max(1L, std::lround(config_.power_step_timeout_s * config_.cycle_rate_hz)));
 }
 
 DriveSystem::~DriveSystem() {
@@ -213,8 +225,10 @@ void DriveSystem::configure() {
   // SDO reaches a node that is still booting.
   drain_buses();
   for (auto& c : sdo_) c->clear_notices();
-  for (CanNode* n : nodes_) n->booted = false;
+  for (CanNode* n : nodes_) n->booted = n->unconfigured = false;
+  unconfigured_mask_.store(0);
   configured_ = false;
+  power_ = PowerStatus{};
   enabled_ = false;
   for (const CanNode* n : nodes_) nmt(n->bus, NmtCommand::ResetNode, n->node);
   std::vector<pollfd> fds;
@@ -306,58 +320,284 @@ void DriveSystem::run_cycle_blocking(Clock::time_point& deadline, JointFeedback&
 }
 
 void DriveSystem::enable() {
-  if (!configured_) throw HwError("enable(): configure() has not succeeded");
-  quick_stop_.store(false);
-  power_off_.store(false);
-  const auto start = Clock::now();
-  for (Cia402Drive& d : drives_)
-    if (!d.heartbeat_heard(start, heartbeat_timeout_))
-      throw HwError(node_label(d.bus, d.node) + ": heartbeat lost; cannot enable");
-  // The F/T sensor the same way: a heartbeat lost while its bus was silent
-  // stays lost (a stop on every cycle) until it is heard again.
-  if (ft_ && !ft_->heartbeat_heard(start, heartbeat_timeout_))
-    throw HwError(node_label(ft_->bus, ft_->node) + " (F/T sensor): heartbeat lost; cannot enable");
-  const auto end = start + std::chrono::duration_cast<Clock::duration>(
-                               std::chrono::duration<double>(config_.enable_timeout_s));
-  Clock::time_point deadline = start;
+  HwEvent refused;
+  if (!begin_enable(&refused)) {
+    if (!configured_) throw HwError("enable(): configure() has not succeeded");
+    if (refused.fault == HwFault::HeartbeatLost)
+      throw HwError(node_label(refused.bus, refused.node) + ": heartbeat lost; cannot enable");
+    throw HwError("enable(): " + describe(refused));
+  }
+  run_power_change("enable");
+}
+
+void DriveSystem::run_power_change(const char* verb) {
+  Clock::time_point deadline = Clock::now();
   JointFeedback fb;
   CycleStatus status;
-  // Decide only on states reported by TPDOs answering this enable()'s SYNCs:
-  // the last known state may be stale (e.g. after the cycle stopped).
-  for (Cia402Drive& d : drives_) d.have_actual = false;
+  JointTargets t;
   for (;;) {
-    for (Cia402Drive& d : drives_) d.step_to_enabled();
-    // Write RPDOs with the held targets (counts set above) and SYNC.
-    JointTargets t;
-    held_targets(t);
+    held_targets(t);  // not taken while the change runs: the stepper holds
     cycle_write(t);
     run_cycle_blocking(deadline, fb, status);
-    for (std::size_t e = 0; e < status.event_count; ++e) {
-      const HwEvent& ev = status.events[e];
-      if (ev.fault == HwFault::HeartbeatLost || ev.fault == HwFault::NodeRebooted || ev.fault == HwFault::BusOff ||
-          ev.fault == HwFault::TxFailed || ev.fault == HwFault::RxFailed ||
-          ev.fault == HwFault::NodeNotOperational) {
-        for (Cia402Drive& d : drives_) d.controlword = controlword::kDisableVoltage;
-        throw HwError("enable(): " + describe(ev));
+    if (!status.power.finished) continue;
+    if (status.power.phase != PowerPhase::Failed) return;
+    const HwEvent& cause = status.power.cause;
+    if (cause.fault != HwFault::PowerStepTimeout || !(cause.detail & kOverallDeadline))
+      throw HwError(std::string(verb) + "(): " + describe(cause));
+    // The whole change too long: every drive not there, with its state.
+    const bool enabling = status.power.was_enable;
+    std::string msg = std::string(verb) + "(): " + (enabling ? "not Operation enabled" : "not confirmed") +
+                      " after " + std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
+    for (const Cia402Drive& d : drives_) {
+      if (enabling ? d.enabled() : (d.have_actual && !power_enabled(d.st.state))) continue;
+      if (!enabling && !d.have_actual) {
+        msg += " " + node_label(d.bus, d.node) + " never answered (no TPDO; state unknown, may still be enabled);";
+        continue;
       }
+      msg += " " + node_label(d.bus, d.node) + (enabling ? " stayed in '" : " still powered in '") +
+             to_string(d.st.state) + "' (statusword " + hex(d.st.statusword, 4) +
+             (d.have_actual ? "" : ", no TPDO received") + ")";
+      if (enabling && d.last_emcy)
+        msg += std::string(", last EMCY ") + hex(d.last_emcy, 4) + " " + to_string(classify_emcy(d.last_emcy));
+      msg += ";";
     }
-    if (std::all_of(drives_.begin(), drives_.end(), [](const Cia402Drive& d) { return d.enabled(); })) break;
-    if (Clock::now() > end) {
-      std::string msg = "enable(): not Operation enabled after " +
-                        std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
-      for (Cia402Drive& d : drives_) {
-        if (d.st.state == PowerState::OperationEnabled) continue;
-        msg += " " + node_label(d.bus, d.node) + " stayed in '" + to_string(d.st.state) + "' (statusword " +
-               hex(d.st.statusword, 4) + (d.have_actual ? "" : ", no TPDO received") + ")";
-        if (d.last_emcy)
-          msg += std::string(", last EMCY ") + hex(d.last_emcy, 4) + " " + to_string(classify_emcy(d.last_emcy));
-        msg += ";";
-        d.controlword = controlword::kDisableVoltage;
+    throw HwError(msg);
+  }
+}
+
+bool DriveSystem::begin_enable(HwEvent* refused) noexcept {
+  HwEvent why{};
+  if (!configured_) {
+    why.fault = HwFault::NodeUnconfigured;
+  } else {
+    const auto now = Clock::now();
+    for (CanNode* n : nodes_) {
+      if (n->unconfigured) {
+        why = n->event(HwFault::NodeUnconfigured, static_cast<std::uint32_t>(n->nmt), 0);
+        break;
       }
-      throw HwError(msg);
+      // A heartbeat lost while the bus was silent stays lost (a stop on every
+      // cycle) until the node is heard again.
+      if (!n->heartbeat_heard(now, heartbeat_timeout_)) {
+        why = n->event(HwFault::HeartbeatLost, 0, 0);
+        break;
+      }
     }
   }
-  enabled_ = true;
+  if (why.fault != HwFault::None) {
+    if (refused != nullptr) *refused = why;
+    return false;
+  }
+  quick_stop_.store(false);
+  power_off_.store(false);
+  for (Cia402Drive& d : drives_) d.begin_power_change();
+  power_ = PowerStatus{};
+  power_.phase = PowerPhase::Enabling;
+  power_.was_enable = true;
+  return true;
+}
+
+bool DriveSystem::begin_disable() noexcept {
+  if (!configured_) return false;
+  for (Cia402Drive& d : drives_) d.begin_power_change();
+  power_ = PowerStatus{};
+  power_.phase = PowerPhase::Disabling;
+  return true;
+}
+
+void DriveSystem::end_power(PowerPhase phase, const HwEvent& cause) noexcept {
+  power_.phase = phase;
+  power_.finished = true;
+  power_.cause = cause;
+  if (phase == PowerPhase::Enabled) enabled_ = true;
+  if (phase == PowerPhase::Disabled) enabled_ = false;
+  if (phase == PowerPhase::Failed && power_.was_enable)
+    for (Cia402Drive& d : drives_) d.controlword = controlword::kDisableVoltage;  // a failed enable leaves them off
+  // A failed disable leaves enabled_ as it was: the destructor still sends quick stop.
+}
+
+void DriveSystem::judge_power() noexcept {
+  power_.finished = false;
+  const bool enabling = power_.phase == PowerPhase::Enabling;
+  if (!enabling && power_.phase != PowerPhase::Disabling) return;
+  ++power_.cycles;
+  for (Cia402Drive& d : drives_) d.note_power_state(events_);
+  if (enabling) {
+    // A node lost, the bus gone: the enable cannot go on.
+    for (std::size_t i = 0; i < events_.size(); ++i) {
+      const HwFault f = events_[i].fault;
+      if (f == HwFault::HeartbeatLost || f == HwFault::NodeRebooted || f == HwFault::BusOff ||
+          f == HwFault::TxFailed || f == HwFault::RxFailed || f == HwFault::NodeNotOperational)
+        return end_power(PowerPhase::Failed, events_[i]);
+    }
+    if (power_off_.load(std::memory_order_acquire)) {
+      const HwEvent e{HwFault::PowerChangeAborted, 0, 0, -1, 0, 0};
+      events_.push(e);
+      return end_power(PowerPhase::Failed, e);
+    }
+  }
+  bool all = true;
+  for (Cia402Drive& d : drives_) {
+    const bool there = enabling ? d.enabled() : d.have_actual && !power_enabled(d.st.state);
+    all = all && there;
+    if (there) continue;
+    const auto state = d.have_actual ? static_cast<std::uint32_t>(d.st.state) : kUnknownState;
+    const bool faulted = d.st.state == PowerState::Fault || d.st.state == PowerState::FaultReactionActive;
+    if (enabling && d.have_actual && d.left_fault && faulted) {
+      const HwEvent e = d.event(HwFault::FaultAfterReset, d.last_emcy, d.st.statusword);
+      events_.push(e);
+      return end_power(PowerPhase::Failed, e);
+    }
+    if (d.state_cycles > step_cycles_ && step_cycles_ < overall_cycles_) {
+      const HwEvent e = d.event(HwFault::PowerStepTimeout, state, d.st.statusword);
+      events_.push(e);
+      return end_power(PowerPhase::Failed, e);
+    }
+  }
+  if (all) return end_power(enabling ? PowerPhase::Enabled : PowerPhase::Disabled, HwEvent{});
+  if (power_.cycles > overall_cycles_) {
+    HwEvent e{HwFault::PowerStepTimeout, 0, 0, -1, kUnknownState, kOverallDeadline};
+    for (const Cia402Drive& d : drives_)
+      if (!(enabling ? d.enabled() : d.have_actual && !power_enabled(d.st.state))) {
+        e = d.event(HwFault::PowerStepTimeout, d.have_actual ? static_cast<std::uint32_t>(d.st.state) : kUnknownState,
+                    kOverallDeadline | d.st.statusword);
+        break;
+      }
+    events_.push(e);
+    end_power(PowerPhase::Failed, e);
+  }
+}
+
+void DriveSystem::describe_power_failure(const HwEvent& e, char* buf, std::size_t size) const noexcept {
+  if (size == 0) return;
+  const char* joint = e.joint >= 0 && static_cast<std::size_t>(e.joint) < drives_.size()
+                          ? drives_[static_cast<std::size_t>(e.joint)].name.c_str()
+                          : (ft_ && e.node == ft_->node && e.bus == ft_->bus ? "F/T sensor" : "node");
+  const auto state_name = [](std::uint32_t s) {
+    return s == kUnknownState ? "no answer" : to_string(static_cast<PowerState>(s));
+  };
+  switch (e.fault) {
+    case HwFault::FaultAfterReset:
+      std::snprintf(buf, size, "%s (node %u): in Fault again after its fault reset, EMCY 0x%04X (statusword 0x%04X)",
+                    joint, e.node, e.code, e.detail & 0xFFFF);
+      break;
+    case HwFault::PowerStepTimeout:
+      if (e.code == kUnknownState)
+        std::snprintf(buf, size, "%s (node %u): no answer for %d ms (%s)", joint, e.node,
+                      static_cast<int>(((e.detail & kOverallDeadline) ? config_.enable_timeout_s : config_.power_step_timeout_s) * 1000),
+                      (e.detail & kOverallDeadline) ? "enable_timeout_ms" : "power_step_timeout_ms");
+      else if (e.detail & kOverallDeadline)
+        std::snprintf(buf, size, "%s (node %u): in '%s' after %d ms (enable_timeout_ms)", joint, e.node,
+                      state_name(e.code), static_cast<int>(config_.enable_timeout_s * 1000));
+      else
+        std::snprintf(buf, size, "%s (node %u): in '%s' for %d ms (power_step_timeout_ms) (statusword 0x%04X)",
+                      joint, e.node, state_name(e.code), static_cast<int>(config_.power_step_timeout_s * 1000),
+                      e.detail & 0xFFFF);
+      break;
+    case HwFault::NodeUnconfigured:
+      if (e.node == 0)
+        std::snprintf(buf, size, "the drives are not configured");
+      else
+        std::snprintf(buf, size, "%s (node %u): rebooted or left NMT operational: not configured", joint, e.node);
+      break;
+    case HwFault::HeartbeatLost:
+      std::snprintf(buf, size, "%s (node %u): heartbeat lost; cannot enable", joint, e.node);
+      break;
+    case HwFault::PowerChangeAborted: std::snprintf(buf, size, "%s", to_string(e.fault)); break;
+    default:
+      std::snprintf(buf, size, "%s (node %u): %s (code 0x%04X)", joint, e.node, to_string(e.fault), e.code);
+      break;
+  }
+}
+
+std::size_t DriveSystem::unconfigured_nodes() const noexcept {
+  return static_cast<std::size_t>(std::popcount(unconfigured_mask_.load(std::memory_order_acquire)));
+}
+
+void DriveSystem::take_back_reconfigured(Clock::time_point now) noexcept {
+  for (std::size_t bi = 0; bi < reconfig_.size(); ++bi) {
+    Reconfig& rc = *reconfig_[bi];
+    if (!rc.restart.load(std::memory_order_acquire)) continue;
+    const std::uint8_t rn = rc.node.load(std::memory_order_relaxed);
+    for (Cia402Drive& d : drives_)
+      if (d.bus == bi && d.node == rn) {
+        d.restart(now);  // TPDOs and heartbeat supervised again, state unknown until a TPDO
+        d.unconfigured = false;
+      }
+    if (ft_ && ft_->bus == bi && ft_->node == rn) {
+      ft_->start_monitoring(now);
+      ft_->unconfigured = false;
+    }
+    rc.restart.store(false, std::memory_order_relaxed);
+    rc.node.store(0, std::memory_order_release);
+  }
+}
+
+std::size_t DriveSystem::configure_nodes() {
+  if (!configured_) throw HwError("configure_nodes(): configure() has not succeeded");
+  const std::uint32_t mask = unconfigured_mask_.load(std::memory_order_acquire);
+  const auto ms = [](double s) { return std::to_string(static_cast<int>(std::lround(s * 1000))); };
+  // Polls what the cycle reports, with a deadline.
+  const auto wait_for = [](const std::atomic<bool>& flag, Clock::time_point deadline) {
+    while (!flag.load(std::memory_order_acquire)) {
+      if (Clock::now() > deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return true;
+  };
+  const auto secs = [](double s) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  };
+  std::size_t done = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    if (!(mask & (1u << i))) continue;
+    const CanNode& n = *nodes_[i];
+    const std::size_t b = n.bus;
+    const std::string label = node_label(b, n.node);
+    Reconfig& rc = *reconfig_[b];
+    can_frame stale{};
+    while (rc.inbox.try_pop(stale)) {
+    }
+    rc.booted.store(false);
+    rc.operational.store(false);
+    rc.restart.store(false);
+    rc.node.store(n.node, std::memory_order_release);
+    struct Release {  // whatever happens, the cycle stops handing this node's frames over
+      Reconfig& rc;
+      ~Release() {
+        if (rc.restart.load(std::memory_order_acquire)) return;  // the cycle clears it
+        rc.node.store(0, std::memory_order_release);
+      }
+    } release{rc};
+    nmt(b, NmtCommand::ResetNode, n.node);
+    if (!wait_for(rc.booted, Clock::now() + secs(config_.enable_timeout_s)))
+      throw HwError("configure_nodes(): no boot-up message after NMT reset node within " + ms(config_.enable_timeout_s) +
+                    " ms from " + label);
+    SdoClient client(*buses_[b], config_.buses[b].name, config_.sdo_timeout_s, {},
+                     [this, b](std::uint8_t node) { return node_label(b, node); });
+    client.receive_from(&rc.inbox);
+    NodeConfigurator nc(client, [this, b](std::uint8_t node) { return node_label(b, node); });
+    if (n.joint >= 0) {
+      const auto j = static_cast<std::size_t>(n.joint);
+      // The node is pre-operational (no TPDO): the cycle does not read its info meanwhile.
+      drives_[j].info = nc.configure_drive(drive_setup(j));
+    } else {
+      nc.configure_ft(n.node, static_cast<std::uint16_t>(std::lround(config_.heartbeat_producer_s * 1e3)));
+    }
+    nmt(b, NmtCommand::Start, n.node);
+    if (!wait_for(rc.operational, Clock::now() + heartbeat_timeout_))
+      throw HwError("configure_nodes(): no heartbeat reporting NMT operational within " +
+                    ms(config_.heartbeat_consumer_s) + " ms after NMT start from " + label);
+    rc.restart.store(true, std::memory_order_release);
+    const auto deadline = Clock::now() + std::chrono::seconds(1);
+    while (rc.node.load(std::memory_order_acquire) != 0) {
+      if (Clock::now() > deadline)
+        throw HwError("configure_nodes(): " + label + " configured, but no cycle took it back within 1 s (is the loop cycling?)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ++done;
+  }
+  return done;
 }
 
 std::size_t DriveSystem::home() {
@@ -449,37 +689,8 @@ void DriveSystem::held_targets(JointTargets& out) const noexcept {
 }
 
 void DriveSystem::disable() {
-  if (!configured_) return;
-  const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                      std::chrono::duration<double>(config_.enable_timeout_s));
-  Clock::time_point deadline = Clock::now();
-  JointFeedback fb;
-  CycleStatus status;
-  JointTargets t;
-  for (Cia402Drive& d : drives_) d.have_actual = false;  // as in enable(): fresh states only
-  for (;;) {
-    for (Cia402Drive& d : drives_) d.step_to_disabled();
-    held_targets(t);
-    cycle_write(t);
-    run_cycle_blocking(deadline, fb, status);
-    bool all = true;
-    for (const Cia402Drive& d : drives_) all = all && d.have_actual && !power_enabled(d.st.state);
-    if (all) break;
-    if (Clock::now() > end) {
-      // Not silently: a drive that never answered may still be enabled.
-      std::string msg = "disable(): not confirmed after " +
-                        std::to_string(static_cast<int>(config_.enable_timeout_s * 1000)) + " ms:";
-      for (const Cia402Drive& d : drives_) {
-        if (!d.have_actual)
-          msg += " " + node_label(d.bus, d.node) + " never answered (no TPDO; state unknown, may still be enabled);";
-        else if (power_enabled(d.st.state))
-          msg += " " + node_label(d.bus, d.node) + " still powered in '" + to_string(d.st.state) + "' (statusword " +
-                 hex(d.st.statusword, 4) + ");";
-      }
-      throw HwError(msg);  // enabled_ stays true: the destructor still sends quick stop
-    }
-  }
-  enabled_ = false;
+  if (!begin_disable()) return;
+  run_power_change("disable");
 }
 
 void DriveSystem::nmt_all(NmtCommand cmd) {
@@ -550,7 +761,13 @@ void DriveSystem::cycle_write(const JointTargets& targets, Clock::time_point now
     bool all_sent = true;
     for (std::size_t j : bs.drives) {
       Cia402Drive& d = drives_[j];
-      d.take_target(targets.position_rad[j], enabled_, events_);
+      // A power change steps every drive and holds its actual position.
+      if (power_.phase == PowerPhase::Enabling)
+        d.step_to_enabled();
+      else if (power_.phase == PowerPhase::Disabling)
+        d.step_to_disabled();
+      else
+        d.take_target(targets.position_rad[j], enabled_, events_);
       d.apply_stops(quick_stop && enabled_, power_off);
       const can_frame f = d.rpdo(d.controlword);
       const CanIo io = bus.write(f);
@@ -582,6 +799,20 @@ void DriveSystem::handle_frame(std::size_t bi, const can_frame& f, Clock::time_p
   if (f.can_id & CAN_RTR_FLAG) {
     push_event({HwFault::MalformedFrame, bus8, node_of(id), -1, id, f.can_dlc});
     return;
+  }
+  // A node configure_nodes() is configuring again: its SDO answers are that
+  // thread's, its boot-up and heartbeat tell it how far the node is.
+  Reconfig& rc = *reconfig_[bi];
+  if (const std::uint8_t rn = rc.node.load(std::memory_order_acquire); rn != 0) {
+    if (id == kSdoTxBase + rn) {
+      (void)rc.inbox.try_push(f);  // full: the transfer times out and says so
+      return;
+    }
+    if (id == kHeartbeatBase + rn && f.can_dlc == 1) {
+      const auto state = static_cast<NmtState>(f.data[0] & 0x7F);
+      if (state == NmtState::BootUp) rc.booted.store(true, std::memory_order_release);
+      if (state == NmtState::Operational) rc.operational.store(true, std::memory_order_release);
+    }
   }
   if (id == kSync) {  // our own SYNC, looped back by the controller (or the simulator): a marker in the stream
     bs.sync_echo_active = true;
@@ -635,11 +866,17 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   if (const int tare = tare_request_.exchange(0, std::memory_order_acq_rel); tare > 0 && ft_)
     ft_->decoder.request_tare(tare);
   for (std::size_t bi = 0; bi < buses_.size(); ++bi) read_bus(bi, now);
+  take_back_reconfigured(now);
   std::uint8_t active = 0;
   HwEvent first_active{};
   supervise_drives(now, active, first_active);
   supervise_ft(now, active, first_active, ft_out);
   supervise_buses(active, first_active);
+  judge_power();
+  std::uint32_t mask = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i]->unconfigured) mask |= 1u << i;
+  unconfigured_mask_.store(mask, std::memory_order_release);
 
   joints.count = drives_.size();
   for (std::size_t j = 0; j < drives_.size(); ++j) drives_[j].feedback(joints.joints[j]);
@@ -657,6 +894,7 @@ CycleStatus DriveSystem::cycle_read(JointFeedback& joints, FtReading& ft_out, Cl
   s.active_faults = active;
   s.first_active = first_active;
   s.frames_received = frames_this_cycle_;
+  s.power = power_;
   events_.take(s);
   s.stop_required = s.stop_required || active > 0;
   return s;
@@ -749,7 +987,9 @@ void DriveSystem::supervise_buses(std::uint8_t& active, HwEvent& first_active) n
 
 std::string DriveSystem::describe(const HwEvent& e) const {
   std::string who;
-  if (e.joint >= 0)
+  if (e.fault == HwFault::PowerChangeAborted)
+    who = "drives";
+  else if (e.joint >= 0)
     who = node_label(drives_[static_cast<std::size_t>(e.joint)].bus, e.node);
   else if (e.node != 0 && e.bus < buses_.size())
     who = node_label(e.bus, e.node);
@@ -792,6 +1032,20 @@ std::string DriveSystem::describe(const HwEvent& e) const {
     case HwFault::NodeNotOperational:
       msg += std::string(" (now ") + to_string(static_cast<NmtState>(e.code)) + ")";
       break;
+    case HwFault::PowerStateChanged:
+      msg += std::string(": '") + (e.detail == kUnknownState ? "unknown" : to_string(static_cast<PowerState>(e.detail))) +
+             "' -> '" + to_string(static_cast<PowerState>(e.code)) + "'";
+      break;
+    case HwFault::PowerStepTimeout:
+    case HwFault::FaultAfterReset: {
+      char buf[160];
+      describe_power_failure(e, buf, sizeof buf);
+      const char* colon = std::strchr(buf, ':');
+      msg = who + (colon != nullptr ? colon : buf);
+      if (e.fault == HwFault::FaultAfterReset && e.code != 0)
+        msg += std::string(" ") + to_string(classify_emcy(static_cast<std::uint16_t>(e.code)));
+      break;
+    }
     default: break;
   }
   return msg;

@@ -49,7 +49,7 @@ std::string drive_name(std::size_t i, const std::string& joint) {
 RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string& source_name) {
   // The project's one YAML reader and its wording (yaml::parse, yaml::MapReader).
   const yaml::MapReader top(yaml::parse(yaml_text, source_name), source_name, "");
-  top.check_keys({"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "tpdo_miss_limit",
+  top.check_keys({"cycle_rate_hz", "heartbeat", "sdo_timeout_ms", "enable_timeout_ms", "power_step_timeout_ms", "tpdo_miss_limit",
                   "max_bus_load", "interpolation_exponent", "sync_counter_overflow", "sto_status_bit", "bus_off_restart_limit",
                   "velocity_tpdo_every", "buses",
                   "drives", "ft_sensor", "tool", "video_switch", "controller"});
@@ -70,6 +70,7 @@ RemoteConfig parse_remote_config(const std::string& yaml_text, const std::string
   }
   c.sdo_timeout_s = top.get_or_in("sdo_timeout_ms", 500.0, 1, 10000, "ms") * 1e-3;
   c.enable_timeout_s = top.get_or_in("enable_timeout_ms", 2000.0, 1, 60000, "ms") * 1e-3;
+  c.power_step_timeout_s = top.get_or_in("power_step_timeout_ms", 500.0, 1, 60000, "ms") * 1e-3;
   c.tpdo_miss_limit = static_cast<int>(top.get_or_int_in("tpdo_miss_limit", 5, 1, 1000, "cycles"));
   c.sto_status_bit = static_cast<int>(top.get_or_int_in("sto_status_bit", -1, -1, 15, "(a statusword bit)"));
   if (c.sto_status_bit != -1 && c.sto_status_bit != 8 && c.sto_status_bit != 14 && c.sto_status_bit != 15)
@@ -205,6 +206,8 @@ void validate(RemoteConfig& c) {
   }
   if (!(c.sdo_timeout_s > 0.0 && c.sdo_timeout_s <= 10.0)) fail(0, "sdo_timeout_ms must be in (0, 10000]");
   if (!(c.enable_timeout_s > 0.0 && c.enable_timeout_s <= 60.0)) fail(0, "enable_timeout_ms must be in (0, 60000]");
+  if (!(c.power_step_timeout_s > 0.0 && c.power_step_timeout_s <= 60.0))
+    fail(0, "power_step_timeout_ms must be in (0, 60000]");
   if (c.tpdo_miss_limit < 1 || c.tpdo_miss_limit > 1000) fail(0, "tpdo_miss_limit must be 1..1000");
   if (!(c.max_bus_load > 0.0 && c.max_bus_load <= 1.0)) fail(0, "max_bus_load must be in (0, 1]");
 

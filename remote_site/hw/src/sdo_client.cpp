@@ -76,7 +76,7 @@ can_frame SdoClient::exchange_once(std::uint8_t node, const can_frame& request, 
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(timeout);
   for (;;) {
     can_frame f{};
-    const CanIo io = bus_.read(f);
+    const CanIo io = inbox_ == nullptr ? bus_.read(f) : (inbox_->try_pop(f) ? CanIo::Ok : CanIo::WouldBlock);
     const auto now = Clock::now();
     if (io == CanIo::Ok) {
       if ((f.can_id & CAN_SFF_MASK) == kSdoTxBase + node && !(f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG))) {
@@ -101,6 +101,10 @@ can_frame SdoClient::exchange_once(std::uint8_t node, const can_frame& request, 
                          " ms (no response)");
     }
     if (io == CanIo::ErrorFrame || io == CanIo::Malformed) continue;
+    if (inbox_ != nullptr) {  // the cycle hands the answers over: look again in 1 ms
+      ::poll(nullptr, 0, 1);
+      continue;
+    }
     pollfd p{bus_.fd(), POLLIN, 0};
     const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count() + 1;
     ::poll(&p, 1, static_cast<int>(left_ms));

@@ -224,7 +224,7 @@ TEST(RemoteConfig, OtherBadInputsAreNamed) {
             "remote.yaml:2: heartbeat.master_node_id: not an integer (a list)");
   EXPECT_EQ(error_of("cycle_rate_hz: 500\nheartbeat: {producer_ms: 10, consumer_ms: 50}\nbeat: 3\n"),
             "remote.yaml:3: beat: unknown key (expected one of: cycle_rate_hz, heartbeat, sdo_timeout_ms, "
-            "enable_timeout_ms, tpdo_miss_limit, max_bus_load, interpolation_exponent, sync_counter_overflow, "
+            "enable_timeout_ms, power_step_timeout_ms, tpdo_miss_limit, max_bus_load, interpolation_exponent, sync_counter_overflow, "
             "sto_status_bit, bus_off_restart_limit, velocity_tpdo_every, buses, drives, ft_sensor, tool, video_switch, controller)");
   EXPECT_EQ(error_of("cycle_rate_hz: 500\n"), "remote.yaml:1: top level: missing 'heartbeat' (producer_ms, consumer_ms)");
   EXPECT_EQ(error_of("- 1\n"), "remote.yaml:1: expected a map at the top level");

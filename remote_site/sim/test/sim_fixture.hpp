@@ -89,6 +89,16 @@ struct SimRig {
     cycle();
   }
 
+  /// After configure(): step from here with the drives still disabled (a
+  /// power change is then stepped by cycle(): begin_enable / begin_disable).
+  void go_stepped_disabled() {
+    sim->stop();
+    drives->held_targets(targets);
+    stepping = true;
+    sim_now = Clock::now();
+    cycle();
+  }
+
   std::chrono::nanoseconds period() const {
     return std::chrono::nanoseconds(static_cast<long>(1e9 / config.cycle_rate_hz));
   }

@@ -416,3 +416,301 @@ TEST(DriveFaults, DrivesFaultWhenTheMasterStopsCycling) {
   const CycleStatus after = rig.run_until([](const CycleStatus& st) { return !st.ok(); }, 50);
   EXPECT_TRUE(after.ok()) << (after.event_count ? rig.drives->describe(after.events[0]) : "");
 }
+
+// ---- power changes stepped by the cycle (issue 25, item 5) -----------------------
+// DriveSystem::begin_enable / begin_disable: one controlword per drive per
+// cycle, judged on the drives' answers in cycle_read (CycleStatus::power),
+// counted in cycles of simulated time (stepped).
+
+namespace {
+
+/// Cycles until the power change ends (or `max`); every event on the way.
+struct PowerRun {
+  CycleStatus last;
+  int cycles = 0;
+  std::vector<HwEvent> events;
+};
+PowerRun run_power(SimRig& rig, int max, const std::function<void(int)>& each = {}) {
+  PowerRun r;
+  for (; r.cycles < max; ) {
+    r.last = rig.cycle();
+    ++r.cycles;
+    for (std::size_t i = 0; i < r.last.event_count; ++i) r.events.push_back(r.last.events[i]);
+    if (r.last.power.finished) break;
+    if (each) each(r.cycles);
+  }
+  return r;
+}
+
+constexpr unsigned bit(PowerState s) { return 1u << static_cast<unsigned>(s); }
+
+}  // namespace
+
+// The CiA 402 sequence per drive, from Switch on disabled, one step per
+// answer: shutdown -> Ready to switch on -> switch on -> Switched on ->
+// enable operation -> Operation enabled; each change an event. The targets
+// given to cycle_write meanwhile are not taken: every drive holds its actual
+// position (nothing moves), and after the enable the held targets are the
+// actual positions.
+TEST(DrivePower, EnableIsSteppedByTheCycleHoldingTheActualPositions) {
+  SimRig rig(project_config());
+  rig.drives->configure();
+  rig.go_stepped_disabled();
+  for (std::size_t j = 0; j < 7; ++j) rig.sim->drive(j).clear_power_record();
+  std::vector<double> x0(7);
+  for (std::size_t j = 0; j < 7; ++j) x0[j] = rig.sim->drive(j).position_counts();
+  for (std::size_t j = 0; j < 7; ++j) rig.targets.position_rad[j] += 0.3;  // a jump nobody may take
+  ASSERT_TRUE(rig.drives->begin_enable());
+  EXPECT_EQ(rig.drives->power_status().phase, hw::PowerPhase::Enabling);
+  const PowerRun r = run_power(rig, 1000);
+  ASSERT_TRUE(r.last.power.finished);
+  EXPECT_EQ(r.last.power.phase, hw::PowerPhase::Enabled);
+  EXPECT_EQ(static_cast<int>(r.last.power.cycles), r.cycles);
+  std::printf("enable on the simulator: %d cycles (%.0f ms at %.0f Hz)\n", r.cycles, r.cycles * 1e3 / rig.config.cycle_rate_hz,
+              rig.config.cycle_rate_hz);
+  // The first answer after one cycle (the TPDO of the first SYNC), then
+  // four transitions (the simulated drive leaves Not ready to switch on at
+  // its first command, as a drive after its self test), each one SYNC to
+  // latch the command and one to report: 1 + 4 x 2 = 9 cycles, plus the
+  // SYNC the master sends before the command reaches the drive (SYNC first,
+  // then the RPDO: a command written in cycle k is latched at SYNC k+1, read
+  // back at the read of cycle k+2): 11.
+  EXPECT_EQ(r.cycles, 11);
+  for (std::size_t j = 0; j < 7; ++j) {
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> chain;
+    for (const HwEvent& e : r.events)
+      if (e.fault == HwFault::PowerStateChanged && e.joint == static_cast<std::int8_t>(j)) chain.emplace_back(e.detail, e.code);
+    const std::vector<std::pair<std::uint32_t, std::uint32_t>> want = {
+        {hw::kUnknownState, static_cast<std::uint32_t>(PowerState::NotReadyToSwitchOn)},
+        {static_cast<std::uint32_t>(PowerState::NotReadyToSwitchOn), static_cast<std::uint32_t>(PowerState::SwitchOnDisabled)},
+        {static_cast<std::uint32_t>(PowerState::SwitchOnDisabled), static_cast<std::uint32_t>(PowerState::ReadyToSwitchOn)},
+        {static_cast<std::uint32_t>(PowerState::ReadyToSwitchOn), static_cast<std::uint32_t>(PowerState::SwitchedOn)},
+        {static_cast<std::uint32_t>(PowerState::SwitchedOn), static_cast<std::uint32_t>(PowerState::OperationEnabled)}};
+    EXPECT_EQ(chain, want) << "joint " << j + 1;
+    const sim::DrivePowerRecord rec = rig.sim->drive(j).power_record();
+    EXPECT_EQ(rec.state, PowerState::OperationEnabled) << j;
+    EXPECT_EQ(rec.states_seen & (bit(PowerState::Fault) | bit(PowerState::QuickStopActive)), 0u) << j;
+    EXPECT_NEAR(rig.sim->drive(j).position_counts(), x0[j], 1.0) << j;
+    EXPECT_NEAR(rig.sim->drive(j).target_counts(), x0[j], 1.0) << j;
+  }
+  for (const HwEvent& e : r.events) EXPECT_FALSE(hw::requires_stop(e.fault)) << rig.drives->describe(e);
+  const auto it = std::find_if(r.events.begin(), r.events.end(),
+                               [](const HwEvent& e) { return e.fault == HwFault::PowerStateChanged && e.joint == 2; });
+  ASSERT_NE(it, r.events.end());
+  EXPECT_EQ(rig.drives->describe(*it), "joint3 (bus arm_a node 3): power state changed: 'unknown' -> 'Not ready to switch on'");
+  rig.drives->held_targets(rig.targets);
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_NEAR(rig.targets.position_rad[j], rig.fb.joints[j].position_rad, 1e-3) << j;
+
+  // Disable the same way: Disable Voltage until every drive confirms.
+  ASSERT_TRUE(rig.drives->begin_disable());
+  const PowerRun d = run_power(rig, 1000);
+  EXPECT_EQ(d.last.power.phase, hw::PowerPhase::Disabled);
+  std::printf("disable on the simulator: %d cycles\n", d.cycles);
+  EXPECT_EQ(d.cycles, 4);  // written in cycle 1, latched at SYNC 2, read back with the TPDO of SYNC 3 in cycle 4
+  for (std::size_t j = 0; j < 7; ++j) EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+}
+
+// One fault reset per enable: the faulted drive gets one rising edge of
+// bit 7; when it faults again before Operation enabled the enable fails
+// naming it (joint, node, its EMCY code) and it stays in Fault (no second
+// reset; every drive is left without power). The next enable (the next
+// RECOVER) resets it once more.
+TEST(DrivePower, AFaultedDriveGetsOneFaultResetPerEnableAndFaultingAgainStaysFaulted) {
+  SimRig rig(project_config());
+  rig.bring_up_stepped();
+  rig.sim->drive(2).inject_fault(0x2310);
+  ASSERT_NE(find_event(rig.run_until(has(HwFault::DriveFault), 50), HwFault::DriveFault), nullptr);
+  ASSERT_EQ(rig.sim->drive(2).power_state(), PowerState::Fault);
+  ASSERT_TRUE(rig.drives->begin_enable());
+  bool again = false;
+  const PowerRun r = run_power(rig, 1000, [&](int) {
+    if (!again && rig.sim->drive(2).power_state() != PowerState::Fault) {
+      rig.sim->drive(2).inject_fault(0x2310);  // the cause is still there
+      again = true;
+    }
+  });
+  ASSERT_TRUE(again);
+  ASSERT_TRUE(r.last.power.finished);
+  EXPECT_EQ(r.last.power.phase, hw::PowerPhase::Failed);
+  const HwEvent& c = r.last.power.cause;
+  EXPECT_EQ(c.fault, HwFault::FaultAfterReset);
+  EXPECT_EQ(c.joint, 2);
+  EXPECT_EQ(c.node, 3);
+  EXPECT_EQ(c.code, 0x2310u);
+  char text[96];
+  rig.drives->describe_power_failure(c, text, sizeof text);
+  EXPECT_STREQ(text, "joint3 (node 3): in Fault again after its fault reset, EMCY 0x2310 (statusword 0x0608)");
+  EXPECT_EQ(rig.drives->describe(c),
+            "joint3 (bus arm_a node 3): in Fault again after its fault reset, EMCY 0x2310 (statusword 0x0608) over-current");
+  EXPECT_TRUE(hw::requires_stop(c.fault));
+  // Stays faulted: no second reset, and every drive is commanded off.
+  for (int i = 0; i < 100; ++i) rig.cycle();
+  EXPECT_EQ(rig.sim->drive(2).power_state(), PowerState::Fault);
+  for (std::size_t j = 0; j < 7; ++j) {
+    EXPECT_EQ(rig.sim->drive(j).controlword(), hw::canopen::controlword::kDisableVoltage) << j;
+    EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+  }
+  // The next enable resets it once more, and it comes back.
+  ASSERT_TRUE(rig.drives->begin_enable());
+  const PowerRun ok = run_power(rig, 1000);
+  EXPECT_EQ(ok.last.power.phase, hw::PowerPhase::Enabled);
+  EXPECT_EQ(rig.sim->drive(2).power_state(), PowerState::OperationEnabled);
+}
+
+// A drive that does not answer fails the enable at the step deadline
+// (power_step_timeout_ms, counted in cycles), naming it.
+TEST(DrivePower, ADriveThatDoesNotAnswerFailsTheEnableAtTheStepDeadline) {
+  hw::RemoteConfig c = project_config();
+  c.power_step_timeout_s = 0.1;  // 50 cycles
+  SimRig rig(c);
+  rig.drives->configure();
+  rig.go_stepped_disabled();
+  rig.sim->drive(5).stop_answering(true);
+  for (int i = 0; i < 3; ++i) rig.cycle();  // its last TPDOs read
+  ASSERT_TRUE(rig.drives->begin_enable());
+  const PowerRun r = run_power(rig, 1000);
+  EXPECT_EQ(r.last.power.phase, hw::PowerPhase::Failed);
+  EXPECT_EQ(r.cycles, 51);
+  EXPECT_EQ(r.last.power.cause.fault, HwFault::PowerStepTimeout);
+  EXPECT_EQ(r.last.power.cause.joint, 5);
+  EXPECT_EQ(r.last.power.cause.code, hw::kUnknownState);
+  char text[96];
+  rig.drives->describe_power_failure(r.last.power.cause, text, sizeof text);
+  EXPECT_STREQ(text, "joint6 (node 6): no answer for 100 ms (power_step_timeout_ms)");
+  // The others were on their way: a failed enable leaves every drive off.
+  for (int i = 0; i < 10; ++i) rig.cycle();
+  for (std::size_t j = 0; j < 7; ++j) {
+    if (j == 5) continue;
+    EXPECT_FALSE(rig.sim->drive(j).power_record().powered) << j;
+  }
+}
+
+// Category 0 during an enable: request_power_off() (what the controller's
+// E-stop sends) puts Disable Voltage in the next RPDOs whatever the stepper
+// was commanding; the drives' own record: every drive unpowered within two
+// cycles, and none reaches Operation enabled after it; the enable fails
+// (PowerChangeAborted).
+TEST(DrivePower, APowerOffDuringAnEnableAbortsItWithinTheCategoryZeroDeadline) {
+  SimRig rig(project_config());
+  rig.drives->configure();
+  rig.go_stepped_disabled();
+  ASSERT_TRUE(rig.drives->begin_enable());
+  auto powered = [&] {
+    int n = 0;
+    for (std::size_t j = 0; j < 7; ++j) n += rig.sim->drive(j).power_record().powered ? 1 : 0;
+    return n;
+  };
+  int cycles = 0;
+  while (powered() == 0 && cycles < 100) {
+    rig.cycle();
+    ++cycles;
+  }
+  ASSERT_EQ(powered(), 7);  // Switched on: powered, not yet Operation enabled
+  for (std::size_t j = 0; j < 7; ++j) {
+    ASSERT_NE(rig.sim->drive(j).power_state(), PowerState::OperationEnabled) << j;
+    rig.sim->drive(j).clear_power_record();
+  }
+  rig.drives->request_power_off();
+  int off = 0;
+  CycleStatus s;
+  bool aborted = false;
+  while (powered() > 0 && off < 10) {
+    s = rig.cycle();
+    aborted = aborted || (s.power.finished && s.power.cause.fault == HwFault::PowerChangeAborted);
+    ++off;
+  }
+  EXPECT_LE(off, 2);
+  for (int i = 0; i < 20 && !aborted; ++i) {
+    s = rig.cycle();
+    aborted = s.power.finished && s.power.cause.fault == HwFault::PowerChangeAborted;
+  }
+  EXPECT_TRUE(aborted);
+  EXPECT_EQ(rig.drives->power_status().phase, hw::PowerPhase::Failed);
+  for (int i = 0; i < 50; ++i) rig.cycle();
+  for (std::size_t j = 0; j < 7; ++j) {
+    const sim::DrivePowerRecord rec = rig.sim->drive(j).power_record();
+    EXPECT_FALSE(rec.powered) << j;
+    EXPECT_EQ(rec.states_seen & bit(PowerState::OperationEnabled), 0u) << j;
+  }
+}
+
+// A node that reboots (boot-up while operational) has lost its configuration
+// (PDO mapping, mode, limits): it is marked unconfigured and no enable
+// starts (nothing is sent) until it is configured again; the refusal names it.
+TEST(DrivePower, ARebootedNodeIsNotEnabledUntilConfiguredAgain) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  EXPECT_EQ(rig.drives->unconfigured_nodes(), 0u);
+  rig.sim->drive(3).inject_reboot();
+  ASSERT_NE(find_event(rig.run_until(has(HwFault::NodeRebooted), 500), HwFault::NodeRebooted), nullptr);
+  EXPECT_EQ(rig.drives->unconfigured_nodes(), 1u);
+  HwEvent why;
+  EXPECT_FALSE(rig.drives->begin_enable(&why));
+  EXPECT_EQ(why.fault, HwFault::NodeUnconfigured);
+  EXPECT_EQ(why.joint, 3);
+  char text[96];
+  rig.drives->describe_power_failure(why, text, sizeof text);
+  EXPECT_STREQ(text, "joint4 (node 4): rebooted or left NMT operational: not configured");
+  try {
+    rig.drives->enable();
+    FAIL() << "enable() went on with joint4 unconfigured";
+  } catch (const hw::HwError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "enable(): joint4 (bus arm_a node 4): not configured (rebooted or left NMT operational since configure)");
+  }
+  rig.drives->configure();
+  EXPECT_EQ(rig.drives->unconfigured_nodes(), 0u);
+  rig.drives->enable();
+  EXPECT_EQ(rig.sim->drive(3).power_state(), PowerState::OperationEnabled);
+}
+
+// The rebooted node configured again from its configuration file while the
+// cycle goes on in another thread (as the control loop's): its SDO answers
+// are handed over by the cycle (never reported as unexpected), the other
+// drives stay supervised, and then the enable brings it back with its PDO
+// mapping rewritten (its TPDOs read right).
+TEST(DrivePower, ARebootedNodeIsConfiguredAgainWhileTheCycleGoesOn) {
+  SimRig rig(project_config());
+  rig.bring_up();
+  rig.sim->drive(3).inject_reboot();
+  ASSERT_NE(find_event(rig.run_until(has(HwFault::NodeRebooted), 500), HwFault::NodeRebooted), nullptr);
+  ASSERT_EQ(rig.drives->unconfigured_nodes(), 1u);
+  std::atomic<bool> quit{false};
+  std::vector<HwEvent> events;
+  std::uint64_t cycles = 0;
+  std::thread cycle([&] {
+    while (!quit.load()) {
+      const CycleStatus s = rig.cycle();
+      ++cycles;
+      for (std::size_t i = 0; i < s.event_count; ++i) events.push_back(s.events[i]);
+    }
+  });
+  const auto t0 = Clock::now();
+  std::size_t configured = 0;
+  try {
+    configured = rig.drives->configure_nodes();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  EXPECT_TRUE(eventually([&] { return rig.drives->unconfigured_nodes() == 0; }, 2.0));
+  quit.store(true);
+  cycle.join();
+  EXPECT_EQ(configured, 1u);
+  std::printf("joint4 configured again in %.0f ms while the cycle ran (%llu cycles)\n", ms,
+              static_cast<unsigned long long>(cycles));
+  EXPECT_GT(cycles, 5u);
+  for (const HwEvent& e : events) {
+    EXPECT_NE(e.fault, HwFault::UnexpectedSdo) << rig.drives->describe(e);
+    if (!hw::requires_stop(e.fault)) continue;
+    EXPECT_EQ(e.joint, 3) << rig.drives->describe(e);  // only the node configured
+  }
+  EXPECT_EQ(rig.sim->drive(3).nmt_state(), hw::canopen::NmtState::Operational);
+  rig.drives->enable();
+  EXPECT_EQ(rig.sim->drive(3).power_state(), PowerState::OperationEnabled);
+  const CycleStatus s = rig.cycle();
+  EXPECT_TRUE(s.ok()) << (s.event_count ? rig.drives->describe(s.events[0]) : std::string("persisting fault"));
+  std::vector<double> q(7);
+  rig.sim->joint_positions_rad(q);
+  EXPECT_NEAR(rig.fb.joints[3].position_rad, q[3], 1e-3);
+}

@@ -13,14 +13,17 @@
 // heartbeat and SYNC keep going, and the drives stay disabled (mode Disabled)
 // until an Enable/Recover command.
 //
-// Drive power (DriveSystem::enable()/disable() are set-up calls that run
-// their own cycles): when the Controller asks for them (CycleOutputs::
-// drive_request), the loop thread runs them itself in a non-real-time phase
-// between two cycles. They keep cycling the bus (heartbeat and SYNC continue),
-// take up to enable_timeout_ms; a failure (HwError) becomes the command's
-// Failed event with the error text. With require_realtime, Enable fails
-// without touching the drives unless SCHED_FIFO and mlockall were granted. Overruns are not counted for that phase,
-// and the period grid restarts after it. Commands queue meanwhile.
+// Drive power: when the Controller asks (CycleOutputs::drive_request), the
+// loop begins the drives' power state machine (DriveSystem::begin_enable /
+// begin_disable) after the step; the following cycle_writes step it (one
+// controlword per drive per cycle, target = actual position) and each
+// cycle_read judges it (CycleStatus::power); when it ends, the loop reports
+// to Controller::drive_request_done() before that cycle's step. Nothing
+// blocks or allocates: the period grid goes on, and the controller's step
+// (E-stop, safe torque off, link, every other check) runs every cycle of the
+// change. A failure becomes the command's Failed event naming the drive
+// (DriveSystem::describe_power_failure). With require_realtime, Enable fails
+// without touching the drives unless SCHED_FIFO and mlockall were granted.
 //
 // Overruns: a cycle that ends after the next deadline skips to the grid; the
 // periods it skipped count as missed. max_missed_cycles missed in a row (a
@@ -54,6 +57,15 @@ namespace foresight::control {
 void fill_cycle_inputs(const hw::CycleStatus& status, const hw::JointFeedback& joints, const hw::FtReading& ft,
                        CycleInputs& in) noexcept;
 
+/// A drive event (hw::CycleStatus::events: EMCY, state changes during a
+/// power change, timeouts, faults, nodes and buses) as the loop read it, for
+/// the daemon's journal.
+struct DriveEventRecord {
+  hw::HwEvent event{};
+  std::uint64_t cycle = 0;
+  std::int64_t stamp_ns = 0;  ///< CLOCK_MONOTONIC of the cycle that read it
+};
+
 struct LoopOptions {
   int rt_priority = 80;            ///< SCHED_FIFO priority (1-99)
   int cpu = -1;                    ///< pin the loop to this CPU; -1: do not pin
@@ -83,6 +95,7 @@ struct LoopStats {
   std::uint64_t overruns = 0;          ///< cycles whose work ended after the next deadline (periods skipped)
   std::uint64_t events_dropped = 0;    ///< event/stop rings full
   std::uint64_t telemetry_dropped = 0;
+  std::uint64_t drive_events_dropped = 0;  ///< drive event ring full (poll_drive_event)
   double compute_us_max = 0.0;         ///< read + step + write
   /// From the wake-up to the cycle's SYNC (the read alone; the computation
   /// comes after it): what the drives see of the loop's timing.
@@ -95,6 +108,10 @@ struct LoopStats {
   bool realtime = false;               ///< SCHED_FIFO was granted
   bool memory_locked = false;          ///< mlockall(MCL_CURRENT | MCL_FUTURE) succeeded
   std::uint64_t missed_streak_max = 0; ///< the most periods missed in a row
+  /// The longest gap between two cycle wake-ups while a power change ran (us).
+  double power_change_gap_us_max = 0.0;
+  /// Cycles the last power change took (CycleStatus::power.cycles when it ended).
+  std::uint32_t power_change_cycles_last = 0;
   /// Percentile (0..1) of a histogram in us (the upper edge of its bin: a
   /// bound, resolution 10 us below 320 us, 19% above).
   static double percentile_us(const std::array<std::uint64_t, kBins>& hist, double p) noexcept;
@@ -106,6 +123,7 @@ class ControlLoop {
   static constexpr std::size_t kEventCapacity = 256;
   static constexpr std::size_t kStopCapacity = 16;
   static constexpr std::size_t kTelemetryCapacity = 1024;
+  static constexpr std::size_t kDriveEventCapacity = 512;
 
   /// Set-up. `drives` configured (configure() done), not enabled, and not
   /// cycled by anyone else while the loop runs; outlives the loop. Throws
@@ -130,6 +148,11 @@ class ControlLoop {
   bool poll_event(MotionEvent& out) noexcept { return events_.try_pop(out); }
   bool poll_stop(StopEvent& out) noexcept { return stops_.try_pop(out); }
   bool poll_telemetry(TelemetrySample& out) noexcept { return telemetry_.try_pop(out); }
+  /// Every event of every cycle_read, in order (drive_events_dropped counts
+  /// those lost to a full ring).
+  bool poll_drive_event(DriveEventRecord& out) noexcept { return drive_events_.try_pop(out); }
+  /// The drive system, for describing its events (DriveSystem::describe) off the loop thread.
+  const hw::DriveSystem& drives() const noexcept { return drives_; }
 
   /// Inputs, any thread.
   void set_estop(bool pressed) noexcept { estop_.store(pressed, std::memory_order_release); }
@@ -146,7 +169,11 @@ class ControlLoop {
  private:
   void run() noexcept;
   void setup_thread() noexcept;
-  void perform(DriveRequest request) noexcept;
+  /// After the step: begin the drives' power change the controller asked for
+  /// (or report at once why it cannot begin).
+  void begin_power_change(DriveRequest request) noexcept;
+  /// Before the step: a power change that ended in this read, to the controller.
+  void finish_power_change(const hw::CycleStatus& status) noexcept;
   void cycle(std::int64_t stamp_ns) noexcept;
 
   hw::DriveSystem& drives_;
@@ -158,6 +185,7 @@ class ControlLoop {
   SpscRing<MotionEvent> events_{kEventCapacity};
   SpscRing<StopEvent> stops_{kStopCapacity};
   SpscRing<TelemetrySample> telemetry_{kTelemetryCapacity};
+  SpscRing<DriveEventRecord> drive_events_{kDriveEventCapacity};
 
   std::atomic<bool> estop_{false};
   std::atomic<bool> link_lost_{false};
@@ -170,6 +198,7 @@ class ControlLoop {
 
   // statistics (written by the loop thread only)
   std::atomic<std::uint64_t> cycles_{0}, overruns_{0}, events_dropped_{0}, telemetry_dropped_{0};
+  std::atomic<std::uint64_t> drive_events_dropped_{0};
   std::atomic<double> compute_max_{0.0}, compute_sum_{0.0}, latency_max_{0.0}, latency_sum_{0.0};
   std::atomic<double> sync_after_wake_max_{0.0};
   std::array<std::atomic<std::uint64_t>, LoopStats::kBins> compute_hist_{};
@@ -178,6 +207,10 @@ class ControlLoop {
   std::atomic<bool> memory_locked_{false};
   std::atomic<std::uint64_t> missed_streak_max_{0};
   std::uint32_t missed_streak_ = 0;  ///< loop thread: periods missed in a row so far
+  DriveRequest power_request_ = DriveRequest::None;  ///< loop thread: the power change running
+  std::int64_t last_wake_ns_ = 0;
+  std::atomic<double> power_gap_max_{0.0};
+  std::atomic<std::uint32_t> power_cycles_last_{0};
 
   // cycle scratch (loop thread only)
   hw::JointFeedback fb_{};

@@ -43,8 +43,11 @@
 // (ControlLoop, or a test) performs it and reports back with
 // drive_request_done(). Cat0, and Cat1 once the arm is at rest, additionally
 // set CycleOutputs::power_off for the drive system's request_power_off():
-// Disable Voltage goes to every drive in the same cycle, before the blocking
-// disable() confirms it.
+// Disable Voltage goes to every drive in the same cycle, before the stepped
+// disable confirms it. The loop steps an Enable in its own cycles, so step()
+// runs during it: the E-stop or the drives' safe torque off abort it into
+// category 0, a lost link with policy Stop leaves the drives off; its
+// command then fails with why (watch_power_change).
 //
 // Set-up (allocates, throws std::invalid_argument naming the field): the
 // constructor. Real-time (noexcept, no allocation, no locks, no logging):
@@ -236,6 +239,9 @@ class Controller {
   Pose measure(const CycleInputs& in, bool joints_ok) noexcept;
   /// No power-up while the E-stop is pressed.
   void refuse_enable_in_estop(const CycleInputs& in) noexcept;
+  /// An enable the loop steps: the E-stop (category 0) or the link (policy
+  /// Stop) aborts it; its command then fails with why.
+  void watch_power_change(const CycleInputs& in) noexcept;
   /// Tare: ask, then wait for the decoder to finish.
   void step_tare(const CycleInputs& in, CycleOutputs& out, const Pose& base_T_sensor) noexcept;
   /// The mode's command (q_cmd_).
@@ -277,6 +283,8 @@ class Controller {
   bool estop_ = false;
   bool power_off_now_ = false;
   bool drive_request_issued_ = false;
+  bool enable_aborted_ = false;                 // watch_power_change: the enable's answer is this failure
+  std::array<char, 96> enable_abort_text_{};
 
   const PreparedTrajectory* traj_ = nullptr;
   double traj_t_ = 0.0;

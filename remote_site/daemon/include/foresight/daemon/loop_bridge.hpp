@@ -23,6 +23,11 @@ class LoopBridge {
   /// rate limiter's episodes journaled (`command_id`: the ground's command
   /// running, 0: none).
   void drain_telemetry(std::uint64_t command_id);
+  /// Every drive event waiting (ControlLoop::poll_drive_event), journaled as
+  /// a `drive_event` row each: the text DriveSystem::describe gives it, the
+  /// detail its fields. Notices (state changes of a power change, EMCY
+  /// warnings) included.
+  void drain_drive_events();
   /// The next stop, journaled as a fault row with its evidence (naming the
   /// `running` job when the loop stopped it); false when none waits.
   bool next_stop(const Job* running, control::StopEvent& out);
@@ -62,6 +67,7 @@ class LoopBridge {
   } rate_limit_{};
   protocol::RateLimitReport rate_limit_report_{};
   std::array<std::uint32_t, control::kMaxJoints> rate_limited_joint_cycles_{};
+  std::uint64_t drive_events_dropped_ = 0;  ///< the loop's count already journaled
 };
 
 }  // namespace foresight::daemon

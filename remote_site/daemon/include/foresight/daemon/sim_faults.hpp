@@ -12,6 +12,9 @@
 //                   text in hex (default 2310, over-current), each time the
 //                   file appears
 //   drive_silent_J  joint J's drive stops sending its heartbeat while it exists
+//   drive_reboot_J  joint J's drive reboots once (a brown-out: boot-up message,
+//                   pre-operational, its object dictionary back to its defaults,
+//                   PDO mapping lost), each time the file appears
 //   bus_loss_B      bus B (0-based, config order) loses every frame both ways
 //                   while it exists (CanSimulator::set_impairment, loss 1.0)
 //   estop_circuit   the cabinet's E-stop circuit is open while it exists: every
@@ -59,6 +62,7 @@ class SimFaultWatcher {
   void write_record();
   std::vector<bool> emcy_present_;
   std::vector<bool> silent_present_;
+  std::vector<bool> reboot_present_;
   std::vector<bool> bus_loss_present_;
   std::vector<double> q_, lo_, hi_;
   std::uint64_t seq_ = 0, marks_ = 0;

@@ -66,6 +66,11 @@ struct SupervisorParts {
   const RobotModel* model = nullptr;
   DaemonConfig config;
   control::ControlLoop* loop = nullptr;
+  /// The loop's drives (may be null: no node is then configured again). A
+  /// RECOVER first configures again, on this thread while the loop cycles
+  /// on, every node that rebooted or left NMT operational
+  /// (DriveSystem::configure_nodes: blocking SDO, never on the loop's thread).
+  hw::DriveSystem* drives = nullptr;
   journal::Journal* journal = nullptr;
   ToolWorker* tool = nullptr;                  ///< may be null: tool steps are then refused
   CameraWorker* camera = nullptr;              ///< may be null: CAMERA is then refused
@@ -133,6 +138,9 @@ class Supervisor {
   void start_next();
   /// Start `job` on the loop or the tool; "" when started, else why not (the code in *code).
   std::string start(Job& job, protocol::Reason* code);
+  /// RECOVER: the nodes that rebooted configured again first ("" when done
+  /// or none, else why not).
+  std::string configure_nodes_again();
   void finish_running(protocol::AckState state, protocol::Reason code, const std::string& reason,
                       std::vector<double> final_q);
 

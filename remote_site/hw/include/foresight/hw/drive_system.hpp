@@ -15,8 +15,10 @@
 //  * set-up (NOT real-time: may block, allocate, throw HwError/SdoError):
 //      constructor (validates the config and bus load; sends nothing),
 //      configure() (NMT reset, boot-up, SDO: device type, PDO mapping, mode,
-//      periods, limits, heartbeat; NMT start), enable() (power state machine
-//      to Operation enabled), disable(), sdo_read()/sdo_write().
+//      periods, limits, heartbeat; NMT start), configure_nodes() (the same
+//      for a node that rebooted, while another thread cycles), enable() and
+//      disable() (the cycle's power state machine, with their own cycles),
+//      sdo_read()/sdo_write().
 //  * real-time cycle (noexcept, no allocation, no locks, no blocking):
 //      cycle_read() then cycle_write() once per period, from one thread:
 //        cycle_read:  drain every bus; TPDOs -> feedback; heartbeats, EMCY,
@@ -27,6 +29,8 @@
 //                     (0x700 + heartbeat.master_node_id) every producer period,
 //                     which the drives consume (0x1016): a master that stops
 //                     cycling faults the drives (EMCY 0x8130).
+//      begin_enable()/begin_disable(): the power state machine, stepped by the
+//      following cycle_writes, judged by each cycle_read (CycleStatus::power).
 //      request_power_off(), request_quick_stop() and request_tare() may be
 //      called from any thread.
 // Stops as the drives see them (docs/control.md, the stop table):
@@ -34,7 +38,7 @@
 //                        gets Disable Voltage (controlword 0x0000) and goes to
 //                        Switch on disabled at the next SYNC: no torque, never
 //                        Quick stop active. Latched until enable().
-//   disable()            power off after a controlled stop (category 1), the
+//   begin_disable()      power off after a controlled stop (category 1), the
 //                        same command, confirmed: every drive must report a
 //                        state without power (canopen::power_enabled false).
 //   request_quick_stop() the drives' own ramp (0x605A, which must be 1 or 2:
@@ -133,7 +137,23 @@ enum class HwFault : std::uint8_t {
                       ///< refused before it reaches the drive, previous target kept (stop)
   EmergencyWarning,   ///< EMCY with a code but an empty error register (CiA 301: no error
                       ///< is present, a warning); code = error code (notice, not a stop)
+  // The power state machine stepped by the cycle (begin_enable/begin_disable):
+  PowerStateChanged,  ///< a drive's CiA 402 state changed during an enable or disable;
+                      ///< code = new state, detail = previous state (kUnknownState: none seen yet) (notice)
+  PowerStepTimeout,   ///< a drive stayed in one state longer than the step deadline
+                      ///< (power_step_timeout_ms), or the whole change took longer than
+                      ///< enable_timeout_ms (detail bit 16); code = its state (kUnknownState:
+                      ///< it never answered), detail low 16 bits = statusword (stop)
+  FaultAfterReset,    ///< a drive in Fault again after this enable's one fault reset;
+                      ///< code = its last EMCY code, detail = statusword (stop)
+  PowerChangeAborted, ///< an enable ended by a category 0 power off (request_power_off) (notice)
+  NodeUnconfigured,   ///< an enable refused: the node rebooted or left NMT operational since
+                      ///< configure(): configure_nodes() first (code = the NMT state seen) (stop)
 };
+/// PowerStepTimeout / PowerStateChanged: no state seen.
+inline constexpr std::uint32_t kUnknownState = 0xFF;
+/// PowerStepTimeout's detail bit: the overall deadline (enable_timeout_ms), not a step's.
+inline constexpr std::uint32_t kOverallDeadline = 1u << 16;
 const char* to_string(HwFault f) noexcept;
 /// True for faults that require the controller to stop the arm.
 bool requires_stop(HwFault f) noexcept;
@@ -145,6 +165,25 @@ struct HwEvent {
   std::int8_t joint = -1;  ///< joint index, -1 when not a drive (F/T, bus)
   std::uint32_t code = 0;
   std::uint32_t detail = 0;
+};
+
+/// The power state machine stepped by the cycle (DriveSystem::begin_enable,
+/// begin_disable): where it is.
+enum class PowerPhase : std::uint8_t {
+  Idle,       ///< no change asked since configure()
+  Enabling,   ///< stepping every drive toward Operation enabled
+  Disabling,  ///< Disable Voltage to every drive until each confirms a state without power
+  Enabled,    ///< the last enable succeeded
+  Disabled,   ///< the last disable succeeded
+  Failed,     ///< the last change failed: `cause` says why
+};
+
+struct PowerStatus {
+  PowerPhase phase = PowerPhase::Idle;
+  bool finished = false;     ///< the change ended in this cycle_read (Enabled, Disabled or Failed)
+  bool was_enable = false;   ///< the change that is running or ended was an enable
+  std::uint32_t cycles = 0;  ///< cycles since it began
+  HwEvent cause{};           ///< Failed: the drive and why (a PowerStepTimeout, FaultAfterReset, ... event)
 };
 
 /// Result of one cycle_read. Events are edges (reported once, when they
@@ -167,6 +206,8 @@ struct CycleStatus {
   /// torque off input is active (the cabinet's E-stop circuit is open).
   bool safe_torque_off = false;
   std::int8_t sto_joint = -1;  ///< the first joint reporting it (0-based)
+  /// The power state machine (begin_enable / begin_disable), after this read.
+  PowerStatus power{};
   bool ok() const noexcept { return !stop_required && event_count == 0 && active_faults == 0; }
 };
 
@@ -187,6 +228,8 @@ class EventQueue {
   /// Forget the queued events (configure(): set-up's events are not the
   /// cycle's); the drop count is still reported by the next take().
   void discard() noexcept { count_ = 0; }
+  std::size_t size() const noexcept { return count_; }
+  const HwEvent& operator[](std::size_t i) const noexcept { return events_[i]; }
 
  private:
   std::array<HwEvent, CycleStatus::kMaxEvents> events_{};
@@ -225,10 +268,9 @@ class DriveSystem {
   /// (see docs/hardware.md for the sequence). Throws HwError/SdoError naming
   /// the bus, node and joint. Drives stay disabled.
   void configure();
-  /// Set-up: run cycles at the configured rate, stepping every drive's power
-  /// state machine (fault reset, shutdown, switch on, enable operation) while
-  /// holding target = actual position, until all are Operation enabled.
-  /// Throws HwError naming each drive that did not get there, and its state.
+  /// Set-up: begin_enable(), then cycles at the configured rate until the
+  /// change ends (the same stepper as the control loop's). Throws HwError
+  /// naming each drive that did not get there, and its state.
   void enable();
   /// Set-up, after configure() and before the CSP enable(): homing for every
   /// drive with a `homing:` block (incremental encoders), all at once: mode 6
@@ -244,17 +286,62 @@ class DriveSystem {
   /// positions at enable time, then the last cycle_write). The controller's
   /// first cycle_write starts from these, so nothing jumps.
   void held_targets(JointTargets& out) const noexcept;
-  /// Set-up: power off every drive (Disable Voltage: Switch on disabled),
-  /// holding the actual positions as targets. Succeeds only when every drive
-  /// reports a state without power (canopen::power_enabled false); throws
-  /// HwError naming each drive still powered, with its state and statusword,
-  /// or silent, after enable_timeout_s.
+  /// Set-up: begin_disable(), then cycles until every drive reports a state
+  /// without power (canopen::power_enabled false); throws HwError naming
+  /// each drive still powered, with its state and statusword, or silent,
+  /// after enable_timeout_s.
   void disable();
   /// Set-up: send an NMT command to every configured node (e.g. Stop after
   /// disable(); EnterPreOperational for SDO-only service). The heartbeat
   /// consumer then reports nodes leaving operational as NodeNotOperational;
   /// configure() is needed to start again.
   void nmt_all(canopen::NmtCommand cmd);
+
+  // ---- drive power, stepped by the cycle (real-time: noexcept, no allocation) --------
+  /// Enable as a state machine the cycle steps: from the next cycle_write,
+  /// every drive is stepped once per cycle through the CiA 402 sequence
+  /// (fault reset, shutdown, switch on, enable operation) holding target =
+  /// actual position (the targets given to cycle_write are not taken
+  /// meanwhile); cycle_read judges the drives' answers and reports in
+  /// CycleStatus::power: Enabled once every drive reports Operation enabled,
+  /// Failed on a drive in one state beyond the step deadline
+  /// (power_step_timeout_ms) or the whole past enable_timeout_ms
+  /// (PowerStepTimeout), a drive in Fault again after this enable's one fault
+  /// reset (FaultAfterReset: a drive gets one fault reset per enable), a node
+  /// lost (heartbeat, boot-up, NMT state, bus) or request_power_off()
+  /// (PowerChangeAborted). Every state change is an event (PowerStateChanged).
+  /// Clears the category 0 and quick stop latches. Refused (false, `*refused`
+  /// the reason as an event) before configure(), while a node is not
+  /// configured (NodeUnconfigured: it rebooted or left NMT operational;
+  /// configure() again) or silent (HeartbeatLost): nothing is sent then.
+  bool begin_enable(HwEvent* refused = nullptr) noexcept;
+  /// Disable as a state machine the cycle steps: Disable Voltage to every
+  /// drive (holding the actual positions) until each reports a state without
+  /// power; Failed (PowerStepTimeout) after enable_timeout_ms. False before configure().
+  bool begin_disable() noexcept;
+  /// The state machine as the last cycle_read left it.
+  const PowerStatus& power_status() const noexcept { return power_; }
+  /// A failed or refused change's cause as one line for a command's answer,
+  /// into `buf` (snprintf; no allocation): "joint3 (node 3): in Fault again
+  /// after its fault reset, EMCY 0x2310 (statusword 0x0008)".
+  void describe_power_failure(const HwEvent& cause, char* buf, std::size_t size) const noexcept;
+  /// Nodes that rebooted or left NMT operational since configure() (NodeRebooted,
+  /// NodeNotOperational): begin_enable() refuses until they are configured
+  /// again. Any thread (as the last cycle_read saw them).
+  std::size_t unconfigured_nodes() const noexcept;
+  /// NOT real-time (blocking SDO, allocates, throws HwError/SdoError naming
+  /// the node): configure again every node unconfigured_nodes() counts, from
+  /// its configuration file, while the cycle goes on in another thread (the
+  /// control loop: heartbeat, SYNC and the other drives' supervision do not
+  /// stop). Per node, one at a time: NMT reset node, its boot-up, the SDO
+  /// configuration configure() writes (node_config.hpp; the cycle hands the
+  /// node's SDO answers over instead of reading them as unexpected), NMT
+  /// start, its heartbeat saying operational; then the cycle takes it back
+  /// (TPDO and heartbeat supervision restart, state unknown until its next
+  /// TPDO). Returns the nodes configured. Call it from one thread, with no
+  /// power change running and the drives not enabled (a RECOVER from a stop),
+  /// and only while something calls cycle_read.
+  std::size_t configure_nodes();
 
   // ---- real-time cycle -------------------------------------------------------
   /// The cycle's SYNC on every bus, sent by the control loop right after it
@@ -347,6 +434,11 @@ class DriveSystem {
   void supervise_ft(Clock::time_point now, std::uint8_t& active, HwEvent& first, FtReading& ft_out) noexcept;
   void supervise_buses(std::uint8_t& active, HwEvent& first) noexcept;
   void push_event(const HwEvent& e) noexcept { events_.push(e); }
+  /// cycle_read's last step: judge the drives' answers to a power change.
+  void judge_power() noexcept;
+  void end_power(PowerPhase phase, const HwEvent& cause) noexcept;
+  /// enable()/disable(): cycles until the change ends; throws its failure.
+  void run_power_change(const char* verb);
   void run_cycle_blocking(Clock::time_point& deadline, JointFeedback& fb, CycleStatus& status);
   void nmt(std::size_t bus, canopen::NmtCommand cmd, std::uint8_t node);
   std::string node_label(std::size_t bus, std::uint8_t node) const;
@@ -370,12 +462,29 @@ class DriveSystem {
   std::chrono::nanoseconds master_hb_period_;
   Clock::time_point last_master_hb_{};
 
+  /// configure_nodes(): the node of a bus being configured again while the
+  /// cycle runs (0: none), what the cycle saw of it, and its SDO answers.
+  struct Reconfig {
+    std::atomic<std::uint8_t> node{0};
+    std::atomic<bool> booted{false};       ///< boot-up seen since the NMT reset
+    std::atomic<bool> operational{false};  ///< a heartbeat saying operational since the NMT start
+    std::atomic<bool> restart{false};      ///< configured: the cycle restarts its supervision, then node = 0
+    SpscRing<can_frame> inbox{64};         ///< the cycle's read -> the SDO client
+  };
+  std::vector<std::unique_ptr<Reconfig>> reconfig_;  ///< per bus
+  std::atomic<std::uint32_t> unconfigured_mask_{0};  ///< bit i: nodes_[i]->unconfigured (the last cycle_read)
+  /// cycle_read: nodes configure_nodes() finished, back under supervision.
+  void take_back_reconfigured(Clock::time_point now) noexcept;
+
   EventQueue events_;
   std::uint16_t frames_this_cycle_ = 0;
   std::uint64_t cycle_ = 0;
   bool configured_ = false;
   bool enabled_ = false;
   bool sync_sent_this_cycle_ = false;  ///< send_sync() ran since the last cycle_write
+  PowerStatus power_{};
+  std::uint32_t step_cycles_ = 1;     ///< power_step_timeout_ms in cycles
+  std::uint32_t overall_cycles_ = 1;  ///< enable_timeout_ms in cycles
   void write_sync(std::size_t bus) noexcept;
   std::atomic<bool> quick_stop_{false};
   std::atomic<bool> power_off_{false};

@@ -80,6 +80,9 @@ struct RemoteConfig {
   std::uint8_t master_node_id = 127;  ///< node id of the master's own heartbeat (0x700 + id)
   double sdo_timeout_s = 0.5;          ///< per SDO transfer (set-up only); a timed-out transfer is retried once
   double enable_timeout_s = 2.0;      ///< power state machine to Operation enabled
+  /// One step of it: a drive that stays in one CiA 402 state (not the goal)
+  /// longer than this during an enable or disable fails it (PowerStepTimeout).
+  double power_step_timeout_s = 0.5;
   int tpdo_miss_limit = 5;            ///< consecutive cycles without a TPDO before a fault (1% loss: 3 gives
                                       ///< ~140 false stops/h, 5 about one per 12 h)
   int velocity_tpdo_every = 5;        ///< TPDO2 (velocity actual 0x606C) on every n-th SYNC (0x1801:02); 0 = not mapped

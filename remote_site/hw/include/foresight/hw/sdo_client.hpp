@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "foresight/common/error.hpp"
+#include "foresight/common/spsc_ring.hpp"
 #include "foresight/hw/can_bus.hpp"
 
 namespace foresight::hw {
@@ -65,6 +66,11 @@ class SdoClient {
   /// Segmented (or expedited) upload of a visible string (at most 1024 bytes).
   std::string read_string(std::uint8_t node, std::uint16_t index, std::uint8_t sub);
 
+  /// Take the responses from `inbox` instead of reading the bus (which
+  /// another thread reads: the real-time cycle hands the node's SDO answers
+  /// over, DriveSystem::configure_nodes). Requests are still written to the bus.
+  void receive_from(SpscRing<can_frame>* inbox) noexcept { inbox_ = inbox; }
+
   double timeout_s() const noexcept { return timeout_s_; }
   /// What went wrong and was recovered, one line each ("SDO read 0x1000:00 of
   /// joint3 (bus arm_a node 3): no response within 500 ms; the retry was
@@ -89,6 +95,7 @@ class SdoClient {
   FrameHandler other_;
   NodeLabel label_;
   std::vector<std::string> notices_;
+  SpscRing<can_frame>* inbox_ = nullptr;
 };
 
 }  // namespace foresight::hw
