@@ -139,8 +139,12 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
       double T = o.min_segment_s;
       for (int j = 0; j < model.dof(); ++j) {
         const double d = std::abs(dq[j]);
+        // The acceleration with room for what the executed spline adds to
+        // the sampled quintic's peak (3 h^2 / T^2 of it, h the sample period):
+        // T^2 = T_a^2 + 4 h^2 keeps it under the limit.
         T = std::max({T, kPeakVel * d / (o.limit_fraction * lim[j].velocity_rad_s),
-                      std::sqrt(kPeakAcc * d / (o.limit_fraction * lim[j].acceleration_rad_s2))});
+                      std::sqrt(kPeakAcc * d / (o.limit_fraction * lim[j].acceleration_rad_s2) +
+                                4.0 / (o.rate_hz * o.rate_hz))});
       }
       const int n = sample_count(T, o.rate_hz, g.name, "limit_fraction");
       const Eigen::VectorXd q0 = q;
@@ -182,19 +186,20 @@ Plan plan_motion(const RobotModel& model, const Eigen::VectorXd& q_start, const 
           qk = r.q;
           path.push_back(qk);
         }
-        // Joint velocity and acceleration along the sampled path, against the limits.
+        // The joint velocity and acceleration the remote executes (the
+        // interpolant through the path, from rest to rest), against the limits.
         double worst_v = 0.0, worst_a = 0.0;
-        Eigen::VectorXd prev_v = Eigen::VectorXd::Zero(model.dof());
-        Eigen::VectorXd prev = q;
-        for (int k = 0; k <= n; ++k) {
-          const Eigen::VectorXd cur = k < n ? path[k] : path[n - 1];
-          const Eigen::VectorXd v = (cur - prev) * o.rate_hz;
-          for (int j = 0; j < model.dof(); ++j) {
-            worst_v = std::max(worst_v, std::abs(v[j]) / (o.limit_fraction * lim[j].velocity_rad_s));
-            worst_a = std::max(worst_a, std::abs(v[j] - prev_v[j]) * o.rate_hz / (o.limit_fraction * lim[j].acceleration_rad_s2));
+        std::vector<double> times(static_cast<std::size_t>(n) + 1), column(times.size());
+        for (std::size_t k = 0; k < times.size(); ++k) times[k] = static_cast<double>(k) / o.rate_hz;
+        for (int j = 0; j < model.dof(); ++j) {
+          column[0] = q[j];
+          for (int k = 0; k < n; ++k) column[static_cast<std::size_t>(k) + 1] = path[static_cast<std::size_t>(k)][j];
+          const std::vector<double> m = hermite::spline_velocities(times.data(), column.data(), column.size());
+          for (std::size_t k = 0; k + 1 < column.size(); ++k) {
+            const hermite::Extremes e = hermite::extremes(column[k], column[k + 1], m[k], m[k + 1], 1.0 / o.rate_hz);
+            worst_v = std::max(worst_v, e.v_abs / (o.limit_fraction * lim[j].velocity_rad_s));
+            worst_a = std::max(worst_a, e.a_abs / (o.limit_fraction * lim[j].acceleration_rad_s2));
           }
-          prev_v = v;
-          prev = cur;
         }
         if ((worst_v <= 1.0 && worst_a <= 1.0) || attempt == 8) {
           if (worst_v > 1.0 || worst_a > 1.0)
