@@ -178,6 +178,30 @@ class DaemonTest : public ::testing::Test {
         << remote_->log();
   }
 
+  /// Restarts the daemon on the shipped configuration with `key` (text in
+  /// config/remote.yaml) replaced by `replacement`, in a folder of its own
+  /// beside the other shipped files (the URDF, the scene, the drive files:
+  /// read from the configuration's folder); a new ground link to it.
+  void restart_remote_with(const std::string& key, const std::string& replacement) {
+    std::string yaml = test::read_file(FORESIGHT_CONFIG_DIR "/remote.yaml");
+    const auto at = yaml.find(key);
+    ASSERT_NE(at, std::string::npos) << "config/remote.yaml has no '" << key << "'";
+    yaml.replace(at, key.size(), replacement);
+    const std::string dir = test::temp_path(".config");
+    std::filesystem::create_directories(dir);
+    for (const auto& e : std::filesystem::directory_iterator(FORESIGHT_CONFIG_DIR))
+      if (e.path().filename() != "remote.yaml")
+        std::filesystem::create_symlink(e.path(), std::filesystem::path(dir) / e.path().filename());
+    const std::string path = dir + "/remote.yaml";
+    std::ofstream(path) << yaml;
+    ground_.reset();
+    ASSERT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
+    test::RemoteProcess::Options o = remote_options_;
+    o.config = path;
+    ASSERT_NO_FATAL_FAILURE(start_remote(o));
+    ASSERT_NO_FATAL_FAILURE(connect_ground());
+  }
+
   /// The daemon's simulated faults from a folder (`--sim-faults`): a file
   /// there switches its fault on (sim_faults.hpp). Call before SetUp().
   void use_sim_faults() {

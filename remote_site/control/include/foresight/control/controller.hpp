@@ -79,8 +79,8 @@ struct ControllerConfig {
   /// The rate limiter (rate_limiter.hpp) on every command of a stiff motion
   /// or hold (trajectories, GOTOs, the stiff hold; not inside the force loop
   /// of compliant modes): acceleration at most this multiple of the URDF
-  /// (planning) limit (a planned trajectory's C1 interpolant reaches 1.35x
-  /// between samples and passes untouched), jerk at most
+  /// (planning) limit (validate() bounds a trajectory's executed
+  /// acceleration at 1x: a validated one passes untouched), jerk at most
   /// rate_limit_jerk_per_s x the URDF acceleration limit (1000/s: the
   /// acceleration may change by 2x its planning limit in a 2 ms cycle),
   /// velocity at most the velocity limit.
