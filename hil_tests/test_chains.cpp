@@ -311,7 +311,6 @@ TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
       << rc.reason;
   EXPECT_TRUE(ground_->wait_final(a, 30s).succeeded());
   EXPECT_TRUE(ground_->wait_final(b, 30s).succeeded());
-  std::filesystem::remove_all(dir);
 }
 
 // Upload and run in one go (item 2): a RUN that arrives before any chunk of

@@ -367,8 +367,13 @@ class Validator {
     }
   }
 
+  /// Rows around a segment whose flags it shares: the spline spreads a
+  /// sample's error over its neighbours, decaying by 2 - sqrt(3) = 0.27 a
+  /// sample (to 3e-5 in 8); beyond, a violation has a cause of its own.
+  static constexpr int kSpread = 8;
+
   bool near_flagged(int i, int j) const {
-    for (int r = std::max(0, i - 1); r <= std::min(n_ - 1, i + 2); ++r)
+    for (int r = std::max(0, i - kSpread); r <= std::min(n_ - 1, i + 1 + kSpread); ++r)
       if (flagged_[static_cast<std::size_t>(r) * static_cast<std::size_t>(dof_) + static_cast<std::size_t>(j)]) return true;
     return false;
   }
@@ -379,8 +384,8 @@ class Validator {
   /// segment: its extremes are at the samples, where it jumps from and to 0
   /// at the first and the last). Only when every row is finite and time
   /// increases (else the trajectory is refused already and there is no
-  /// interpolant). A joint a sample rule flagged near the segment is not
-  /// reported twice.
+  /// interpolant). A joint a sample rule flagged near the segment (kSpread
+  /// rows) is not reported twice: the trajectory is refused already.
   void interpolant() {
     for (int i = 0; i < n_; ++i)
       if (!row_ok_[i] || (i > 0 && !interval_ok(i))) return;

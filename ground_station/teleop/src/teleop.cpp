@@ -162,6 +162,11 @@ Trajectory play(const RobotModel& model, const Eigen::VectorXd& q0, const std::v
     while (k + 1 < input.size() && input[k + 1].t_s <= t + 1e-12) ++k;
     m.step(input[k].axes, dt);
   }
+  // The hand lets go at the end: the model brakes at its own (positive)
+  // accelerations until its twist is zero, so the motion ends at rest (the
+  // remote runs a trajectory from rest to rest; validate() refuses one that
+  // stops dead, docs/control.md).
+  while (!m.at_rest()) m.step(Axes{}, dt);
   return m.recorded();
 }
 

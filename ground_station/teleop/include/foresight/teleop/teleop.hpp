@@ -68,6 +68,8 @@ class TeleopModel {
   /// (ramped within the accelerations) through the DLS inverse Jacobian.
   void step(const Axes& axes, double dt_s);
   const Eigen::VectorXd& q() const noexcept { return q_; }
+  /// The commanded twist is zero (the arm stands still).
+  bool at_rest() const noexcept { return twist_.isZero(0.0); }
   Pose base_T_tip();
 
   /// Recording: every step's joints from now (t = 0 at start), until stop.
@@ -90,7 +92,9 @@ class TeleopModel {
 };
 
 /// Plays recorded hand input from q0 at `rate_hz` (the input held between its
-/// samples) and returns the whole motion as a trajectory.
+/// samples), then lets go of the hand (the twist brakes to zero at the
+/// model's accelerations), and returns the whole motion, from rest to rest,
+/// as a trajectory.
 Trajectory play(const RobotModel& model, const Eigen::VectorXd& q0, const std::vector<HandSample>& input,
                 const TeleopOptions& options, double rate_hz = 100.0);
 
