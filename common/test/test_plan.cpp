@@ -224,6 +224,7 @@ TEST(Plan, EveryPlannedMoveIsExecutedWithinTheAccelerationLimit) {
       ++plans;
     }
   }
+  std::printf("%d plans: executed acceleration up to %.4f of the planned fraction of the limit\n", plans, worst);
   EXPECT_EQ(plans, 348);
   EXPECT_LE(worst, 1.0);
   EXPECT_GT(worst, 0.99) << "some moves are timed by the acceleration";
@@ -275,4 +276,6 @@ TEST(Plan, TheExecutedStraightLineStaysOnTheLine) {
   }
   EXPECT_GT(i1 - i0, 700);
   EXPECT_LT(worst, 1e-5);
+  std::printf("the executed line: %.3g um off at most, acceleration %.3f of the limit\n", worst * 1e6,
+              executed_acceleration_fraction(s.robot, t, 1.0));
 }
