@@ -148,6 +148,7 @@ class DaemonTest : public ::testing::Test {
       EXPECT_EQ(rc, 0) << remote_->log();
     }
     if (!faults_.empty()) std::filesystem::remove_all(faults_);
+    if (!config_dir_.empty()) std::filesystem::remove_all(config_dir_);
   }
 
   /// Starts (or restarts) the daemon with `options` on this test's domain and
@@ -176,6 +177,30 @@ class DaemonTest : public ::testing::Test {
                            std::chrono::seconds(30)))
         << "the remote never heard the ground's heartbeat\n"
         << remote_->log();
+  }
+
+  /// Restarts the daemon on the shipped configuration with `key` (text in
+  /// config/remote.yaml) replaced by `replacement`, in a folder of its own
+  /// beside the other shipped files (the URDF, the scene, the drive files:
+  /// read from the configuration's folder); a new ground link to it.
+  void restart_remote_with(const std::string& key, const std::string& replacement) {
+    std::string yaml = test::read_file(FORESIGHT_CONFIG_DIR "/remote.yaml");
+    const auto at = yaml.find(key);
+    ASSERT_NE(at, std::string::npos) << "config/remote.yaml has no '" << key << "'";
+    yaml.replace(at, key.size(), replacement);
+    config_dir_ = test::temp_path(".config");  // removed at the end of the test
+    std::filesystem::create_directories(config_dir_);
+    for (const auto& e : std::filesystem::directory_iterator(FORESIGHT_CONFIG_DIR))
+      if (e.path().filename() != "remote.yaml")
+        std::filesystem::create_symlink(e.path(), std::filesystem::path(config_dir_) / e.path().filename());
+    const std::string path = config_dir_ + "/remote.yaml";
+    std::ofstream(path) << yaml;
+    ground_.reset();
+    ASSERT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
+    test::RemoteProcess::Options o = remote_options_;
+    o.config = path;
+    ASSERT_NO_FATAL_FAILURE(start_remote(o));
+    ASSERT_NO_FATAL_FAILURE(connect_ground());
   }
 
   /// The daemon's simulated faults from a folder (`--sim-faults`): a file
@@ -267,6 +292,7 @@ class DaemonTest : public ::testing::Test {
   RobotModel model_ = RobotModel::from_file(FORESIGHT_CONFIG_DIR "/robot.urdf");
   test::RemoteProcess::Options remote_options_;
   ground_link::Config ground_config_;
+  std::string config_dir_;  ///< restart_remote_with()'s configuration folder
   int domain_ = 0;
   std::string faults_;  ///< the --sim-faults folder ("" = none)
   std::unique_ptr<test::RemoteProcess> remote_;

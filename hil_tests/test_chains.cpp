@@ -298,25 +298,7 @@ TEST_F(Chains, BadPredecessorsAreRefusedWithTheirReason) {
 // is refused naming the key and the bound.
 TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
   // The shipped configuration with the bound at 2.
-  std::string yaml = test::read_file(FORESIGHT_CONFIG_DIR "/remote.yaml");
-  const std::string key = "max_chain_length: 32";
-  const auto at = yaml.find(key);
-  ASSERT_NE(at, std::string::npos) << "config/remote.yaml has no '" << key << "'";
-  yaml.replace(at, key.size(), "max_chain_length: 2");
-  // In a folder of its own beside the other shipped files (the URDF, the
-  // scene, the drive files: read from the configuration's folder).
-  const std::string dir = test::temp_path(".config");
-  std::filesystem::create_directories(dir);
-  for (const auto& e : std::filesystem::directory_iterator(FORESIGHT_CONFIG_DIR))
-    if (e.path().filename() != "remote.yaml") std::filesystem::create_symlink(e.path(), std::filesystem::path(dir) / e.path().filename());
-  const std::string path = dir + "/remote.yaml";
-  std::ofstream(path) << yaml;
-  ground_.reset();
-  ASSERT_EQ(remote_->stop(SIGTERM), 0) << remote_->log();
-  test::RemoteProcess::Options o = remote_options_;
-  o.config = path;
-  ASSERT_NO_FATAL_FAILURE(start_remote(o));
-  ASSERT_NO_FATAL_FAILURE(connect_ground());
+  ASSERT_NO_FATAL_FAILURE(restart_remote_with("max_chain_length: 32", "max_chain_length: 2"));
   take_and_recover();
 
   const Eigen::VectorXd q0 = current_q();
@@ -329,7 +311,6 @@ TEST_F(Chains, AChainLongerThanTheConfiguredBoundIsRefused) {
       << rc.reason;
   EXPECT_TRUE(ground_->wait_final(a, 30s).succeeded());
   EXPECT_TRUE(ground_->wait_final(b, 30s).succeeded());
-  std::filesystem::remove_all(dir);
 }
 
 // Upload and run in one go (item 2): a RUN that arrives before any chunk of

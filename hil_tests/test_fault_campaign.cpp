@@ -370,15 +370,26 @@ TEST_F(FaultCampaign, AnFtOverloadDuringAnInsertionFailsItWithForceLimitAndTheAr
 // 120x joint 1's acceleration limit (it starts moving at its first sample):
 // the remote's rate limiter (issue 25 item 3) smooths it, the motion still
 // ends where the trajectory ends, and the journal and the status say so.
+// A trajectory that passes validate() is inside the rate limiter's limits
+// at the shipped configuration (validate bounds the executed acceleration at
+// 1x the URDF limit, the limiter acts above 1.5x). With the jerk limit at
+// 50/s x the URDF acceleration limit (100 rad/s^3 on joint 1, 0.2 rad/s^2 a
+// cycle), a move that leaves rest with a step of acceleration
+// (0.3 (6x^2 - 8x^3 + 3x^4) rad over 2 s: 0.9 rad/s^2 at once) and comes to
+// rest smoothly (no acceleration left at its end) is limited where it leaves
+// rest: the limiter acts, the journal and the status say so, and the arm
+// ends on the trajectory's end.
 TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) {
+  ASSERT_NO_FATAL_FAILURE(restart_remote_with("jerk_per_s: 1000", "jerk_per_s: 50"));
   take_and_recover();
   const Eigen::VectorXd q0 = current_q();
   Trajectory traj;
-  traj.positions_rad.resize(101, 7);
-  for (int i = 0; i <= 100; ++i) {
+  traj.positions_rad.resize(201, 7);
+  for (int i = 0; i <= 200; ++i) {
+    const double x = i / 200.0;
     traj.time_s.push_back(0.01 * i);
     traj.positions_rad.row(i) = q0.transpose();
-    traj.positions_rad(i, 0) += 0.004 * i;  // 0.4 rad/s from the first sample, 0.4 rad in all
+    traj.positions_rad(i, 0) += 0.3 * x * x * (6 - 8 * x + 3 * x * x);
   }
   ASSERT_TRUE(validate(traj, TrajectoryLimits::from_model(model_)).empty());
   const auto up = ground_->upload(traj, 30s);
@@ -389,10 +400,10 @@ TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) 
   const auto r = run(CommandKind::Trajectory, go, traj.duration_s());
   ASSERT_TRUE(r.succeeded()) << protocol::to_string(r.code) << ": " << r.reason << "\n" << remote_->log();
   // At rest on the trajectory's end (the limiter catches up after its lag).
-  ASSERT_TRUE(eventually([&] { return std::abs(current_q()(0) - (q0(0) + 0.4)) < 1e-4; }, 5s))
+  ASSERT_TRUE(eventually([&] { return std::abs(current_q()(0) - (q0(0) + 0.3)) < 1e-4; }, 5s))
       << current_q()(0) - q0(0);
   // The journal: a row when it began limiting joint 1 of the command, one
-  // when it let go; twice: where the interpolant leaves rest and comes to rest.
+  // when it let go.
   std::vector<std::string> texts;
   ASSERT_TRUE(eventually(
       [&] {
@@ -400,14 +411,13 @@ TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) 
         const nlohmann::json journal = journal_json();  // kept alive while its events are read
         for (const auto& e : journal["events"])
           if (e["kind"] == "rate_limit") texts.push_back(e["text"].get<std::string>());
-        return texts.size() >= 4;
+        return texts.size() >= 2;
       },
       5s))
       << nlohmann::json(texts).dump();
   EXPECT_EQ(texts[0], "the rate limiter limits joint(s) 1 of command " + std::to_string(r.command_id));
   EXPECT_EQ(texts[1].rfind("the rate limiter let go of joint(s) 1 after ", 0), 0u) << texts[1];
-  EXPECT_EQ(texts[2], texts[0]);
-  EXPECT_EQ(texts.size(), 4u) << nlohmann::json(texts).dump();
+  EXPECT_EQ(texts.size(), 2u) << nlohmann::json(texts).dump();
   // The operator's status: how often, which joints, which command. The status
   // goes out at 2 Hz: the one after the let-go first (a status sent just before
   // it still says "limiting", seen once in a loaded CI run); every later one does too.
@@ -424,7 +434,9 @@ TEST_F(FaultCampaign, AHarshTrajectoryIsRateLimitedAndTheJournalAndStatusSaySo) 
   EXPECT_FALSE(sj["limiting"].get<bool>());
   EXPECT_EQ(sj["last_joints"], nlohmann::json::array({1}));
   EXPECT_EQ(sj["last_command_id"], r.command_id);
-  EXPECT_GT(sj["last_max_lag_rad"].get<double>(), 1e-4);
+  EXPECT_GT(sj["last_max_lag_rad"].get<double>(), 1e-6);  // a0 T^2 / 6 over the 9 ms ramp: about 1e-5 rad
+  std::printf("rate limiter: %s cycles, lag up to %g rad\n", sj["cycles"].dump().c_str(),
+              sj["last_max_lag_rad"].get<double>());
   const auto text = test::run_foresight("status --samples 2 --domain " + std::to_string(domain_));
   EXPECT_NE(text.out.find("rate limiter: idle; "), std::string::npos) << text.out;
 }

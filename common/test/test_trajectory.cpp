@@ -144,34 +144,48 @@ TEST(Trajectory, AccelerationLimitAtMiddleRow) {
     t.positions_rad(i, 1) = 0.0;
   }
   const auto v = validate(t, two_joint_limits());
-  ASSERT_EQ(v.size(), 1u);
-  EXPECT_EQ(v[0].rule, Rule::AccelerationLimit);
-  EXPECT_EQ(v[0].row, 101);
-  EXPECT_EQ(v[0].joint, 1);
-  EXPECT_NEAR(v[0].value, -100.0, 1e-9);
-  // What the remote would execute from rest into the first 10 ms segment: the
-  // interpolant's acceleration there (not yet a rule: docs/control.md).
-  const hermite::Extremes first = hermite::extremes(0.0, 0.005, 0.0, 0.5, 0.01);
-  EXPECT_NEAR(first.a_abs, 200.0, 1e-6);
+  std::vector<Violation> samples;  // the sample rules' ("row R, ..."; the executed motion's say "between rows")
+  for (const auto& x : v)
+    if (x.message.rfind("row ", 0) == 0) samples.push_back(x);
+  ASSERT_EQ(samples.size(), 1u);
+  EXPECT_EQ(samples[0].rule, Rule::AccelerationLimit);
+  EXPECT_EQ(samples[0].row, 101);
+  EXPECT_EQ(samples[0].joint, 1);
+  EXPECT_NEAR(samples[0].value, -100.0, 1e-9);
+  EXPECT_EQ(samples[0].message, "row 101, joint q1: acceleration -100 rad/s^2 exceeds limit 4 rad/s^2");
+  // The ramp also starts and ends moving: what the remote would execute
+  // breaks the acceleration limit there too (TheExecutedAccelerationIsBoundedFromRestToRest).
+  for (const auto& x : v) EXPECT_EQ(x.rule, Rule::AccelerationLimit) << x.message;
 }
 
 // Issue 25: samples that pass every sample rule (velocity 1 rad/s at the
 // limit, acceleration 1 rad/s^2) whose interpolant, the motion the remote
-// executes, reaches 1.39x the velocity limit between them: refused with the
+// executes, reaches 1.35x the velocity limit between them and stops from
+// 1.125x the acceleration limit: refused with the
 // rows, the joint and the limit.
 TEST(Trajectory, TheExecutedInterpolantIsBoundedNotOnlyTheSamples) {
   Trajectory t;
   t.time_s = {0.0, 1.0, 2.0};
   t.positions_rad = Eigen::MatrixXd::Zero(3, 2);
   t.positions_rad(2, 0) = 1.0;
+  // The clamped spline: m = (0, 3/4, 0) rad/s (m0 + 4 m1 + m2 = 3 (q2 - q0) / h);
+  // on the second segment P(s) = -1.25 s^3 + 1.5 s^2 + 0.75 s, its velocity
+  // peaks at s = 0.4 at 1.35 rad/s, its acceleration ends at -4.5 rad/s^2 (to rest).
   const auto v = validate(t, two_joint_limits());
-  ASSERT_EQ(v.size(), 1u);
+  ASSERT_EQ(v.size(), 2u);
   EXPECT_EQ(v[0].rule, Rule::VelocityLimit);
   EXPECT_EQ(v[0].row, 3);
   EXPECT_EQ(v[0].joint, 1);
-  EXPECT_NEAR(v[0].value, 0.5 + 4.0 / 4.5, 1e-12);  // the tangent 0.5 plus the cubic's bulge
+  EXPECT_NEAR(v[0].value, 1.35, 1e-12);
   EXPECT_EQ(v[0].message,
-            "between rows 2 and 3, joint q1: the executed velocity reaches 1.38889 rad/s, over the limit 1 rad/s");
+            "between rows 2 and 3, joint q1: the executed velocity reaches 1.35 rad/s, over the limit 1 rad/s");
+  EXPECT_EQ(v[1].rule, Rule::AccelerationLimit);
+  EXPECT_EQ(v[1].row, 3);
+  EXPECT_EQ(v[1].joint, 1);
+  EXPECT_NEAR(v[1].value, 4.5, 1e-12);
+  EXPECT_DOUBLE_EQ(v[1].limit, 4.0);
+  EXPECT_EQ(v[1].message,
+            "between rows 2 and 3, joint q1: the executed acceleration reaches 4.5 rad/s^2, over the limit 4 rad/s^2");
   // Limits with room for the executed motion: it passes.
   TrajectoryLimits roomy = two_joint_limits();
   for (auto& j : roomy.joint_limits) {
@@ -202,6 +216,106 @@ TEST(Trajectory, HermiteExtremesBoundTheDenselySampledSegment) {
     EXPECT_NEAR(e.v_abs, vmax, 1e-6 * std::max(1.0, vmax));
     EXPECT_NEAR(e.a_abs, amax, 1e-3 * std::max(1.0, amax));
   }
+}
+
+// The interpolant is the clamped cubic spline: at every sample of uneven
+// spacing, position, velocity and acceleration from the left equal those
+// from the right; the first and last velocities are exactly zero.
+TEST(Trajectory, TheInterpolantIsC2AndAtRestAtBothEnds) {
+  std::vector<double> t{0.0}, q{0.3};
+  for (int i = 1; i < 60; ++i) {
+    t.push_back(t.back() + 0.005 + 0.01 * ((i * 7) % 5));  // 5 to 45 ms
+    q.push_back(0.3 + 0.2 * std::sin(0.9 * t.back()) + 0.001 * ((i * 3) % 4));
+  }
+  const std::size_t n = t.size();
+  const std::vector<double> m = hermite::spline_velocities(t.data(), q.data(), n);
+  ASSERT_EQ(m.size(), n);
+  EXPECT_EQ(m.front(), 0.0);
+  EXPECT_EQ(m.back(), 0.0);
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    const double h0 = t[i] - t[i - 1], h1 = t[i + 1] - t[i];
+    double q_left = 0, v_left = 0, q_right = 0, v_right = 0;
+    hermite::evaluate(q[i - 1], q[i], m[i - 1], m[i], h0, 1.0, q_left, v_left);
+    hermite::evaluate(q[i], q[i + 1], m[i], m[i + 1], h1, 0.0, q_right, v_right);
+    EXPECT_NEAR(q_left, q[i], 1e-12);
+    EXPECT_NEAR(q_right, q[i], 1e-12);
+    EXPECT_NEAR(v_left, v_right, 1e-12);
+    const double a_left = hermite::acceleration(q[i - 1], q[i], m[i - 1], m[i], h0, 1.0);
+    const double a_right = hermite::acceleration(q[i], q[i + 1], m[i], m[i + 1], h1, 0.0);
+    EXPECT_NEAR(a_left, a_right, 1e-9 * std::max(1.0, std::abs(a_left))) << "sample " << i;
+  }
+}
+
+// Known answers. A cubic at rest at both ends, the smoothstep
+// p(t) = D (3 x^2 - 2 x^3), x = t / T, meets every condition of the clamped
+// spline, so the spline through its samples (any spacing) is p itself:
+// velocity p'(t_i) and acceleration 6 D (1 - 2 x) / T^2 at every sample.
+// A steady ramp at v from rest: the velocities are v (1 - r^i),
+// r = sqrt(3) - 2 (r^2 + 4 r + 1 = 0), so the arm leaves rest at
+// (6 v - 2 m_1) / h = 2 sqrt(3) v / h.
+TEST(Trajectory, TheInterpolantReproducesKnownAnswers) {
+  const double D = 0.4, T = 1.7;
+  std::vector<double> t{0.0}, q{0.0};
+  for (int i = 1; t.back() < T; ++i) t.push_back(std::min(T, t.back() + 0.01 + 0.02 * (i % 3)));
+  for (std::size_t i = 1; i < t.size(); ++i) {
+    const double x = t[i] / T;
+    q.push_back(D * x * x * (3 - 2 * x));
+  }
+  const std::vector<double> m = hermite::spline_velocities(t.data(), q.data(), t.size());
+  for (std::size_t i = 0; i + 1 < t.size(); ++i) {
+    const double x = t[i] / T;
+    EXPECT_NEAR(m[i], 6 * D * x * (1 - x) / T, 1e-12) << "sample " << i;
+    EXPECT_NEAR(hermite::acceleration(q[i], q[i + 1], m[i], m[i + 1], t[i + 1] - t[i], 0.0), 6 * D * (1 - 2 * x) / (T * T),
+                1e-9)
+        << "sample " << i;
+  }
+
+  const double v = 0.5, h = 0.01, r = std::sqrt(3.0) - 2.0;
+  std::vector<double> tr, qr;
+  for (int i = 0; i <= 100; ++i) {
+    tr.push_back(h * i);
+    qr.push_back(v * h * i);
+  }
+  const std::vector<double> mr = hermite::spline_velocities(tr.data(), qr.data(), tr.size());
+  for (int i = 0; i <= 10; ++i) EXPECT_NEAR(mr[static_cast<std::size_t>(i)], v * (1 - std::pow(r, i)), 1e-12) << i;
+  EXPECT_NEAR(hermite::acceleration(qr[0], qr[1], mr[0], mr[1], h, 0.0), 2 * std::sqrt(3.0) * v / h, 1e-9);
+}
+
+// Issue 25: a ramp whose samples pass every sample rule (0.5 rad/s, no
+// acceleration between samples) but which starts and ends moving: the arm
+// would leave rest at 2 sqrt(3) v / h = 173 rad/s^2 and stop as hard. The
+// executed acceleration at sample i is 173 r^i (r = sqrt(3) - 2): over the
+// 4 rad/s^2 limit on the first three segments and the last three.
+TEST(Trajectory, TheExecutedAccelerationIsBoundedFromRestToRest) {
+  Trajectory t;
+  t.positions_rad = Eigen::MatrixXd::Zero(101, 2);
+  for (int i = 0; i <= 100; ++i) {
+    t.time_s.push_back(0.01 * i);
+    t.positions_rad(i, 0) = 0.005 * i;
+  }
+  const auto v = validate(t, two_joint_limits());
+  ASSERT_EQ(v.size(), 6u);
+  const double a0 = 2 * std::sqrt(3.0) * 0.5 / 0.01;
+  const std::vector<int> rows{2, 3, 4, 99, 100, 101};
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    EXPECT_EQ(v[k].rule, Rule::AccelerationLimit);
+    EXPECT_EQ(v[k].row, rows[k]);
+    EXPECT_EQ(v[k].joint, 1);
+    EXPECT_DOUBLE_EQ(v[k].limit, 4.0);
+  }
+  EXPECT_NEAR(v[0].value, a0, 1e-9);
+  EXPECT_NEAR(v[1].value, a0 * (2 - std::sqrt(3.0)), 1e-9);
+  EXPECT_NEAR(v[5].value, a0, 1e-9);
+  EXPECT_EQ(v[0].message,
+            "between rows 1 and 2, joint q1: the executed acceleration reaches 173.205 rad/s^2, over the limit 4 rad/s^2");
+  EXPECT_EQ(v[5].message, "between rows 100 and 101, joint q1: the executed acceleration reaches 173.205 rad/s^2, "
+                          "over the limit 4 rad/s^2");
+  // The same 0.5 rad distance as a smoothstep over 1 s (6 D / T^2 = 3 rad/s^2 at the ends): it passes.
+  for (int i = 0; i <= 100; ++i) {
+    const double x = 0.01 * i;
+    t.positions_rad(i, 0) = 0.5 * x * x * (3 - 2 * x);
+  }
+  EXPECT_TRUE(validate(t, two_joint_limits()).empty());
 }
 
 TEST(Trajectory, TimeMustIncrease) {

@@ -514,6 +514,37 @@ TEST(ProtocolUpload, VerifyReportsHashMismatchAndViolations) {
   EXPECT_NE(w.reason.find(w.violations[0].message), std::string::npos);
 }
 
+// Issue 25: the remote's check on arrival is the ground's validate(): a ramp
+// whose samples pass but which leaves rest at 2 sqrt(3) v / h = 173 rad/s^2
+// (limit 2) is refused with the row, joint and limit, in the words
+// `foresight validate` prints for it (ValidateCli.RefusesWhatTheRemoteWouldExecuteOverTheAccelerationLimit).
+TEST(ProtocolUpload, TheRemoteRefusesTheExecutedAccelerationWithTheGroundsMessage) {
+  Trajectory t;
+  t.positions_rad = Eigen::MatrixXd::Zero(101, 2);
+  for (int i = 0; i <= 100; ++i) {
+    t.time_s.push_back(0.01 * i);
+    t.positions_rad(i, 0) = 0.005 * i;  // 0.5 rad/s from the first sample to the last
+  }
+  fp::TrajectoryAssembler assembler;
+  for (auto& c : fp::make_chunks(t, 12, 1, foresight::trajectory_hash(t), 20)) assembler.add(*c);
+  const auto a = assembler.take(12);
+  ASSERT_TRUE(a.has_value());
+  foresight::TrajectoryLimits limits;
+  limits.joints = 2;
+  limits.joint_limits.assign(2, foresight::JointLimits{-1.0, 1.0, 0.9, 2.0, 100.0});
+  const fp::UploadVerdict v = fp::verify(*a, limits);
+  EXPECT_EQ(v.code, foresight_msg_REASON_VALIDATION_FAILED);
+  ASSERT_EQ(v.violations.size(), 8u);  // the first four segments and the last four
+  EXPECT_EQ(v.violations[0].rule, foresight::Violation::Rule::AccelerationLimit);
+  EXPECT_EQ(v.violations[0].row, 2);
+  EXPECT_EQ(v.violations[0].joint, 1);
+  EXPECT_DOUBLE_EQ(v.violations[0].limit, 2.0);
+  const std::string message =
+      "between rows 1 and 2, joint q1: the executed acceleration reaches 173.205 rad/s^2, over the limit 2 rad/s^2";
+  EXPECT_EQ(v.violations[0].message, message);
+  EXPECT_EQ(v.reason.rfind("trajectory 12: 8 violation(s): " + message + "; ", 0), 0u) << v.reason;
+}
+
 // ---------------------------------------------------------------- RAII layer
 
 class ProtocolDds : public ::testing::Test {

@@ -105,3 +105,32 @@ TEST(ValidateCli, MalformedFileNamesTheLineAndExitsTwo) {
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.err.find("/nonexistent/traj.csv: cannot open trajectory file"), std::string::npos) << missing.err;
 }
+
+// Issue 25: a ramp whose samples pass every sample rule (0.5 rad/s on joint 1,
+// no acceleration between samples) but which starts and ends moving: the arm
+// would leave rest at 2 sqrt(3) v / h = 173 rad/s^2 (joint 1's limit is
+// 2 rad/s^2). Refused with the row, joint and limit, the message the remote
+// sends back for the same file (ProtocolUpload.TheRemoteRefusesTheExecutedAccelerationWithTheGroundsMessage).
+TEST(ValidateCli, RefusesWhatTheRemoteWouldExecuteOverTheAccelerationLimit) {
+  Trajectory t = smooth_move();
+  for (int i = 0; i < t.samples(); ++i) t.positions_rad(i, 0) = i <= 100 ? 0.005 * i : 0.5;
+  const std::string path = csv_of(t);
+  const auto r = run_foresight("validate " + path + " --json");
+  EXPECT_EQ(r.status, 1) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j["ok"].get<bool>());
+  ASSERT_FALSE(j["violations"].empty()) << r.out;
+  const auto& first = j["violations"][0];
+  EXPECT_EQ(first["rule"].get<std::string>(), to_string(Violation::Rule::AccelerationLimit));
+  EXPECT_EQ(first["row"].get<int>(), 2);
+  EXPECT_EQ(first["joint"].get<int>(), 1);
+  EXPECT_NEAR(first["value"].get<double>(), 2 * std::sqrt(3.0) * 50.0, 1e-9);
+  EXPECT_DOUBLE_EQ(first["limit"].get<double>(), 2.0);
+  const std::string message =
+      "between rows 1 and 2, joint q1: the executed acceleration reaches 173.205 rad/s^2, over the limit 2 rad/s^2";
+  EXPECT_EQ(first["message"].get<std::string>(), message);
+  for (const auto& v : j["violations"]) EXPECT_EQ(v["rule"].get<std::string>(), "acceleration_limit") << v.dump();
+  const auto text = run_foresight("validate " + path);
+  EXPECT_EQ(text.status, 1);
+  EXPECT_NE(text.out.find(message), std::string::npos) << text.out << text.err;
+}

@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -90,14 +91,18 @@ foresight::TrajectoryLimits robot_limits() {
       foresight::RobotModel::from_file(std::string(FORESIGHT_CONFIG_DIR) + "/robot.urdf"));
 }
 
-/// 1,800 samples x 7 joints at 100 Hz, a slow sine well inside the URDF limits.
+/// 1,800 samples x 7 joints at 100 Hz, a slow swing (one cosine period from
+/// rest to rest, back where it started) well inside the URDF limits, the
+/// executed acceleration included (at most 0.8 rad/s^2, at 100 samples).
 foresight::Trajectory slow_sine(int samples = 1800) {
   foresight::Trajectory t;
   t.positions_rad.resize(samples, 7);
+  const double T = 0.01 * (samples - 1), amplitude = std::min(0.1, 0.02 * T * T);
   for (int i = 0; i < samples; ++i) {
     const double time = 0.01 * i;
     t.time_s.push_back(time);
-    for (int j = 0; j < 7; ++j) t.positions_rad(i, j) = 0.2 * std::sin(0.3 * time + 0.1 * j);
+    for (int j = 0; j < 7; ++j)
+      t.positions_rad(i, j) = 0.2 * std::sin(0.1 * j) + amplitude * (1.0 - std::cos(2.0 * M_PI * time / T));
   }
   return t;
 }

@@ -68,7 +68,7 @@ std::vector<HandSample> read_hand_input_csv(const std::string& path) {
 }
 
 TeleopModel::TeleopModel(const RobotModel& model, const Eigen::VectorXd& q0, TeleopOptions options)
-    : model_(model), o_(options), ws_(model), q_(q0) {
+    : model_(model), o_(options), ws_(model), q_(q0), qdot_(Eigen::VectorXd::Zero(q0.size())) {
   if (q0.size() != model.dof())
     throw std::invalid_argument("teleop: q0 has " + std::to_string(q0.size()) + " values but the arm has " +
                                 std::to_string(model.dof()) + " joints");
@@ -78,6 +78,8 @@ TeleopModel::TeleopModel(const RobotModel& model, const Eigen::VectorXd& q0, Tel
     throw std::invalid_argument("teleop: accelerations must be > 0");
   if (!(o_.velocity_fraction > 0 && o_.velocity_fraction <= 1))
     throw std::invalid_argument("teleop: velocity_fraction must be in (0, 1]");
+  if (!(o_.joint_accel_fraction > 0 && o_.joint_accel_fraction <= 1))
+    throw std::invalid_argument("teleop: joint_accel_fraction must be in (0, 1]");
 }
 
 Pose TeleopModel::base_T_tip() { return forward_kinematics(model_, ws_, q_); }
@@ -117,10 +119,24 @@ void TeleopModel::step(const Axes& axes, double dt_s) {
     const double max_step = o_.velocity_fraction * model_.limits()[i].velocity_rad_s * dt_s;
     if (std::abs(dq[i]) > max_step) scale = std::min(scale, max_step / std::abs(dq[i]));
   }
-  // ... and the position limits (a joint at its limit stops).
+  // ... within the joint accelerations (the change from the last step's
+  // velocity scaled together: the motion blends into the new one)...
+  double blend = 1.0;
+  for (int i = 0; i < model_.dof(); ++i) {
+    const double change = std::abs(scale * dq[i] / dt_s - qdot_[i]);
+    const double max_change = o_.joint_accel_fraction * model_.limits()[i].acceleration_rad_s2 * dt_s;
+    if (change > max_change) blend = std::min(blend, max_change / change);
+  }
+  // ... and the position limits (a joint at its limit stops). The step is
+  // the mean of the two velocities, so the recorded samples lie on the curve
+  // of that velocity profile (from rest: a t^2 / 2, not a t (t + dt) / 2), the
+  // curve the remote's spline through them executes.
   for (int i = 0; i < model_.dof(); ++i) {
     const auto& l = model_.limits()[i];
-    q_[i] = std::clamp(q_[i] + scale * dq[i], l.lower_rad, l.upper_rad);
+    const double v = qdot_[i] + blend * (scale * dq[i] / dt_s - qdot_[i]);
+    const double q = q_[i] + 0.5 * (qdot_[i] + v) * dt_s;
+    q_[i] = std::clamp(q, l.lower_rad, l.upper_rad);
+    qdot_[i] = q_[i] == q ? v : 0.0;
   }
   if (recording_) {
     t_ += dt_s;
@@ -162,6 +178,11 @@ Trajectory play(const RobotModel& model, const Eigen::VectorXd& q0, const std::v
     while (k + 1 < input.size() && input[k + 1].t_s <= t + 1e-12) ++k;
     m.step(input[k].axes, dt);
   }
+  // The hand lets go at the end: the model brakes at its own (positive)
+  // accelerations until its twist is zero, so the motion ends at rest (the
+  // remote runs a trajectory from rest to rest; validate() refuses one that
+  // stops dead, docs/control.md).
+  while (!m.at_rest()) m.step(Axes{}, dt);
   return m.recorded();
 }
 

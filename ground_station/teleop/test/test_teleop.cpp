@@ -80,8 +80,10 @@ TEST(Teleop, EachFrameMovesTheToolAsCommandedWithin1Deg) {
       // axis leaves that axis fixed, so the start frame's axis is the truth.
       const Eigen::Vector3d expected = R.col(axis - 3);
       EXPECT_LT(angle_deg(m.rotation, expected), 1.0) << to_string(frame) << " axis " << axis;
-      // 0.6 x 0.2 rad/s for 1 s after a 0.12 s ramp at 1 rad/s^2.
-      EXPECT_NEAR(m.rotation.norm(), 0.12 - 0.5 * 0.12 * 0.12, 0.003) << to_string(frame) << " axis " << axis;
+      // 0.6 x 0.2 rad/s for 1 s after a 0.12 s ramp at 1 rad/s^2, less where
+      // a joint's acceleration bound (half its limit) lengthens the ramp
+      // (tool axis 3: 0.1096 rad, 2.9% short).
+      EXPECT_NEAR(m.rotation.norm(), 0.12 - 0.5 * 0.12 * 0.12, 0.004) << to_string(frame) << " axis " << axis;
       EXPECT_LT(m.displacement.norm(), 1e-3) << "a rotation about the tip must not move it";
     }
   }
@@ -104,15 +106,21 @@ TEST(Teleop, DeadbandAndVelocityLimits) {
     EXPECT_LE(std::abs(dq[i]), 0.5 * model().limits()[i].velocity_rad_s * 0.01 + 1e-12) << i;
 }
 
-TEST(Teleop, PlayedInputIsAValidTrajectoryFromTheStart) {
+TEST(Teleop, PlayedInputIsAValidTrajectoryFromRestToRest) {
   const std::string path = ::testing::TempDir() + "/hand.csv";
   std::ofstream(path) << "t,x,y,z,rx,ry,rz\n0,0.5,0,0,0,0,0\n1,0,0,-0.5,0,0,0\n2,0,0,0,0,0,0.5\n3,0,0,0,0,0,0\n";
   const auto input = read_hand_input_csv(path);
   ASSERT_EQ(input.size(), 4u);
   const Trajectory t = play(model(), q_work(), input, {}, 100.0);
-  EXPECT_EQ(t.samples(), 301);
-  EXPECT_NEAR(t.duration_s(), 3.0, 1e-9);
+  // 3 s of input (its last sample only ends it), then the hand lets go: the
+  // last twist, 0.5 x 0.2 rad/s about z, brakes at 1 rad/s^2 in 0.1 s
+  // (10 steps, or 11 when the steps' rounding leaves a residue).
+  EXPECT_GE(t.samples(), 311);
+  EXPECT_LE(t.samples(), 312);
+  EXPECT_NEAR(t.duration_s(), 0.01 * (t.samples() - 1), 1e-9);
   EXPECT_EQ((t.positions_rad.row(0).transpose() - q_work()).norm(), 0.0);
+  // At rest at the end: the last step commands nothing.
+  EXPECT_EQ((t.positions_rad.row(t.samples() - 1) - t.positions_rad.row(t.samples() - 2)).norm(), 0.0);
   const auto violations = validate(t, TrajectoryLimits::from_model(model()));
   EXPECT_TRUE(violations.empty()) << violations.front().message;
 }

@@ -1,5 +1,5 @@
-// PreparedTrajectory: the C1 cubic Hermite interpolant of common/trajectory.hpp
-// (hermite::, the one validate() bounds), prepared for the loop.
+// PreparedTrajectory: the C2 interpolant of common/trajectory.hpp (hermite::,
+// the clamped cubic spline validate() bounds), prepared for the loop.
 #include "foresight/control/trajectory_executor.hpp"
 
 #include <cmath>
@@ -35,10 +35,11 @@ PreparedTrajectory::PreparedTrajectory(const Trajectory& trajectory, std::uint64
     if (i > 0 && !(time_s_[i] > time_s_[i - 1]))
       throw std::invalid_argument("trajectory: time not increasing at row " + std::to_string(i + 1));
   }
-  for (std::size_t i = 1; i + 1 < N; ++i) {
-    const double h0 = time_s_[i] - time_s_[i - 1];
-    const double h1 = time_s_[i + 1] - time_s_[i];
-    for (std::size_t j = 0; j < joints_; ++j) v_[i][j] = hermite::tangent(q_[i - 1][j], q_[i][j], q_[i + 1][j], h0, h1);
+  std::vector<double> column(N);
+  for (std::size_t j = 0; j < joints_; ++j) {
+    for (std::size_t i = 0; i < N; ++i) column[i] = q_[i][j];
+    const std::vector<double> m = hermite::spline_velocities(time_s_.data(), column.data(), N);
+    for (std::size_t i = 0; i < N; ++i) v_[i][j] = m[i];
   }
   start_ = q_.front();
   end_ = q_.back();

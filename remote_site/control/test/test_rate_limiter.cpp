@@ -1,12 +1,14 @@
 // The rate limiter (issue 25 item 3): what it leaves alone, what it limits,
-// and the controller's commands under a trajectory that passes validate()
-// yet asks its interpolant for 100x the acceleration limit.
+// and the controller's commands under a trajectory whose interpolant asks for
+// 100x the acceleration limit (validate() refuses it; run without it).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <vector>
 
 #include "control_fixture.hpp"
+#include "foresight/common/kinematics.hpp"
+#include "foresight/common/plan.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/control/rate_limiter.hpp"
 #include "foresight/control/trajectory_executor.hpp"
@@ -121,10 +123,12 @@ TEST(RateLimiter, ATargetFasterThanTheVelocityLimitIsLeftToTheSafetyCheck) {
   EXPECT_THROW(lim.configure(1, one_joint(0.9, 1.0, NAN), kDt), std::invalid_argument);
 }
 
-TEST(RateLimiter, TheControllerSmoothsATrajectoryThatPassesValidateAndSaysSo) {
+TEST(RateLimiter, TheControllerSmoothsATrajectoryThatValidateRefusesAndSaysSo) {
   // A ramp that starts moving at its first sample: every sample rule passes,
-  // but the interpolant leaves rest at 4 v / h = 240 rad/s^2 on joint 1
-  // (120x its 2 rad/s^2 limit) and stops as hard at the end.
+  // but the interpolant leaves rest at 2 sqrt(3) v / h = 208 rad/s^2 on
+  // joint 1 (100x its 2 rad/s^2 limit) and stops as hard at the end: validate
+  // refuses it (the first four segments and the last four). Run as it is,
+  // bypassing validate, the limiter is the last word.
   const JointArray q0 = home_q();
   Trajectory traj;
   const int n = 101;
@@ -133,7 +137,13 @@ TEST(RateLimiter, TheControllerSmoothsATrajectoryThatPassesValidateAndSaysSo) {
     traj.time_s.push_back(0.01 * i);
     for (int j = 0; j < 7; ++j) traj.positions_rad(i, j) = q0[static_cast<std::size_t>(j)] + (j == 0 ? 0.006 * i : 0.0);
   }
-  ASSERT_TRUE(validate(traj, TrajectoryLimits::from_model(robot())).empty());
+  const auto refused = validate(traj, TrajectoryLimits::from_model(robot()));
+  ASSERT_EQ(refused.size(), 8u);
+  EXPECT_EQ(refused[0].rule, Violation::Rule::AccelerationLimit);
+  EXPECT_EQ(refused[0].message,
+            "between rows 1 and 2, joint q1: the executed acceleration reaches 207.846 rad/s^2, over the limit 2 rad/s^2");
+  EXPECT_EQ(refused[7].message, "between rows 100 and 101, joint q1: the executed acceleration reaches 207.846 "
+                                "rad/s^2, over the limit 2 rad/s^2");
   const PreparedTrajectory prepared(traj);
 
   Bench b(q0);
@@ -167,6 +177,21 @@ TEST(RateLimiter, TheControllerSmoothsATrajectoryThatPassesValidateAndSaysSo) {
   EXPECT_NEAR(b.out.q_cmd[0], q0[0] + 0.6, 1e-9) << "it ends where the trajectory ends";
 }
 
+/// Runs a trajectory that starts at home_q() stiffly to its end; the cycles
+/// the rate limiter limited.
+std::uint64_t limited_cycles_running(const Trajectory& traj) {
+  const PreparedTrajectory prepared(traj);
+  Bench b(home_q());
+  b.enable();
+  MotionCommand c;
+  c.kind = MotionCommandKind::RunTrajectory;
+  c.trajectory = &prepared;
+  const auto id = b.send(c);
+  const MotionEvent e = b.run_until_final(id, static_cast<int>(traj.duration_s() / kDt) + 500);
+  EXPECT_EQ(e.kind, MotionEventKind::Completed) << e.text.data();
+  return b.out.telemetry.rate_limited_cycles;
+}
+
 TEST(RateLimiter, APlannedTrajectoryIsNotTouched) {
   // The smoothstep line the other controller tests run: inside every limit.
   JointArray to = home_q();
@@ -183,15 +208,39 @@ TEST(RateLimiter, APlannedTrajectoryIsNotTouched) {
       traj.positions_rad(i, j) = home_q()[u] + w * (to[u] - home_q()[u]);
     }
   }
-  const PreparedTrajectory prepared(traj);
-  Bench b(home_q());
-  b.enable();
-  MotionCommand c;
-  c.kind = MotionCommandKind::RunTrajectory;
-  c.trajectory = &prepared;
-  const auto id = b.send(c);
-  ASSERT_EQ(b.run_until_final(id, 2000).kind, MotionEventKind::Completed);
-  EXPECT_EQ(b.out.telemetry.rate_limited_cycles, 0u);
+  EXPECT_TRUE(validate(traj, TrajectoryLimits::from_model(robot())).empty());
+  EXPECT_EQ(limited_cycles_running(traj), 0u);
+}
+
+// The planner's moves at the full limits: a joint move timed by the
+// acceleration limit and a straight tool line (IK at every sample). Both pass
+// validate(), which bounds their executed acceleration at 1x the limit, and
+// the limiter (1.5x) never acts on them.
+TEST(RateLimiter, ThePlannersMovesAtTheFullLimitsAreNotTouched) {
+  Eigen::VectorXd q0(7);
+  for (int j = 0; j < 7; ++j) q0[j] = home_q()[static_cast<std::size_t>(j)];
+  PlanOptions o;
+  o.limit_fraction = 1.0;
+  Goal joint;
+  joint.name = "joint";
+  joint.is_pose = false;
+  joint.q = q0;
+  joint.q[0] += 0.2;
+  joint.q[3] -= 0.2;
+  KinematicsWorkspace ws(robot());
+  Goal line;
+  line.name = "line";
+  line.kind = SegmentKind::Linear;
+  line.base_T_tip = forward_kinematics(robot(), ws, q0);
+  line.base_T_tip.translation() += Eigen::Vector3d(0.05, 0.0, -0.05);
+  o.tool_speed_m_s = 0.2;
+  o.tool_accel_m_s2 = 1.0;
+  for (const Goal& g : {joint, line}) {
+    const Plan p = plan_motion(robot(), q0, {g}, o);
+    const auto v = validate(p.trajectory, TrajectoryLimits::from_model(robot()));
+    EXPECT_TRUE(v.empty()) << g.name << ": " << v.front().message;
+    EXPECT_EQ(limited_cycles_running(p.trajectory), 0u) << g.name;
+  }
 }
 
 TEST(RateLimiter, ACompliantHoldIsLimitedInsideItsForceLoopWithoutWindup) {

@@ -29,16 +29,21 @@ inline constexpr double kMaxStartToleranceRad = 0.02;
 
 /// The interpolant the remote runs between samples, one code for both sides
 /// (validate() bounds it; the control loop's PreparedTrajectory evaluates it):
-/// piecewise cubic Hermite, C1 (position and velocity continuous at every
-/// sample); the tangent at an interior sample is the weighted three-point
-/// derivative (exact for quadratics on non-uniform spacing), zero at the first
-/// and the last sample: the arm is at rest before and after. Real-time safe.
+/// the clamped cubic spline through the samples, C2 (position, velocity and
+/// acceleration continuous at every sample), with zero velocity at the first
+/// and the last sample: the arm is at rest before and after. Written as cubic
+/// Hermite segments whose tangents are the spline's velocities at the samples
+/// (spline_velocities, one tridiagonal solve when the trajectory is validated
+/// or prepared); evaluate() and acceleration() are real-time safe.
 namespace hermite {
-/// The tangent at an interior sample q between q_prev (h0 seconds before) and q_next (h1 after).
-inline double tangent(double q_prev, double q, double q_next, double h0, double h1) noexcept {
-  const double d0 = (q - q_prev) / h0, d1 = (q_next - q) / h1;
-  return (h0 * d1 + h1 * d0) / (h0 + h1);
-}
+/// The velocities at the samples (t strictly increasing, q, both n >= 2
+/// long) of the clamped cubic spline: m[0] = m[n-1] = 0 and, at every
+/// interior sample, the acceleration continuous:
+///   h_i m_{i-1} + 2 (h_{i-1} + h_i) m_i + h_{i-1} m_{i+1} = 3 (h_i d_{i-1} + h_{i-1} d_i),
+///   h_i = t_{i+1} - t_i, d_i = (q_{i+1} - q_i) / h_i.
+/// O(n) (Thomas algorithm; the system is strictly diagonally dominant).
+/// Allocates: never in the control cycle.
+std::vector<double> spline_velocities(const double* t, const double* q, std::size_t n);
 /// Position and velocity at s in [0, 1] of the segment of h seconds from
 /// (p0, tangent m0) to (p1, m1).
 inline void evaluate(double p0, double p1, double m0, double m1, double h, double s, double& q, double& dq) noexcept {
@@ -46,12 +51,16 @@ inline void evaluate(double p0, double p1, double m0, double m1, double h, doubl
   q = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * m1;
   dq = ((6 * s2 - 6 * s) * p0 + (-6 * s2 + 6 * s) * p1) / h + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1;
 }
+/// Acceleration at s in [0, 1] of the same segment (linear in s).
+inline double acceleration(double p0, double p1, double m0, double m1, double h, double s) noexcept {
+  return ((12 * s - 6) * (p0 - p1) / h + (6 * s - 4) * m0 + (6 * s - 2) * m1) / h;
+}
 /// The extremes of a segment over all of it (not only at samples): what the
 /// loop commands at any cycle rate stays within them.
 struct Extremes {
   double q_min = 0.0, q_max = 0.0;  ///< rad
   double v_abs = 0.0;               ///< max |velocity|, rad/s
-  double a_abs = 0.0;               ///< max |acceleration|, rad/s^2
+  double a_abs = 0.0;               ///< max |acceleration|, rad/s^2 (at an end: it is linear)
 };
 Extremes extremes(double p0, double p1, double m0, double m1, double h) noexcept;
 }  // namespace hermite
@@ -127,13 +136,15 @@ const char* to_string(Violation::Rule rule);
 /// the later row); accelerations are differences of consecutive velocities
 /// over the mean interval (reported at the middle row). Rate rules are
 /// skipped for rows whose times or values are non-finite or not increasing.
-/// Then what the remote will execute: the interpolant (hermite::, from rest
-/// before the first sample to rest after the last) between every two samples,
-/// its position and velocity extremes over the whole segment against the
-/// same limits ("between rows R and R+1, joint qJ: the executed velocity
-/// reaches ..."; reported at the later row, PositionLimit or VelocityLimit),
-/// for the joints and rows the sample rules left unflagged. (The executed
-/// acceleration is not bounded yet: docs/control.md.)
+/// Then what the remote will execute, when every row is finite and time
+/// increases: the interpolant (hermite::, the clamped spline, from rest before
+/// the first sample to rest after the last) between every two samples, its
+/// position, velocity and acceleration extremes over the whole segment against
+/// the same limits ("between rows R and R+1, joint qJ: the executed velocity
+/// reaches ..."; reported at the later row, PositionLimit, VelocityLimit or
+/// AccelerationLimit), for the joints and rows the sample rules left
+/// unflagged. The acceleration is bounded at the URDF (planning) limit, so
+/// the remote's rate limiter (1.5x) never acts on a validated trajectory.
 std::vector<Violation> validate(const Trajectory& trajectory, const TrajectoryLimits& limits,
                                 std::size_t* total = nullptr);
 

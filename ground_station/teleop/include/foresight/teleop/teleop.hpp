@@ -4,7 +4,7 @@
 // a tool-tip twist in the world (robot base), tool, or camera-view frame,
 // scaled by a position and an orientation gain; the twist goes through the
 // same damped-least-squares inverse Jacobian as the remote's compliance
-// (dls_step, common kinematics) to joint steps, kept within the joint position and velocity limits. The motion
+// (dls_step, common kinematics) to joint steps, kept within the joint position, velocity and acceleration limits. The motion
 // can be recorded as a trajectory (common/trajectory) for preview and sending.
 //
 // Input for tests and replays: a recorded CSV `t,x,y,z,rx,ry,rz` (s, then the
@@ -53,6 +53,10 @@ struct TeleopOptions {
   double linear_accel_m_s2 = 0.2;
   double angular_accel_rad_s2 = 1.0;
   double velocity_fraction = 0.5;         ///< of each joint's URDF velocity limit
+  /// Of each joint's URDF acceleration limit: the joint velocities change at
+  /// most this fast (the motion the remote executes, the spline through the
+  /// record, stays within the limit validate() checks).
+  double joint_accel_fraction = 0.5;
   double lambda_max = 0.05;               ///< DLS damping near singularities
 };
 
@@ -68,6 +72,8 @@ class TeleopModel {
   /// (ramped within the accelerations) through the DLS inverse Jacobian.
   void step(const Axes& axes, double dt_s);
   const Eigen::VectorXd& q() const noexcept { return q_; }
+  /// The commanded twist and the joints' velocity are zero.
+  bool at_rest() const noexcept { return twist_.isZero(0.0) && qdot_.isZero(0.0); }
   Pose base_T_tip();
 
   /// Recording: every step's joints from now (t = 0 at start), until stop.
@@ -82,6 +88,7 @@ class TeleopModel {
   TeleopOptions o_;
   KinematicsWorkspace ws_;
   Eigen::VectorXd q_;
+  Eigen::VectorXd qdot_;  ///< the last step's joint velocities
   Eigen::Matrix<double, 6, 1> twist_ = Eigen::Matrix<double, 6, 1>::Zero();  ///< last commanded, base frame
   bool recording_ = false;
   double t_ = 0.0;
@@ -90,7 +97,9 @@ class TeleopModel {
 };
 
 /// Plays recorded hand input from q0 at `rate_hz` (the input held between its
-/// samples) and returns the whole motion as a trajectory.
+/// samples), then lets go of the hand (the twist brakes to zero at the
+/// model's accelerations), and returns the whole motion, from rest to rest,
+/// as a trajectory.
 Trajectory play(const RobotModel& model, const Eigen::VectorXd& q0, const std::vector<HandSample>& input,
                 const TeleopOptions& options, double rate_hz = 100.0);
 

@@ -88,9 +88,9 @@ struct ControllerConfig {
   double stop_cart_decel_rad_s2 = 2.0;
   /// The rate limiter (rate_limiter.hpp) on every command of a stiff motion
   /// or hold (trajectories, GOTOs, the stiff hold; compliant modes below):
-  /// acceleration at most this multiple of the URDF
-  /// (planning) limit (a planned trajectory's C1 interpolant reaches 1.35x
-  /// between samples and passes untouched), jerk at most
+  /// acceleration at most this multiple of the URDF (planning) limit
+  /// (validate() bounds a trajectory's executed acceleration at 1x: a
+  /// validated one passes untouched), jerk at most
   /// rate_limit_jerk_per_s x the URDF acceleration limit (1000/s: the
   /// acceleration may change by 2x its planning limit in a 2 ms cycle),
   /// velocity at most the velocity limit.

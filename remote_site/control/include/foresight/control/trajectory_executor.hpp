@@ -1,15 +1,14 @@
 #pragma once
-// A trajectory prepared for the real-time loop: piecewise cubic Hermite
-// interpolation of the samples (C1: position and velocity continuous at every
-// sample; common/trajectory.hpp hermite::, the interpolant validate() bounds
-// over every segment), evaluable at any time, so any cycle rate can run
+// A trajectory prepared for the real-time loop: the clamped cubic spline
+// through the samples (C2: position, velocity and acceleration continuous at
+// every sample; common/trajectory.hpp hermite::, the interpolant validate()
+// bounds over every segment), evaluable at any time, so any cycle rate can run
 // samples taken at any rate (the ground plans at 100 Hz; the loop runs at 500 Hz).
 //
-// Tangents: at interior samples the weighted three-point derivative
-//   v_i = (h_{i-1} d_i + h_i d_{i-1}) / (h_{i-1} + h_i),  d_i = (q_{i+1} - q_i) / h_i
-// (exact for quadratics on non-uniform spacing); zero at the first and last
-// sample (the arm starts and ends at rest). Before the start the first sample
-// holds, after the end the last one.
+// Stored as cubic Hermite segments: the samples and the spline's velocity at
+// each (hermite::spline_velocities, one O(n) tridiagonal solve per joint here,
+// at preparation), zero at the first and last sample (the arm starts and ends
+// at rest). Before the start the first sample holds, after the end the last one.
 //
 // Set-up (NOT real-time; allocates, throws std::invalid_argument): the constructor. It
 // does not apply the remote's trajectory rules: the daemon runs
@@ -57,7 +56,7 @@ class PreparedTrajectory {
   std::uint64_t id_ = 0;
   std::vector<double> time_s_;    // samples, relative to the first (first = 0)
   std::vector<JointArray> q_;     // samples
-  std::vector<JointArray> v_;     // tangents
+  std::vector<JointArray> v_;     // the spline's velocities at the samples
   JointArray start_{};
   JointArray end_{};
 };
