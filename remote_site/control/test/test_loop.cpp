@@ -306,7 +306,13 @@ TEST(ControlLoop, PowerChangesRunInTheCycleAndAnEStopDuringAnEnableIsCategoryZer
   EXPECT_STREQ(col.stops[0].text.data(), "E-stop pressed during the enable");
   // The loop reads the input at its next cycle k and sends Disable Voltage
   // in it; the drives latch it at SYNC k+1 (one more when the simulator had
-  // not yet taken the SYNC the test counted from).
+  // not yet taken the SYNC the test counted from). The command's failure is
+  // decided in cycle k: the simulator thread may take SYNC k+1 after it.
+  ASSERT_TRUE(eventually([&] {
+    for (std::size_t j = 0; j < 6; ++j)
+      if (rig.sim->drive(j).power_record().powered) return false;
+    return true;
+  }, 5.0));
   for (std::size_t j = 0; j < 6; ++j) {
     const sim::DrivePowerRecord p = rig.sim->drive(j).power_record();
     EXPECT_FALSE(p.powered) << j;
