@@ -387,7 +387,7 @@ TEST_F(RunScript, AnUnknownAlgorithmIsRefusedBeforeAnythingIsSent) {
   EXPECT_EQ(r.status, 2) << r.err << r.out;
   EXPECT_EQ(r.err, "foresight run: error: " + s +
                        ":2:18: INVOKE_ALGORITHM algorithm: 'unscrew' is not one of guarded_move, insert, latch, "
-                       "unlatch, loosen, tighten, pull_out, tare\n");
+                       "unlatch, loosen, tighten, pull_out, tare, identify_payload\n");
   EXPECT_EQ(remote_commands().size(), before) << "nothing reached the remote";
 }
 

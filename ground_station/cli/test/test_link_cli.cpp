@@ -37,7 +37,7 @@ void expect_bad_input(const std::string& args, const std::string& message) {
 
 TEST(LinkCli, BadArgumentsExit2BeforeConnecting) {
   expect_bad_input("invoke screw", "foresight invoke: error: unknown algorithm 'screw' (algorithms: guarded_move, "
-                                   "insert, latch, unlatch, loosen, tighten, pull_out, tare)\n");
+                                   "insert, latch, unlatch, loosen, tighten, pull_out, tare, identify_payload)\n");
   expect_bad_input("invoke insert depth_m=6cm",
                    "foresight invoke: error: parameter depth_m: '6cm' is not a finite number\n");
   expect_bad_input("invoke insert depth", "foresight invoke: error: parameter 'depth' is not NAME=VALUE\n");

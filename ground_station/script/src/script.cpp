@@ -38,8 +38,8 @@ struct OpSpec {
   bool open_keys = false;  ///< any other key=number (INVOKE_ALGORITHM parameters)
 };
 
-const std::vector<std::string> kAlgorithms = {"guarded_move", "insert",  "latch",    "unlatch",
-                                              "loosen",       "tighten", "pull_out", "tare"};
+const std::vector<std::string> kAlgorithms = {"guarded_move", "insert",   "latch", "unlatch",         "loosen",
+                                              "tighten",      "pull_out", "tare",  "identify_payload"};
 
 const std::vector<OpSpec>& specs() {
   static const std::vector<OpSpec> table = {

@@ -105,10 +105,10 @@ TEST(ScriptParser, SyntaxErrorsNameLineAndColumn) {
   EXPECT_EQ(error_of("TRAJECTORY to=stow to=start\n"), "t.task:1:20: TRAJECTORY: to is given twice");
   EXPECT_EQ(error_of("INVOKE_ALGORITHM screw\n"),
             "t.task:1:18: INVOKE_ALGORITHM algorithm: 'screw' is not one of guarded_move, insert, latch, unlatch, "
-            "loosen, tighten, pull_out, tare");
+            "loosen, tighten, pull_out, tare, identify_payload");
   EXPECT_EQ(error_of("INVOKE_ALGORITHM\n"),
             "t.task:1:17: INVOKE_ALGORITHM: missing algorithm (guarded_move | insert | latch | unlatch | loosen | "
-            "tighten | pull_out | tare)");
+            "tighten | pull_out | tare | identify_payload)");
   EXPECT_EQ(error_of("INVOKE_ALGORITHM insert depth_m=6cm\n"),
             "t.task:1:33: INVOKE_ALGORITHM depth_m: '6cm' is not a finite number");
   EXPECT_EQ(error_of("INVOKE_ALGORITHM insert timeout_s=-1\n"),

@@ -589,7 +589,7 @@ std::optional<Eigen::VectorXd> ScriptRunner::algorithm_end(const script::Command
   else if (name == "pull_out") along_z = -c.number_or("distance_m", std::nan(""));
   else if (name == "guarded_move") return std::nullopt;
   if (!std::isfinite(along_z)) return std::nullopt;
-  if (along_z == 0.0) return q_;  // latch, unlatch, loosen, tighten, tare: the arm holds
+  if (along_z == 0.0) return q_;  // latch, unlatch, loosen, tighten, tare, identify_payload: the arm holds (or returns)
   // The remote's task frame is the tool tip's at the start: the tip moves
   // along its own z axis with its orientation kept (a straight line).
   const Pose tip = forward_kinematics(model_, ws_, q_);

@@ -126,7 +126,10 @@ const AlgorithmStep& AlgorithmRunner::step(const Pose& base_T_tip, const Wrench6
     case AlgorithmKind::GuardedMove: step_guarded(base_T_tip, f_task); break;
     case AlgorithmKind::Insert: step_insert(base_T_tip, f_task); break;
     case AlgorithmKind::PullOut: step_pull_out(base_T_tip, f_task); break;
-    case AlgorithmKind::None: finish(AlgorithmStatus::Failed, Reason::UnknownAlgorithm, "unknown algorithm"); break;
+    case AlgorithmKind::None:
+    case AlgorithmKind::IdentifyPayload:  // the Controller runs it (payload.hpp)
+      finish(AlgorithmStatus::Failed, Reason::UnknownAlgorithm, "unknown algorithm");
+      break;
   }
   return out_;
 }

@@ -72,6 +72,25 @@ void WrenchCompensator::set_tare_orientation(const Eigen::Matrix3d& base_R_senso
   tare_gravity_ft_ = tool_gravity_ft(base_R_sensor);
 }
 
+PayloadMass combined(const PayloadMass& a, const PayloadMass& b) noexcept {
+  PayloadMass c;
+  c.mass_kg = a.mass_kg + b.mass_kg;
+  if (c.mass_kg > 0.0)
+    for (std::size_t i = 0; i < 3; ++i)
+      c.com_sensor_m[i] = (a.mass_kg * a.com_sensor_m[i] + b.mass_kg * b.com_sensor_m[i]) / c.mass_kg;
+  return c;
+}
+
+void WrenchCompensator::set_payload(const PayloadMass& payload) noexcept {
+  tool_.mass_kg = payload.mass_kg;
+  tool_.com_sensor_m = payload.com_sensor_m;
+}
+
+void WrenchCompensator::set_offset(const Wrench6& offset_ft) noexcept {
+  // compensated = reading - extra_bias - weight + tare term; reading = weight + offset.
+  for (std::size_t i = 0; i < 6; ++i) tare_gravity_ft_[i] = tool_.extra_bias_ft[i] - offset_ft[i];
+}
+
 void WrenchCompensator::reset(const Wrench6& wrench_tool) noexcept {
   out_.filtered_tool = wrench_tool;
   primed_ = true;

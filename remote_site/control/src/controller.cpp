@@ -56,6 +56,13 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (config.sensor_fault_cycles < 1) throw std::invalid_argument("sensor_fault_cycles must be >= 1");
   if (!finite_pos(config.velocity_filter_hz)) throw std::invalid_argument("velocity_filter_hz must be > 0");
   if (config.drive_velocity_max_age_cycles < 0) throw std::invalid_argument("drive_velocity_max_age_cycles must be >= 0");
+  if (!(config.oru.mass_kg >= 0.0) || !std::isfinite(config.oru.mass_kg))
+    throw std::invalid_argument("oru.mass_kg must be >= 0");
+  for (double c : config.oru.com_sensor_m)
+    if (!std::isfinite(c)) throw std::invalid_argument("oru.com_sensor_m must be finite");
+  if (!finite_pos(config.tare_max_force_n)) throw std::invalid_argument("tare_max_force_n must be > 0");
+  tool_payload_ = PayloadMass{config.tool.mass_kg, config.tool.com_sensor_m};
+  oru_payload_ = config.oru;
   if (!finite_pos(config.rate_limit_acceleration_fraction) || config.rate_limit_acceleration_fraction < 1.0 ||
       config.rate_limit_acceleration_fraction > 10.0)
     throw std::invalid_argument("rate_limit_acceleration_fraction must be in [1, 10]");
@@ -110,6 +117,10 @@ void Controller::emit(std::uint64_t id, MotionCommandKind cmd, MotionEventKind k
   e.stamp_ns = stamp_ns_;
   e.joints = dof_;
   e.final_q = q_;
+  const PayloadMass now = comp_.payload();
+  e.payload_mass_kg = now.mass_kg;
+  e.payload_com_m = now.com_sensor_m;
+  if (cmd == MotionCommandKind::RunAlgorithm && identifying_) e.payload_condition = ident_.fit().condition;
   if (cmd == MotionCommandKind::RunAlgorithm) {
     e.distance_m = algo_.distance_m();
     e.peak_force_n = algo_.peak_force_n();
@@ -121,7 +132,11 @@ void Controller::emit(std::uint64_t id, MotionCommandKind cmd, MotionEventKind k
 void Controller::finish_active(MotionEventKind kind, Reason code, const char* text) noexcept {
   if (active_ == Active::Trajectory || active_ == Active::Algorithm) {
     emit(active_id_, active_cmd_, kind, code, text);
-    if (active_ == Active::Algorithm) algo_.cancel();
+    if (active_ == Active::Algorithm) {
+      algo_.cancel();
+      ident_.cancel();
+      identifying_ = false;
+    }
     traj_ = nullptr;
     active_ = Active::None;
     active_id_ = 0;
@@ -174,6 +189,29 @@ void Controller::command(const MotionCommand& cmd) noexcept {
         }
         active_ = Active::Trajectory;
         mode_ = ControllerMode::Trajectory;
+      } else if (cmd.algorithm.kind == AlgorithmKind::IdentifyPayload) {
+        Reason code = Reason::None;
+        std::array<char, 96> text{};
+        double speed = 0.0;
+        for (std::size_t j = 0; j < dof_; ++j) speed = std::max(speed, std::abs(dq_[j]));
+        if (mode_ != ControllerMode::Idle || hold_compliant_)
+          return reject(Reason::Busy, "identify_payload: needs a stiff hold (send Hold first)");
+        if (!ident_.start(cmd.algorithm.identify_payload, q_cmd_, dof_, lower_, upper_, force_norm(), speed, dt_, code,
+                          text))
+          return reject(code, text.data());
+        // The poses' orientations must excite the model: known before anything moves.
+        std::array<PayloadPose, PayloadIdentifier::kPoses> planned{};
+        for (std::size_t k = 0; k < planned.size(); ++k) {
+          for (std::size_t j = 0; j < dof_; ++j) qv2_(static_cast<Eigen::Index>(j)) = ident_.goal(k)[j];
+          planned[k].base_R_sensor = forward_kinematics(model_, ws_, qv2_, ft_link_).linear();
+        }
+        if (!ident_.check_excitation(planned.data(), planned.size(), model_.gravity(), code, text)) {
+          ident_.cancel();
+          return reject(code, text.data());
+        }
+        identifying_ = true;
+        active_ = Active::Algorithm;
+        mode_ = ControllerMode::Algorithm;
       } else {
         Reason code = Reason::None;
         std::array<char, 96> text{};
@@ -257,14 +295,32 @@ void Controller::command(const MotionCommand& cmd) noexcept {
       return;
     }
     case MotionCommandKind::Tare: {
+      // Only in a stiff hold (Idle, or Stopped after a category 2 stop) out
+      // of contact: a tare in contact would call the contact "zero".
       if (moving || mode_ == ControllerMode::Stopping) return reject(Reason::Busy, "tare needs the arm still");
       if (tare_id_ != 0) return reject(Reason::Busy, "tare in progress");
       if (cmd.tare_samples < 1 || cmd.tare_samples > 10000) return reject(Reason::BadArgument, "tare_samples must be 1..10000");
+      if (!((mode_ == ControllerMode::Idle && !hold_compliant_) || mode_ == ControllerMode::Stopped))
+        return reject(Reason::Busy, "tare needs a stiff hold (send Hold first)");
+      if (zeroed_ && !(force_norm() <= config_.tare_max_force_n)) {
+        std::snprintf(buf, sizeof buf, "tare refused: contact force %.1f N > %.1f N (tare only out of contact)",
+                      force_norm(), config_.tare_max_force_n);
+        return reject(Reason::ForceLimit, buf);
+      }
       tare_id_ = cmd.command_id;
       tare_request_ = cmd.tare_samples;
       tare_wait_cycles_ = 0;
       tare_seen_ = false;
       emit(cmd.command_id, cmd.kind, MotionEventKind::Started, Reason::None, "taring");
+      return;
+    }
+    case MotionCommandKind::SetPayload: {
+      if (identifying_) return reject(Reason::Busy, "identify_payload is running");
+      oru_latched_ = cmd.oru_latched;
+      apply_payload();
+      std::snprintf(buf, sizeof buf, "payload %.3f kg (%s)", comp_.payload().mass_kg,
+                    oru_latched_ ? "tool + ORU" : "tool");
+      emit(cmd.command_id, cmd.kind, MotionEventKind::Completed, Reason::None, buf);
       return;
     }
   }
@@ -348,7 +404,8 @@ void Controller::begin_stop(StopCause cause, StopCategory cat, int joint, double
   const bool controlled = cat != StopCategory::Cat0 && cause != StopCause::JointPositionLimit &&
                           cause != StopCause::JointVelocityLimit;
   const bool on_path = controlled && active_ == Active::Trajectory && traj_ != nullptr;
-  const bool on_reference = controlled && active_ == Active::Algorithm;
+  // (identify_payload moves stiffly between joint poses: a joint-wise stop.)
+  const bool on_reference = controlled && active_ == Active::Algorithm && !identifying_;
   if (on_path || on_reference) {
     if (!stop_on_path_ && !stop_cartesian_) {
       path_scale_ = 1.0;
@@ -632,8 +689,7 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
       return false;
     }
   }
-  const double f = std::sqrt(wrench_tool_[0] * wrench_tool_[0] + wrench_tool_[1] * wrench_tool_[1] +
-                             wrench_tool_[2] * wrench_tool_[2]);
+  const double f = force_norm();
   const double t = std::sqrt(wrench_tool_[3] * wrench_tool_[3] + wrench_tool_[4] * wrench_tool_[4] +
                              wrench_tool_[5] * wrench_tool_[5]);
   const bool over_f = !(f <= config_.force_limit_n);
@@ -654,7 +710,8 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
       }
       return false;
     }
-    const bool compliant = active_ == Active::Algorithm || (active_ == Active::Trajectory && traj_compliant_) ||
+    const bool compliant = (active_ == Active::Algorithm && !identifying_) ||
+                           (active_ == Active::Trajectory && traj_compliant_) ||
                            (mode_ == ControllerMode::Idle && hold_compliant_);
     if (compliant && mode_ != ControllerMode::Stopping) {
       back_off(buf);
@@ -754,6 +811,9 @@ Pose Controller::measure(const CycleInputs& in, bool joints_ok) noexcept {
   for (std::size_t j = 0; j < dof_; ++j) qv_(static_cast<Eigen::Index>(j)) = q_[j];
   const Pose base_T_sensor = forward_kinematics(model_, ws_, qv_, ft_link_);
   base_T_tip_ = base_T_sensor * sensor_T_tip_;  // fixed joints: one FK for both
+  base_R_sensor_ = base_T_sensor.linear();
+  ft_reading_ = in.wrench_ft;
+  ft_fresh_ = in.ft_fresh;
   if (!have_q_) {
     comp_.set_tare_orientation(base_T_sensor.linear());
     have_q_ = true;
@@ -810,6 +870,9 @@ void Controller::step_tare(const CycleInputs& in, CycleOutputs& out, const Pose&
   if (in.ft_tare_in_progress) tare_seen_ = true;
   if ((tare_seen_ || tare_wait_cycles_ > 3) && !in.ft_tare_in_progress) {
     comp_.reset();
+    adm_.reset();  // nothing the admittance integrated before the new zero survives it
+    backoff_active_ = false;
+    zeroed_ = true;
     emit(tare_id_, MotionCommandKind::Tare, MotionEventKind::Completed, Reason::None, "tared");
     tare_id_ = 0;
   } else if (tare_wait_cycles_ > 20000) {
@@ -859,7 +922,54 @@ void Controller::step_trajectory() noexcept {
   }
 }
 
+void Controller::apply_payload() noexcept {
+  comp_.set_payload(oru_latched_ ? combined(tool_payload_, oru_payload_) : tool_payload_);
+}
+
+double Controller::force_norm() const noexcept {
+  return std::sqrt(wrench_tool_[0] * wrench_tool_[0] + wrench_tool_[1] * wrench_tool_[1] +
+                   wrench_tool_[2] * wrench_tool_[2]);
+}
+
+void Controller::step_identify() noexcept {
+  const PayloadIdentifier::Status st = ident_.step(q_, base_R_sensor_, ft_reading_, ft_fresh_, model_.gravity());
+  for (std::size_t j = 0; j < dof_; ++j) q_cmd_[j] = ident_.target()[j];
+  if (st == PayloadIdentifier::Status::Running) return;
+  if (st == PayloadIdentifier::Status::Succeeded) {
+    // The identified total is what hangs on the sensor now: the ORU's part
+    // while it is latched (the total less the tool), else the tool's.
+    const PayloadMass total = ident_.fit().payload;
+    if (oru_latched_) {
+      PayloadMass oru;
+      oru.mass_kg = total.mass_kg - tool_payload_.mass_kg;
+      if (oru.mass_kg > 1e-3)
+        for (std::size_t i = 0; i < 3; ++i)
+          oru.com_sensor_m[i] =
+              (total.mass_kg * total.com_sensor_m[i] - tool_payload_.mass_kg * tool_payload_.com_sensor_m[i]) /
+              oru.mass_kg;
+      else
+        oru = PayloadMass{};
+      oru_payload_ = oru;
+    } else {
+      tool_payload_ = total;
+    }
+    comp_.set_payload(total);
+    comp_.set_offset(ident_.fit().offset_ft);
+    comp_.reset();
+    adm_.reset();
+    zeroed_ = true;
+    const std::array<char, 96> text = ident_.text();
+    finish_active(MotionEventKind::Completed, Reason::None, text.data());
+  } else {
+    const Reason code = ident_.code();
+    const std::array<char, 96> text = ident_.text();
+    finish_active(MotionEventKind::Failed, code, text.data());
+  }
+  hold_here();  // stiff, where the identifier left the arm
+}
+
 void Controller::step_algorithm() noexcept {
+  if (identifying_) return step_identify();
   const AlgorithmStep& s = algo_.step(base_T_tip_, wrench_tool_);
   algo_ref_prev_ = algo_ref_;
   if (s.status == AlgorithmStatus::Running || s.status == AlgorithmStatus::Succeeded) {
@@ -898,9 +1008,10 @@ std::uint32_t Controller::limit_rate(const CycleInputs& in) noexcept {
   limiter_applied_ = false;
   std::uint32_t limited = 0;
   const bool stiff_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && !hold_compliant_) ||
-                            (mode_ == ControllerMode::Trajectory && !traj_compliant_);
+                            (mode_ == ControllerMode::Trajectory && !traj_compliant_) ||
+                            (mode_ == ControllerMode::Algorithm && identifying_);
   const bool compliant_motion = ((mode_ == ControllerMode::Idle || mode_ == ControllerMode::Goto) && hold_compliant_) ||
-                                mode_ == ControllerMode::Algorithm ||
+                                (mode_ == ControllerMode::Algorithm && !identifying_) ||
                                 (mode_ == ControllerMode::Trajectory && traj_compliant_);
   if (stiff_motion) {
     limited = limiter_.apply(q_cmd_, q_cmd_);
@@ -999,7 +1110,9 @@ void Controller::write_outputs(const CycleInputs& in, CycleOutputs& out, bool jo
   t.drive_state = in.drive_state;
   t.mode = mode_;
   t.active_command_id = active_id_;
-  t.algorithm = active_ == Active::Algorithm ? algo_.kind() : AlgorithmKind::None;
+  t.algorithm = active_ != Active::Algorithm ? AlgorithmKind::None
+                : identifying_              ? AlgorithmKind::IdentifyPayload
+                                            : algo_.kind();
   t.stop_category = stop_.category;
   t.stop_cause = stop_.cause;
   t.rate_limited_mask = limited;

@@ -27,6 +27,7 @@ const char* to_string(AlgorithmKind kind) noexcept {
     case AlgorithmKind::GuardedMove: return "guarded_move";
     case AlgorithmKind::Insert: return "insert";
     case AlgorithmKind::PullOut: return "pull_out";
+    case AlgorithmKind::IdentifyPayload: return "identify_payload";
   }
   return "unknown";
 }
@@ -36,6 +37,7 @@ AlgorithmKind algorithm_from_name(const char* name) noexcept {
   if (std::strcmp(name, "guarded_move") == 0) return AlgorithmKind::GuardedMove;
   if (std::strcmp(name, "insert") == 0) return AlgorithmKind::Insert;
   if (std::strcmp(name, "pull_out") == 0) return AlgorithmKind::PullOut;
+  if (std::strcmp(name, "identify_payload") == 0) return AlgorithmKind::IdentifyPayload;
   return AlgorithmKind::None;
 }
 
@@ -49,6 +51,7 @@ const char* to_string(MotionCommandKind kind) noexcept {
     case MotionCommandKind::Enable: return "enable";
     case MotionCommandKind::Disable: return "disable";
     case MotionCommandKind::Tare: return "tare";
+    case MotionCommandKind::SetPayload: return "set_payload";
   }
   return "unknown";
 }

@@ -12,12 +12,15 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <random>
 #include <span>
+#include <vector>
 
 #include "foresight/common/kinematics.hpp"
 #include "foresight/common/object_model.hpp"
 #include "foresight/common/robot_model.hpp"
 #include "foresight/common/scene.hpp"
+#include "foresight/common/trajectory.hpp"
 #include "foresight/control/controller.hpp"
 #include "foresight/sim/contact_model.hpp"
 #include "foresight/sim/plant.hpp"
@@ -59,6 +62,14 @@ struct Bench {
   sim::Plant* plant = nullptr;
   sim::LstToolState plant_tool{};
   double peak_contact_nm = 0.0;  ///< with `plant`: largest contact torque at the sensor
+  /// With `plant`: its weights too (the tool, the carried ORU) as the sensor
+  /// reads them: less the weight at its last tare (the first cycle, and the
+  /// cycle after each tare request), plus white noise of these deviations.
+  bool plant_weights = false;
+  double noise_n = 0.0, noise_nm = 0.0;
+  std::mt19937 rng{7};
+  Wrench6 plant_tare{};
+  bool plant_tare_next = true;
   /// Cycles from a command to the measurement that sees it: 1 = the next
   /// cycle's; the real bus is 3 (docs/hardware.md "Frame order and loop delay").
   int delay_cycles = 1;
@@ -103,6 +114,18 @@ struct Bench {
         w[static_cast<std::size_t>(i)] += f(i);
         w[static_cast<std::size_t>(i + 3)] += m(i);
       }
+      if (plant_weights) {
+        const Wrench6 g{r.weight_ft.force_n(0),  r.weight_ft.force_n(1),  r.weight_ft.force_n(2),
+                        r.weight_ft.torque_nm(0), r.weight_ft.torque_nm(1), r.weight_ft.torque_nm(2)};
+        if (plant_tare_next) plant_tare = g;
+        plant_tare_next = false;
+        std::normal_distribution<double> nf(0.0, noise_n > 0.0 ? noise_n : 1.0), nt(0.0, noise_nm > 0.0 ? noise_nm : 1.0);
+        for (std::size_t i = 0; i < 6; ++i) {
+          w[i] += g[i] - plant_tare[i];
+          if (i < 3 && noise_n > 0.0) w[i] += nf(rng);
+          if (i >= 3 && noise_nm > 0.0) w[i] += nt(rng);
+        }
+      }
       peak_contact_n = std::max(peak_contact_n, f.norm());
       peak_contact_nm = std::max(peak_contact_nm, m.norm());
     }
@@ -129,6 +152,10 @@ struct Bench {
     if (arm) arm(true);
     ctl->step(in, out);
     if (arm) arm(false);
+    if (out.tare_samples > 0) {  // the decoder zeroes the reading where the arm is
+      plant_tare_next = true;
+      tare_R = sensor_R(q_arm);
+    }
     for (std::size_t i = 0; i < out.event_count; ++i) events.push_back(out.events[i]);
     if (out.stop != nullptr) stops.push_back(*out.stop);
     power_offs += out.power_off;
@@ -192,6 +219,23 @@ struct Bench {
   }
 };
 
+/// Joints from `from` to `to` along a smoothstep, sampled at rate_hz.
+inline Trajectory line_trajectory(const JointArray& from, const JointArray& to, double duration_s, double rate_hz = 100.0) {
+  Trajectory t;
+  const int n = static_cast<int>(duration_s * rate_hz) + 1;
+  t.positions_rad.resize(n, 7);
+  for (int i = 0; i < n; ++i) {
+    const double s = static_cast<double>(i) / (n - 1);
+    const double b = s * s * (3.0 - 2.0 * s);
+    t.time_s.push_back(i / rate_hz);
+    for (int j = 0; j < 7; ++j) {
+      const auto u = static_cast<std::size_t>(j);
+      t.positions_rad(i, j) = from[u] + b * (to[u] - from[u]);
+    }
+  }
+  return t;
+}
+
 /// A comfortable arm configuration (elbow bent, tool pointing forward-down).
 inline JointArray home_q() {
   JointArray q{};
@@ -199,5 +243,37 @@ inline JointArray home_q() {
   for (int i = 0; i < 7; ++i) q[static_cast<std::size_t>(i)] = v[i];
   return q;
 }
+
+/// The simulated plant's ORU handled by the latched tool at tip poses found
+/// by IK, each seeded from the last (first: the elbow-bent home, away from
+/// the joint limits).
+struct OruHandling {
+  KinematicsWorkspace ws{robot()};
+  Eigen::VectorXd seed;
+  sim::LstToolState tool{};
+
+  OruHandling() : seed(robot().dof()) {
+    for (int j = 0; j < robot().dof(); ++j) seed(j) = home_q()[static_cast<std::size_t>(j)];
+    tool.latched = true;
+    tool.unlatched = false;
+    tool.latch_position = 1.0;
+  }
+  static Pose along(double z) { return Pose(Eigen::Translation3d(0.0, 0.0, z)); }
+  Eigen::VectorXd q_at(const Pose& base_T_tip) {
+    IkOptions opt;
+    opt.position_tolerance_m = 1e-7;
+    opt.rotation_tolerance_rad = 1e-7;
+    const IkResult ik = inverse_kinematics(robot(), ws, base_T_tip, seed, opt);
+    EXPECT_TRUE(ik.success);
+    seed = ik.q;
+    return ik.q;
+  }
+  /// One plant step at rest at q with the bolt's engaged turns: the ORU's state.
+  sim::OruState plant_at(sim::Plant& plant, const Eigen::VectorXd& q, double engaged_turns) {
+    tool.engaged_turns = engaged_turns;
+    const std::vector<double> qv(q.data(), q.data() + q.size()), qd(qv.size(), 0.0);
+    return plant.step(qv, qd, tool).state;
+  }
+};
 
 }  // namespace foresight::control::test

@@ -258,28 +258,11 @@ TEST_P(OruReinsert, IntoItsSlotAgainstTheLoopDelay) {
   const ObjectModel oru = ObjectModel::from_file(FORESIGHT_CONFIG_DIR "/oru.yaml");
   const Pose base_T_home = Scene::from_file(FORESIGHT_CONFIG_DIR "/scene.yaml").base_T_object;
   sim::Plant plant(robot(), oru, base_T_home, sim::load_plant_params(FORESIGHT_CONFIG_DIR "/scene.yaml"));
-  KinematicsWorkspace ws(robot());
-  Eigen::VectorXd seed(robot().dof());  // the elbow-bent home, away from the joint limits
-  for (int j = 0; j < robot().dof(); ++j) seed(j) = home_q()[static_cast<std::size_t>(j)];
-  auto q_at = [&](const Pose& base_T_tip) {
-    IkOptions opt;
-    opt.position_tolerance_m = 1e-7;
-    opt.rotation_tolerance_rad = 1e-7;
-    const IkResult ik = inverse_kinematics(robot(), ws, base_T_tip, seed, opt);
-    EXPECT_TRUE(ik.success);
-    seed = ik.q;
-    return ik.q;
-  };
-  auto along = [](double z) { return Pose(Eigen::Translation3d(0.0, 0.0, z)); };
-  sim::LstToolState tool;
-  tool.latched = true;
-  tool.unlatched = false;
-  tool.latch_position = 1.0;
-  auto plant_at = [&](const Eigen::VectorXd& q, double engaged_turns) {
-    tool.engaged_turns = engaged_turns;
-    const std::vector<double> qv(q.data(), q.data() + q.size()), qd(qv.size(), 0.0);
-    return plant.step(qv, qd, tool).state;
-  };
+  OruHandling h;
+  auto q_at = [&](const Pose& base_T_tip) { return h.q_at(base_T_tip); };
+  auto plant_at = [&](const Eigen::VectorXd& q, double engaged_turns) { return h.plant_at(plant, q, engaged_turns); };
+  const auto along = OruHandling::along;
+  const sim::LstToolState& tool = h.tool;
   // Gripped 6 cm deep, the screw loose: it comes free; 15 cm out: carried.
   const Eigen::VectorXd q_in = q_at(base_T_home * along(0.06));
   plant_at(q_in, 8.0);

@@ -305,21 +305,6 @@ TEST(Dls, SolvesSmallPoseErrors) {
 
 // ---- Controller -----------------------------------------------------------------------------------
 
-Trajectory line_trajectory(const JointArray& from, const JointArray& to, double duration_s, double rate_hz = 100.0) {
-  Trajectory t;
-  const int n = static_cast<int>(duration_s * rate_hz) + 1;
-  t.positions_rad.resize(n, 7);
-  for (int i = 0; i < n; ++i) {
-    const double s = static_cast<double>(i) / (n - 1);
-    const double b = s * s * (3.0 - 2.0 * s);
-    t.time_s.push_back(i / rate_hz);
-    for (int j = 0; j < 7; ++j) {
-      const auto u = static_cast<std::size_t>(j);
-      t.positions_rad(i, j) = from[u] + b * (to[u] - from[u]);
-    }
-  }
-  return t;
-}
 
 TEST(Controller, DisabledFollowsThenEnablesHoldsAndRunsATrajectory) {
   Bench b(home_q());

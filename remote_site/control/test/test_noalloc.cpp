@@ -1,6 +1,6 @@
 // The control cycle never touches the heap: 10,000 cycles of every mode
-// (disabled, stiff and compliant hold, trajectory, compliant trajectory,
-// guarded_move, insert with spiral search, pull_out, controlled stop,
+// (disabled, stiff and compliant hold, identify_payload, trajectory, compliant
+// trajectory, guarded_move, insert with spiral search, pull_out, controlled stop,
 // stopped, fault) and the commands that start and end them, counted with the
 // shared counter (foresight/test/allocation_counter.hpp: a replaced operator
 // new AND malloc, since Eigen and KDL allocate through malloc; under ASan/TSan
@@ -105,6 +105,20 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
   run("disabled", 10000);
   b.enable();
   run("hold", 10000);
+  command(MotionCommandKind::SetPayload, [](MotionCommand& c) { c.oru_latched = true; });
+  const auto identify_id = command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {
+    c.algorithm.kind = AlgorithmKind::IdentifyPayload;
+  });
+  run("identify_payload (6 poses, least squares) then hold", 10000);
+  bool identified = false;
+  for (const auto& e : b.events)
+    identified = identified || (e.command_id == identify_id && e.kind == MotionEventKind::Completed);
+  EXPECT_TRUE(identified);
+  command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) {  // refused: too small to excite
+    c.algorithm.kind = AlgorithmKind::IdentifyPayload;
+    c.algorithm.identify_payload.angle_rad = 0.001;
+  });
+  command(MotionCommandKind::SetPayload, [](MotionCommand& c) { c.oru_latched = false; });
   command(MotionCommandKind::Hold, [](MotionCommand& c) { c.compliant = true; });
   run("compliant hold", 10000);
   command(MotionCommandKind::Hold, none);
@@ -174,6 +188,8 @@ TEST(ControlNoAlloc, EveryModeFor10000Cycles) {
   // Rejections format text (snprintf) in the cycle thread too.
   command(MotionCommandKind::RunTrajectory, [&](MotionCommand& c) { c.trajectory = &traj; });
   command(MotionCommandKind::RunAlgorithm, [](MotionCommand& c) { c.algorithm.insert.depth_m = -1; c.algorithm.kind = AlgorithmKind::Insert; });
+  command(MotionCommandKind::Tare, [](MotionCommand& c) { c.tare_samples = 10; });  // refused: compliant hold
+  command(MotionCommandKind::Hold, none);
   command(MotionCommandKind::Tare, [](MotionCommand& c) { c.tare_samples = 10; });
   run("tare", 100);
   command(MotionCommandKind::Stop, [](MotionCommand& c) { c.category = StopCategory::Cat2; });

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "foresight/control/algorithms.hpp"
+#include "foresight/control/payload.hpp"
 
 namespace foresight::daemon {
 
@@ -104,6 +105,24 @@ std::string parse_algorithm(const protocol::InvokeAlgorithm& invoke, control::Al
       if (!error.empty()) return error;
       if (invoke.timeout_s > 0.0) o.timeout_s = invoke.timeout_s;
       break;
+    }
+    case control::AlgorithmKind::IdentifyPayload: {
+      auto& ip = out.identify_payload;
+      error = parse_fields(n, invoke.params,
+                           {{"angle_rad", &ip.angle_rad, 1e-4, 0.5, "rad"},
+                            {"move_s", &ip.move_s, 0.2, 30.0, "s"},
+                            {"settle_s", &ip.settle_s, 0.0, 10.0, "s"},
+                            {"window_s", &ip.window_s, 0.01, 10.0, "s"},
+                            {"max_contact_n", &ip.max_contact_n, 0.1, 100.0, "N"},
+                            {"max_condition", &ip.max_condition, 2.0, 1e6, ""},
+                            {"max_residual_n", &ip.max_residual_n, 0.01, 100.0, "N"}});
+      if (!error.empty()) return error;
+      if (!(invoke.timeout_s >= 0.0 && invoke.timeout_s <= kMaxAlgorithmTimeoutS))
+        return n + fmt_timeout(invoke.timeout_s);
+      protocol::Reason code{};
+      std::array<char, 96> text{};
+      if (!control::PayloadIdentifier::validate(ip, code, text)) return std::string(text.data());
+      return {};
     }
     case control::AlgorithmKind::None:
       return "unknown algorithm '" + n + "'";

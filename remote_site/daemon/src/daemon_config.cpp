@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <string>
 
 #include "foresight/common/format.hpp"
 #include "foresight/common/text_file.hpp"
@@ -19,6 +20,41 @@ const char* to_string(LinkLossPolicy policy) noexcept {
   return "?";
 }
 
+namespace {
+
+/// A centre of mass: three numbers, each within 1 m of the sensor.
+std::array<double, 3> read_com(const yaml::MapReader& m, const char* key) {
+  const Eigen::Vector3d v = yaml::read_vector<3>(m[key], m.file(), m.name(key));
+  for (int i = 0; i < 3; ++i)
+    if (!(std::abs(v[i]) <= 1.0))
+      m.fail_key(key, printf_text("element %g (%g) is outside [-1, 1] m (sensor frame)", i + 1.0, v[i]));
+  return {v[0], v[1], v[2]};
+}
+
+PayloadSettings read_payload(const yaml::MapReader& s) {
+  PayloadSettings p;
+  const yaml::MapReader pl = s.map("payload");
+  pl.check_keys({"tool", "oru", "tare_max_force_n"});
+  p.configured = true;
+  // The sensor's full scale (327 N) carries about 33 kg: 30 kg at most.
+  const yaml::MapReader tool = pl.map("tool", "the tool's mass and centre of mass");
+  tool.check_keys({"mass_kg", "com_m"});
+  p.tool_mass_kg = tool.get_in("mass_kg", 0.0, 30.0, "kg");
+  p.tool_com_m = read_com(tool, "com_m");
+  if (pl["oru"]) {
+    const yaml::MapReader oru = pl.map("oru");
+    oru.check_keys({"mass_kg", "com_m"});
+    p.oru_mass_kg = oru.get_in("mass_kg", 0.0, 30.0, "kg");
+    p.oru_com_m = read_com(oru, "com_m");
+  }
+  if (!(p.tool_mass_kg + p.oru_mass_kg <= 30.0))
+    pl.fail_key("oru", "tool and ORU together exceed 30 kg (the F/T sensor's full scale)");
+  p.tare_max_force_n = pl.get_or_in("tare_max_force_n", p.tare_max_force_n, 0.5, 100.0, "N");
+  return p;
+}
+
+}  // namespace
+
 DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string& source_name) {
   const YAML::Node root = yaml::parse(yaml_text, source_name);
   DaemonConfig c;
@@ -30,7 +66,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
   c.network.source = source_name + ": controller.link.network (the default)";
   s.check_keys({"start_tolerance_rad", "link", "reports", "journal", "estop_file", "tool_poll_hz",
                 "default_algorithm_timeout_s", "control_lease_s", "rate_limit", "max_queued_commands",
-                "max_chain_length", "max_upload_wait_s"});
+                "max_chain_length", "max_upload_wait_s", "payload"});
   c.start_tolerance_rad = s.get_or_in("start_tolerance_rad", c.start_tolerance_rad, 1e-6, 1e6, "rad");
   if (c.start_tolerance_rad > kMaxStartToleranceRad)
     s.fail_key("start_tolerance_rad", "must be at most 0.02 rad (a larger start offset would jump the arm: plan an approach "
@@ -49,6 +85,7 @@ DaemonConfig parse_daemon_config(const std::string& yaml_text, const std::string
       s.get_or_int_in("max_chain_length", static_cast<long long>(c.max_chain_length), 1, 64, "commands"));
   c.max_upload_wait_s = s.get_or_in("max_upload_wait_s", c.max_upload_wait_s, 1.0, 600.0, "s");
 
+  if (s["payload"]) c.payload = read_payload(s);
   if (s["rate_limit"]) {
     // The ranges the controller takes (ControllerConfig); below 1x the limiter
     // would act on every planned motion.

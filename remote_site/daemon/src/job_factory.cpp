@@ -168,8 +168,8 @@ bool JobFactory::make_invoke_job(const protocol::InvokeAlgorithm& p, Job& job, R
     return true;
   }
   if (p.name == "tare") {
-    // Zero the F/T sensor with the arm still (after picking up the ORU:
-    // its weight is then no contact force). Parameter: samples (1..10000).
+    // Zero the F/T sensor in a stiff hold out of contact (the controller
+    // refuses it otherwise). Parameter: samples (1..10000).
     for (const auto& nv : p.params) {
       if (nv.name != "samples") {
         *code = Reason::BadArgument;
@@ -190,7 +190,7 @@ bool JobFactory::make_invoke_job(const protocol::InvokeAlgorithm& p, Job& job, R
   if (!why.empty()) {
     *code = job.algorithm.kind == control::AlgorithmKind::None ? Reason::UnknownAlgorithm : Reason::BadArgument;
     *reason = job.algorithm.kind == control::AlgorithmKind::None
-                  ? why + " (expected one of: guarded_move, insert, pull_out, latch, unlatch, loosen, tighten, tare)"
+                  ? why + " (expected one of: guarded_move, insert, pull_out, identify_payload, latch, unlatch, loosen, tighten, tare)"
                   : why;
     return false;
   }

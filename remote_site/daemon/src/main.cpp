@@ -208,14 +208,29 @@ control::ControllerConfig controller_config(const daemon::DaemonConfig& config, 
   cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
   cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;
-  if (site.simulated && site.simulated->plant) {
-    // The simulated tool's mass properties (from the URDF); on a cabinet they
-    // come from the tool's own calibration in the URDF the same way.
+  // The payload (docs/control.md "Payload"): controller.payload, the tool's
+  // and the carried ORU's mass and centre of mass. The simulated plant keeps
+  // its own truth (scene.yaml, the URDF), so a configured value that is wrong
+  // shows as apparent force; only with nothing configured does --sim take the
+  // tool's from the plant (and knows no ORU). A cabinet needs it configured.
+  const daemon::PayloadSettings& pl = config.payload;
+  if (pl.configured) {
+    cc.tool.mass_kg = pl.tool_mass_kg;
+    cc.tool.com_sensor_m = pl.tool_com_m;
+    cc.oru.mass_kg = pl.oru_mass_kg;
+    cc.oru.com_sensor_m = pl.oru_com_m;
+    cc.tare_max_force_n = pl.tare_max_force_n;
+  } else if (site.simulated && site.simulated->plant) {
     const auto& plant = *site.simulated->plant;
     cc.tool.mass_kg = plant.tool_mass_kg();
     for (int i = 0; i < 3; ++i) cc.tool.com_sensor_m[static_cast<std::size_t>(i)] = plant.tool_com_sensor_m()[i];
-    cc.tool.sensor_T_tip = plant.sensor_T_tip();
+    spdlog::warn("{}: no controller.payload: the simulated tool's mass {:.3f} kg from the plant, no ORU compensation",
+                 config.source, cc.tool.mass_kg);
+  } else {
+    throw foresight::InputError(config.source, "missing controller.payload (the tool's mass_kg and com_m, the "
+                                               "carried ORU's: docs/control.md \"Payload\")");
   }
+  if (site.simulated && site.simulated->plant) cc.tool.sensor_T_tip = site.simulated->plant->sensor_T_tip();
   return cc;
 }
 

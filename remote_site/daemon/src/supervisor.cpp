@@ -315,8 +315,8 @@ std::string Supervisor::start(Job& job, Reason* code) {
   if (job.kind == JobKind::ToolStep) {
     // The arm holds its position stiffly while the tool latches or turns:
     // when the screw comes free the ORU's weight moves onto the tool, and a
-    // compliant hold would let it sag into its slot's walls. (Tare afterwards
-    // so that compliant motions see the ORU as payload.)
+    // compliant hold would let it sag into its slot's walls. (The ORU's
+    // weight is payload from the loosen on: tell_payload.)
     MotionCommand hold;
     hold.command_id = internal_id();
     hold.kind = MotionCommandKind::Hold;
@@ -702,6 +702,9 @@ void Supervisor::poll_events() {
         std::string text = e.text.data();
         if (running->kind == JobKind::Algorithm && text.empty())
           text = printf_text("distance %.4f m, peak force %.1f N", e.distance_m, e.peak_force_n);
+        if (running->kind == JobKind::Algorithm && running->algorithm.kind == control::AlgorithmKind::IdentifyPayload)
+          ledger_.event("payload", "identify_payload (command " + std::to_string(running->command.command_id) +
+                                       "): " + text + " is the payload from now on");
         finish_running(AckState::Completed, Reason::None, text, fq);
         break;
       }
@@ -726,6 +729,9 @@ void Supervisor::poll_tool() {
     const Job* running = jobs_.running();
     if (running && running->kind == JobKind::ToolStep && running->command.command_id == r->command_id) {
       if (r->ok) {
+        const ToolStepKind kind = running->tool_step.kind;
+        if (kind == ToolStepKind::Loosen || kind == ToolStepKind::Tighten || kind == ToolStepKind::Unlatch)
+          tell_payload(kind == ToolStepKind::Loosen);
         finish_running(AckState::Completed, Reason::None, r->text, current_q());
       } else {
         finish_running(r->code == Reason::Aborted ? AckState::Canceled : AckState::Failed, r->code, r->text,
@@ -733,6 +739,21 @@ void Supervisor::poll_tool() {
       }
     }
   }
+}
+
+void Supervisor::tell_payload(bool oru_latched) {
+  // The latched ORU hangs on the tool once its bolt is loose (loosen); it
+  // leaves the tool when the bolt holds it again (tighten) or the latch
+  // opens (unlatch). The controller then removes the tool's weight, plus the
+  // ORU's while latched, at every orientation (docs/control.md "Payload").
+  MotionCommand mc;
+  mc.command_id = internal_id();
+  mc.kind = MotionCommandKind::SetPayload;
+  mc.oru_latched = oru_latched;
+  const bool sent = p_.loop->send(mc);
+  ledger_.event("payload", std::string(oru_latched ? "the ORU hangs on the tool: payload tool + ORU"
+                                                   : "the ORU left the tool: payload tool alone") +
+                               (sent ? "" : " (NOT sent: the control loop's command ring is full)"));
 }
 
 void Supervisor::check_inputs() {

@@ -51,6 +51,13 @@ const Range kRanges[] = {
     {"pull_out", "distance_m", 1e-3, 0.5, "m"},
     {"pull_out", "speed_m_s", 1e-4, 0.1, "m/s"},
     {"pull_out", "max_force_n", 1.0, 150.0, "N"},
+    {"identify_payload", "angle_rad", 1e-4, 0.5, "rad"},
+    {"identify_payload", "move_s", 0.2, 30.0, "s"},
+    {"identify_payload", "settle_s", 0.0, 10.0, "s"},
+    {"identify_payload", "window_s", 0.01, 10.0, "s"},
+    {"identify_payload", "max_contact_n", 0.1, 100.0, "N"},
+    {"identify_payload", "max_condition", 2.0, 1e6, ""},
+    {"identify_payload", "max_residual_n", 0.01, 100.0, "N"},
 };
 
 std::string expected(const Range& r, const char* value) {

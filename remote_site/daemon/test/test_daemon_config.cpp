@@ -28,6 +28,36 @@ TEST(DaemonConfig, ProjectFileLoads) {
   EXPECT_GT(c.reports.joint_state_hz, 0.0);
 }
 
+TEST(DaemonConfig, ThePayloadIsTheSimulatedTruth) {
+  // The shipped values are the simulated plant's (config/scene.yaml, the URDF):
+  // the demo's compensation is right; identify_payload finds the same.
+  const DaemonConfig c = load_daemon_config(FORESIGHT_CONFIG_DIR "/remote.yaml");
+  ASSERT_TRUE(c.payload.configured);
+  EXPECT_DOUBLE_EQ(c.payload.tool_mass_kg, 2.6);
+  EXPECT_DOUBLE_EQ(c.payload.tool_com_m[2], 0.125);
+  EXPECT_DOUBLE_EQ(c.payload.oru_mass_kg, 5.0);
+  EXPECT_DOUBLE_EQ(c.payload.oru_com_m[2], 0.405);
+  EXPECT_DOUBLE_EQ(c.payload.tare_max_force_n, 10.0);
+}
+
+TEST(DaemonConfig, BadPayloadValuesNameTheFileAndKey) {
+  const std::string head = "controller:\n  payload:\n";
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: -1, com_m: [0, 0, 0.1]}\n"),
+            "r.yaml:3: controller.payload.tool.mass_kg: -1 is outside [0, 30] kg");
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: 2, com_m: [0, 1.5, 0.1]}\n"),
+            "r.yaml:3: controller.payload.tool.com_m: element 2 (1.5) is outside [-1, 1] m (sensor frame)");
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: 2, com_m: [0, 0]}\n"),
+            "r.yaml:3: 'controller.payload.tool.com_m' must be a list of 3 numbers");
+  EXPECT_EQ(error_of(head + "    oru: {mass_kg: 5, com_m: [0, 0, 0.4]}\n"),
+            "r.yaml:3: controller.payload: missing 'tool' (the tool's mass and centre of mass)");
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: 20, com_m: [0, 0, 0.1]}\n    oru: {mass_kg: 15, com_m: [0, 0, 0.4]}\n"),
+            "r.yaml:4: controller.payload.oru: tool and ORU together exceed 30 kg (the F/T sensor's full scale)");
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: 2, com_m: [0, 0, 0.1]}\n    tare_max_force_n: 0\n"),
+            "r.yaml:4: controller.payload.tare_max_force_n: 0 is outside [0.5, 100] N");
+  EXPECT_EQ(error_of(head + "    tool: {mass_kg: 2, com_m: [0, 0, 0.1], inertia: 1}\n"),
+            "r.yaml:3: controller.payload.tool.inertia: unknown key (expected one of: mass_kg, com_m)");
+}
+
 TEST(DaemonConfig, DefaultsWhenTheSectionIsAbsent) {
   const DaemonConfig c = parse_daemon_config("cycle_rate_hz: 500\n", "r.yaml");
   EXPECT_EQ(c.line, 0);
@@ -79,7 +109,7 @@ TEST(DaemonConfig, BadValuesNameFileLineAndKey) {
   EXPECT_EQ(error_of("controller:\n  speed: 1\n"),
             "r.yaml:2: controller.speed: unknown key (expected one of: start_tolerance_rad, link, reports, journal, "
             "estop_file, tool_poll_hz, default_algorithm_timeout_s, control_lease_s, rate_limit, max_queued_commands, "
-            "max_chain_length, max_upload_wait_s)");
+            "max_chain_length, max_upload_wait_s, payload)");
   EXPECT_EQ(error_of("controller:\n  max_upload_wait_s: 0.5\n"),
             "r.yaml:2: controller.max_upload_wait_s: 0.5 is outside [1, 600] s");
   // The status lists every held command: at most the IDL's MAX_QUEUE.

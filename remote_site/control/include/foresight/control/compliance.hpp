@@ -39,7 +39,16 @@ using foresight::Jacobian;
 using foresight::JointVector;
 using foresight::Vector6;
 
-/// The tool on the sensor (config/robot.urdf: the LST, 2.6 kg).
+/// A mass hanging on the sensor: its mass and centre of mass in the sensor frame.
+struct PayloadMass {
+  double mass_kg = 0.0;
+  Vec3 com_sensor_m{};
+};
+/// Two payloads as one (masses add, centres of mass weighted by mass).
+PayloadMass combined(const PayloadMass& a, const PayloadMass& b) noexcept;
+
+/// The tool on the sensor (config/robot.urdf: the LST, 2.6 kg; the daemon
+/// sets mass and centre of mass from remote.yaml controller.payload.tool).
 struct ToolParams {
   double mass_kg = 2.6;
   Vec3 com_sensor_m{0.015, 0.0, 0.125};  ///< centre of mass in the sensor frame
@@ -63,6 +72,14 @@ class WrenchCompensator {
   /// The reading was tared with the sensor at this orientation: the tool's
   /// weight at that orientation is in the bias and is added back. RT-safe.
   void set_tare_orientation(const Eigen::Matrix3d& base_R_sensor) noexcept;
+  /// What hangs on the sensor now (the tool, plus the ORU while it is carried):
+  /// the weight removed at every orientation from here on. The tare term is
+  /// kept: it is the weight that was on the sensor when it was tared. RT-safe.
+  void set_payload(const PayloadMass& payload) noexcept;
+  PayloadMass payload() const noexcept { return {tool_.mass_kg, tool_.com_sensor_m}; }
+  /// The reading's offset identified with the payload (identify_payload: the
+  /// reading = weight + offset): replaces the tare term. RT-safe.
+  void set_offset(const Wrench6& offset_ft) noexcept;
   /// Reset the filter to `wrench_tool` (e.g. zero after a tare). RT-safe.
   void reset(const Wrench6& wrench_tool = {}) noexcept;
 

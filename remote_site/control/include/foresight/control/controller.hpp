@@ -60,6 +60,7 @@
 #include "foresight/common/robot_model.hpp"
 #include "foresight/control/algorithms.hpp"
 #include "foresight/control/compliance.hpp"
+#include "foresight/control/payload.hpp"
 #include "foresight/control/rate_limiter.hpp"
 #include "foresight/control/rt_types.hpp"
 #include "foresight/control/trajectory_executor.hpp"
@@ -70,7 +71,14 @@ enum class LinkLossPolicy : std::uint8_t { FinishThenHold = 0, Stop };
 
 struct ControllerConfig {
   double cycle_rate_hz = 500.0;
-  ToolParams tool{};
+  ToolParams tool{};                       ///< the tool's mass and centre of mass: what hangs on the sensor alone
+  /// The carried ORU (its mass, its centre of mass in the sensor frame as the
+  /// tool holds it): added to the tool's while SetPayload says it is latched.
+  PayloadMass oru{};
+  /// Tare only out of contact: refused while the compensated force is above
+  /// this (after the first tare or identification: before, the reading has
+  /// no zero to judge contact by).
+  double tare_max_force_n = 10.0;
   WrenchFilterParams filter{};
   AdmittanceParams admittance{};           ///< default compliance (Hold{compliant}, compliant trajectories)
   double start_tolerance_rad = 0.01;       ///< a trajectory must start this close to the commanded joints
@@ -195,6 +203,11 @@ class Controller {
   const Pose& measured_tip() const noexcept { return base_T_tip_; }
   const AlgorithmRunner& algorithm() const noexcept { return algo_; }
   const WrenchCompensator& compensator() const noexcept { return comp_; }
+  /// The payload parts: the tool's, the ORU's (identify_payload updates the
+  /// one it identified), and whether the ORU is latched.
+  const PayloadMass& tool_payload() const noexcept { return tool_payload_; }
+  const PayloadMass& oru_payload() const noexcept { return oru_payload_; }
+  bool oru_latched() const noexcept { return oru_latched_; }
   const Admittance& admittance() const noexcept { return adm_; }
   const JointRateLimiter& rate_limiter() const noexcept { return limiter_; }
 
@@ -248,6 +261,12 @@ class Controller {
   void generate_motion() noexcept;
   void step_trajectory() noexcept;
   void step_algorithm() noexcept;
+  /// identify_payload: the identifier's joints; its result applied at the end.
+  void step_identify() noexcept;
+  /// The compensator's payload: the tool, plus the ORU while latched.
+  void apply_payload() noexcept;
+  /// |F| of the compensated, filtered contact wrench.
+  double force_norm() const noexcept;
   /// The rate limiter on a stiff command, and a command too fast for it; the
   /// joints it limited (a mask).
   std::uint32_t limit_rate(const CycleInputs& in) noexcept;
@@ -322,6 +341,14 @@ class Controller {
   std::uint64_t rate_limited_cycles_ = 0;
   std::array<std::uint32_t, kMaxJoints> rate_limited_joint_cycles_{};
   AlgorithmRunner algo_;
+  PayloadIdentifier ident_;
+  bool identifying_ = false;     // the running algorithm is identify_payload (stiff, in joint space)
+  PayloadMass tool_payload_{}, oru_payload_{};
+  bool oru_latched_ = false;
+  bool zeroed_ = false;          // a tare or an identification set the reading's zero
+  Eigen::Matrix3d base_R_sensor_ = Eigen::Matrix3d::Identity();
+  Wrench6 ft_reading_{};
+  bool ft_fresh_ = false;
 
   std::array<MotionEvent, CycleOutputs::kMaxEvents> pending_events_{};
   std::size_t pending_event_count_ = 0;

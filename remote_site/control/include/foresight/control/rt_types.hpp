@@ -51,9 +51,9 @@ Pose from_rt(const RtPose& pose) noexcept;
 // Parameters, defaults and success/failure criteria: algorithms.hpp and
 // docs/control.md.
 
-enum class AlgorithmKind : std::uint8_t { None = 0, GuardedMove, Insert, PullOut };
+enum class AlgorithmKind : std::uint8_t { None = 0, GuardedMove, Insert, PullOut, IdentifyPayload };
 const char* to_string(AlgorithmKind kind) noexcept;
-/// "guarded_move", "insert", "pull_out" -> kind; None when unknown.
+/// "guarded_move", "insert", "pull_out", "identify_payload" -> kind; None when unknown.
 AlgorithmKind algorithm_from_name(const char* name) noexcept;
 
 /// Frame a direction or a compliance is expressed in. Tool = the tool tip
@@ -78,11 +78,25 @@ struct PullOutParams {
   double timeout_s = 0.0;              ///< 0: 2 x distance / speed + 2 s
 };
 
+/// identify_payload (payload.hpp): static poses reached by stiff wrist
+/// rotations of +-angle_rad from where the arm holds, the F/T averaged at rest
+/// in each, then least squares for mass, centre of mass and the reading's offset.
+struct IdentifyPayloadParams {
+  double angle_rad = 0.2;           ///< wrist rotation of each pose from the start (about 11 degrees)
+  double move_s = 2.0;              ///< each move between poses (smooth, stiff)
+  double settle_s = 0.5;            ///< at the pose and still this long before averaging
+  double window_s = 0.5;            ///< F/T averaged over this window at rest
+  double max_contact_n = 5.0;       ///< refused at the start when the compensated force is above this
+  double max_condition = 100.0;     ///< refused when the poses' regressor is worse conditioned
+  double max_residual_n = 1.0;      ///< refused when the fit leaves more (RMS per pose): contact
+};
+
 struct AlgorithmParams {
   AlgorithmKind kind = AlgorithmKind::None;
   GuardedMoveParams guarded_move{};
   InsertParams insert{};
   PullOutParams pull_out{};
+  IdentifyPayloadParams identify_payload{};
 };
 
 // ---- supervisor -> loop -------------------------------------------------------------
@@ -95,7 +109,8 @@ enum class MotionCommandKind : std::uint8_t {
   Recover,            ///< after a stop: (re-)enable the drives if needed, then hold (Idle)
   Enable,             ///< enable the drives (from Disabled), then hold
   Disable,            ///< hold still then disable the drives (from Idle/Stopped only)
-  Tare,               ///< tare the F/T sensor over tare_samples (from Idle/Stopped; arm still)
+  Tare,               ///< tare the F/T sensor over tare_samples (a stiff hold out of contact; resets the admittance)
+  SetPayload,         ///< the tool latched (oru_latched) or let go of the ORU: the payload the compensator removes
 };
 const char* to_string(MotionCommandKind kind) noexcept;
 
@@ -111,6 +126,7 @@ struct MotionCommand {
   AlgorithmParams algorithm{};         ///< RunAlgorithm
   StopCategory category = StopCategory::Cat2;  ///< Stop
   int tare_samples = 50;               ///< Tare
+  bool oru_latched = false;            ///< SetPayload: the carried ORU hangs on the tool (its weight on the sensor)
 };
 
 // ---- loop -> supervisor ----------------------------------------------------------------
@@ -139,6 +155,12 @@ struct MotionEvent {
   double distance_m = 0.0;
   double peak_force_n = 0.0;
   double spiral_radius_m = 0.0;
+  /// identify_payload (Completed) and SetPayload: the payload the compensator
+  /// removes now (tool, plus the ORU while latched), its centre of mass in the
+  /// sensor frame; identify_payload: the fit's condition number.
+  double payload_mass_kg = 0.0;
+  Vec3 payload_com_m{};
+  double payload_condition = 0.0;
   std::array<char, 96> text{};  ///< readable reason ("insert: force limit 81.2 N > 80 N")
 };
 

@@ -5,6 +5,7 @@
 // E-stop input of the simulated cabinet, trajectory start tolerance.
 // Set-up code only: throws InputError "<file>:<line>: controller.<key> ...".
 
+#include <array>
 #include <cstddef>
 #include <string>
 
@@ -30,6 +31,19 @@ struct JournalSettings {
   double max_mb = 64.0;                       ///< rotate past this size
   int keep_files = 4;                         ///< rotated files kept
   double telemetry_hz = 10.0;                 ///< telemetry rows per second
+};
+
+/// `controller.payload`: what hangs on the wrist F/T sensor (docs/control.md
+/// "Payload"). The tool's mass and centre of mass (sensor frame), the
+/// carried ORU's as the tool holds it (sensor frame), and the largest
+/// compensated force a tare accepts (out of contact).
+struct PayloadSettings {
+  bool configured = false;                     ///< the section is present (then `tool` is required)
+  double tool_mass_kg = 0.0;
+  std::array<double, 3> tool_com_m{};
+  double oru_mass_kg = 0.0;                    ///< 0: no ORU configured (its weight is not compensated)
+  std::array<double, 3> oru_com_m{};
+  double tare_max_force_n = 10.0;
 };
 
 struct DaemonConfig {
@@ -76,6 +90,7 @@ struct DaemonConfig {
   /// The longest a RUN that overtook its upload waits for it to commit
   /// (RunTrajectory.upload_wait_s is capped here): past it the RUN FAILS.
   double max_upload_wait_s = 60.0;
+  PayloadSettings payload;
 };
 
 /// Reads the optional `controller:` section (defaults when absent). Unknown

@@ -162,6 +162,8 @@ class Supervisor {
   void poll_loop();
   void poll_events();
   void poll_tool();
+  /// The ORU latched on (loosen) or off (tighten, unlatch) the tool: SetPayload to the loop, journaled.
+  void tell_payload(bool oru_latched);
   void poll_camera();
   void check_inputs();
   /// The inbox's dropped commands, journaled once a second at most.
