@@ -47,6 +47,10 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
   if (!finite_pos(config.velocity_limit_fraction) || config.velocity_limit_fraction > 1.0)
     throw std::invalid_argument("velocity_limit_fraction must be in (0, 1]");
   if (!finite_pos(config.following_error_rad)) throw std::invalid_argument("following_error_rad must be > 0");
+  if (config.following_error_delay_cycles < 1 ||
+      config.following_error_delay_cycles > static_cast<int>(kFollowingErrorHistory))
+    throw std::invalid_argument("following_error_delay_cycles must be in [1, " +
+                                std::to_string(kFollowingErrorHistory) + "]");
   if (!finite_pos(config.force_limit_n)) throw std::invalid_argument("force_limit_n must be > 0");
   if (!finite_pos(config.torque_limit_nm)) throw std::invalid_argument("torque_limit_nm must be > 0");
   if (!finite_pos(config.stop_decel_fraction)) throw std::invalid_argument("stop_decel_fraction must be > 0");
@@ -81,6 +85,10 @@ Controller::Controller(const RobotModel& model, const ControllerConfig& config)
     upper_[j] = l.upper_rad - config.position_margin_rad;
     vmax_[j] = l.velocity_rad_s * config.velocity_limit_fraction;
     amax_[j] = l.acceleration_rad_s2 * config.stop_decel_fraction;
+    const double fe = config.following_error_joint_rad[j];
+    if (!(fe >= 0.0) || !std::isfinite(fe))
+      throw std::invalid_argument("following_error_joint_rad of joint " + std::to_string(j + 1) + " must be >= 0");
+    fe_limit_[j] = fe > 0.0 ? fe : config.following_error_rad;
     rl.velocity[j] = vmax_[j];
     rl.acceleration[j] = l.acceleration_rad_s2 * config.rate_limit_acceleration_fraction;
     rl.jerk[j] = l.acceleration_rad_s2 * config.rate_limit_jerk_per_s;
@@ -679,13 +687,15 @@ bool Controller::check_safety(const CycleInputs& in) noexcept {
     begin_stop(StopCause::LinkLoss, StopCategory::Cat2, -1, 0.0, 0.0, "link lost (policy: stop)");
     return false;
   }
+  // The command the measurement now shows: sent the loop's latency ago.
+  const JointArray& shown =
+      cmd_history_[(cmd_head_ + kFollowingErrorHistory + 1 - static_cast<std::size_t>(config_.following_error_delay_cycles)) %
+                   kFollowingErrorHistory];
   for (std::size_t j = 0; j < dof_; ++j) {
-    const double fe = std::abs(q_cmd_prev_[j] - q_[j]);
-    if (!(fe <= config_.following_error_rad)) {
-      std::snprintf(buf, sizeof buf, "following error joint %zu: %.4f rad > %.4f rad", j + 1, fe,
-                    config_.following_error_rad);
-      begin_stop(StopCause::FollowingError, StopCategory::Cat1, static_cast<int>(j), fe, config_.following_error_rad,
-                 buf);
+    const double fe = std::abs(shown[j] - q_[j]);
+    if (!(fe <= fe_limit_[j])) {
+      std::snprintf(buf, sizeof buf, "following error joint %zu: %.4f rad > %.4f rad", j + 1, fe, fe_limit_[j]);
+      begin_stop(StopCause::FollowingError, StopCategory::Cat1, static_cast<int>(j), fe, fe_limit_[j], buf);
       return false;
     }
   }
@@ -805,6 +815,7 @@ Pose Controller::measure(const CycleInputs& in, bool joints_ok) noexcept {
     q_prev_ = q_;
     q_cmd_ = q_;
     q_cmd_prev_ = q_;
+    cmd_history_.fill(q_);
   }
   const double a = 1.0 - std::exp(-6.283185307179586 * config_.velocity_filter_hz * dt_);
   for (std::size_t j = 0; j < dof_; ++j) dq_[j] += a * ((q_[j] - q_prev_[j]) / dt_ - dq_[j]);
@@ -1075,6 +1086,8 @@ void Controller::write_outputs(const CycleInputs& in, CycleOutputs& out, bool jo
     for (std::size_t j = 0; j < dof_; ++j)
       if (std::abs(v_cmd_[j]) > vmax_[j]) v_cmd_[j] = v_cmd_[j] > 0 ? vmax_[j] : -vmax_[j];
   q_cmd_prev_ = q_cmd_;
+  cmd_head_ = (cmd_head_ + 1) % kFollowingErrorHistory;
+  cmd_history_[cmd_head_] = q_cmd_;
   // The limiter's state is what was sent: it follows the stops' own ramps and
   // rests with the arm while the drives are off.
   if (mode_ == ControllerMode::Disabled || mode_ == ControllerMode::Fault)

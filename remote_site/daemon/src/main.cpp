@@ -206,6 +206,14 @@ control::ControllerConfig controller_config(const daemon::DaemonConfig& config, 
   cc.rate_limit_jerk_per_s = config.rate_limit_jerk_per_s;
   cc.rate_limit_compliant_acceleration_fraction = config.rate_limit_compliant_acceleration_fraction;
   cc.drive_velocity_max_age_cycles = 2 * site.hw_config.velocity_tpdo_every;  // 0: TPDO2 not mapped
+  // The following error as the drives see it: against the command the loop's
+  // latency ago (a target written in cycle k is latched at SYNC k+1, reached
+  // and sampled at SYNC k+2, read in cycle k+3), at 0.8 of each drive's own
+  // window (0x6065), so the master stops the arm (Cat1, with its evidence)
+  // before a drive faults on it (Cat0).
+  cc.following_error_delay_cycles = 3;
+  for (std::size_t j = 0; j < site.hw_config.drives.size() && j < control::kMaxJoints; ++j)
+    cc.following_error_joint_rad[j] = 0.8 * site.hw_config.drives[j].following_error_limit_rad;
   cc.link_loss = config.link_loss_policy == daemon::LinkLossPolicy::Stop ? control::LinkLossPolicy::Stop
                                                                          : control::LinkLossPolicy::FinishThenHold;
   // The payload (docs/control.md "Payload"): controller.payload, the tool's

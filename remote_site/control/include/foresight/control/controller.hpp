@@ -85,7 +85,16 @@ struct ControllerConfig {
   // Safety limits, checked every cycle.
   double position_margin_rad = 0.0;        ///< q_cmd must stay inside [lower + m, upper - m]
   double velocity_limit_fraction = 1.0;    ///< of the URDF joint velocity limit
-  double following_error_rad = 0.05;       ///< |q_cmd - q| per joint (the drives' own window is 0.02-0.03)
+  /// Following error: |q_cmd(k - following_error_delay_cycles) - q(k)| per
+  /// joint, the command compared with what the measurement can show of it
+  /// (the loop's latency: 1 when the next cycle's reading sees the command,
+  /// 3 on the bus, docs/hardware.md "Frame order and loop delay"), Cat1 over
+  /// the limit: following_error_joint_rad[j] where set (> 0; the daemon: 0.8 x
+  /// the drive's own window 0x6065, so the master stops the arm before the
+  /// drive faults), else following_error_rad.
+  double following_error_rad = 0.05;
+  JointArray following_error_joint_rad{};
+  int following_error_delay_cycles = 1;   ///< 1..kFollowingErrorHistory
   double force_limit_n = 150.0;            ///< |F| of the compensated contact force
   double torque_limit_nm = 15.0;           ///< |T| about the tip
   double stop_decel_fraction = 1.0;        ///< controlled stops: of the URDF acceleration limits
@@ -323,6 +332,10 @@ class Controller {
   std::array<char, 96> path_cancel_text_{};  // the Canceled event's text, sent at rest
 
   JointArray q_{}, q_prev_{}, dq_{}, q_cmd_{}, q_cmd_prev_{}, q_hold_{}, v_cmd_{};
+  static constexpr std::size_t kFollowingErrorHistory = 8;
+  std::array<JointArray, kFollowingErrorHistory> cmd_history_{};  // the commands sent, newest at cmd_head_
+  std::size_t cmd_head_ = 0;
+  JointArray fe_limit_{};  // per joint
   bool have_q_ = false;
   Pose base_T_tip_ = Pose::Identity();
   Pose base_T_tip_cmd_ = Pose::Identity();
