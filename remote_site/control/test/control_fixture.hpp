@@ -22,6 +22,8 @@
 #include "foresight/common/scene.hpp"
 #include "foresight/common/trajectory.hpp"
 #include "foresight/control/controller.hpp"
+#include "foresight/hw/remote_config.hpp"
+#include "foresight/sim/can_simulator.hpp"
 #include "foresight/sim/contact_model.hpp"
 #include "foresight/sim/plant.hpp"
 
@@ -275,5 +277,29 @@ struct OruHandling {
     return plant.step(qv, qd, tool).state;
   }
 };
+
+/// For a SimRig's before_start: every simulated drive at the joints `q`
+/// (rad), and with `contact` the simulated F/T sensor reading the ORU contact
+/// model at the arm's pose (contact only, no weights: as if tared).
+inline void place_arm(sim::CanSimulator& s, const hw::RemoteConfig& config, const Eigen::VectorXd& q,
+                      std::shared_ptr<const sim::ContactModel> contact = nullptr, const Pose& base_T_oru = Pose::Identity()) {
+  for (std::size_t j = 0; j < config.drives.size(); ++j) {
+    std::int32_t counts = 0;
+    ASSERT_TRUE(config.drives[j].to_counts(q(static_cast<Eigen::Index>(j)), counts));
+    s.drive(j).set_position_counts(counts);
+  }
+  if (!contact) return;
+  auto ws = std::make_shared<KinematicsWorkspace>(robot());
+  auto q_sim = std::make_shared<std::vector<double>>(config.drives.size());
+  sim::CanSimulator* simulator = &s;
+  s.ft_sensor()->set_wrench_source([contact, ws, q_sim, simulator, base_T_oru]() {
+    simulator->joint_positions_rad(*q_sim);
+    const Eigen::Map<const Eigen::VectorXd> qm(q_sim->data(), static_cast<Eigen::Index>(q_sim->size()));
+    const sim::ContactResult r = contact->compute(forward_kinematics(robot(), *ws, qm), base_T_oru);
+    const Eigen::Vector3d& f = r.sensor.force_n;
+    const Eigen::Vector3d& m = r.sensor.torque_nm;
+    return sim::SimFtSensor::Wrench{f.x(), f.y(), f.z(), m.x(), m.y(), m.z()};
+  });
+}
 
 }  // namespace foresight::control::test

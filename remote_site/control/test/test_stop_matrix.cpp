@@ -75,25 +75,8 @@ TEST_P(StopMatrix, TheDrivesOwnRecordShowsTheStop) {
   KinematicsWorkspace ws(robot());
   const IkResult ik = inverse_kinematics(robot(), ws, start, robot().mid_configuration());
   ASSERT_TRUE(ik.success);
-  auto sim_ws = std::make_shared<KinematicsWorkspace>(robot());
-  auto q_sim = std::make_shared<std::vector<double>>(config.drives.size());
-  const bool in_contact = sc.mode == Mode::Insert;
   foresight::test::SimRig rig(config, hw::joint_limits_by_name(robot()), [&](sim::CanSimulator& s) {
-    for (std::size_t j = 0; j < config.drives.size(); ++j) {
-      std::int32_t counts = 0;
-      ASSERT_TRUE(config.drives[j].to_counts(ik.q(static_cast<Eigen::Index>(j)), counts));
-      s.drive(j).set_position_counts(counts);
-    }
-    if (!in_contact) return;
-    sim::CanSimulator* simulator = &s;
-    s.ft_sensor()->set_wrench_source([contact, sim_ws, q_sim, simulator, base_T_oru]() {
-      simulator->joint_positions_rad(*q_sim);
-      const Eigen::Map<const Eigen::VectorXd> q(q_sim->data(), static_cast<Eigen::Index>(q_sim->size()));
-      const sim::ContactResult r = contact->compute(forward_kinematics(robot(), *sim_ws, q), base_T_oru);
-      const Eigen::Vector3d& f = r.sensor.force_n;
-      const Eigen::Vector3d& m = r.sensor.torque_nm;
-      return sim::SimFtSensor::Wrench{f.x(), f.y(), f.z(), m.x(), m.y(), m.z()};
-    });
+    place_arm(s, config, ik.q, sc.mode == Mode::Insert ? contact : nullptr, base_T_oru);
   });
   rig.drives->configure();
   ControllerConfig cc;
