@@ -21,8 +21,7 @@
 #include "foresight/common/scene.hpp"
 #include "foresight/control/control_loop.hpp"
 #include "foresight/sim/contact_model.hpp"
-#include "foresight/test/eventually.hpp"
-#include "sim_fixture.hpp"
+#include "loop_fixture.hpp"
 
 namespace foresight::control::test {
 namespace {
@@ -51,20 +50,13 @@ std::string case_name(const ::testing::TestParamInfo<StopCase>& info) {
          std::to_string(static_cast<int>(info.param.category) - static_cast<int>(StopCategory::Cat0));
 }
 
-template <class Pred>
-bool eventually(Pred pred, double seconds) {
-  return foresight::test::eventually(std::move(pred), seconds, std::chrono::milliseconds(1));
-}
-
 std::uint32_t bit(PowerState s) { return 1u << static_cast<unsigned>(s); }
 
 class StopMatrix : public ::testing::TestWithParam<StopCase> {};
 
 TEST_P(StopMatrix, TheDrivesOwnRecordShowsTheStop) {
   const StopCase sc = GetParam();
-  hw::RemoteConfig config = foresight::test::project_config();
-  config.tpdo_miss_limit = 250;  // a descheduled simulator on a loaded machine is not a silent drive
-  config.heartbeat_consumer_s = 1.0;
+  const hw::RemoteConfig config = loop_test_config();
 
   // The insert starts 1 cm in front of the hole, 2 mm off its axis, against
   // the contact model; the other modes from the same pose, in free space.
@@ -84,33 +76,17 @@ TEST_P(StopMatrix, TheDrivesOwnRecordShowsTheStop) {
   cc.tool.mass_kg = 0.0;  // the simulated sensor reads contact only
   ControlLoop loop(*rig.drives, robot(), cc);
   loop.start();
-  std::vector<MotionEvent> events;
-  std::vector<StopEvent> stops;
-  TelemetrySample last{};
-  const auto drain = [&] {
-    MotionEvent e;
-    while (loop.poll_event(e)) events.push_back(e);
-    StopEvent s;
-    while (loop.poll_stop(s)) stops.push_back(s);
-    TelemetrySample t;
-    while (loop.poll_telemetry(t)) last = t;
-  };
-  const auto final_of = [&](std::uint64_t id) -> const MotionEvent* {
-    drain();
-    for (const auto& e : events)
-      if (e.command_id == id && is_final(e.kind)) return &e;
-    return nullptr;
-  };
+  Collector col(loop);
   MotionCommand en;
   en.command_id = 1;
   en.kind = MotionCommandKind::Enable;
   ASSERT_TRUE(loop.send(en));
-  ASSERT_TRUE(eventually([&] { return final_of(1) != nullptr; }, 15.0));
-  ASSERT_EQ(final_of(1)->kind, MotionEventKind::Completed) << final_of(1)->text.data();
-  ASSERT_TRUE(eventually([&] { drain(); return last.mode == ControllerMode::Idle && last.drives_enabled; }, 5.0));
+  ASSERT_TRUE(eventually([&] { return col.final_of(1) != nullptr; }, 15.0));
+  ASSERT_EQ(col.final_of(1)->kind, MotionEventKind::Completed) << col.final_of(1)->text.data();
+  ASSERT_TRUE(eventually([&] { col.drain(); return col.last.mode == ControllerMode::Idle && col.last.drives_enabled; }, 5.0));
 
   // The motion, running when the stop comes.
-  const JointArray q0 = last.q_cmd;
+  const JointArray q0 = col.last.q_cmd;
   Eigen::VectorXd q0v(robot().dof());
   for (int j = 0; j < robot().dof(); ++j) q0v(j) = q0[static_cast<std::size_t>(j)];
   Trajectory t;
@@ -158,24 +134,24 @@ TEST_P(StopMatrix, TheDrivesOwnRecordShowsTheStop) {
   const Pose tip0 = forward_kinematics(robot(), ws, q0v);
   const auto tip_moved = [&] {
     Eigen::VectorXd q(robot().dof());
-    for (int j = 0; j < robot().dof(); ++j) q(j) = last.q_cmd[static_cast<std::size_t>(j)];
+    for (int j = 0; j < robot().dof(); ++j) q(j) = col.last.q_cmd[static_cast<std::size_t>(j)];
     return (forward_kinematics(robot(), ws, q).translation() - tip0.translation()).norm();
   };
   ASSERT_TRUE(eventually([&] {
-    drain();
+    col.drain();
     switch (sc.mode) {
-      case Mode::Trajectory: return std::abs(last.q_cmd[0] - q0[0]) > 0.1;  // at 0.22 rad/s
+      case Mode::Trajectory: return std::abs(col.last.q_cmd[0] - q0[0]) > 0.1;  // at 0.22 rad/s
       case Mode::ToolLine: return tip_moved() > 0.05;                        // at 0.1 m/s
       case Mode::Insert: {
-        const double f = Eigen::Vector3d(last.wrench_tool[0], last.wrench_tool[1], last.wrench_tool[2]).norm();
+        const double f = Eigen::Vector3d(col.last.wrench_tool[0], col.last.wrench_tool[1], col.last.wrench_tool[2]).norm();
         return f > 5.0;  // on the face, beside the hole
       }
-      case Mode::CompliantHold: return final_of(2) != nullptr;
+      case Mode::CompliantHold: return col.final_of(2) != nullptr;
     }
     return false;
   }, 20.0));
   if (sc.mode != Mode::CompliantHold) {
-    ASSERT_EQ(final_of(2), nullptr) << "still running when the stop comes";
+    ASSERT_EQ(col.final_of(2), nullptr) << "still running when the stop comes";
   }
 
   // The stop, with a fresh record on every drive.
@@ -187,14 +163,14 @@ TEST_P(StopMatrix, TheDrivesOwnRecordShowsTheStop) {
   stop.category = sc.category;
   ASSERT_TRUE(loop.send(stop));
   const ControllerMode rest = sc.category == StopCategory::Cat2 ? ControllerMode::Stopped : ControllerMode::Fault;
-  ASSERT_TRUE(eventually([&] { drain(); return last.mode == rest && (rest == ControllerMode::Stopped || !last.drives_enabled); }, 10.0))
-      << "mode " << static_cast<int>(last.mode);
+  ASSERT_TRUE(eventually([&] { col.drain(); return col.last.mode == rest && (rest == ControllerMode::Stopped || !col.last.drives_enabled); }, 10.0))
+      << "mode " << static_cast<int>(col.last.mode);
   if (sc.mode != Mode::CompliantHold) {
-    ASSERT_NE(final_of(2), nullptr);
-    EXPECT_EQ(final_of(2)->kind, MotionEventKind::Canceled) << final_of(2)->text.data();
+    ASSERT_NE(col.final_of(2), nullptr);
+    EXPECT_EQ(col.final_of(2)->kind, MotionEventKind::Canceled) << col.final_of(2)->text.data();
   }
-  ASSERT_FALSE(stops.empty());
-  EXPECT_EQ(stops.back().category, sc.category);
+  ASSERT_FALSE(col.stops.empty());
+  EXPECT_EQ(col.stops.back().category, sc.category);
 
   // Nothing moves after the stop: the simulated arm over 300 ms.
   std::vector<double> q_a(config.drives.size()), q_b(config.drives.size());
